@@ -1,0 +1,371 @@
+//! Typed errors.
+//!
+//! Every failure the library can meet on user input or in the numerics is a
+//! variant here that names *what* is wrong and *where* (file line, face,
+//! vertex, constraint index, pivot). The library never panics on user input
+//! and never returns non-finite positions: a solve that would produce them
+//! returns a [`NumericalError`] instead.
+//!
+//! Errors fall into two classes, which the CLI maps to exit codes:
+//! bad input ([`Error::is_input_error`], exit code 2) and numerical failure
+//! (exit code 3).
+
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+/// Any error of the crate.
+#[derive(Debug, Error)]
+pub enum Error {
+    /// The mesh file or mesh data is invalid.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// The constraints file or a constraint is invalid.
+    #[error(transparent)]
+    Constraint(#[from] ConstraintError),
+    /// Mesh and constraints are valid on their own but do not form a
+    /// solvable problem (detected before any factorisation).
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// A factorisation or solve failed numerically.
+    #[error(transparent)]
+    Numerical(#[from] NumericalError),
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl Error {
+    /// `true` for errors caused by the input (mesh, constraints, files),
+    /// `false` for numerical failures.
+    pub fn is_input_error(&self) -> bool {
+        !matches!(self, Error::Numerical(_))
+    }
+
+    /// The process exit code the CLI uses for this error: 2 for bad input,
+    /// 3 for numerical failure.
+    pub fn exit_code(&self) -> i32 {
+        if self.is_input_error() { 2 } else { 3 }
+    }
+
+    /// Wraps an I/O error with the path it happened on.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}
+
+/// Result type of the crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// An invalid mesh file or invalid mesh data. Indices are 0-based unless the
+/// message says "line", which is 1-based as in an editor.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum MeshError {
+    /// The file could not be parsed.
+    #[error("{format} parse error{}: {message}", line.map(|l| format!(" at line {l}")).unwrap_or_default())]
+    Parse {
+        /// File format ("OBJ", "PLY", "OFF").
+        format: &'static str,
+        /// 1-based line of the problem, where the format has lines.
+        line: Option<usize>,
+        /// What is wrong.
+        message: String,
+    },
+    /// The file extension names no supported format.
+    #[error("unsupported mesh format '{extension}' (expected .obj, .ply or .off, optionally .gz)")]
+    UnsupportedFormat {
+        /// The extension found.
+        extension: String,
+    },
+    /// The mesh has no vertices or no faces.
+    #[error("empty mesh: {vertices} vertices and {faces} faces (need at least one triangle)")]
+    Empty {
+        /// Vertex count.
+        vertices: usize,
+        /// Face count.
+        faces: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite coordinate {value}")]
+    NonFiniteCoordinate {
+        /// Vertex index.
+        vertex: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// A face refers to a vertex that does not exist.
+    #[error("face {face} refers to vertex {index}, but the mesh has {vertex_count} vertices")]
+    IndexOutOfRange {
+        /// Face index.
+        face: usize,
+        /// The index as resolved to 0-based (may be negative if the file's
+        /// index was).
+        index: i64,
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// A face has fewer than three vertices or is not a triangle where the
+    /// format requires triangles.
+    #[error("face {face} has {sides} vertices; only polygons with at least 3 are allowed")]
+    BadFaceSize {
+        /// Face index.
+        face: usize,
+        /// Its number of vertices.
+        sides: usize,
+    },
+    /// A face uses the same vertex twice.
+    #[error("face {face} uses vertex {vertex} twice (a degenerate face)")]
+    RepeatedVertex {
+        /// Face index.
+        face: usize,
+        /// The repeated vertex.
+        vertex: usize,
+    },
+    /// A face has (numerically) zero area.
+    #[error(
+        "face {face} (vertices {vertices:?}) has zero area ({area:e}): its angles and cotangent weights are undefined"
+    )]
+    DegenerateFace {
+        /// Face index.
+        face: usize,
+        /// Its vertices.
+        vertices: [usize; 3],
+        /// Its area.
+        area: f64,
+    },
+    /// Two faces use the same three vertices.
+    #[error("face {face} repeats face {first} (same vertices {vertices:?})")]
+    DuplicateFace {
+        /// The later face.
+        face: usize,
+        /// The earlier face with the same vertices.
+        first: usize,
+        /// The shared vertices.
+        vertices: [usize; 3],
+    },
+    /// A vertex is used by no face.
+    #[error(
+        "vertex {vertex} is used by no face ({count} unreferenced vertices in all): it has no Laplacian row, which makes the system singular; remove unreferenced vertices from the mesh (renumbering the faces and constraints) before deforming it"
+    )]
+    UnreferencedVertex {
+        /// The first unreferenced vertex.
+        vertex: usize,
+        /// How many there are.
+        count: usize,
+    },
+    /// A generator parameter is out of its range.
+    #[error("invalid parameter {name}: {message}")]
+    BadParameter {
+        /// The parameter.
+        name: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// The file is larger than the configured limit.
+    #[error("{what} too large: {detail}")]
+    TooLarge {
+        /// What is too large.
+        what: &'static str,
+        /// The estimate and the limit.
+        detail: String,
+    },
+}
+
+/// An invalid constraints file or constraint. `index` is the 0-based position
+/// of the constraint in the file's `constraints` array.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ConstraintError {
+    /// The file is not valid JSON or not of the expected shape.
+    #[error("constraints file: malformed JSON at line {line}, column {column}: {message}")]
+    Json {
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What the parser said.
+        message: String,
+    },
+    /// The top level is not an object with a `constraints` array.
+    #[error("constraints file: {message}")]
+    Shape {
+        /// What is wrong.
+        message: String,
+    },
+    /// `type` is not one of position, edge, face, relative.
+    #[error("constraint {index}: unknown type '{found}' (expected position, edge, face or relative)")]
+    UnknownType {
+        /// Constraint index.
+        index: usize,
+        /// The type found.
+        found: String,
+    },
+    /// A required field is missing or has the wrong JSON type.
+    #[error("constraint {index}: field '{field}' {problem}")]
+    BadField {
+        /// Constraint index.
+        index: usize,
+        /// The field.
+        field: &'static str,
+        /// "is missing", "must be an array of 3 numbers", ...
+        problem: String,
+    },
+    /// A vertex index is not in the mesh.
+    #[error("constraint {index}: vertex {vertex} is out of range (the mesh has {vertex_count} vertices)")]
+    VertexOutOfRange {
+        /// Constraint index.
+        index: usize,
+        /// The vertex.
+        vertex: u64,
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// The same vertex appears twice in one constraint.
+    #[error("constraint {index}: vertex {vertex} appears twice")]
+    RepeatedVertex {
+        /// Constraint index.
+        index: usize,
+        /// The vertex.
+        vertex: usize,
+    },
+    /// A number is NaN or infinite.
+    #[error("constraint {index}: '{field}' is not finite")]
+    NonFinite {
+        /// Constraint index.
+        index: usize,
+        /// The field.
+        field: &'static str,
+    },
+    /// A weight is zero, negative, NaN or infinite.
+    #[error("constraint {index}: weight {weight} is invalid (must be finite and > 0)")]
+    InvalidWeight {
+        /// Constraint index.
+        index: usize,
+        /// The weight.
+        weight: f64,
+    },
+    /// The file holds more constraints than the configured limit.
+    #[error("constraints file too large: {detail}")]
+    TooLarge {
+        /// The estimate and the limit.
+        detail: String,
+    },
+}
+
+/// Mesh and constraints that are each valid but do not define a unique
+/// solution. Detected before any factorisation.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ProblemError {
+    /// No constraints at all.
+    #[error("no constraints: a Laplacian deformation needs at least one constraint that fixes a position")]
+    NoConstraints,
+    /// The chosen method needs at least one hard constraint.
+    #[error(
+        "no hard constraints: the null-space QR method needs at least one; give one constraint without \"weight\" or use --method penalty for soft-only problems"
+    )]
+    NoHardConstraints,
+    /// A mesh component is free to translate.
+    #[error(
+        "mesh component {component} ({vertices} vertices, e.g. vertex {example_vertex}) is not pinned: no position, edge or face constraint touches it (relative constraints alone leave it free to translate), so the system is singular; add a constraint on it"
+    )]
+    UnpinnedComponent {
+        /// Component index (components numbered by their smallest vertex).
+        component: usize,
+        /// Its vertex count.
+        vertices: usize,
+        /// One of its vertices.
+        example_vertex: usize,
+    },
+    /// A method got constraints it does not support.
+    #[error("{method} does not support constraint {index} ({kind}): {reason}")]
+    Unsupported {
+        /// The method.
+        method: String,
+        /// Constraint index.
+        index: usize,
+        /// Its kind.
+        kind: &'static str,
+        /// Why.
+        reason: &'static str,
+    },
+    /// The system would be too large to factor within the configured limits.
+    #[error("system too large: {detail}")]
+    TooLarge {
+        /// The estimate and the limit.
+        detail: String,
+    },
+    /// A target update refers to a constraint that does not exist or has the
+    /// wrong kind.
+    #[error("target update: {message}")]
+    BadUpdate {
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// A numerical failure. Never silently compromised: the solve stops here.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum NumericalError {
+    /// Cholesky met a pivot that is not positive.
+    #[error(
+        "{matrix} is not numerically positive definite: pivot of unknown {unknown}{} is {pivot:e}",
+        vertex.map(|v| format!(" (vertex {v})")).unwrap_or_default()
+    )]
+    NotPositiveDefinite {
+        /// Which matrix.
+        matrix: String,
+        /// Unknown index in the original (unpermuted) ordering of that matrix.
+        unknown: usize,
+        /// The mesh vertex of that unknown, if it corresponds to one.
+        vertex: Option<usize>,
+        /// The pivot value (≤ 0, or NaN).
+        pivot: f64,
+    },
+    /// Cholesky completed but a pivot lost all its significant digits.
+    #[error(
+        "{matrix}: factorisation broke down at unknown {unknown}{}: pivot/diagonal = {ratio:e} is below the breakdown threshold {threshold:e} (all significant digits cancelled)",
+        vertex.map(|v| format!(" (vertex {v})")).unwrap_or_default()
+    )]
+    Breakdown {
+        /// Which matrix.
+        matrix: String,
+        /// Unknown index in the original ordering.
+        unknown: usize,
+        /// The mesh vertex of that unknown, if any.
+        vertex: Option<usize>,
+        /// `L_kk² / A_kk`.
+        ratio: f64,
+        /// The threshold it fell below.
+        threshold: f64,
+    },
+    /// A symmetric indefinite (KKT) system is singular.
+    #[error("{matrix} is singular: {detail}")]
+    Singular {
+        /// Which matrix.
+        matrix: String,
+        /// Where and why.
+        detail: String,
+    },
+    /// The solve produced a non-finite value.
+    #[error("solve produced a non-finite position at vertex {vertex}")]
+    NonFiniteSolution {
+        /// The first vertex with a non-finite coordinate.
+        vertex: usize,
+    },
+    /// A back end reported an error.
+    #[error("{backend}: {message}")]
+    Backend {
+        /// The back end.
+        backend: String,
+        /// Its message.
+        message: String,
+    },
+}

@@ -1,0 +1,1 @@
+//! Procedurally generated meshes, for use without any mesh file.

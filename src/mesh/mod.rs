@@ -1,0 +1,222 @@
+//! Triangle meshes: the [`Mesh`] type, its validation, file I/O (OBJ, PLY,
+//! OFF), procedurally generated meshes, topology and triangle quality.
+//!
+//! A [`Mesh`] is always valid: every constructor checks the invariants below
+//! and returns a typed [`MeshError`] naming the offending element otherwise.
+//!
+//! Invariants of a `Mesh`:
+//! - at least one vertex and one face;
+//! - every coordinate finite;
+//! - every face index `< n_vertices`, no face repeating a vertex;
+//! - no face of (numerically) zero area: `|e1 × e2| > 64 ε ℓ²`, with `ℓ`
+//!   the face's longest edge — below that bound the cross product is
+//!   rounding noise and the face's angles are undefined;
+//! - no two faces with the same vertex set;
+//! - every vertex used by at least one face (an unreferenced vertex has an
+//!   empty Laplacian row and makes every system singular).
+//!
+//! Non-manifold edges (more than two faces) are *accepted* and reported by
+//! [`Mesh::warnings`]: every operator of this crate is assembled face by face
+//! (the discrete Dirichlet energy is a sum over triangles), so it stays well
+//! defined on a non-manifold complex, and scans and CAD exports often carry a
+//! few such edges that carry no numerical risk. Operators that need a
+//! manifold surface (the intrinsic Delaunay Laplacian) refuse them with an
+//! error of their own.
+
+use crate::error::MeshError;
+
+pub mod generate;
+pub mod io;
+pub mod quality;
+pub mod topology;
+
+pub use io::{LoadedMesh, MeshFormat, read_mesh, write_mesh};
+pub use quality::Quality;
+pub use topology::Topology;
+
+/// A valid triangle mesh (see the module documentation for the invariants).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mesh {
+    positions: Vec<[f64; 3]>,
+    faces: Vec<[usize; 3]>,
+}
+
+/// Something about a valid mesh a user should know.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MeshWarning {
+    /// An edge shared by more than two faces.
+    NonManifoldEdge {
+        /// The edge's vertices (smaller first).
+        edge: [usize; 2],
+        /// Number of faces using it.
+        faces: usize,
+        /// Total number of non-manifold edges in the mesh.
+        total: usize,
+    },
+}
+
+impl std::fmt::Display for MeshWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MeshWarning::NonManifoldEdge { edge, faces, total } => write!(
+                f,
+                "{total} non-manifold edge(s), e.g. edge ({}, {}) used by {faces} faces; operators are assembled per face and stay well defined",
+                edge[0], edge[1]
+            ),
+        }
+    }
+}
+
+impl Mesh {
+    /// Builds a mesh, checking every invariant of the module documentation.
+    pub fn new(positions: Vec<[f64; 3]>, faces: Vec<[usize; 3]>) -> Result<Mesh, MeshError> {
+        validate(&positions, &faces)?;
+        Ok(Mesh { positions, faces })
+    }
+
+    /// Vertex positions, in file order.
+    pub fn positions(&self) -> &[[f64; 3]] {
+        &self.positions
+    }
+
+    /// Triangles (vertex indices, counter-clockwise as given).
+    pub fn faces(&self) -> &[[usize; 3]] {
+        &self.faces
+    }
+
+    /// Number of vertices.
+    pub fn n_vertices(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of faces.
+    pub fn n_faces(&self) -> usize {
+        self.faces.len()
+    }
+
+    /// A copy of this mesh with other positions (same connectivity), e.g. the
+    /// deformed mesh. Fails if a position is not finite, or the count differs.
+    pub fn with_positions(&self, positions: Vec<[f64; 3]>) -> Result<Mesh, MeshError> {
+        if positions.len() != self.positions.len() {
+            return Err(MeshError::Parse {
+                format: "positions",
+                line: None,
+                message: format!(
+                    "expected {} positions, got {}",
+                    self.positions.len(),
+                    positions.len()
+                ),
+            });
+        }
+        for (v, p) in positions.iter().enumerate() {
+            if let Some(&value) = p.iter().find(|c| !c.is_finite()) {
+                return Err(MeshError::NonFiniteCoordinate { vertex: v, value });
+            }
+        }
+        Ok(Mesh {
+            positions,
+            faces: self.faces.clone(),
+        })
+    }
+
+    /// Axis-aligned bounding box `(min, max)`.
+    pub fn bounding_box(&self) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &self.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Length of the bounding box diagonal: the length scale that absolute
+    /// tolerances (constraint residuals) are measured against.
+    pub fn bbox_diagonal(&self) -> f64 {
+        let (lo, hi) = self.bounding_box();
+        ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt()
+    }
+
+    /// Warnings about a valid mesh (non-manifold edges).
+    pub fn warnings(&self) -> Vec<MeshWarning> {
+        topology::non_manifold_warning(self).into_iter().collect()
+    }
+}
+
+/// Checks the invariants of the module documentation, reporting the first
+/// violation in this order: empty, non-finite coordinate, index out of range,
+/// repeated vertex, degenerate face, duplicate face, unreferenced vertex.
+pub fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), MeshError> {
+    if positions.is_empty() || faces.is_empty() {
+        return Err(MeshError::Empty {
+            vertices: positions.len(),
+            faces: faces.len(),
+        });
+    }
+    for (v, p) in positions.iter().enumerate() {
+        if let Some(&value) = p.iter().find(|c| !c.is_finite()) {
+            return Err(MeshError::NonFiniteCoordinate { vertex: v, value });
+        }
+    }
+    let n = positions.len();
+    let mut used = vec![false; n];
+    for (f, face) in faces.iter().enumerate() {
+        for &i in face {
+            if i >= n {
+                return Err(MeshError::IndexOutOfRange {
+                    face: f,
+                    index: i64::try_from(i).unwrap_or(i64::MAX),
+                    vertex_count: n,
+                });
+            }
+        }
+        let [a, b, c] = *face;
+        if a == b || a == c {
+            return Err(MeshError::RepeatedVertex { face: f, vertex: a });
+        }
+        if b == c {
+            return Err(MeshError::RepeatedVertex { face: f, vertex: b });
+        }
+        let area = quality::triangle_area(positions[a], positions[b], positions[c]);
+        let l2 = quality::longest_edge_sq(positions[a], positions[b], positions[c]);
+        // |e1 × e2| = 2·area; the rounding error of the cross product is a few
+        // ε·ℓ², so below 64 ε ℓ² the area is noise.
+        if !(2.0 * area > 64.0 * f64::EPSILON * l2) {
+            return Err(MeshError::DegenerateFace {
+                face: f,
+                vertices: *face,
+                area,
+            });
+        }
+        used[a] = true;
+        used[b] = true;
+        used[c] = true;
+    }
+    let mut keyed: Vec<([usize; 3], usize)> = faces
+        .iter()
+        .enumerate()
+        .map(|(f, face)| {
+            let mut k = *face;
+            k.sort_unstable();
+            (k, f)
+        })
+        .collect();
+    keyed.sort_unstable();
+    for w in keyed.windows(2) {
+        if w[0].0 == w[1].0 {
+            let (first, face) = (w[0].1.min(w[1].1), w[0].1.max(w[1].1));
+            return Err(MeshError::DuplicateFace {
+                face,
+                first,
+                vertices: faces[face],
+            });
+        }
+    }
+    if let Some(vertex) = used.iter().position(|u| !u) {
+        let count = used.iter().filter(|u| !**u).count();
+        return Err(MeshError::UnreferencedVertex { vertex, count });
+    }
+    Ok(())
+}
