@@ -201,7 +201,9 @@ pub enum ConstraintError {
         message: String,
     },
     /// `type` is not one of position, edge, face, relative.
-    #[error("constraint {index}: unknown type '{found}' (expected position, edge, face or relative)")]
+    #[error(
+        "constraint {index}: unknown type '{found}' (expected position, edge, face or relative)"
+    )]
     UnknownType {
         /// Constraint index.
         index: usize,
@@ -218,8 +220,25 @@ pub enum ConstraintError {
         /// "is missing", "must be an array of 3 numbers", ...
         problem: String,
     },
+    /// A field that the constraint's type does not have (a typo such as
+    /// "wieght" must not silently turn a soft constraint into a hard one).
+    #[error(
+        "constraint {index}: unknown field '{field}' for a {kind} constraint (allowed: {allowed})"
+    )]
+    UnknownField {
+        /// Constraint index.
+        index: usize,
+        /// The field found.
+        field: String,
+        /// The constraint's type.
+        kind: String,
+        /// The allowed fields.
+        allowed: String,
+    },
     /// A vertex index is not in the mesh.
-    #[error("constraint {index}: vertex {vertex} is out of range (the mesh has {vertex_count} vertices)")]
+    #[error(
+        "constraint {index}: vertex {vertex} is out of range (the mesh has {vertex_count} vertices)"
+    )]
     VertexOutOfRange {
         /// Constraint index.
         index: usize,
@@ -265,7 +284,9 @@ pub enum ConstraintError {
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum ProblemError {
     /// No constraints at all.
-    #[error("no constraints: a Laplacian deformation needs at least one constraint that fixes a position")]
+    #[error(
+        "no constraints: a Laplacian deformation needs at least one constraint that fixes a position"
+    )]
     NoConstraints,
     /// The chosen method needs at least one hard constraint.
     #[error(
@@ -316,8 +337,9 @@ pub enum ProblemError {
 pub enum NumericalError {
     /// Cholesky met a pivot that is not positive.
     #[error(
-        "{matrix} is not numerically positive definite: pivot of unknown {unknown}{} is {pivot:e}",
-        vertex.map(|v| format!(" (vertex {v})")).unwrap_or_default()
+        "{matrix} is not numerically positive definite: the pivot of unknown {unknown}{} is not positive{}",
+        vertex.map(|v| format!(" (vertex {v})")).unwrap_or_default(),
+        pivot.map(|p| format!(" ({p:e})")).unwrap_or_default()
     )]
     NotPositiveDefinite {
         /// Which matrix.
@@ -326,8 +348,8 @@ pub enum NumericalError {
         unknown: usize,
         /// The mesh vertex of that unknown, if it corresponds to one.
         vertex: Option<usize>,
-        /// The pivot value (≤ 0, or NaN).
-        pivot: f64,
+        /// The pivot value (≤ 0, or NaN), where the back end reports it.
+        pivot: Option<f64>,
     },
     /// Cholesky completed but a pivot lost all its significant digits.
     #[error(

@@ -1,12 +1,38 @@
 //! # lse-deform
 //!
 //! Laplacian mesh deformation with hard and soft constraints by the
-//! constrained least-squares method of Masuda, Yoshioka & Furukawa
-//! (SMI 2006).
+//! constrained least-squares method of Masuda, Yoshioka & Furukawa,
+//! "A Constrained Least Squares Approach to Interactive Mesh Deformation"
+//! (SMI 2006), next to penalty and KKT formulations over interchangeable QR
+//! and Cholesky back ends.
+//!
+//! The problem (paper eq. 11) is `min ‖A X − C‖ s.t. B X = D` with
+//! `A = [L; w·B_soft]`, `C = [δ; w·D_soft]`, `δ = L P` the Laplacian
+//! coordinates of the original positions and `B X = D` the hard constraints;
+//! `X` has three columns (x, y, z) solved together.
+//!
+//! Module map: [`mesh`] (types, I/O, validation, generators) →
+//! [`laplacian`] → [`constraints`] → [`problem`] (assembly of `A, C, B, D`)
+//! → [`formulation`] (the paper's method and its alternatives) over
+//! [`backend`] (QR and SPD traits) → [`deform`] (the three-phase API) and
+//! [`report`].
 #![deny(missing_docs)]
 
+pub mod backend;
+pub mod constraints;
+pub mod deform;
 pub mod error;
+pub mod formulation;
+pub mod laplacian;
 pub mod mesh;
+pub mod normal;
+pub mod problem;
+pub mod report;
 
+pub use constraints::{Constraint, ConstraintKind, ConstraintSet};
+pub use deform::{Deformer, Solution};
 pub use error::{Error, Result};
+pub use formulation::{Formulation, NullSpaceQr};
+pub use laplacian::LaplacianKind;
 pub use mesh::Mesh;
+pub use report::Report;

@@ -37,5 +37,7 @@ pub fn triangle_area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
 
 /// Squared length of the longest edge of `abc`.
 pub fn longest_edge_sq(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    norm_sq(sub(b, a)).max(norm_sq(sub(c, b))).max(norm_sq(sub(a, c)))
+    norm_sq(sub(b, a))
+        .max(norm_sq(sub(c, b)))
+        .max(norm_sq(sub(a, c)))
 }

@@ -1,0 +1,656 @@
+//! Constraints (paper eq. 3–6) and their JSON file format (DESIGN.md §3).
+//!
+//! Every constraint is one scalar linear row `Σ_k a_k p_{v_k} = u` shared by
+//! the x, y and z coordinates (a 3-vector right-hand side):
+//!
+//! | kind | row | right-hand side |
+//! |---|---|---|
+//! | position | `p_i` | target `u` |
+//! | edge | `t p_i + (1−t) p_j` | target `u` |
+//! | face | `s p_i + t p_j + (1−s−t) p_k` | target `u` |
+//! | relative | `p_i − p_j` | vector `v` |
+//!
+//! A constraint is *hard* (held exactly) unless it has a `weight` `w > 0`,
+//! in which case it is *soft*: the row and right-hand side are multiplied by
+//! `w` and appended to the least-squares system, i.e. it adds
+//! `w² ‖row·P − u‖²` to the energy.
+//!
+//! The coefficients of position, edge and face rows sum to 1 (they pin the
+//! translation of the component they are on); a relative row sums to 0 (it
+//! does not). No row of these four kinds can be all zero.
+//!
+//! The JSON format:
+//! ```json
+//! {"constraints": [
+//!   {"type": "position", "vertex": 12, "target": [0.1, 0.2, 0.3]},
+//!   {"type": "edge", "vertices": [4, 5], "t": 0.3, "target": [0, 0, 1]},
+//!   {"type": "face", "vertices": [1, 2, 3], "barycentric": [0.2, 0.3], "target": [0, 1, 0]},
+//!   {"type": "relative", "vertices": [7, 9], "vector": [0, 0, 0.5]},
+//!   {"type": "position", "vertex": 40, "target": [1, 1, 1], "weight": 10.0}
+//! ]}
+//! ```
+//! Unknown fields are an error (a misspelt `"wieght"` must not silently
+//! make a soft constraint hard), except `"name"` and `"comment"`, which are
+//! free text and ignored.
+
+use std::path::Path;
+
+use serde_json::{Map, Value};
+
+use crate::error::{ConstraintError, Error};
+
+/// The geometric content of a constraint.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConstraintKind {
+    /// `p_vertex = target` (eq. 3).
+    Position {
+        /// The vertex.
+        vertex: usize,
+        /// Its target position.
+        target: [f64; 3],
+    },
+    /// `t p_i + (1−t) p_j = target` (eq. 4).
+    Edge {
+        /// `[i, j]`.
+        vertices: [usize; 2],
+        /// Weight of `p_i`.
+        t: f64,
+        /// Target of the point on the edge.
+        target: [f64; 3],
+    },
+    /// `s p_i + t p_j + (1−s−t) p_k = target` (eq. 5).
+    Face {
+        /// `[i, j, k]`.
+        vertices: [usize; 3],
+        /// `[s, t]`.
+        barycentric: [f64; 2],
+        /// Target of the point on the face.
+        target: [f64; 3],
+    },
+    /// `p_i − p_j = vector` (eq. 6).
+    Relative {
+        /// `[i, j]`.
+        vertices: [usize; 2],
+        /// The prescribed difference.
+        vector: [f64; 3],
+    },
+}
+
+/// One constraint: its kind and whether it is hard (`weight == None`) or
+/// soft with a weight `w > 0`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Constraint {
+    /// What is constrained.
+    pub kind: ConstraintKind,
+    /// `None` for a hard constraint, `Some(w)` (finite, > 0) for a soft one.
+    pub weight: Option<f64>,
+}
+
+/// A sparse constraint row: up to three `(vertex, coefficient)` pairs.
+/// Zero coefficients (an edge with `t = 1`) are dropped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Row {
+    entries: [(usize, f64); 3],
+    len: usize,
+}
+
+impl Row {
+    fn new(pairs: &[(usize, f64)]) -> Row {
+        let mut entries = [(0, 0.0); 3];
+        let mut len = 0;
+        for &(v, a) in pairs {
+            if a != 0.0 {
+                entries[len] = (v, a);
+                len += 1;
+            }
+        }
+        Row { entries, len }
+    }
+
+    /// The nonzero `(vertex, coefficient)` pairs.
+    pub fn entries(&self) -> &[(usize, f64)] {
+        &self.entries[..self.len]
+    }
+
+    /// `Σ_k a_k X[v_k]` for a position array.
+    pub fn apply(&self, x: &[[f64; 3]]) -> [f64; 3] {
+        let mut s = [0.0; 3];
+        for &(v, a) in self.entries() {
+            for k in 0..3 {
+                s[k] += a * x[v][k];
+            }
+        }
+        s
+    }
+
+    /// Euclidean norm of the coefficient vector.
+    pub fn norm(&self) -> f64 {
+        self.entries().iter().map(|e| e.1 * e.1).sum::<f64>().sqrt()
+    }
+}
+
+impl ConstraintKind {
+    /// The name used in the JSON file.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ConstraintKind::Position { .. } => "position",
+            ConstraintKind::Edge { .. } => "edge",
+            ConstraintKind::Face { .. } => "face",
+            ConstraintKind::Relative { .. } => "relative",
+        }
+    }
+
+    /// The vertices involved.
+    pub fn vertices(&self) -> &[usize] {
+        match self {
+            ConstraintKind::Position { vertex, .. } => std::slice::from_ref(vertex),
+            ConstraintKind::Edge { vertices, .. } => vertices,
+            ConstraintKind::Face { vertices, .. } => vertices,
+            ConstraintKind::Relative { vertices, .. } => vertices,
+        }
+    }
+
+    /// The row of coefficients.
+    pub fn row(&self) -> Row {
+        match *self {
+            ConstraintKind::Position { vertex, .. } => Row::new(&[(vertex, 1.0)]),
+            ConstraintKind::Edge { vertices, t, .. } => {
+                Row::new(&[(vertices[0], t), (vertices[1], 1.0 - t)])
+            }
+            ConstraintKind::Face {
+                vertices,
+                barycentric: [s, t],
+                ..
+            } => Row::new(&[
+                (vertices[0], s),
+                (vertices[1], t),
+                (vertices[2], 1.0 - s - t),
+            ]),
+            ConstraintKind::Relative { vertices, .. } => {
+                Row::new(&[(vertices[0], 1.0), (vertices[1], -1.0)])
+            }
+        }
+    }
+
+    /// The right-hand side (target or vector).
+    pub fn rhs(&self) -> [f64; 3] {
+        match *self {
+            ConstraintKind::Position { target, .. }
+            | ConstraintKind::Edge { target, .. }
+            | ConstraintKind::Face { target, .. } => target,
+            ConstraintKind::Relative { vector, .. } => vector,
+        }
+    }
+
+    /// Replaces the right-hand side (target or vector), keeping the row.
+    pub fn set_rhs(&mut self, value: [f64; 3]) {
+        match self {
+            ConstraintKind::Position { target, .. }
+            | ConstraintKind::Edge { target, .. }
+            | ConstraintKind::Face { target, .. } => *target = value,
+            ConstraintKind::Relative { vector, .. } => *vector = value,
+        }
+    }
+
+    /// `true` if the row's coefficients sum to a nonzero value, i.e. the
+    /// constraint pins the translation of the vertices' component
+    /// (position, edge and face do; relative does not).
+    pub fn pins_translation(&self) -> bool {
+        !matches!(self, ConstraintKind::Relative { .. })
+    }
+}
+
+impl Constraint {
+    /// A hard constraint.
+    pub fn hard(kind: ConstraintKind) -> Constraint {
+        Constraint { kind, weight: None }
+    }
+
+    /// A soft constraint of weight `w`.
+    pub fn soft(kind: ConstraintKind, w: f64) -> Constraint {
+        Constraint {
+            kind,
+            weight: Some(w),
+        }
+    }
+
+    /// `true` for hard constraints.
+    pub fn is_hard(&self) -> bool {
+        self.weight.is_none()
+    }
+}
+
+/// An ordered list of constraints. The order is the priority of hard
+/// constraints: of two conflicting ones the earlier is kept.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ConstraintSet {
+    constraints: Vec<Constraint>,
+}
+
+impl ConstraintSet {
+    /// An empty set.
+    pub fn new() -> ConstraintSet {
+        ConstraintSet::default()
+    }
+
+    /// Wraps a list, checking each constraint's own values (finite numbers,
+    /// valid weights, no vertex repeated within a constraint). Vertex ranges
+    /// are checked against a mesh by [`ConstraintSet::check_vertices`].
+    pub fn from_vec(constraints: Vec<Constraint>) -> Result<ConstraintSet, ConstraintError> {
+        for (index, c) in constraints.iter().enumerate() {
+            check_values(index, c)?;
+        }
+        Ok(ConstraintSet { constraints })
+    }
+
+    /// Appends a constraint, checking its values.
+    pub fn push(&mut self, c: Constraint) -> Result<(), ConstraintError> {
+        check_values(self.constraints.len(), &c)?;
+        self.constraints.push(c);
+        Ok(())
+    }
+
+    /// The constraints in priority order.
+    pub fn as_slice(&self) -> &[Constraint] {
+        &self.constraints
+    }
+
+    /// Number of constraints.
+    pub fn len(&self) -> usize {
+        self.constraints.len()
+    }
+
+    /// `true` if there are none.
+    pub fn is_empty(&self) -> bool {
+        self.constraints.is_empty()
+    }
+
+    /// Sets the target (or relative vector) of constraint `index`.
+    pub fn set_rhs(&mut self, index: usize, value: [f64; 3]) -> Result<(), ConstraintError> {
+        if value.iter().any(|v| !v.is_finite()) {
+            return Err(ConstraintError::NonFinite {
+                index,
+                field: "target",
+            });
+        }
+        match self.constraints.get_mut(index) {
+            Some(c) => {
+                c.kind.set_rhs(value);
+                Ok(())
+            }
+            None => Err(ConstraintError::Shape {
+                message: format!(
+                    "constraint {index} does not exist (there are {})",
+                    self.constraints.len()
+                ),
+            }),
+        }
+    }
+
+    /// Checks that every vertex is `< n_vertices`.
+    pub fn check_vertices(&self, n_vertices: usize) -> Result<(), ConstraintError> {
+        for (index, c) in self.constraints.iter().enumerate() {
+            for &v in c.kind.vertices() {
+                if v >= n_vertices {
+                    return Err(ConstraintError::VertexOutOfRange {
+                        index,
+                        vertex: v as u64,
+                        vertex_count: n_vertices,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Number of hard constraints.
+    pub fn n_hard(&self) -> usize {
+        self.constraints.iter().filter(|c| c.is_hard()).count()
+    }
+
+    /// Serialises to the JSON file format.
+    pub fn to_json(&self) -> String {
+        let items: Vec<Value> = self.constraints.iter().map(constraint_to_json).collect();
+        let mut s = String::from("{\"constraints\": [\n");
+        for (k, item) in items.iter().enumerate() {
+            s.push_str("  ");
+            s.push_str(&item.to_string());
+            if k + 1 < items.len() {
+                s.push(',');
+            }
+            s.push('\n');
+        }
+        s.push_str("]}\n");
+        s
+    }
+}
+
+impl std::ops::Index<usize> for ConstraintSet {
+    type Output = Constraint;
+    fn index(&self, i: usize) -> &Constraint {
+        &self.constraints[i]
+    }
+}
+
+fn check_values(index: usize, c: &Constraint) -> Result<(), ConstraintError> {
+    let verts = c.kind.vertices();
+    for a in 0..verts.len() {
+        for b in a + 1..verts.len() {
+            if verts[a] == verts[b] {
+                return Err(ConstraintError::RepeatedVertex {
+                    index,
+                    vertex: verts[a],
+                });
+            }
+        }
+    }
+    let finite3 = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+    match &c.kind {
+        ConstraintKind::Position { target, .. } if !finite3(target) => {
+            return Err(ConstraintError::NonFinite {
+                index,
+                field: "target",
+            });
+        }
+        ConstraintKind::Edge { t, target, .. } => {
+            if !t.is_finite() {
+                return Err(ConstraintError::NonFinite { index, field: "t" });
+            }
+            if !finite3(target) {
+                return Err(ConstraintError::NonFinite {
+                    index,
+                    field: "target",
+                });
+            }
+        }
+        ConstraintKind::Face {
+            barycentric,
+            target,
+            ..
+        } => {
+            if !barycentric.iter().all(|x| x.is_finite()) {
+                return Err(ConstraintError::NonFinite {
+                    index,
+                    field: "barycentric",
+                });
+            }
+            if !finite3(target) {
+                return Err(ConstraintError::NonFinite {
+                    index,
+                    field: "target",
+                });
+            }
+        }
+        ConstraintKind::Relative { vector, .. } if !finite3(vector) => {
+            return Err(ConstraintError::NonFinite {
+                index,
+                field: "vector",
+            });
+        }
+        _ => {}
+    }
+    if let Some(w) = c.weight {
+        if !(w.is_finite() && w > 0.0) {
+            return Err(ConstraintError::InvalidWeight { index, weight: w });
+        }
+    }
+    Ok(())
+}
+
+/// Reads a constraints file and checks its vertices against a mesh of
+/// `n_vertices` vertices.
+pub fn read_constraints(path: &Path, n_vertices: usize) -> Result<ConstraintSet, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let set = parse_constraints(&text)?;
+    set.check_vertices(n_vertices)?;
+    Ok(set)
+}
+
+/// Parses the JSON constraint format (vertex ranges are not checked here;
+/// see [`ConstraintSet::check_vertices`]).
+pub fn parse_constraints(text: &str) -> Result<ConstraintSet, ConstraintError> {
+    let root: Value = serde_json::from_str(text).map_err(|e| ConstraintError::Json {
+        line: e.line(),
+        column: e.column(),
+        message: e.to_string(),
+    })?;
+    let list = match &root {
+        Value::Object(map) => match map.get("constraints") {
+            Some(Value::Array(list)) => list,
+            Some(_) => {
+                return Err(ConstraintError::Shape {
+                    message: "'constraints' must be an array".into(),
+                });
+            }
+            None => {
+                return Err(ConstraintError::Shape {
+                    message: "the top level must be an object with a 'constraints' array".into(),
+                });
+            }
+        },
+        _ => {
+            return Err(ConstraintError::Shape {
+                message: "the top level must be an object with a 'constraints' array".into(),
+            });
+        }
+    };
+    let mut constraints = Vec::with_capacity(list.len());
+    for (index, item) in list.iter().enumerate() {
+        let c = parse_one(index, item)?;
+        check_values(index, &c)?;
+        constraints.push(c);
+    }
+    Ok(ConstraintSet { constraints })
+}
+
+fn parse_one(index: usize, item: &Value) -> Result<Constraint, ConstraintError> {
+    let map = item.as_object().ok_or_else(|| ConstraintError::BadField {
+        index,
+        field: "constraint",
+        problem: "must be a JSON object".into(),
+    })?;
+    let ty = match map.get("type") {
+        Some(Value::String(s)) => s.as_str(),
+        Some(_) => {
+            return Err(ConstraintError::BadField {
+                index,
+                field: "type",
+                problem: "must be a string".into(),
+            });
+        }
+        None => {
+            return Err(ConstraintError::BadField {
+                index,
+                field: "type",
+                problem: "is missing".into(),
+            });
+        }
+    };
+    let f = Fields { index, map };
+    let (kind, allowed): (ConstraintKind, &[&str]) = match ty {
+        "position" => (
+            ConstraintKind::Position {
+                vertex: f.vertex("vertex")?,
+                target: f.vec3("target")?,
+            },
+            &["vertex", "target"],
+        ),
+        "edge" => (
+            ConstraintKind::Edge {
+                vertices: f.vertices::<2>()?,
+                t: f.number("t")?,
+                target: f.vec3("target")?,
+            },
+            &["vertices", "t", "target"],
+        ),
+        "face" => (
+            ConstraintKind::Face {
+                vertices: f.vertices::<3>()?,
+                barycentric: f.numbers::<2>("barycentric")?,
+                target: f.vec3("target")?,
+            },
+            &["vertices", "barycentric", "target"],
+        ),
+        "relative" => (
+            ConstraintKind::Relative {
+                vertices: f.vertices::<2>()?,
+                vector: f.vec3("vector")?,
+            },
+            &["vertices", "vector"],
+        ),
+        other => {
+            return Err(ConstraintError::UnknownType {
+                index,
+                found: other.to_string(),
+            });
+        }
+    };
+    for key in map.keys() {
+        let known = matches!(key.as_str(), "type" | "weight" | "name" | "comment")
+            || allowed.contains(&key.as_str());
+        if !known {
+            return Err(ConstraintError::UnknownField {
+                index,
+                field: key.clone(),
+                kind: ty.to_string(),
+                allowed: format!("type, {}, weight, name, comment", allowed.join(", ")),
+            });
+        }
+    }
+    let weight = match map.get("weight") {
+        None => None,
+        Some(v) => Some(json_number(v).ok_or_else(|| ConstraintError::BadField {
+            index,
+            field: "weight",
+            problem: "must be a number".into(),
+        })?),
+    };
+    Ok(Constraint { kind, weight })
+}
+
+/// Reads a JSON number, accepting the strings "NaN", "inf", "-inf" so that
+/// non-finite values written by other programs are reported as non-finite
+/// rather than as a type error.
+fn json_number(v: &Value) -> Option<f64> {
+    match v {
+        Value::Number(n) => n.as_f64(),
+        Value::String(s) => match s.to_ascii_lowercase().as_str() {
+            "nan" => Some(f64::NAN),
+            "inf" | "infinity" | "+inf" => Some(f64::INFINITY),
+            "-inf" | "-infinity" => Some(f64::NEG_INFINITY),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+struct Fields<'a> {
+    index: usize,
+    map: &'a Map<String, Value>,
+}
+
+impl Fields<'_> {
+    fn get(&self, field: &'static str) -> Result<&Value, ConstraintError> {
+        self.map
+            .get(field)
+            .ok_or_else(|| ConstraintError::BadField {
+                index: self.index,
+                field,
+                problem: "is missing".into(),
+            })
+    }
+
+    fn number(&self, field: &'static str) -> Result<f64, ConstraintError> {
+        json_number(self.get(field)?).ok_or_else(|| ConstraintError::BadField {
+            index: self.index,
+            field,
+            problem: "must be a number".into(),
+        })
+    }
+
+    fn numbers<const K: usize>(&self, field: &'static str) -> Result<[f64; K], ConstraintError> {
+        let bad = || ConstraintError::BadField {
+            index: self.index,
+            field,
+            problem: format!("must be an array of {K} numbers"),
+        };
+        let arr = self.get(field)?.as_array().ok_or_else(bad)?;
+        if arr.len() != K {
+            return Err(bad());
+        }
+        let mut out = [0.0; K];
+        for (o, v) in out.iter_mut().zip(arr) {
+            *o = json_number(v).ok_or_else(bad)?;
+        }
+        Ok(out)
+    }
+
+    fn vec3(&self, field: &'static str) -> Result<[f64; 3], ConstraintError> {
+        self.numbers::<3>(field)
+    }
+
+    fn vertex_value(&self, field: &'static str, v: &Value) -> Result<usize, ConstraintError> {
+        let bad = || ConstraintError::BadField {
+            index: self.index,
+            field,
+            problem: "must hold non-negative integer vertex indices".into(),
+        };
+        let u = v.as_u64().ok_or_else(bad)?;
+        // An index too large for this platform is out of range of any mesh.
+        usize::try_from(u).map_err(|_| ConstraintError::VertexOutOfRange {
+            index: self.index,
+            vertex: u,
+            vertex_count: 0,
+        })
+    }
+
+    fn vertex(&self, field: &'static str) -> Result<usize, ConstraintError> {
+        self.vertex_value(field, self.get(field)?)
+    }
+
+    fn vertices<const K: usize>(&self) -> Result<[usize; K], ConstraintError> {
+        let field = "vertices";
+        let arr = self
+            .get(field)?
+            .as_array()
+            .filter(|a| a.len() == K)
+            .ok_or_else(|| ConstraintError::BadField {
+                index: self.index,
+                field,
+                problem: format!("must be an array of {K} vertex indices"),
+            })?;
+        let mut out = [0usize; K];
+        for (o, v) in out.iter_mut().zip(arr) {
+            *o = self.vertex_value(field, v)?;
+        }
+        Ok(out)
+    }
+}
+
+fn constraint_to_json(c: &Constraint) -> Value {
+    use serde_json::json;
+    let mut v = match &c.kind {
+        ConstraintKind::Position { vertex, target } => {
+            json!({"type": "position", "vertex": vertex, "target": target})
+        }
+        ConstraintKind::Edge {
+            vertices,
+            t,
+            target,
+        } => json!({"type": "edge", "vertices": vertices, "t": t, "target": target}),
+        ConstraintKind::Face {
+            vertices,
+            barycentric,
+            target,
+        } => {
+            json!({"type": "face", "vertices": vertices, "barycentric": barycentric, "target": target})
+        }
+        ConstraintKind::Relative { vertices, vector } => {
+            json!({"type": "relative", "vertices": vertices, "vector": vector})
+        }
+    };
+    if let (Some(w), Some(map)) = (c.weight, v.as_object_mut()) {
+        map.insert("weight".into(), json!(w));
+    }
+    v
+}

@@ -1,0 +1,191 @@
+//! The paper's method (eq. 12–19): null-space QR.
+//!
+//! `Bᵀ = Q R`, `R1ᵀ y = D`, then `z` from the normal equations of the
+//! reduced problem `(A Q2)ᵀ(A Q2) z = (A Q2)ᵀ(C − A Q1 y)` by sparse
+//! Cholesky, and `X = Q [y; z]`. Hard constraints hold to rounding:
+//! `B_kept Q2 = 0` by construction, so `B_kept X = R1ᵀ y = D_kept`.
+//!
+//! Phases: precompute = QR, preparation (`A Q2`), normal matrix, symbolic,
+//! numeric. Solve = `y`, `X_p = Q[y; 0]` (so `A Q1 y = A X_p`), one sparse
+//! product for `C − A X_p`, one for `(AQ2)ᵀ(·)`, two triangular solves with
+//! the three coordinates as one block, `X = Q[y; z]`.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use faer::Mat;
+use faer::sparse::SparseColMat;
+
+use super::{Formulation, Prepared};
+use crate::backend::qr::{ConstraintQr, DenseHouseholder, QrBackend, RankTolerance};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
+use crate::error::{Error, NumericalError, ProblemError};
+use crate::normal::NormalPattern;
+use crate::problem::LseProblem;
+use crate::report::Report;
+
+/// The null-space QR method over a QR back end and an SPD back end.
+#[derive(Clone)]
+pub struct NullSpaceQr {
+    /// QR of `Bᵀ`.
+    pub qr: Arc<dyn QrBackend>,
+    /// Cholesky of `(AQ2)ᵀ(AQ2)`.
+    pub spd: Arc<dyn SpdBackend>,
+    /// Rank-detection tolerance.
+    pub tolerance: RankTolerance,
+}
+
+impl Default for NullSpaceQr {
+    fn default() -> Self {
+        NullSpaceQr {
+            qr: Arc::new(DenseHouseholder),
+            spd: Arc::new(FaerLlt::auto()),
+            tolerance: RankTolerance::default(),
+        }
+    }
+}
+
+impl NullSpaceQr {
+    /// The method over the given back ends with the default tolerance.
+    pub fn new(qr: Arc<dyn QrBackend>, spd: Arc<dyn SpdBackend>) -> NullSpaceQr {
+        NullSpaceQr {
+            qr,
+            spd,
+            tolerance: RankTolerance::default(),
+        }
+    }
+}
+
+/// Fills in the matrix name and the vertex of a back end's numerical error.
+pub(crate) fn with_context(
+    e: NumericalError,
+    matrix: &str,
+    vertex_of: impl Fn(usize) -> Option<usize>,
+) -> NumericalError {
+    match e {
+        NumericalError::NotPositiveDefinite { unknown, pivot, .. } => {
+            NumericalError::NotPositiveDefinite {
+                matrix: matrix.to_string(),
+                unknown,
+                vertex: vertex_of(unknown),
+                pivot,
+            }
+        }
+        NumericalError::Breakdown {
+            unknown,
+            ratio,
+            threshold,
+            ..
+        } => NumericalError::Breakdown {
+            matrix: matrix.to_string(),
+            unknown,
+            vertex: vertex_of(unknown),
+            ratio,
+            threshold,
+        },
+        other => other,
+    }
+}
+
+impl Formulation for NullSpaceQr {
+    fn name(&self) -> String {
+        "nullspace-qr".into()
+    }
+
+    fn precompute(
+        &self,
+        problem: &LseProblem,
+        report: &mut Report,
+    ) -> Result<Box<dyn Prepared>, Error> {
+        if problem.b().nrows() == 0 {
+            return Err(ProblemError::NoHardConstraints.into());
+        }
+        report.method = self.name();
+        report.qr_backend = Some(self.qr.name().into());
+        report.spd_backend = Some(self.spd.name().into());
+
+        let t = Instant::now();
+        let qr = self.qr.factor(problem.b().as_ref(), self.tolerance)?;
+        report.timings_s.qr = t.elapsed().as_secs_f64();
+        report.rank = Some(qr.rank());
+        report.nnz.qr = Some(qr.storage_nnz());
+
+        let t = Instant::now();
+        let aq2 = qr.mul_a_q2(problem.a().as_ref());
+        report.timings_s.preparation = t.elapsed().as_secs_f64();
+        report.nnz.aq2 = Some(aq2.val().len());
+
+        let factor = if aq2.ncols() == 0 {
+            // Every degree of freedom is fixed by the hard constraints.
+            report.nnz.normal = Some(0);
+            report.nnz.factor = Some(0);
+            None
+        } else {
+            let t = Instant::now();
+            let pattern = NormalPattern::new(aq2.as_ref());
+            let normal = pattern.numeric(aq2.as_ref());
+            report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
+            report.nnz.normal = Some(pattern.full_nnz());
+
+            let t = Instant::now();
+            let symbolic = self.spd.analyze(normal.symbolic())?;
+            report.timings_s.symbolic = t.elapsed().as_secs_f64();
+
+            let t = Instant::now();
+            let factor = symbolic.factorize(normal.as_ref()).map_err(|e| {
+                with_context(e, "the reduced normal matrix (AQ2)ᵀ(AQ2)", |k| {
+                    Some(qr.free_unknown(k))
+                })
+            })?;
+            report.timings_s.numeric = t.elapsed().as_secs_f64();
+            report.nnz.factor = Some(factor.nnz());
+            report.nnz.factor_bytes = Some(factor.bytes());
+            Some(factor)
+        };
+        Ok(Box::new(PreparedNullSpace { qr, aq2, factor }))
+    }
+}
+
+struct PreparedNullSpace {
+    qr: Box<dyn ConstraintQr>,
+    aq2: SparseColMat<usize, f64>,
+    factor: Option<Box<dyn SpdFactor>>,
+}
+
+impl Prepared for PreparedNullSpace {
+    fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error> {
+        let qr = &*self.qr;
+        let (n, r) = (qr.n(), qr.rank());
+        let mut y = Mat::<f64>::zeros(r, 3);
+        qr.solve_r1t(problem.d().as_ref(), y.as_mut());
+        let mut z = Mat::<f64>::zeros(n - r, 3);
+        if let Some(factor) = self.factor.as_mut() {
+            let mut xp = Mat::<f64>::zeros(n, 3);
+            qr.apply_q(y.as_ref(), z.as_ref(), xp.as_mut());
+            let residual = problem.c() - problem.a_times(&xp);
+            // z ← (AQ2)ᵀ (C − A X_p), then solve in place.
+            let (ptr, rows, val) = (
+                self.aq2.symbolic().col_ptr(),
+                self.aq2.symbolic().row_idx(),
+                self.aq2.val(),
+            );
+            for c in 0..3 {
+                for j in 0..self.aq2.ncols() {
+                    let mut s = 0.0;
+                    for p in ptr[j]..ptr[j + 1] {
+                        s += val[p] * residual[(rows[p], c)];
+                    }
+                    z[(j, c)] = s;
+                }
+            }
+            factor.solve_in_place(z.as_mut());
+        }
+        let mut x = Mat::<f64>::zeros(n, 3);
+        qr.apply_q(y.as_ref(), z.as_ref(), x.as_mut());
+        Ok(x)
+    }
+
+    fn skipped(&self) -> &[usize] {
+        self.qr.skipped()
+    }
+}

@@ -1,0 +1,299 @@
+//! Discrete Laplacians of a triangle mesh as faer sparse matrices.
+//!
+//! Sign convention (DESIGN.md §1, paper eq. 1–2): `δ_i = Σ_{j∈N(i)} w_ij (p_i − p_j)`,
+//! so `L_ii = Σ_j w_ij`, `L_ij = −w_ij` and `δ = L P`. Every row sums to zero.
+//!
+//! - [`LaplacianKind::Uniform`] (eq. 8): `w_ij = 1/|N(i)|`.
+//! - [`LaplacianKind::Cotangent`] (eq. 9): `w_ij = (cot α_ij + cot β_ij) / (2 A_i)`
+//!   with `A_i` the mixed Voronoi area of Meyer et al. 2003
+//!   ([`mixed_voronoi_areas`]). A boundary edge has one opposite angle only.
+//!   This equals `−M⁻¹C` with libigl's `cotmatrix` `C` and
+//!   `massmatrix(VORONOI)` `M`.
+//! - [`LaplacianKind::CotangentSymmetric`]: `w_ij = ½(cot α_ij + cot β_ij)`,
+//!   no area normalisation; the matrix is symmetric (it is libigl's `−C`).
+//!
+//! All operators are assembled face by face, so non-manifold edges (more
+//! than two incident faces) simply collect one cotangent per face.
+//!
+//! The sparsity pattern is that of the vertex adjacency plus the diagonal,
+//! which is symmetric; column `j` holds the rows `{j} ∪ N(j)` in increasing
+//! order.
+
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+
+use crate::mesh::Mesh;
+
+/// Which Laplacian to build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LaplacianKind {
+    /// Uniform weights `1/|N(i)|` (paper eq. 8).
+    Uniform,
+    /// Cotangent weights over the mixed Voronoi area (paper eq. 9).
+    #[serde(rename = "cotan")]
+    Cotangent,
+    /// Cotangent weights `½(cot α + cot β)` without area normalisation
+    /// (symmetric).
+    #[serde(rename = "cotan-symmetric")]
+    CotangentSymmetric,
+}
+
+impl LaplacianKind {
+    /// Every kind, for experiments that loop over them.
+    pub const ALL: [LaplacianKind; 3] = [
+        LaplacianKind::Uniform,
+        LaplacianKind::Cotangent,
+        LaplacianKind::CotangentSymmetric,
+    ];
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            LaplacianKind::Uniform => "uniform",
+            LaplacianKind::Cotangent => "cotan",
+            LaplacianKind::CotangentSymmetric => "cotan-symmetric",
+        }
+    }
+}
+
+impl std::fmt::Display for LaplacianKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for LaplacianKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "uniform" => Ok(LaplacianKind::Uniform),
+            "cotan" | "cotangent" => Ok(LaplacianKind::Cotangent),
+            "cotan-symmetric" => Ok(LaplacianKind::CotangentSymmetric),
+            other => Err(format!(
+                "unknown Laplacian '{other}' (expected uniform, cotan or cotan-symmetric)"
+            )),
+        }
+    }
+}
+
+/// Builds the Laplacian `L` (n × n) of the given kind.
+pub fn laplacian(mesh: &Mesh, kind: LaplacianKind) -> SparseColMat<usize, f64> {
+    let pattern = AdjacencyPattern::new(mesh.n_vertices(), mesh.faces());
+    match kind {
+        LaplacianKind::Uniform => {
+            let n = mesh.n_vertices();
+            // deg(i) = nnz of column i − 1 (pattern symmetric, diagonal included).
+            let inv_deg: Vec<f64> = (0..n)
+                .map(|i| 1.0 / (pattern.col_ptr[i + 1] - pattern.col_ptr[i] - 1) as f64)
+                .collect();
+            let mut values = vec![0.0; pattern.row_idx.len()];
+            for j in 0..n {
+                for p in pattern.col_ptr[j]..pattern.col_ptr[j + 1] {
+                    let i = pattern.row_idx[p];
+                    values[p] = if i == j { 1.0 } else { -inv_deg[i] };
+                }
+            }
+            pattern.into_matrix(values)
+        }
+        LaplacianKind::Cotangent | LaplacianKind::CotangentSymmetric => {
+            let mut values = symmetric_cotangent_values(mesh, &pattern);
+            if kind == LaplacianKind::Cotangent {
+                let area = mixed_voronoi_areas(mesh);
+                // Row i is divided by A_i.
+                for p in 0..values.len() {
+                    values[p] /= area[pattern.row_idx[p]];
+                }
+            }
+            pattern.into_matrix(values)
+        }
+    }
+}
+
+/// `δ = L P`: the Laplacian coordinates of the positions, one column per
+/// coordinate (n × 3).
+pub fn apply(l: &SparseColMat<usize, f64>, positions: &[[f64; 3]]) -> faer::Mat<f64> {
+    let n = l.nrows();
+    let mut delta = faer::Mat::<f64>::zeros(n, 3);
+    let (col_ptr, row_idx, val) = (l.symbolic().col_ptr(), l.symbolic().row_idx(), l.val());
+    for (j, p) in positions.iter().enumerate() {
+        for q in col_ptr[j]..col_ptr[j + 1] {
+            let i = row_idx[q];
+            for k in 0..3 {
+                delta[(i, k)] += val[q] * p[k];
+            }
+        }
+    }
+    delta
+}
+
+/// Mixed Voronoi area of every vertex (Meyer, Desbrun, Schröder & Barr 2003,
+/// fig. 4): a non-obtuse triangle gives each corner its Voronoi region
+/// `(|PR|² cot Q + |PQ|² cot R)/8`; an obtuse one gives half its area to the
+/// obtuse corner and a quarter to each other corner. The areas sum to the
+/// surface area.
+pub fn mixed_voronoi_areas(mesh: &Mesh) -> Vec<f64> {
+    let p = mesh.positions();
+    let mut area = vec![0.0; mesh.n_vertices()];
+    for f in mesh.faces() {
+        let x = [p[f[0]], p[f[1]], p[f[2]]];
+        let t = Triangle::new(x);
+        if let Some(obtuse) = (0..3).find(|&k| t.dot[k] < 0.0) {
+            for (k, &v) in f.iter().enumerate() {
+                area[v] += if k == obtuse {
+                    t.area / 2.0
+                } else {
+                    t.area / 4.0
+                };
+            }
+        } else {
+            for (k, &v) in f.iter().enumerate() {
+                // Corner k = P with Q = k+1, R = k+2: (|PR|² cot Q + |PQ|² cot R)/8,
+                // where PR is the edge opposite Q (len_sq[Q]) and PQ opposite R.
+                let (q, r) = ((k + 1) % 3, (k + 2) % 3);
+                area[v] += (t.len_sq[q] * t.cot(q) + t.len_sq[r] * t.cot(r)) / 8.0;
+            }
+        }
+    }
+    area
+}
+
+/// The corners of one triangle: for corner `k` the dot product of its two
+/// edge vectors, the squared length of the opposite edge (`len_sq[k]` is the
+/// edge between corners `k+1` and `k+2`) and twice the area.
+struct Triangle {
+    dot: [f64; 3],
+    len_sq: [f64; 3],
+    double_area: f64,
+    area: f64,
+}
+
+impl Triangle {
+    fn new(x: [[f64; 3]; 3]) -> Triangle {
+        let e = |a: usize, b: usize| [x[b][0] - x[a][0], x[b][1] - x[a][1], x[b][2] - x[a][2]];
+        let dot3 = |u: [f64; 3], v: [f64; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+        let mut dot = [0.0; 3];
+        let mut len_sq = [0.0; 3];
+        for k in 0..3 {
+            let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+            dot[k] = dot3(e(k, a), e(k, b));
+            let opp = e(a, b);
+            len_sq[k] = dot3(opp, opp);
+        }
+        let (u, v) = (e(0, 1), e(0, 2));
+        let c = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        let double_area = dot3(c, c).sqrt();
+        Triangle {
+            dot,
+            len_sq,
+            double_area,
+            area: double_area / 2.0,
+        }
+    }
+
+    /// Cotangent of the angle at corner `k`: `(u·v)/|u×v|`.
+    fn cot(&self, k: usize) -> f64 {
+        self.dot[k] / self.double_area
+    }
+}
+
+/// Values of the symmetric cotangent matrix `½(cot α + cot β)` off the
+/// diagonal (negated: entry `(i, j)` is `−w_ij`) and the row sums on it, on
+/// the adjacency pattern.
+fn symmetric_cotangent_values(mesh: &Mesh, pattern: &AdjacencyPattern) -> Vec<f64> {
+    let p = mesh.positions();
+    let mut values = vec![0.0; pattern.row_idx.len()];
+    for f in mesh.faces() {
+        let t = Triangle::new([p[f[0]], p[f[1]], p[f[2]]]);
+        for k in 0..3 {
+            // The edge opposite corner k joins corners k+1 and k+2.
+            let (i, j) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+            let w = 0.5 * t.cot(k);
+            values[pattern.position(i, j)] -= w;
+            values[pattern.position(j, i)] -= w;
+            values[pattern.position(i, i)] += w;
+            values[pattern.position(j, j)] += w;
+        }
+    }
+    values
+}
+
+/// Symmetric CSC pattern of the vertex adjacency plus the diagonal; rows of
+/// every column sorted and unique.
+pub(crate) struct AdjacencyPattern {
+    pub(crate) col_ptr: Vec<usize>,
+    pub(crate) row_idx: Vec<usize>,
+}
+
+impl AdjacencyPattern {
+    /// Built in O(F + nnz log deg) by bucketing the directed edges of every
+    /// face by column, then sorting and deduplicating each (short) column.
+    pub(crate) fn new(n: usize, faces: &[[usize; 3]]) -> AdjacencyPattern {
+        let mut count = vec![1usize; n]; // the diagonal
+        for f in faces {
+            for &v in f {
+                count[v] += 2;
+            }
+        }
+        let mut start = vec![0usize; n + 1];
+        for j in 0..n {
+            start[j + 1] = start[j] + count[j];
+        }
+        let mut fill = start.clone();
+        let mut rows = vec![0usize; start[n]];
+        for j in 0..n {
+            rows[fill[j]] = j;
+            fill[j] += 1;
+        }
+        for f in faces {
+            for k in 0..3 {
+                let (a, b, c) = (f[k], f[(k + 1) % 3], f[(k + 2) % 3]);
+                rows[fill[a]] = b;
+                rows[fill[a] + 1] = c;
+                fill[a] += 2;
+            }
+        }
+        // Compact: sort and dedup each column in place.
+        let mut col_ptr = vec![0usize; n + 1];
+        let mut out = 0;
+        for j in 0..n {
+            let seg = &mut rows[start[j]..start[j + 1]];
+            seg.sort_unstable();
+            let mut last = usize::MAX;
+            let begin = start[j];
+            let len = start[j + 1] - begin;
+            for q in 0..len {
+                let r = rows[begin + q];
+                if r != last {
+                    rows[out] = r;
+                    out += 1;
+                    last = r;
+                }
+            }
+            col_ptr[j + 1] = out;
+        }
+        rows.truncate(out);
+        rows.shrink_to_fit();
+        AdjacencyPattern {
+            col_ptr,
+            row_idx: rows,
+        }
+    }
+
+    /// Storage position of entry `(i, j)`; the entry must be in the pattern.
+    pub(crate) fn position(&self, i: usize, j: usize) -> usize {
+        let seg = &self.row_idx[self.col_ptr[j]..self.col_ptr[j + 1]];
+        self.col_ptr[j] + seg.partition_point(|&r| r < i)
+    }
+
+    pub(crate) fn into_matrix(self, values: Vec<f64>) -> SparseColMat<usize, f64> {
+        let n = self.col_ptr.len() - 1;
+        // SAFETY-free construction: the pattern is sorted, unique and in
+        // bounds by construction, which `new_checked` verifies once more.
+        let symbolic = SymbolicSparseColMat::new_checked(n, n, self.col_ptr, None, self.row_idx);
+        SparseColMat::new(symbolic, values)
+    }
+}

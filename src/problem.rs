@@ -1,0 +1,373 @@
+//! The constrained least-squares problem (paper eq. 11):
+//! `min ‖A X − C‖  subject to  B X = D`, three right-hand sides together.
+//!
+//! `A = [L; w·B_soft]` (l × n) and `C = [δ; w·D_soft]` (l × 3): the Laplacian
+//! rows first, then one row per soft constraint scaled by its weight. `B`
+//! (m × n) and `D` (m × 3) hold the hard constraints, one row each, in the
+//! constraints' list order (their priority).
+
+use faer::Mat;
+use faer::sparse::{SparseColMat, SparseRowMat, SymbolicSparseColMat, SymbolicSparseRowMat};
+
+use crate::constraints::ConstraintSet;
+use crate::error::{ConstraintError, Error, ProblemError};
+
+/// Where a constraint lives in the assembled system.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RowPlace {
+    /// Row `k` of `B` and `D`.
+    Hard(usize),
+    /// Row `n_laplacian_rows + k` of `A` and `C`.
+    Soft(usize),
+}
+
+/// The assembled problem.
+#[derive(Debug, Clone)]
+pub struct LseProblem {
+    a: SparseColMat<usize, f64>,
+    c: Mat<f64>,
+    b: SparseRowMat<usize, f64>,
+    d: Mat<f64>,
+    n_laplacian_rows: usize,
+    places: Vec<RowPlace>,
+    hard: Vec<usize>,
+    soft: Vec<(usize, f64)>,
+    length_scale: f64,
+}
+
+impl LseProblem {
+    /// Assembles `A, C, B, D` from a Laplacian `l` (n × n), the Laplacian
+    /// coordinates `delta = L P` (n × 3) and the constraints (whose vertices
+    /// must be `< n`). `length_scale` (the mesh's bounding-box diagonal) is
+    /// the unit of absolute tolerances on constraint residuals.
+    pub fn new(
+        l: &SparseColMat<usize, f64>,
+        delta: &Mat<f64>,
+        constraints: &ConstraintSet,
+        length_scale: f64,
+    ) -> Result<LseProblem, Error> {
+        let n = l.ncols();
+        constraints.check_vertices(n)?;
+        let n_lap = l.nrows();
+        let mut places = Vec::with_capacity(constraints.len());
+        let mut hard = Vec::new();
+        let mut soft = Vec::new();
+        for (i, c) in constraints.as_slice().iter().enumerate() {
+            match c.weight {
+                None => {
+                    places.push(RowPlace::Hard(hard.len()));
+                    hard.push(i);
+                }
+                Some(w) => {
+                    places.push(RowPlace::Soft(soft.len()));
+                    soft.push((i, w));
+                }
+            }
+        }
+
+        // B (CSR), columns sorted within each row.
+        let mut row_ptr = Vec::with_capacity(hard.len() + 1);
+        row_ptr.push(0);
+        let mut col_idx = Vec::new();
+        let mut b_val = Vec::new();
+        let mut d = Mat::<f64>::zeros(hard.len(), 3);
+        for (k, &i) in hard.iter().enumerate() {
+            let kind = &constraints[i].kind;
+            let mut entries: Vec<(usize, f64)> = kind.row().entries().to_vec();
+            entries.sort_unstable_by_key(|e| e.0);
+            for (v, a) in entries {
+                col_idx.push(v);
+                b_val.push(a);
+            }
+            row_ptr.push(col_idx.len());
+            let rhs = kind.rhs();
+            for c in 0..3 {
+                d[(k, c)] = rhs[c];
+            }
+        }
+        let b = SparseRowMat::new(
+            SymbolicSparseRowMat::new_checked(hard.len(), n, row_ptr, None, col_idx),
+            b_val,
+        );
+
+        // A = [L; w B_soft] (CSC): column j holds L's column, then the soft
+        // entries on j (rows n_lap + k, increasing in k).
+        let mut soft_count = vec![0usize; n + 1];
+        for &(i, _) in &soft {
+            for &(v, _) in constraints[i].kind.row().entries() {
+                soft_count[v + 1] += 1;
+            }
+        }
+        for j in 0..n {
+            soft_count[j + 1] += soft_count[j];
+        }
+        let mut soft_rows = vec![0usize; soft_count[n]];
+        let mut soft_vals = vec![0.0; soft_count[n]];
+        let mut fill = soft_count.clone();
+        for (k, &(i, w)) in soft.iter().enumerate() {
+            for &(v, a) in constraints[i].kind.row().entries() {
+                soft_rows[fill[v]] = n_lap + k;
+                soft_vals[fill[v]] = w * a;
+                fill[v] += 1;
+            }
+        }
+        let (l_ptr, l_rows, l_val) = (l.symbolic().col_ptr(), l.symbolic().row_idx(), l.val());
+        let nnz = l_rows.len() + soft_rows.len();
+        let mut a_ptr = Vec::with_capacity(n + 1);
+        a_ptr.push(0);
+        let mut a_rows = Vec::with_capacity(nnz);
+        let mut a_val = Vec::with_capacity(nnz);
+        for j in 0..n {
+            a_rows.extend_from_slice(&l_rows[l_ptr[j]..l_ptr[j + 1]]);
+            a_val.extend_from_slice(&l_val[l_ptr[j]..l_ptr[j + 1]]);
+            a_rows.extend_from_slice(&soft_rows[soft_count[j]..soft_count[j + 1]]);
+            a_val.extend_from_slice(&soft_vals[soft_count[j]..soft_count[j + 1]]);
+            a_ptr.push(a_rows.len());
+        }
+        let a = SparseColMat::new(
+            SymbolicSparseColMat::new_checked(n_lap + soft.len(), n, a_ptr, None, a_rows),
+            a_val,
+        );
+
+        let mut c = Mat::<f64>::zeros(n_lap + soft.len(), 3);
+        c.as_mut().submatrix_mut(0, 0, n_lap, 3).copy_from(delta);
+        let mut problem = LseProblem {
+            a,
+            c,
+            b,
+            d,
+            n_laplacian_rows: n_lap,
+            places,
+            hard,
+            soft,
+            length_scale,
+        };
+        for (i, c) in constraints.as_slice().iter().enumerate() {
+            problem.write_rhs(i, c.kind.rhs());
+        }
+        Ok(problem)
+    }
+
+    fn write_rhs(&mut self, index: usize, value: [f64; 3]) {
+        match self.places[index] {
+            RowPlace::Hard(k) => {
+                for c in 0..3 {
+                    self.d[(k, c)] = value[c];
+                }
+            }
+            RowPlace::Soft(k) => {
+                let w = self.soft[k].1;
+                for c in 0..3 {
+                    self.c[(self.n_laplacian_rows + k, c)] = w * value[c];
+                }
+            }
+        }
+    }
+
+    /// Sets the target (or relative vector) of constraint `index`: the only
+    /// change a dragged handle makes. The matrices are untouched, so a
+    /// prepared system re-solves without refactoring.
+    pub fn set_rhs(&mut self, index: usize, value: [f64; 3]) -> Result<(), Error> {
+        if index >= self.places.len() {
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "constraint {index} does not exist (there are {})",
+                    self.places.len()
+                ),
+            }
+            .into());
+        }
+        if value.iter().any(|v| !v.is_finite()) {
+            return Err(ConstraintError::NonFinite {
+                index,
+                field: "target",
+            }
+            .into());
+        }
+        self.write_rhs(index, value);
+        Ok(())
+    }
+
+    /// `A` (l × n).
+    pub fn a(&self) -> &SparseColMat<usize, f64> {
+        &self.a
+    }
+
+    /// `C` (l × 3).
+    pub fn c(&self) -> &Mat<f64> {
+        &self.c
+    }
+
+    /// `B` (m × n), one row per hard constraint in priority order.
+    pub fn b(&self) -> &SparseRowMat<usize, f64> {
+        &self.b
+    }
+
+    /// `D` (m × 3).
+    pub fn d(&self) -> &Mat<f64> {
+        &self.d
+    }
+
+    /// Number of unknowns `n` (vertices).
+    pub fn n(&self) -> usize {
+        self.a.ncols()
+    }
+
+    /// Number of Laplacian rows at the top of `A`.
+    pub fn n_laplacian_rows(&self) -> usize {
+        self.n_laplacian_rows
+    }
+
+    /// The constraint index of each row of `B`.
+    pub fn hard_constraints(&self) -> &[usize] {
+        &self.hard
+    }
+
+    /// The constraint index and weight of each soft row of `A`.
+    pub fn soft_constraints(&self) -> &[(usize, f64)] {
+        &self.soft
+    }
+
+    /// Where constraint `index` lives in the system.
+    pub fn place(&self, index: usize) -> Option<RowPlace> {
+        self.places.get(index).copied()
+    }
+
+    /// The length unit of absolute constraint tolerances.
+    pub fn length_scale(&self) -> f64 {
+        self.length_scale
+    }
+
+    /// Euclidean norm of the residual `b_k·X − d_k` of hard row `k`.
+    pub fn hard_residual(&self, k: usize, x: &Mat<f64>) -> f64 {
+        let range = self.b.symbolic().row_range(k);
+        let cols = &self.b.symbolic().col_idx()[range.clone()];
+        let vals = &self.b.val()[range];
+        let mut s = 0.0;
+        for c in 0..3 {
+            let mut r = -self.d[(k, c)];
+            for (&v, &a) in cols.iter().zip(vals) {
+                r += a * x[(v, c)];
+            }
+            s += r * r;
+        }
+        s.sqrt()
+    }
+
+    /// `‖A X − C‖_F`.
+    pub fn least_squares_residual(&self, x: &Mat<f64>) -> f64 {
+        let r = self.a_times(x) - &self.c;
+        r.norm_l2()
+    }
+
+    /// `A X` for an n × k dense `X`.
+    pub fn a_times(&self, x: &Mat<f64>) -> Mat<f64> {
+        let (ptr, rows, val) = (
+            self.a.symbolic().col_ptr(),
+            self.a.symbolic().row_idx(),
+            self.a.val(),
+        );
+        let mut out = Mat::<f64>::zeros(self.a.nrows(), x.ncols());
+        for c in 0..x.ncols() {
+            for j in 0..self.a.ncols() {
+                let xj = x[(j, c)];
+                if xj != 0.0 {
+                    for p in ptr[j]..ptr[j + 1] {
+                        out[(rows[p], c)] += val[p] * xj;
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Checks that no connected component of the mesh is free to translate.
+///
+/// `L` annihilates every vector that is constant on a component, so a
+/// component's translation is fixed only by constraints whose coefficients
+/// on it do not sum to zero (position, edge, face — hard or soft; a relative
+/// constraint sums to zero). With `s_c(k)` the coefficient sum of constraint
+/// `k` on component `c`, the translations `T_c` are fixed iff the matrix
+/// `S = [s_c(k)]` (constraints × components) has full column rank. We decide
+/// that by Gaussian elimination with partial pivoting over the components
+/// not already pinned by a single-component constraint; a zero pivot column
+/// names the component. A coefficient sum counts as nonzero above
+/// `1e-12 × the row's coefficient norm`.
+pub fn check_pinned(
+    component_of: &[usize],
+    n_components: usize,
+    constraints: &ConstraintSet,
+) -> Result<(), ProblemError> {
+    if constraints.is_empty() {
+        return Err(ProblemError::NoConstraints);
+    }
+    let mut pinned = vec![false; n_components];
+    let mut coupling: Vec<Vec<(usize, f64)>> = Vec::new();
+    for c in constraints.as_slice() {
+        let row = c.kind.row();
+        let mut sums: Vec<(usize, f64)> = Vec::with_capacity(3);
+        for &(v, a) in row.entries() {
+            let comp = component_of[v];
+            match sums.iter_mut().find(|s| s.0 == comp) {
+                Some(s) => s.1 += a,
+                None => sums.push((comp, a)),
+            }
+        }
+        let tol = 1e-12 * row.norm();
+        sums.retain(|s| s.1.abs() > tol);
+        match sums.len() {
+            0 => {}
+            1 => pinned[sums[0].0] = true,
+            _ => coupling.push(sums),
+        }
+    }
+    let unpinned: Vec<usize> = (0..n_components).filter(|&c| !pinned[c]).collect();
+    if unpinned.is_empty() {
+        return Ok(());
+    }
+    // Dense elimination on the coupling rows restricted to unpinned
+    // components (small: one column per unpinned component).
+    let col_of: std::collections::HashMap<usize, usize> =
+        unpinned.iter().enumerate().map(|(k, &c)| (c, k)).collect();
+    let mut rows: Vec<Vec<f64>> = coupling
+        .iter()
+        .map(|sums| {
+            let mut r = vec![0.0; unpinned.len()];
+            for &(comp, s) in sums {
+                if let Some(&k) = col_of.get(&comp) {
+                    r[k] = s;
+                }
+            }
+            r
+        })
+        .filter(|r| r.iter().any(|&v| v != 0.0))
+        .collect();
+    let mut next = 0;
+    for (col, &comp) in unpinned.iter().enumerate() {
+        let pivot = (next..rows.len())
+            .max_by(|&a, &b| rows[a][col].abs().total_cmp(&rows[b][col].abs()))
+            .filter(|&p| rows[p][col].abs() > 1e-12);
+        let Some(p) = pivot else {
+            let vertices = component_of.iter().filter(|&&c| c == comp).count();
+            let example_vertex = component_of.iter().position(|&c| c == comp).unwrap_or(0);
+            return Err(ProblemError::UnpinnedComponent {
+                component: comp,
+                vertices,
+                example_vertex,
+            });
+        };
+        rows.swap(next, p);
+        let pivot_row = rows[next].clone();
+        for r in rows.iter_mut().skip(next + 1) {
+            let f = r[col] / pivot_row[col];
+            if f != 0.0 {
+                for (x, &y) in r.iter_mut().zip(&pivot_row).skip(col) {
+                    *x -= f * y;
+                }
+            }
+        }
+        next += 1;
+    }
+    Ok(())
+}

@@ -1,0 +1,171 @@
+//! What happened in a deformation: the [`Report`] every formulation returns.
+
+use serde::Serialize;
+
+/// A skipped hard constraint that the solution does not satisfy.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Conflict {
+    /// Constraint index in the constraints file.
+    pub index: usize,
+    /// `‖b·X − d‖₂`, the distance by which it is violated.
+    pub residual: f64,
+}
+
+/// Entry counts of the matrices involved.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Nnz {
+    /// `A = [L; w B_soft]`.
+    pub a: usize,
+    /// `B` (hard constraints).
+    pub b: usize,
+    /// `A Q2` (null-space method only).
+    pub aq2: Option<usize>,
+    /// The matrix that was factored, counted as a full symmetric matrix
+    /// (both triangles): `(AQ2)ᵀ(AQ2)`, `AᵀA + w²BᵀB`, or the KKT matrix.
+    pub normal: Option<usize>,
+    /// The factor `L` (lower triangle).
+    pub factor: Option<usize>,
+    /// Bytes of the factor's values and row indices.
+    pub factor_bytes: Option<usize>,
+    /// Entries of the implicit `Q` and `R` of the constraint QR.
+    pub qr: Option<usize>,
+}
+
+/// Wall-clock seconds of each phase (paper §4: set-up, precompute =
+/// QR + preparation + normal matrix + symbolic + numeric, solution).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Timings {
+    /// Building `L`, `δ`, `A`, `C`, `B`, `D` (and checks).
+    pub setup: f64,
+    /// QR of `Bᵀ` with rank detection.
+    pub qr: f64,
+    /// `A Q2` (and, for other formulations, assembling what they factor
+    /// beyond the normal matrix).
+    pub preparation: f64,
+    /// The normal matrix (pattern and values).
+    pub normal_matrix: f64,
+    /// Symbolic analysis (ordering, elimination tree, supernodes).
+    pub symbolic: f64,
+    /// Numeric factorisation.
+    pub numeric: f64,
+    /// The last solve: `R1ᵀy = D`, right-hand side, two triangular solves,
+    /// `X = Q[y; z]`.
+    pub solve: f64,
+    /// Residual checks and conflict classification after the last solve
+    /// (not part of the paper's phases).
+    pub diagnostics: f64,
+}
+
+impl Timings {
+    /// QR + preparation + normal matrix + symbolic + numeric.
+    pub fn precompute(&self) -> f64 {
+        self.qr + self.preparation + self.normal_matrix + self.symbolic + self.numeric
+    }
+}
+
+/// The report of a deformation.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Report {
+    /// The formulation (e.g. `nullspace-qr`).
+    pub method: String,
+    /// The QR back end, if the method uses one.
+    pub qr_backend: Option<String>,
+    /// The SPD (or symmetric indefinite) back end.
+    pub spd_backend: Option<String>,
+    /// The Laplacian kind.
+    pub laplacian: Option<String>,
+    /// Number of vertices (unknowns).
+    pub vertices: usize,
+    /// Number of constraints (hard + soft).
+    pub constraints: usize,
+    /// Number of hard constraints.
+    pub hard_constraints: usize,
+    /// Number of soft constraints.
+    pub soft_constraints: usize,
+    /// Numerical rank of `B` (methods with rank detection).
+    pub rank: Option<usize>,
+    /// Hard constraints skipped as dependent on earlier ones and satisfied
+    /// by the solution anyway (constraint indices, increasing).
+    pub redundant: Vec<usize>,
+    /// Hard constraints skipped as dependent and *not* satisfied: they
+    /// contradict earlier constraints, which win.
+    pub conflicting: Vec<Conflict>,
+    /// `max ‖b_k·X − d_k‖₂` over the hard constraints that were kept.
+    pub max_constraint_residual: f64,
+    /// The same divided by the length scale (bounding-box diagonal).
+    pub max_constraint_residual_relative: f64,
+    /// `‖A X − C‖_F`.
+    pub least_squares_residual: f64,
+    /// The length unit of tolerances: the mesh's bounding-box diagonal.
+    pub length_scale: f64,
+    /// The tolerance that classified skipped constraints as conflicting.
+    pub conflict_tolerance: f64,
+    /// Matrix sizes.
+    pub nnz: Nnz,
+    /// Seconds per phase.
+    pub timings_s: Timings,
+    /// Things the user should know.
+    pub warnings: Vec<String>,
+}
+
+/// Relative tolerance for classifying a skipped hard constraint as
+/// conflicting: its residual must exceed `1e-8 ×` the length scale.
+///
+/// A skipped constraint that is consistent with the kept ones is satisfied
+/// up to its own numerical remainder (`≤ η ‖b_j‖ ‖X‖`, with `η = 1e-10` the
+/// rank tolerance) plus rounding of the kept rows (`~1e-15` relative): two
+/// orders of magnitude below this bound. A conflict smaller than `1e-8` of the
+/// model's size is invisible in any rendering and below the precision of
+/// scanned data.
+pub const CONFLICT_RELATIVE_TOLERANCE: f64 = 1e-8;
+
+/// Fills the solution diagnostics of `report` for the solution `x` of
+/// `problem`: the residual of every kept hard constraint, the split of the
+/// `skipped` rows of `B` into redundant and conflicting, and `‖AX − C‖`.
+pub fn fill_solution_diagnostics(
+    report: &mut Report,
+    problem: &crate::problem::LseProblem,
+    x: &faer::Mat<f64>,
+    skipped: &[usize],
+) {
+    let scale = problem.length_scale();
+    let tolerance = CONFLICT_RELATIVE_TOLERANCE * scale;
+    let hard = problem.hard_constraints();
+    let mut is_skipped = vec![false; hard.len()];
+    for &k in skipped {
+        is_skipped[k] = true;
+    }
+    let mut max_kept = 0.0f64;
+    report.redundant.clear();
+    report.conflicting.clear();
+    for (k, &index) in hard.iter().enumerate() {
+        let r = problem.hard_residual(k, x);
+        if !is_skipped[k] {
+            max_kept = max_kept.max(r);
+        } else if r > tolerance {
+            report.conflicting.push(Conflict { index, residual: r });
+        } else {
+            report.redundant.push(index);
+        }
+    }
+    report.max_constraint_residual = max_kept;
+    report.max_constraint_residual_relative = if scale > 0.0 {
+        max_kept / scale
+    } else {
+        max_kept
+    };
+    report.least_squares_residual = problem.least_squares_residual(x);
+    report.length_scale = scale;
+    report.conflict_tolerance = tolerance;
+    report.hard_constraints = hard.len();
+    report.soft_constraints = problem.soft_constraints().len();
+    report.constraints = hard.len() + problem.soft_constraints().len();
+    report.vertices = problem.n();
+    report.nnz.a = problem.a().val().len();
+    report.nnz.b = problem.b().val().len();
+}
+
+/// The first vertex with a non-finite coordinate in `x`, if any.
+pub fn first_non_finite(x: &faer::Mat<f64>) -> Option<usize> {
+    (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !x[(i, c)].is_finite()))
+}
