@@ -323,6 +323,12 @@ pub enum ProblemError {
         /// The estimate and the limit.
         detail: String,
     },
+    /// An argument (a fraction, an axis, a method option) is out of range.
+    #[error("invalid argument: {message}")]
+    InvalidArgument {
+        /// What is wrong.
+        message: String,
+    },
     /// A target update refers to a constraint that does not exist or has the
     /// wrong kind.
     #[error("target update: {message}")]

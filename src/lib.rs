@@ -28,6 +28,7 @@ pub mod mesh;
 pub mod normal;
 pub mod problem;
 pub mod report;
+pub mod scene;
 
 pub use constraints::{Constraint, ConstraintKind, ConstraintSet};
 pub use deform::{Deformer, Solution};
