@@ -58,34 +58,55 @@ pub struct Topology {
     pub genus: Option<usize>,
 }
 
-/// One half-edge: undirected key `(lo, hi)`, whether it runs `lo → hi`, and
-/// its face and local corner (the half-edge runs from corner `k` to `k+1`).
-#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+/// One half-edge: undirected key `(lo, hi)` and its id `3·face + corner`
+/// (the half-edge runs from corner `k` to corner `k+1` of its face).
+#[derive(Clone, Copy, Default)]
 struct HalfEdge {
     lo: usize,
     hi: usize,
-    forward: bool,
-    face: usize,
-    corner: u8,
+    id: usize,
 }
 
-/// All `3F` half-edges, sorted by undirected key (then direction and face).
+impl HalfEdge {
+    fn face(&self) -> usize {
+        self.id / 3
+    }
+    /// `true` if it runs from `lo` to `hi`.
+    fn forward(&self, faces: &[[usize; 3]]) -> bool {
+        faces[self.id / 3][self.id % 3] == self.lo
+    }
+}
+
+/// All `3F` half-edges, sorted by `(lo, hi, id)`: a counting sort by `lo`
+/// (`O(V + F)`), then a sort of each vertex's few half-edges by `hi`.
 fn sorted_half_edges(mesh: &Mesh) -> Vec<HalfEdge> {
-    let mut h = Vec::with_capacity(3 * mesh.n_faces());
-    for (f, face) in mesh.faces().iter().enumerate() {
-        for k in 0..3u8 {
-            let a = face[k as usize];
-            let b = face[(k as usize + 1) % 3];
-            h.push(HalfEdge {
-                lo: a.min(b),
-                hi: a.max(b),
-                forward: a < b,
-                face: f,
-                corner: k,
-            });
+    let faces = mesh.faces();
+    let mut start = vec![0usize; mesh.n_vertices() + 1];
+    for face in faces {
+        for k in 0..3 {
+            start[face[k].min(face[(k + 1) % 3]) + 1] += 1;
         }
     }
-    h.sort_unstable();
+    for v in 1..start.len() {
+        start[v] += start[v - 1];
+    }
+    let mut fill = start.clone();
+    let mut h = vec![HalfEdge::default(); 3 * faces.len()];
+    for (f, face) in faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (face[k], face[(k + 1) % 3]);
+            let lo = a.min(b);
+            h[fill[lo]] = HalfEdge {
+                lo,
+                hi: a.max(b),
+                id: 3 * f + k,
+            };
+            fill[lo] += 1;
+        }
+    }
+    for w in start.windows(2) {
+        h[w[0]..w[1]].sort_unstable_by_key(|e| (e.hi, e.id));
+    }
     h
 }
 
@@ -130,21 +151,20 @@ impl Dsu {
 }
 
 impl Topology {
-    /// Computes the summary in `O(F log F)`.
+    /// Computes the summary in `O(V + F log d)` (`d` the largest vertex
+    /// degree).
     pub fn of(mesh: &Mesh) -> Topology {
         let n = mesh.n_vertices();
         let faces = mesh.faces();
         let h = sorted_half_edges(mesh);
         let corner_id = |e: &HalfEdge, at_lo: bool| -> usize {
-            // Corner of face e.face at vertex lo (or hi): the half-edge runs
+            // Corner of the face at vertex lo (or hi): the half-edge runs
             // from corner k to k+1, so its tail is corner k.
-            let tail_is_lo = e.forward;
-            let k = if at_lo == tail_is_lo {
-                e.corner as usize
+            if at_lo == e.forward(faces) {
+                e.id
             } else {
-                (e.corner as usize + 1) % 3
-            };
-            3 * e.face + k
+                3 * e.face() + (e.id + 1) % 3
+            }
         };
 
         // Fans: corners (3f + k) at the same vertex joined across manifold
@@ -164,7 +184,7 @@ impl Topology {
                     boundary.push(g[0]);
                 }
                 2 => {
-                    if g[0].forward == g[1].forward {
+                    if g[0].forward(faces) == g[1].forward(faces) {
                         consistently_oriented = false;
                     }
                     fans.union(corner_id(&g[0], true), corner_id(&g[1], true));
@@ -172,7 +192,7 @@ impl Topology {
                 }
                 _ => {
                     n_non_manifold_edges += 1;
-                    let fwd = g.iter().filter(|e| e.forward).count();
+                    let fwd = g.iter().filter(|e| e.forward(faces)).count();
                     if 2 * fwd != g.len() {
                         consistently_oriented = false;
                     }
@@ -277,16 +297,10 @@ impl Topology {
 /// The unique undirected edges of a mesh, each as `[a, b]` with `a < b`,
 /// sorted lexicographically.
 pub fn edges(mesh: &Mesh) -> Vec<[usize; 2]> {
-    let mut e: Vec<[usize; 2]> = Vec::with_capacity(3 * mesh.n_faces());
-    for face in mesh.faces() {
-        for k in 0..3 {
-            let (a, b) = (face[k], face[(k + 1) % 3]);
-            e.push([a.min(b), a.max(b)]);
-        }
-    }
-    e.sort_unstable();
-    e.dedup();
-    e
+    let h = sorted_half_edges(mesh);
+    edge_groups(&h)
+        .map(|r| [h[r.start].lo, h[r.start].hi])
+        .collect()
 }
 
 /// The vertex adjacency graph in compressed sparse row form `(offsets,
