@@ -216,7 +216,11 @@ pub fn grid(nx: usize, ny: usize) -> Result<Mesh, MeshError> {
             format!("a grid needs at least 1 × 1 cells, got {nx} × {ny}"),
         ));
     }
-    let nv = check_vertex_count("nx, ny", (nx + 1).checked_mul(ny.saturating_add(1)))?;
+    let nv = check_vertex_count(
+        "nx, ny",
+        nx.checked_add(1)
+            .and_then(|w| w.checked_mul(ny.checked_add(1)?)),
+    )?;
     let mut positions = Vec::with_capacity(nv);
     for j in 0..=ny {
         let y = j as f64 / ny as f64;
@@ -488,8 +492,9 @@ impl GeneratedKind {
         }
     }
 
-    /// Smallest valid size parameter.
-    fn min_size(self) -> usize {
+    /// Smallest valid size parameter (0 subdivisions, 1 cell, or `n = 2`
+    /// for the sliver mesh).
+    pub fn min_size(self) -> usize {
         match self {
             GeneratedKind::Icosphere | GeneratedKind::BumpySphere => 0,
             GeneratedKind::Grid | GeneratedKind::UnsymmetricGrid => 1,
