@@ -557,77 +557,76 @@ fn read_off<R: BufRead>(reader: R, size: Option<u64>) -> Result<LoadedMesh, Read
     };
     let first: Vec<Vec<u8>> = tokens(text).map(<[u8]>::to_vec).collect();
     let first_tok = first.first().map(Vec::as_slice).unwrap_or_default();
-    let (counts, counts_line): (Vec<Vec<u8>>, usize) =
-        if first_tok.is_empty() || first_tok[0].is_ascii_digit() {
-            notes.push(
-                "the OFF file has no 'OFF' header line; read the counts from its first line"
-                    .to_string(),
-            );
-            (first, first_line)
+    let (counts, counts_line): (Vec<Vec<u8>>, usize) = if parse_i64(first_tok).is_some() {
+        notes.push(
+            "the OFF file has no 'OFF' header line; read the counts from its first line"
+                .to_string(),
+        );
+        (first, first_line)
+    } else {
+        let header_ok =
+            first_tok.len() >= 3 && first_tok[first_tok.len() - 3..].eq_ignore_ascii_case(b"OFF");
+        let prefix = &first_tok[..first_tok.len().saturating_sub(3)];
+        if !header_ok {
+            return Err(parse_error(
+                F,
+                first_line,
+                format!(
+                    "expected the header 'OFF' (or COFF, NOFF, …), found '{}'",
+                    show(first_tok)
+                ),
+            )
+            .into());
+        }
+        if prefix.contains(&b'4') || prefix.contains(&b'n') {
+            return Err(parse_error(
+                F,
+                first_line,
+                format!(
+                    "'{}' (4D or n-dimensional OFF) is not supported; only 3D OFF is",
+                    show(first_tok)
+                ),
+            )
+            .into());
+        }
+        if !prefix
+            .iter()
+            .all(|c| matches!(c, b'S' | b'T' | b'C' | b'N'))
+        {
+            return Err(parse_error(
+                F,
+                first_line,
+                format!(
+                    "unknown OFF header '{}' (expected OFF, COFF, NOFF, CNOFF, STOFF, …)",
+                    show(first_tok)
+                ),
+            )
+            .into());
+        }
+        if first
+            .get(1)
+            .is_some_and(|t| t.eq_ignore_ascii_case(b"BINARY"))
+        {
+            return Err(parse_error(
+                F,
+                first_line,
+                "binary OFF is not supported; convert it to ASCII OFF, PLY or OBJ",
+            )
+            .into());
+        }
+        if first.len() > 1 {
+            (first[1..].to_vec(), first_line)
         } else {
-            let header_ok = first_tok.len() >= 3
-                && first_tok[first_tok.len() - 3..].eq_ignore_ascii_case(b"OFF");
-            let prefix = &first_tok[..first_tok.len().saturating_sub(3)];
-            if !header_ok {
-                return Err(parse_error(
-                    F,
-                    first_line,
-                    format!(
-                        "expected the header 'OFF' (or COFF, NOFF, …), found '{}'",
-                        show(first_tok)
-                    ),
-                )
+            let Some((l, text)) = next_content(&mut lines)? else {
+                return Err(MeshError::Empty {
+                    vertices: 0,
+                    faces: 0,
+                }
                 .into());
-            }
-            if prefix.contains(&b'4') || prefix.contains(&b'n') {
-                return Err(parse_error(
-                    F,
-                    first_line,
-                    format!(
-                        "'{}' (4D or n-dimensional OFF) is not supported; only 3D OFF is",
-                        show(first_tok)
-                    ),
-                )
-                .into());
-            }
-            if !prefix
-                .iter()
-                .all(|c| matches!(c, b'S' | b'T' | b'C' | b'N'))
-            {
-                return Err(parse_error(
-                    F,
-                    first_line,
-                    format!(
-                        "unknown OFF header '{}' (expected OFF, COFF, NOFF, CNOFF, STOFF, …)",
-                        show(first_tok)
-                    ),
-                )
-                .into());
-            }
-            if first
-                .get(1)
-                .is_some_and(|t| t.eq_ignore_ascii_case(b"BINARY"))
-            {
-                return Err(parse_error(
-                    F,
-                    first_line,
-                    "binary OFF is not supported; convert it to ASCII OFF, PLY or OBJ",
-                )
-                .into());
-            }
-            if first.len() > 1 {
-                (first[1..].to_vec(), first_line)
-            } else {
-                let Some((l, text)) = next_content(&mut lines)? else {
-                    return Err(MeshError::Empty {
-                        vertices: 0,
-                        faces: 0,
-                    }
-                    .into());
-                };
-                (tokens(text).map(<[u8]>::to_vec).collect(), l)
-            }
-        };
+            };
+            (tokens(text).map(<[u8]>::to_vec).collect(), l)
+        }
+    };
     let count = |k: usize, what: &str| -> Result<usize, MeshError> {
         let tok = counts.get(k).ok_or_else(|| {
             parse_error(
@@ -1050,6 +1049,7 @@ fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
     b.positions.reserve(vertex_def.count);
     let ascii = header.encoding == Encoding::Ascii;
     let mut line = header_lines;
+    let mut deferred: Option<MeshError> = None;
     for (name, def) in &header.elements {
         let is_vertex = name == "vertex";
         let is_face = name == "face";
@@ -1105,19 +1105,28 @@ fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
                 }
             };
             let here = ascii.then_some(line);
-            if is_vertex {
-                b.vertex(element.xyz, here)?;
+            let result = if is_vertex {
+                b.vertex(element.xyz, here)
             } else if is_face {
                 let indices = element
                     .indices
                     .as_ref()
                     .map(IndexList::to_i64)
                     .unwrap_or_default();
-                let mut poly = Vec::with_capacity(indices.len());
-                for (corner, &index) in indices.iter().enumerate() {
-                    poly.push(b.resolve(index, corner, here)?);
-                }
-                b.polygon(&poly, here)?;
+                indices
+                    .iter()
+                    .enumerate()
+                    .map(|(corner, &index)| b.resolve(index, corner, here))
+                    .collect::<Result<Vec<usize>, MeshError>>()
+                    .and_then(|poly| b.polygon(&poly, here))
+            } else {
+                Ok(())
+            };
+            if let Err(e) = result {
+                // Report it only once the data proved structurally sound: if
+                // the counts do not match the data, a garbage value here is a
+                // symptom, and the mismatch is the error to report.
+                deferred.get_or_insert(e);
             }
         }
     }
@@ -1130,6 +1139,9 @@ fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
             ),
         )
         .into());
+    }
+    if let Some(e) = deferred {
+        return Err(e.into());
     }
     Ok(b.finish(F, Vec::new())?)
 }
