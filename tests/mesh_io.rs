@@ -175,6 +175,32 @@ fn gzip_is_detected_by_content_with_a_note() {
 }
 
 #[test]
+fn truncated_or_corrupt_gzip_is_an_error() {
+    let mesh = generate::grid(4, 4).unwrap();
+    let gz = gzip(&write_to_vec(&mesh, "obj"));
+    // Cut: the stream ends early (no silently smaller mesh).
+    for cut in [gz.len() / 2, gz.len() - 4] {
+        match read_mesh_bytes(&gz[..cut], MeshFormat::Obj) {
+            Err(MeshError::Parse { message, .. }) => {
+                assert!(message.contains("could not read the data"), "{message}")
+            }
+            other => panic!("cut {cut}: {other:?}"),
+        }
+    }
+    // From a file, the error names the path.
+    let dir = TempDir::new("gzcut");
+    let path = dir.path("cut.obj.gz");
+    std::fs::write(&path, &gz[..gz.len() / 2]).unwrap();
+    match read_mesh(&path).unwrap_err() {
+        Error::Io { path: p, source } => {
+            assert_eq!(p, path);
+            assert!(source.to_string().contains("gzip"), "{source}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
 fn format_from_path() {
     let f = |p: &str| MeshFormat::from_path(Path::new(p));
     assert_eq!(f("a/b/c.obj").unwrap(), (MeshFormat::Obj, false));

@@ -247,18 +247,24 @@ pub fn unsymmetric_grid_vertex_count(n: usize) -> Option<usize> {
     n.checked_mul(n + 1)?.checked_add(right.checked_mul(right)?)
 }
 
-/// The unsymmetric planar grid of Fig. 1 of Masuda et al. (2006): the unit
+/// An unsymmetric planar grid in the spirit of Fig. 1 of Masuda et al.
+/// (2006) (our reconstruction, not the paper's exact mesh): the unit
 /// square `[0,1]²` (in `z = 0`) whose left half `x ≤ ½` is an `n × n` grid
-/// of coarse cells (`½n × 1/n`, diagonal from lower left to upper right)
+/// of coarse cells (`1/(2n) × 1/n`, diagonal from lower left to upper right)
 /// and whose right half is a `2n × 2n` grid of cells half as large in each
 /// direction with the *other* diagonal (lower right to upper left). The
 /// halves meet conformingly at `x = ½`: each coarse cell touching it is split
 /// into three triangles by the midpoint of its right edge.
 ///
-/// The mesh is mirror-symmetric as a domain but not as a graph, so a
-/// Laplacian with uniform (graph) weights gives a visibly asymmetric
-/// deformation under symmetric constraints, while cotangent weights, which
-/// see only the geometry, do not.
+/// The domain is mirror-symmetric about `x = ½`, the mesh is not, so a
+/// Laplacian with uniform (graph) weights, which sees only connectivity,
+/// deforms it asymmetrically under mirror-symmetric constraints, while
+/// cotangent weights, which approximate the continuous Laplacian, stay much
+/// closer to symmetric. Measured with this crate's LSE deformer (boundary
+/// fixed, the interior vertices on the line `y = ½` lifted by 0.3, `n = 4`
+/// and `8`): `max |z(x, y) − z(1−x, y)|` is about 0.05 with uniform weights
+/// and about 0.013 with cotangent weights. (A single handle vertex on the
+/// seam is not a good demonstration: there both are visibly asymmetric.)
 ///
 /// `n(n+1) + (2n+1)²` vertices, `10n² + n` faces, one boundary loop.
 /// Requires `n ≥ 1`.

@@ -178,7 +178,13 @@ const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
     let (format, gzip_ext) = MeshFormat::from_path(path)?;
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let size = file.metadata().ok().map(|m| m.len());
+    // Only a regular file's length is the number of bytes it will deliver
+    // (a pipe reports 0).
+    let size = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
     let mut reader = BufReader::with_capacity(1 << 16, file);
     let head = reader.fill_buf().map_err(|e| Error::io(path, e))?;
     let gzip = head.starts_with(&GZIP_MAGIC);

@@ -10,7 +10,10 @@
 //! - every face index `< n_vertices`, no face repeating a vertex;
 //! - no face of (numerically) zero area: `|e1 × e2| > 64 ε ℓ²`, with `ℓ`
 //!   the face's longest edge — below that bound the cross product is
-//!   rounding noise and the face's angles are undefined;
+//!   rounding noise and the face's angles are undefined (areas are computed
+//!   from squared lengths, so edge lengths must lie roughly within
+//!   `1e-75 ..= 1e75`: beyond that the squares underflow or overflow and
+//!   faces count as degenerate);
 //! - no two faces with the same vertex set;
 //! - every vertex used by at least one face (an unreferenced vertex has an
 //!   empty Laplacian row and makes every system singular).
