@@ -68,6 +68,13 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// An invalid mesh file or invalid mesh data. Indices are 0-based unless the
 /// message says "line", which is 1-based as in an editor.
+///
+/// Variants that name a vertex or a face carry `line: Option<usize>`: `None`
+/// when the error comes from [`Mesh::new`](crate::mesh::Mesh::new) on
+/// in-memory data, `Some(l)` when a file reader could locate the element in a
+/// line-based file (OBJ, OFF, ASCII PLY). For a face, `face` is always the
+/// index in the *triangle* list (after fan-triangulating polygons), and `line`
+/// is the line of the polygon it came from; the message shows both.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum MeshError {
     /// The file could not be parsed.
@@ -95,44 +102,65 @@ pub enum MeshError {
         faces: usize,
     },
     /// A coordinate is NaN or infinite.
-    #[error("vertex {vertex} has a non-finite coordinate {value}")]
+    #[error("vertex {vertex}{} has a non-finite coordinate {value}", at_line(line))]
     NonFiniteCoordinate {
         /// Vertex index.
         vertex: usize,
         /// The offending value.
         value: f64,
+        /// 1-based file line of the vertex, if read from a line-based file.
+        line: Option<usize>,
     },
     /// A face refers to a vertex that does not exist.
-    #[error("face {face} refers to vertex {index}, but the mesh has {vertex_count} vertices")]
+    #[error(
+        "face {face}{} refers to vertex {index} (0-based), but the mesh has {vertex_count} vertices",
+        at_line(line)
+    )]
     IndexOutOfRange {
         /// Face index.
         face: usize,
         /// The index as resolved to 0-based (may be negative if the file's
-        /// index was).
+        /// index was, e.g. an OBJ relative index reaching before the first
+        /// vertex).
         index: i64,
-        /// Number of vertices.
+        /// Number of vertices (for an OBJ relative index: the number defined
+        /// up to that line).
         vertex_count: usize,
+        /// 1-based file line of the face, if read from a line-based file.
+        line: Option<usize>,
     },
     /// A face has fewer than three vertices or is not a triangle where the
     /// format requires triangles.
-    #[error("face {face} has {sides} vertices; only polygons with at least 3 are allowed")]
+    #[error(
+        "face {face}{} has {sides} vertices; only polygons with at least 3 are allowed",
+        at_line(line)
+    )]
     BadFaceSize {
-        /// Face index.
+        /// Face index (in the triangle list, i.e. the index the face would
+        /// have had).
         face: usize,
         /// Its number of vertices.
         sides: usize,
+        /// 1-based file line of the face, if read from a line-based file.
+        line: Option<usize>,
     },
     /// A face uses the same vertex twice.
-    #[error("face {face} uses vertex {vertex} twice (a degenerate face)")]
+    #[error(
+        "face {face}{} uses vertex {vertex} twice (a degenerate face)",
+        at_line(line)
+    )]
     RepeatedVertex {
         /// Face index.
         face: usize,
         /// The repeated vertex.
         vertex: usize,
+        /// 1-based file line of the face, if read from a line-based file.
+        line: Option<usize>,
     },
     /// A face has (numerically) zero area.
     #[error(
-        "face {face} (vertices {vertices:?}) has zero area ({area:e}): its angles and cotangent weights are undefined"
+        "face {face}{} (vertices {vertices:?}) has zero area ({area:e}): its angles and cotangent weights are undefined",
+        at_line(line)
     )]
     DegenerateFace {
         /// Face index.
@@ -141,9 +169,14 @@ pub enum MeshError {
         vertices: [usize; 3],
         /// Its area.
         area: f64,
+        /// 1-based file line of the face, if read from a line-based file.
+        line: Option<usize>,
     },
     /// Two faces use the same three vertices.
-    #[error("face {face} repeats face {first} (same vertices {vertices:?})")]
+    #[error(
+        "face {face}{} repeats face {first} (same vertices {vertices:?})",
+        at_line(line)
+    )]
     DuplicateFace {
         /// The later face.
         face: usize,
@@ -151,16 +184,22 @@ pub enum MeshError {
         first: usize,
         /// The shared vertices.
         vertices: [usize; 3],
+        /// 1-based file line of the later face, if read from a line-based
+        /// file.
+        line: Option<usize>,
     },
     /// A vertex is used by no face.
     #[error(
-        "vertex {vertex} is used by no face ({count} unreferenced vertices in all): it has no Laplacian row, which makes the system singular; remove unreferenced vertices from the mesh (renumbering the faces and constraints) before deforming it"
+        "vertex {vertex}{} is used by no face ({count} unreferenced vertices in all): it has no Laplacian row, which makes the system singular; remove unreferenced vertices from the mesh (renumbering the faces and constraints) before deforming it",
+        at_line(line)
     )]
     UnreferencedVertex {
         /// The first unreferenced vertex.
         vertex: usize,
         /// How many there are.
         count: usize,
+        /// 1-based file line of that vertex, if read from a line-based file.
+        line: Option<usize>,
     },
     /// A generator parameter is out of its range.
     #[error("invalid parameter {name}: {message}")]
@@ -178,6 +217,74 @@ pub enum MeshError {
         /// The estimate and the limit.
         detail: String,
     },
+}
+
+/// `" (line N)"`, or nothing.
+fn at_line(line: &Option<usize>) -> String {
+    line.map(|l| format!(" (line {l})")).unwrap_or_default()
+}
+
+impl MeshError {
+    /// The 1-based file line the error refers to, if known.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            MeshError::Parse { line, .. }
+            | MeshError::NonFiniteCoordinate { line, .. }
+            | MeshError::IndexOutOfRange { line, .. }
+            | MeshError::BadFaceSize { line, .. }
+            | MeshError::RepeatedVertex { line, .. }
+            | MeshError::DegenerateFace { line, .. }
+            | MeshError::DuplicateFace { line, .. }
+            | MeshError::UnreferencedVertex { line, .. } => *line,
+            MeshError::UnsupportedFormat { .. }
+            | MeshError::Empty { .. }
+            | MeshError::BadParameter { .. }
+            | MeshError::TooLarge { .. } => None,
+        }
+    }
+
+    /// The vertex an error is about, if it names one (used by file readers
+    /// to attach the vertex's line).
+    pub(crate) fn located_vertex(&self) -> Option<usize> {
+        match self {
+            MeshError::NonFiniteCoordinate { vertex, .. }
+            | MeshError::UnreferencedVertex { vertex, .. } => Some(*vertex),
+            _ => None,
+        }
+    }
+
+    /// The face (index in the triangle list) an error is about, if it names
+    /// one (used by file readers to attach the face's line).
+    pub(crate) fn located_face(&self) -> Option<usize> {
+        match self {
+            MeshError::IndexOutOfRange { face, .. }
+            | MeshError::BadFaceSize { face, .. }
+            | MeshError::RepeatedVertex { face, .. }
+            | MeshError::DegenerateFace { face, .. }
+            | MeshError::DuplicateFace { face, .. } => Some(*face),
+            _ => None,
+        }
+    }
+
+    /// Sets the `line` of a vertex- or face-located error that has none yet;
+    /// other errors are returned unchanged.
+    pub(crate) fn with_line(mut self, new_line: Option<usize>) -> Self {
+        match &mut self {
+            MeshError::NonFiniteCoordinate { line, .. }
+            | MeshError::IndexOutOfRange { line, .. }
+            | MeshError::BadFaceSize { line, .. }
+            | MeshError::RepeatedVertex { line, .. }
+            | MeshError::DegenerateFace { line, .. }
+            | MeshError::DuplicateFace { line, .. }
+            | MeshError::UnreferencedVertex { line, .. }
+                if line.is_none() =>
+            {
+                *line = new_line;
+            }
+            _ => {}
+        }
+        self
+    }
 }
 
 /// An invalid constraints file or constraint. `index` is the 0-based position

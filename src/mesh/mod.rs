@@ -10,7 +10,10 @@
 //! - every face index `< n_vertices`, no face repeating a vertex;
 //! - no face of (numerically) zero area: `|e1 × e2| > 64 ε ℓ²`, with `ℓ`
 //!   the face's longest edge — below that bound the cross product is
-//!   rounding noise and the face's angles are undefined;
+//!   rounding noise and the face's angles are undefined (areas are computed
+//!   from squared lengths, so edge lengths must lie roughly within
+//!   `1e-75 ..= 1e75`: beyond that the squares underflow or overflow and
+//!   faces count as degenerate);
 //! - no two faces with the same vertex set;
 //! - every vertex used by at least one face (an unreferenced vertex has an
 //!   empty Laplacian row and makes every system singular).
@@ -30,7 +33,7 @@ pub mod io;
 pub mod quality;
 pub mod topology;
 
-pub use io::{LoadedMesh, MeshFormat, read_mesh, write_mesh};
+pub use io::{LoadedMesh, MeshFormat, PlyEncoding, read_mesh, read_mesh_bytes, write_mesh};
 pub use quality::Quality;
 pub use topology::Topology;
 
@@ -110,7 +113,11 @@ impl Mesh {
         }
         for (v, p) in positions.iter().enumerate() {
             if let Some(&value) = p.iter().find(|c| !c.is_finite()) {
-                return Err(MeshError::NonFiniteCoordinate { vertex: v, value });
+                return Err(MeshError::NonFiniteCoordinate {
+                    vertex: v,
+                    value,
+                    line: None,
+                });
             }
         }
         Ok(Mesh {
@@ -157,7 +164,11 @@ pub fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), Mesh
     }
     for (v, p) in positions.iter().enumerate() {
         if let Some(&value) = p.iter().find(|c| !c.is_finite()) {
-            return Err(MeshError::NonFiniteCoordinate { vertex: v, value });
+            return Err(MeshError::NonFiniteCoordinate {
+                vertex: v,
+                value,
+                line: None,
+            });
         }
     }
     let n = positions.len();
@@ -169,25 +180,37 @@ pub fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), Mesh
                     face: f,
                     index: i64::try_from(i).unwrap_or(i64::MAX),
                     vertex_count: n,
+                    line: None,
                 });
             }
         }
         let [a, b, c] = *face;
         if a == b || a == c {
-            return Err(MeshError::RepeatedVertex { face: f, vertex: a });
+            return Err(MeshError::RepeatedVertex {
+                face: f,
+                vertex: a,
+                line: None,
+            });
         }
         if b == c {
-            return Err(MeshError::RepeatedVertex { face: f, vertex: b });
+            return Err(MeshError::RepeatedVertex {
+                face: f,
+                vertex: b,
+                line: None,
+            });
         }
         let area = quality::triangle_area(positions[a], positions[b], positions[c]);
         let l2 = quality::longest_edge_sq(positions[a], positions[b], positions[c]);
         // |e1 × e2| = 2·area; the rounding error of the cross product is a few
         // ε·ℓ², so below 64 ε ℓ² the area is noise.
-        if !(2.0 * area > 64.0 * f64::EPSILON * l2) {
+        // Written so that a NaN area also counts as degenerate.
+        let clearly_positive = 2.0 * area > 64.0 * f64::EPSILON * l2;
+        if !clearly_positive {
             return Err(MeshError::DegenerateFace {
                 face: f,
                 vertices: *face,
                 area,
+                line: None,
             });
         }
         used[a] = true;
@@ -211,12 +234,17 @@ pub fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), Mesh
                 face,
                 first,
                 vertices: faces[face],
+                line: None,
             });
         }
     }
     if let Some(vertex) = used.iter().position(|u| !u) {
         let count = used.iter().filter(|u| !**u).count();
-        return Err(MeshError::UnreferencedVertex { vertex, count });
+        return Err(MeshError::UnreferencedVertex {
+            vertex,
+            count,
+            line: None,
+        });
     }
     Ok(())
 }
