@@ -409,10 +409,16 @@ pub fn read_constraints(path: &Path, n_vertices: usize) -> Result<ConstraintSet,
 /// Parses the JSON constraint format (vertex ranges are not checked here;
 /// see [`ConstraintSet::check_vertices`]).
 pub fn parse_constraints(text: &str) -> Result<ConstraintSet, ConstraintError> {
-    let root: Value = serde_json::from_str(text).map_err(|e| ConstraintError::Json {
-        line: e.line(),
-        column: e.column(),
-        message: e.to_string(),
+    let root: Value = serde_json::from_str(text).map_err(|e| {
+        // serde_json's message ends in " at line L column C", which the
+        // error's own fields already carry.
+        let full = e.to_string();
+        let suffix = format!(" at line {} column {}", e.line(), e.column());
+        ConstraintError::Json {
+            line: e.line(),
+            column: e.column(),
+            message: full.strip_suffix(&suffix).unwrap_or(&full).to_string(),
+        }
     })?;
     let list = match &root {
         Value::Object(map) => match map.get("constraints") {

@@ -17,6 +17,9 @@
 //! [`backend`] (QR and SPD traits) → [`deform`] (the three-phase API) and
 //! [`report`].
 #![deny(missing_docs)]
+// Numerical kernels index several arrays with one loop variable; iterator
+// chains would obscure the mathematics.
+#![allow(clippy::needless_range_loop)]
 
 pub mod backend;
 pub mod constraints;

@@ -1,1 +1,369 @@
-fn main() {}
+//! The `lse-deform` command-line tool.
+//!
+//! Exit codes: 0 success, 2 bad input (mesh, constraints, arguments),
+//! 3 numerical failure. Errors are one line on stderr; `--verbose` adds the
+//! chain of causes.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use lse_deform::constraints::read_constraints;
+use lse_deform::mesh::{self, Quality, Topology, generate};
+use lse_deform::scene::{FixedAndHandle, MixedScene};
+use lse_deform::{Deformer, Error, LaplacianKind, NullSpaceQr};
+
+#[derive(Parser)]
+#[command(
+    name = "lse-deform",
+    version,
+    about = "Laplacian mesh deformation with exact (hard) and soft constraints (Masuda et al., SMI 2006)"
+)]
+struct Cli {
+    /// Print the full chain of causes of an error.
+    #[arg(long, global = true)]
+    verbose: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Deform a mesh under the constraints of a JSON file.
+    Deform(DeformArgs),
+    /// Write a generated mesh (no input file needed).
+    Generate(GenerateArgs),
+    /// Print counts, topology and triangle quality of a mesh.
+    Info(InfoArgs),
+    /// Write a constraints file that fixes the bottom of a mesh and drags a
+    /// handle at its top.
+    Scene(SceneArgs),
+}
+
+#[derive(Args)]
+struct DeformArgs {
+    /// Input mesh (.obj, .ply, .off, optionally .gz).
+    mesh: PathBuf,
+    /// Constraints file (JSON).
+    #[arg(long, short = 'c')]
+    constraints: PathBuf,
+    /// Laplacian weights.
+    #[arg(long, default_value = "cotan")]
+    laplacian: LaplacianKind,
+    /// Output mesh (.obj or .ply).
+    #[arg(long, short = 'o')]
+    output: PathBuf,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    report: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct GenerateArgs {
+    /// icosphere, bumpy-sphere, grid, unsymmetric-grid or sliver.
+    kind: String,
+    /// Approximate number of vertices.
+    #[arg(long, default_value_t = 10_000)]
+    vertices: usize,
+    /// Seed of the random parts (bumps, slivers).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output mesh (.obj, .ply or .off).
+    #[arg(long, short = 'o')]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+struct InfoArgs {
+    /// Input mesh.
+    mesh: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct SceneArgs {
+    /// Input mesh.
+    mesh: PathBuf,
+    /// Fraction of vertices fixed at the bottom.
+    #[arg(long, default_value_t = 0.2)]
+    fixed: f64,
+    /// Fraction of vertices in the handle at the top.
+    #[arg(long, default_value_t = 0.02)]
+    handle: f64,
+    /// Axis from bottom to top: x, y or z (default: the longest extent).
+    #[arg(long)]
+    axis: Option<char>,
+    /// Handle displacement "dx,dy,dz" (default: 15% of the bounding-box
+    /// diagonal, perpendicular to the axis).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    offset: Option<[f64; 3]>,
+    /// Make the handle soft with this weight (default: hard).
+    #[arg(long)]
+    handle_weight: Option<f64>,
+    /// Add this many relative constraints (a spanning tree of a patch in the
+    /// middle, keeping its shape).
+    #[arg(long, default_value_t = 0)]
+    relative: usize,
+    /// Add this many on-edge constraints (edge midpoints moved).
+    #[arg(long, default_value_t = 0)]
+    edges: usize,
+    /// Add this many on-face constraints (face centroids moved).
+    #[arg(long, default_value_t = 0)]
+    faces: usize,
+    /// Append a duplicate of the first fixed constraint (redundant).
+    #[arg(long)]
+    duplicate: bool,
+    /// Append a constraint contradicting the second fixed one (conflicting).
+    #[arg(long)]
+    conflict: bool,
+    /// Output constraints file.
+    #[arg(long, short = 'o')]
+    output: PathBuf,
+}
+
+fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected three comma-separated numbers, got '{s}'"));
+    }
+    let mut v = [0.0; 3];
+    for (o, p) in v.iter_mut().zip(parts) {
+        *o = p.trim().parse::<f64>().map_err(|e| format!("'{p}': {e}"))?;
+        if !o.is_finite() {
+            return Err(format!("'{p}' is not finite"));
+        }
+    }
+    Ok(v)
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Deform(a) => deform(a),
+        Command::Generate(a) => generate_cmd(a),
+        Command::Info(a) => info(a),
+        Command::Scene(a) => scene(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            if cli.verbose {
+                let mut source = std::error::Error::source(&e);
+                while let Some(s) = source {
+                    eprintln!("  caused by: {s}");
+                    source = s.source();
+                }
+            }
+            ExitCode::from(e.exit_code() as u8)
+        }
+    }
+}
+
+/// A spinner on stderr for one phase (drawn only on a terminal).
+fn phase(message: &str) -> ProgressBar {
+    let bar = ProgressBar::new_spinner();
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
+        bar.set_style(style);
+    }
+    bar.set_message(message.to_string());
+    bar.enable_steady_tick(Duration::from_millis(100));
+    bar
+}
+
+fn load(path: &Path) -> Result<mesh::Mesh, Error> {
+    let bar = phase(&format!("reading {}", path.display()));
+    let loaded = mesh::read_mesh(path)?;
+    bar.finish_and_clear();
+    for note in &loaded.notes {
+        eprintln!("note: {note}");
+    }
+    for w in loaded.mesh.warnings() {
+        eprintln!("warning: {w}");
+    }
+    Ok(loaded.mesh)
+}
+
+fn deform(a: DeformArgs) -> Result<(), Error> {
+    let mesh = load(&a.mesh)?;
+    let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
+    let bar = phase("set-up");
+    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    bar.set_message("precompute (QR, normal matrix, Cholesky)");
+    deformer.precompute(&NullSpaceQr::default())?;
+    bar.set_message("solve");
+    let solution = deformer.solve()?;
+    bar.finish_and_clear();
+    let report = &solution.report;
+    for c in &report.conflicting {
+        eprintln!(
+            "warning: constraint {} conflicts with earlier constraints and was dropped (residual {:.3e})",
+            c.index, c.residual
+        );
+    }
+    let out = deformer.mesh().with_positions(solution.positions)?;
+    mesh::write_mesh(&out, &a.output)?;
+    if let Some(path) = &a.report {
+        let json = serde_json::to_string_pretty(report).map_err(|e| Error::io(path, e.into()))?;
+        std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
+    }
+    let t = &report.timings_s;
+    eprintln!(
+        "{} vertices, rank {} of {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s",
+        report.vertices,
+        report.rank.unwrap_or(0),
+        report.hard_constraints,
+        report.redundant.len(),
+        report.conflicting.len(),
+        report.max_constraint_residual,
+        t.setup,
+        t.precompute(),
+        t.solve
+    );
+    Ok(())
+}
+
+fn generate_cmd(a: GenerateArgs) -> Result<(), Error> {
+    let kind: generate::GeneratedKind = a
+        .kind
+        .parse()
+        .map_err(|e: lse_deform::error::MeshError| Error::Mesh(e))?;
+    let mesh = generate::with_about_vertices(kind, a.vertices, a.seed)?;
+    mesh::write_mesh(&mesh, &a.output)?;
+    eprintln!(
+        "{kind}: {} vertices, {} faces -> {}",
+        mesh.n_vertices(),
+        mesh.n_faces(),
+        a.output.display()
+    );
+    Ok(())
+}
+
+fn info(a: InfoArgs) -> Result<(), Error> {
+    let mesh = load(&a.mesh)?;
+    let topo = Topology::of(&mesh);
+    let q = Quality::of(&mesh);
+    let (lo, hi) = mesh.bounding_box();
+    if a.json {
+        let v = serde_json::json!({
+            "vertices": mesh.n_vertices(),
+            "faces": mesh.n_faces(),
+            "edges": topo.n_edges,
+            "boundary_edges": topo.n_boundary_edges,
+            "boundary_loops": topo.n_boundary_loops,
+            "non_manifold_edges": topo.n_non_manifold_edges,
+            "components": topo.n_components,
+            "consistently_oriented": topo.consistently_oriented,
+            "euler_characteristic": topo.euler_characteristic,
+            "genus": topo.genus,
+            "bbox_min": lo,
+            "bbox_max": hi,
+            "bbox_diagonal": mesh.bbox_diagonal(),
+            "min_angle_deg": q.min_angle_deg,
+            "max_angle_deg": q.max_angle_deg,
+            "max_aspect_ratio": q.max_aspect_ratio,
+            "percent_min_angle_below_10deg": q.percent_below_10_deg,
+            "faces_min_angle_below_1deg": q.count_below_1_deg,
+            "edge_length_ratio": q.edge_length_ratio,
+        });
+        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        return Ok(());
+    }
+    println!("vertices            {}", mesh.n_vertices());
+    println!("faces               {}", mesh.n_faces());
+    println!("edges               {}", topo.n_edges);
+    println!(
+        "boundary            {} edges in {} loops{}",
+        topo.n_boundary_edges,
+        topo.n_boundary_loops,
+        if topo.n_boundary_edges == 0 {
+            " (closed)"
+        } else {
+            ""
+        }
+    );
+    println!("non-manifold edges  {}", topo.n_non_manifold_edges);
+    println!("components          {}", topo.n_components);
+    println!(
+        "orientation         {}",
+        if topo.consistently_oriented {
+            "consistent"
+        } else {
+            "inconsistent"
+        }
+    );
+    println!("Euler char.         {}", topo.euler_characteristic);
+    println!(
+        "genus               {}",
+        topo.genus
+            .map(|g| g.to_string())
+            .unwrap_or_else(|| "undefined (non-manifold)".into())
+    );
+    println!(
+        "bounding box        {lo:?} .. {hi:?} (diagonal {:.6})",
+        mesh.bbox_diagonal()
+    );
+    println!(
+        "angles              min {:.4} deg, max {:.4} deg",
+        q.min_angle_deg, q.max_angle_deg
+    );
+    println!("worst aspect ratio  {:.2}", q.max_aspect_ratio);
+    println!(
+        "slivers             {:.2}% of faces with min angle < 10 deg, {} below 1 deg",
+        q.percent_below_10_deg, q.count_below_1_deg
+    );
+    println!("edge length ratio   {:.1}", q.edge_length_ratio);
+    Ok(())
+}
+
+fn scene(a: SceneArgs) -> Result<(), Error> {
+    let mesh = load(&a.mesh)?;
+    let mut s = FixedAndHandle::paper_default(&mesh);
+    if let Some(axis) = a.axis {
+        s.axis = match axis {
+            'x' => 0,
+            'y' => 1,
+            'z' => 2,
+            other => {
+                return Err(lse_deform::error::ProblemError::InvalidArgument {
+                    message: format!("--axis {other}: expected x, y or z"),
+                }
+                .into());
+            }
+        };
+        let mut offset = [0.0; 3];
+        offset[(s.axis + 1) % 3] = 0.15 * mesh.bbox_diagonal();
+        s.offset = offset;
+    }
+    if let Some(o) = a.offset {
+        s.offset = o;
+    }
+    s.fixed_fraction = a.fixed;
+    s.handle_fraction = a.handle;
+    s.handle_weight = a.handle_weight;
+    let mixed = MixedScene {
+        base: s.clone(),
+        relative: a.relative,
+        edges: a.edges,
+        faces: a.faces,
+        duplicate: a.duplicate,
+        conflict: a.conflict,
+    };
+    let set = mixed.constraints(&mesh)?;
+    std::fs::write(&a.output, set.to_json()).map_err(|e| Error::io(&a.output, e))?;
+    let (fixed, handle) = s.regions(&mesh)?;
+    eprintln!(
+        "{} constraints: {} fixed + {} handle vertices (axis {}, offset {:?}) -> {}",
+        set.len(),
+        fixed.len(),
+        handle.len(),
+        ["x", "y", "z"][s.axis],
+        s.offset,
+        a.output.display()
+    );
+    Ok(())
+}

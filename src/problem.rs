@@ -343,8 +343,9 @@ pub fn check_pinned(
         })
         .filter(|r| r.iter().any(|&v| v != 0.0))
         .collect();
-    let mut next = 0;
+    // Column `col` is eliminated with the pivot moved to row `col`.
     for (col, &comp) in unpinned.iter().enumerate() {
+        let next = col;
         let pivot = (next..rows.len())
             .max_by(|&a, &b| rows[a][col].abs().total_cmp(&rows[b][col].abs()))
             .filter(|&p| rows[p][col].abs() > 1e-12);
@@ -367,7 +368,6 @@ pub fn check_pinned(
                 }
             }
         }
-        next += 1;
     }
     Ok(())
 }

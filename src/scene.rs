@@ -102,3 +102,165 @@ impl FixedAndHandle {
         Ok(ConstraintSet::from_vec(list)?)
     }
 }
+
+/// A scene that mixes all four constraint kinds on top of a
+/// [`FixedAndHandle`] scene, for checking rank detection and comparing
+/// formulations on more than positions:
+///
+/// - `relative`: a patch of `relative + 1` free vertices around the middle of
+///   the axis, its breadth-first spanning tree's edges constrained to keep
+///   their original difference vectors (independent: a tree);
+/// - `edges`: mesh edges near 70 % of the axis, both ends free and unused,
+///   whose midpoint (`t = ½`) is moved by half the handle offset;
+/// - `faces`: faces near 70 % of the axis, all corners free and unused,
+///   whose centroid is moved by half the handle offset;
+/// - optionally a duplicate of the first fixed constraint (redundant) and a
+///   contradiction of the second (the same vertex sent 10 % of the diagonal
+///   away: conflicting), appended last so that the originals win.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MixedScene {
+    /// The fixed region and handle.
+    pub base: FixedAndHandle,
+    /// Number of relative constraints.
+    pub relative: usize,
+    /// Number of on-edge constraints.
+    pub edges: usize,
+    /// Number of on-face constraints.
+    pub faces: usize,
+    /// Append a duplicate of the first fixed constraint.
+    pub duplicate: bool,
+    /// Append a constraint contradicting the second fixed constraint.
+    pub conflict: bool,
+}
+
+impl MixedScene {
+    /// The constraints, in priority order: fixed, handle, relative, edge,
+    /// face, then the duplicate and the conflict.
+    pub fn constraints(&self, mesh: &Mesh) -> Result<ConstraintSet, Error> {
+        let base = self.base.constraints(mesh)?;
+        let (fixed, handle) = self.base.regions(mesh)?;
+        let n = mesh.n_vertices();
+        let p = mesh.positions();
+        let mut used = vec![false; n];
+        for &v in fixed.iter().chain(&handle) {
+            used[v] = true;
+        }
+        let (offsets, neighbours) = crate::mesh::topology::vertex_neighbors(mesh);
+        let mut order: Vec<usize> = (0..n).collect();
+        let axis = self.base.axis;
+        order.sort_by(|&a, &b| p[a][axis].total_cmp(&p[b][axis]).then(a.cmp(&b)));
+        let seed_at = |frac: f64, used: &[bool]| -> Option<usize> {
+            let start = ((frac * n as f64) as usize).min(n - 1);
+            order[start..]
+                .iter()
+                .chain(order[..start].iter().rev())
+                .copied()
+                .find(|&v| !used[v])
+        };
+        let mut list: Vec<Constraint> = base.as_slice().to_vec();
+
+        // Relative: BFS spanning tree over free vertices.
+        if self.relative > 0 {
+            if let Some(seed) = seed_at(0.5, &used) {
+                let mut queue = std::collections::VecDeque::from([seed]);
+                used[seed] = true;
+                let mut added = 0;
+                while let Some(v) = queue.pop_front() {
+                    for &u in &neighbours[offsets[v]..offsets[v + 1]] {
+                        if added == self.relative {
+                            break;
+                        }
+                        if !used[u] {
+                            used[u] = true;
+                            queue.push_back(u);
+                            let vector = [0, 1, 2].map(|k| p[u][k] - p[v][k]);
+                            list.push(Constraint::hard(ConstraintKind::Relative {
+                                vertices: [u, v],
+                                vector,
+                            }));
+                            added += 1;
+                        }
+                    }
+                    if added == self.relative {
+                        break;
+                    }
+                }
+            }
+        }
+        // Edges and faces near 70 % of the axis, on unused vertices.
+        let half = [0, 1, 2].map(|k| 0.5 * self.base.offset[k]);
+        let start = ((0.7 * n as f64) as usize).min(n - 1);
+        let near: Vec<usize> = order[start..]
+            .iter()
+            .chain(order[..start].iter().rev())
+            .copied()
+            .collect();
+        let mut edges_added = 0;
+        for &v in &near {
+            if edges_added == self.edges {
+                break;
+            }
+            if used[v] {
+                continue;
+            }
+            if let Some(&u) = neighbours[offsets[v]..offsets[v + 1]]
+                .iter()
+                .find(|&&u| !used[u])
+            {
+                used[v] = true;
+                used[u] = true;
+                let target = [0, 1, 2].map(|k| 0.5 * (p[v][k] + p[u][k]) + half[k]);
+                list.push(Constraint::hard(ConstraintKind::Edge {
+                    vertices: [v, u],
+                    t: 0.5,
+                    target,
+                }));
+                edges_added += 1;
+            }
+        }
+        let mut faces_added = 0;
+        if self.faces > 0 {
+            let mut rank = vec![usize::MAX; n];
+            for (r, &v) in near.iter().enumerate() {
+                rank[v] = r;
+            }
+            let mut faces: Vec<&[usize; 3]> = mesh.faces().iter().collect();
+            faces.sort_by_key(|f| f.iter().map(|&v| rank[v]).min().unwrap_or(usize::MAX));
+            for f in faces {
+                if faces_added == self.faces {
+                    break;
+                }
+                if f.iter().any(|&v| used[v]) {
+                    continue;
+                }
+                for &v in f {
+                    used[v] = true;
+                }
+                let third = 1.0 / 3.0;
+                let target =
+                    [0, 1, 2].map(|k| third * (p[f[0]][k] + p[f[1]][k] + p[f[2]][k]) + half[k]);
+                list.push(Constraint::hard(ConstraintKind::Face {
+                    vertices: *f,
+                    barycentric: [third, third],
+                    target,
+                }));
+                faces_added += 1;
+            }
+        }
+        if self.duplicate {
+            if let Some(first) = base.as_slice().first() {
+                list.push(first.clone());
+            }
+        }
+        if self.conflict {
+            if let Some(second) = base.as_slice().get(1) {
+                let mut c = second.clone();
+                let r = c.kind.rhs();
+                let d = 0.1 * mesh.bbox_diagonal();
+                c.kind.set_rhs([r[0] + d, r[1], r[2]]);
+                list.push(c);
+            }
+        }
+        Ok(ConstraintSet::from_vec(list)?)
+    }
+}

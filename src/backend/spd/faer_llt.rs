@@ -223,7 +223,8 @@ fn check_breakdown(
     for (k, &l) in diag.iter().enumerate() {
         let orig = fwd[k];
         let ratio = l * l / a_diag(orig);
-        if !(ratio >= BREAKDOWN_RATIO) && worst.is_none_or(|(_, r)| ratio < r || ratio.is_nan()) {
+        let healthy = ratio >= BREAKDOWN_RATIO; // false for NaN
+        if !healthy && worst.is_none_or(|(_, r)| ratio < r || ratio.is_nan()) {
             worst = Some((orig, ratio));
         }
     }
