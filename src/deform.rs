@@ -68,7 +68,7 @@ impl Deformer {
         constraints.check_vertices(n)?;
         let (component_of, n_components) = topology::vertex_components(n, mesh.faces());
         check_pinned(&component_of, n_components, &constraints)?;
-        let l = laplacian::laplacian(&mesh, laplacian);
+        let l = laplacian::laplacian(&mesh, laplacian)?;
         let delta = laplacian::apply(&l, mesh.positions());
         let problem = LseProblem::new(&l, &delta, &constraints, mesh.bbox_diagonal())?;
         let mut report = Report {

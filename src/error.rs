@@ -209,6 +209,14 @@ pub enum MeshError {
         /// What is wrong.
         message: String,
     },
+    /// An operation that needs an oriented 2-manifold met something else.
+    #[error("not an oriented manifold at edge ({}, {}): {reason}", edge[0], edge[1])]
+    NotManifold {
+        /// The edge's vertices.
+        edge: [usize; 2],
+        /// What is wrong there.
+        reason: String,
+    },
     /// The file is larger than the configured limit.
     #[error("{what} too large: {detail}")]
     TooLarge {
@@ -239,6 +247,7 @@ impl MeshError {
             MeshError::UnsupportedFormat { .. }
             | MeshError::Empty { .. }
             | MeshError::BadParameter { .. }
+            | MeshError::NotManifold { .. }
             | MeshError::TooLarge { .. } => None,
         }
     }

@@ -27,10 +27,7 @@ fn square_by_hand() {
     // Angles: 90° at 1 (in 012) and at 3 (in 023), 45° elsewhere. Edge 0–2 is
     // opposite the two right angles: cot 90° = 0, so w_02 = 0. Each boundary
     // edge is opposite one 45° angle: ½ cot 45° = ½.
-    let sym = dense(&laplacian::laplacian(
-        &square(),
-        LaplacianKind::CotangentSymmetric,
-    ));
+    let sym = dense(&laplacian::laplacian(&square(), LaplacianKind::CotangentSymmetric).unwrap());
     let expected = [
         [1.0, -0.5, 0.0, -0.5],
         [-0.5, 1.0, -0.5, 0.0],
@@ -50,14 +47,14 @@ fn square_by_hand() {
         assert!((a - 0.25).abs() < 1e-15, "{area:?}");
     }
     // Cotangent Laplacian = symmetric / area: row 0 is [4, -2, 0, -2].
-    let cot = dense(&laplacian::laplacian(&square(), LaplacianKind::Cotangent));
+    let cot = dense(&laplacian::laplacian(&square(), LaplacianKind::Cotangent).unwrap());
     for i in 0..4 {
         for j in 0..4 {
             assert!((cot[(i, j)] - 4.0 * expected[i][j]).abs() < 1e-14);
         }
     }
     // Uniform: every vertex of the square has 2 or 3 neighbours.
-    let uni = dense(&laplacian::laplacian(&square(), LaplacianKind::Uniform));
+    let uni = dense(&laplacian::laplacian(&square(), LaplacianKind::Uniform).unwrap());
     assert_eq!(uni[(0, 0)], 1.0);
     assert!((uni[(0, 1)] + 1.0 / 3.0).abs() < 1e-15); // vertex 0: neighbours 1, 2, 3
     assert!((uni[(1, 0)] + 0.5).abs() < 1e-15); // vertex 1: neighbours 0, 2
@@ -79,10 +76,7 @@ fn obtuse_triangle_areas() {
     assert!((area[2] - 0.5).abs() < 1e-15);
     // cot of the angle at 2: u = (-2,-0.5), v = (2,-0.5): u·v = -3.75,
     // |u×v| = 2, cot = -1.875. Edge 0–1 weight ½·cot = -0.9375 (negative).
-    let sym = dense(&laplacian::laplacian(
-        &mesh,
-        LaplacianKind::CotangentSymmetric,
-    ));
+    let sym = dense(&laplacian::laplacian(&mesh, LaplacianKind::CotangentSymmetric).unwrap());
     assert!((sym[(0, 1)] - 0.9375).abs() < 1e-14);
 }
 
@@ -107,10 +101,7 @@ fn regular_grid_has_the_five_point_stencil() {
         }
     }
     let mesh = Mesh::new(p, f).unwrap();
-    let sym = dense(&laplacian::laplacian(
-        &mesh,
-        LaplacianKind::CotangentSymmetric,
-    ));
+    let sym = dense(&laplacian::laplacian(&mesh, LaplacianKind::CotangentSymmetric).unwrap());
     let c = id(3, 3);
     assert!((sym[(c, c)] - 4.0).abs() < 1e-14);
     for nb in [id(2, 3), id(4, 3), id(3, 2), id(3, 4)] {
@@ -130,7 +121,7 @@ fn rows_sum_to_zero_and_flat_interior_delta_vanishes() {
     for seed in 0..5 {
         let mut mesh = common::random_surface(7, 5, seed);
         for kind in LaplacianKind::ALL {
-            let l = dense(&laplacian::laplacian(&mesh, kind));
+            let l = dense(&laplacian::laplacian(&mesh, kind).unwrap());
             let scale = (0..l.nrows()).map(|i| l[(i, i)].abs()).fold(0.0, f64::max);
             for i in 0..l.nrows() {
                 let s: f64 = (0..l.ncols()).map(|j| l[(i, j)]).sum();
@@ -142,7 +133,7 @@ fn rows_sum_to_zero_and_flat_interior_delta_vanishes() {
         // linear functions, which the cotangent Laplacian reproduces).
         let flat: Vec<[f64; 3]> = mesh.positions().iter().map(|p| [p[0], p[1], 0.0]).collect();
         mesh = mesh.with_positions(flat).unwrap();
-        let l = laplacian::laplacian(&mesh, LaplacianKind::Cotangent);
+        let l = laplacian::laplacian(&mesh, LaplacianKind::Cotangent).unwrap();
         let delta = laplacian::apply(&l, mesh.positions());
         let (nx, ny) = (7, 5);
         for j in 1..ny {
@@ -155,11 +146,132 @@ fn rows_sum_to_zero_and_flat_interior_delta_vanishes() {
         }
         // The uniform Laplacian does not have this property on an irregular
         // grid: at least one interior δ is clearly nonzero.
-        let lu = laplacian::laplacian(&mesh, LaplacianKind::Uniform);
+        let lu = laplacian::laplacian(&mesh, LaplacianKind::Uniform).unwrap();
         let du = laplacian::apply(&lu, mesh.positions());
         let max_u = (0..du.nrows())
             .map(|v| du[(v, 0)].abs())
             .fold(0.0, f64::max);
         assert!(max_u > 1e-3);
     }
+}
+
+#[test]
+fn intrinsic_delaunay_flips_the_skinny_pair() {
+    // a=(0,0), b=(2,0), c=(1,0.1), d=(1,-0.1): the triangles abc and bad
+    // share ab, whose opposite angles (at c and d) are ~168.6° each, so ab is
+    // not Delaunay. The flip gives the edge cd, of length 0.2.
+    let pts = vec![[0., 0., 0.], [2., 0., 0.], [1., 0.1, 0.], [1., -0.1, 0.]];
+    let skinny = Mesh::new(pts.clone(), vec![[0, 1, 2], [1, 0, 3]]).unwrap();
+    let flipped = Mesh::new(pts, vec![[0, 3, 2], [1, 2, 3]]).unwrap();
+    let tri = laplacian::IntrinsicTriangulation::new(&skinny)
+        .unwrap()
+        .flip_to_delaunay()
+        .unwrap();
+    assert_eq!(tri.flips(), 1);
+    let mut faces: Vec<[usize; 3]> = tri
+        .faces()
+        .into_iter()
+        .map(|mut f| {
+            f.sort_unstable();
+            f
+        })
+        .collect();
+    faces.sort_unstable();
+    assert_eq!(faces, vec![[0, 2, 3], [1, 2, 3]]);
+    let intrinsic =
+        dense(&laplacian::laplacian(&skinny, LaplacianKind::IntrinsicDelaunay).unwrap());
+    let reference = dense(&laplacian::laplacian(&flipped, LaplacianKind::Cotangent).unwrap());
+    for i in 0..4 {
+        for j in 0..4 {
+            assert!(
+                (intrinsic[(i, j)] - reference[(i, j)]).abs() < 1e-12 * reference[(i, i)].abs(),
+                "({i},{j}): {} vs {}",
+                intrinsic[(i, j)],
+                reference[(i, j)]
+            );
+        }
+    }
+    // The original cotangent Laplacian has a negative weight on ab
+    // (positive off-diagonal entry); the intrinsic one has none.
+    let original = dense(&laplacian::laplacian(&skinny, LaplacianKind::Cotangent).unwrap());
+    assert!(original[(0, 1)] > 0.0);
+    for i in 0..4 {
+        for j in 0..4 {
+            if i != j {
+                assert!(intrinsic[(i, j)] <= 0.0);
+            }
+        }
+    }
+}
+
+#[test]
+fn intrinsic_delaunay_weights_are_nonnegative_on_curved_meshes() {
+    for seed in 0..4 {
+        let mesh = common::random_surface(9, 7, seed);
+        let tri = laplacian::IntrinsicTriangulation::new(&mesh)
+            .unwrap()
+            .flip_to_delaunay()
+            .unwrap();
+        assert!(tri.min_cotan_sum() >= -1e-12);
+        let l = dense(&laplacian::laplacian(&mesh, LaplacianKind::IntrinsicDelaunay).unwrap());
+        for i in 0..l.nrows() {
+            let mut sum = 0.0;
+            for j in 0..l.ncols() {
+                sum += l[(i, j)];
+                if i != j {
+                    assert!(
+                        l[(i, j)] <= 1e-12 * l[(i, i)],
+                        "negative weight at ({i},{j})"
+                    );
+                }
+            }
+            assert!(sum.abs() < 1e-10 * l[(i, i)]);
+        }
+    }
+    // A regular grid of right isoceles triangles is already Delaunay (the
+    // diagonals are cocircular, cot sum exactly 0): no flip, same matrix.
+    let mut p = Vec::new();
+    for j in 0..=4 {
+        for i in 0..=4 {
+            p.push([i as f64, j as f64, 0.0]);
+        }
+    }
+    let id = |i: usize, j: usize| j * 5 + i;
+    let mut f = Vec::new();
+    for j in 0..4 {
+        for i in 0..4 {
+            f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            f.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    let grid = Mesh::new(p, f).unwrap();
+    let tri = laplacian::IntrinsicTriangulation::new(&grid)
+        .unwrap()
+        .flip_to_delaunay()
+        .unwrap();
+    assert_eq!(tri.flips(), 0);
+}
+
+#[test]
+fn intrinsic_delaunay_refuses_non_manifold_edges() {
+    // Three triangles on the edge 0-1.
+    let mesh = Mesh::new(
+        vec![
+            [0., 0., 0.],
+            [1., 0., 0.],
+            [0.5, 1., 0.],
+            [0.5, -1., 0.],
+            [0.5, 0., 1.],
+        ],
+        vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+    )
+    .unwrap();
+    let err = laplacian::laplacian(&mesh, LaplacianKind::IntrinsicDelaunay).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            lse_deform::error::MeshError::NotManifold { edge: [0, 1], .. }
+        ),
+        "{err}"
+    );
 }

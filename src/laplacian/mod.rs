@@ -11,6 +11,9 @@
 //!   `massmatrix(VORONOI)` `M`.
 //! - [`LaplacianKind::CotangentSymmetric`]: `w_ij = ½(cot α_ij + cot β_ij)`,
 //!   no area normalisation; the matrix is symmetric (it is libigl's `−C`).
+//! - [`LaplacianKind::IntrinsicDelaunay`]: eq. 9 on the intrinsic Delaunay
+//!   triangulation of the same surface (all weights ≥ 0), the modern fix for
+//!   badly shaped triangles.
 //!
 //! All operators are assembled face by face, so non-manifold edges (more
 //! than two incident faces) simply collect one cotangent per face.
@@ -21,7 +24,12 @@
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
+use crate::error::MeshError;
 use crate::mesh::Mesh;
+
+mod intrinsic_delaunay;
+
+pub use intrinsic_delaunay::IntrinsicTriangulation;
 
 /// Which Laplacian to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -36,14 +44,21 @@ pub enum LaplacianKind {
     /// (symmetric).
     #[serde(rename = "cotan-symmetric")]
     CotangentSymmetric,
+    /// Cotangent weights over mixed Voronoi areas computed on the intrinsic
+    /// Delaunay triangulation of the surface (Bobenko & Springborn 2007;
+    /// Sharp & Crane 2020): edge flips until every edge is Delaunay, so all
+    /// weights are non-negative. See [`IntrinsicTriangulation`].
+    #[serde(rename = "intrinsic-delaunay")]
+    IntrinsicDelaunay,
 }
 
 impl LaplacianKind {
     /// Every kind, for experiments that loop over them.
-    pub const ALL: [LaplacianKind; 3] = [
+    pub const ALL: [LaplacianKind; 4] = [
         LaplacianKind::Uniform,
         LaplacianKind::Cotangent,
         LaplacianKind::CotangentSymmetric,
+        LaplacianKind::IntrinsicDelaunay,
     ];
 
     /// The name used on the command line and in reports.
@@ -52,6 +67,7 @@ impl LaplacianKind {
             LaplacianKind::Uniform => "uniform",
             LaplacianKind::Cotangent => "cotan",
             LaplacianKind::CotangentSymmetric => "cotan-symmetric",
+            LaplacianKind::IntrinsicDelaunay => "intrinsic-delaunay",
         }
     }
 }
@@ -69,19 +85,22 @@ impl std::str::FromStr for LaplacianKind {
             "uniform" => Ok(LaplacianKind::Uniform),
             "cotan" | "cotangent" => Ok(LaplacianKind::Cotangent),
             "cotan-symmetric" => Ok(LaplacianKind::CotangentSymmetric),
+            "intrinsic-delaunay" => Ok(LaplacianKind::IntrinsicDelaunay),
             other => Err(format!(
-                "unknown Laplacian '{other}' (expected uniform, cotan or cotan-symmetric)"
+                "unknown Laplacian '{other}' (expected uniform, cotan, cotan-symmetric or intrinsic-delaunay)"
             )),
         }
     }
 }
 
-/// Builds the Laplacian `L` (n × n) of the given kind.
-pub fn laplacian(mesh: &Mesh, kind: LaplacianKind) -> SparseColMat<usize, f64> {
-    let pattern = AdjacencyPattern::new(mesh.n_vertices(), mesh.faces());
+/// Builds the Laplacian `L` (n × n) of the given kind. Fails only for
+/// [`LaplacianKind::IntrinsicDelaunay`] on a mesh that is not an oriented
+/// manifold.
+pub fn laplacian(mesh: &Mesh, kind: LaplacianKind) -> Result<SparseColMat<usize, f64>, MeshError> {
+    let n = mesh.n_vertices();
     match kind {
         LaplacianKind::Uniform => {
-            let n = mesh.n_vertices();
+            let pattern = AdjacencyPattern::new(n, mesh.faces());
             // deg(i) = nnz of column i − 1 (pattern symmetric, diagonal included).
             let inv_deg: Vec<f64> = (0..n)
                 .map(|i| 1.0 / (pattern.col_ptr[i + 1] - pattern.col_ptr[i] - 1) as f64)
@@ -93,20 +112,52 @@ pub fn laplacian(mesh: &Mesh, kind: LaplacianKind) -> SparseColMat<usize, f64> {
                     values[p] = if i == j { 1.0 } else { -inv_deg[i] };
                 }
             }
-            pattern.into_matrix(values)
+            Ok(pattern.into_matrix(values))
         }
         LaplacianKind::Cotangent | LaplacianKind::CotangentSymmetric => {
-            let mut values = symmetric_cotangent_values(mesh, &pattern);
-            if kind == LaplacianKind::Cotangent {
-                let area = mixed_voronoi_areas(mesh);
-                // Row i is divided by A_i.
-                for p in 0..values.len() {
-                    values[p] /= area[pattern.row_idx[p]];
-                }
-            }
-            pattern.into_matrix(values)
+            let p = mesh.positions();
+            let triangles = mesh
+                .faces()
+                .iter()
+                .map(|f| (*f, Triangle::new([p[f[0]], p[f[1]], p[f[2]]])));
+            Ok(cotangent_laplacian(
+                n,
+                mesh.faces(),
+                triangles,
+                kind == LaplacianKind::Cotangent,
+            ))
+        }
+        LaplacianKind::IntrinsicDelaunay => {
+            let tri = IntrinsicTriangulation::new(mesh)?.flip_to_delaunay()?;
+            let faces = tri.faces();
+            let triangles = tri.triangles();
+            Ok(cotangent_laplacian(n, &faces, triangles, true))
         }
     }
+}
+
+/// The cotangent Laplacian of triangles given with their corner geometry:
+/// symmetric weights `½(cot α + cot β)`, optionally divided row by row by
+/// the mixed Voronoi areas.
+fn cotangent_laplacian<I>(
+    n: usize,
+    faces: &[[usize; 3]],
+    triangles: I,
+    area_normalised: bool,
+) -> SparseColMat<usize, f64>
+where
+    I: Iterator<Item = ([usize; 3], Triangle)> + Clone,
+{
+    let pattern = AdjacencyPattern::new(n, faces);
+    let mut values = symmetric_cotangent_values(triangles.clone(), &pattern);
+    if area_normalised {
+        let area = mixed_areas(n, triangles);
+        // Row i is divided by A_i.
+        for p in 0..values.len() {
+            values[p] /= area[pattern.row_idx[p]];
+        }
+    }
+    pattern.into_matrix(values)
 }
 
 /// `δ = L P`: the Laplacian coordinates of the positions, one column per
@@ -133,10 +184,16 @@ pub fn apply(l: &SparseColMat<usize, f64>, positions: &[[f64; 3]]) -> faer::Mat<
 /// surface area.
 pub fn mixed_voronoi_areas(mesh: &Mesh) -> Vec<f64> {
     let p = mesh.positions();
-    let mut area = vec![0.0; mesh.n_vertices()];
-    for f in mesh.faces() {
-        let x = [p[f[0]], p[f[1]], p[f[2]]];
-        let t = Triangle::new(x);
+    let triangles = mesh
+        .faces()
+        .iter()
+        .map(|f| (*f, Triangle::new([p[f[0]], p[f[1]], p[f[2]]])));
+    mixed_areas(mesh.n_vertices(), triangles)
+}
+
+fn mixed_areas(n: usize, triangles: impl Iterator<Item = ([usize; 3], Triangle)>) -> Vec<f64> {
+    let mut area = vec![0.0; n];
+    for (f, t) in triangles {
         if let Some(obtuse) = (0..3).find(|&k| t.dot[k] < 0.0) {
             for (k, &v) in f.iter().enumerate() {
                 area[v] += if k == obtuse {
@@ -160,6 +217,7 @@ pub fn mixed_voronoi_areas(mesh: &Mesh) -> Vec<f64> {
 /// The corners of one triangle: for corner `k` the dot product of its two
 /// edge vectors, the squared length of the opposite edge (`len_sq[k]` is the
 /// edge between corners `k+1` and `k+2`) and twice the area.
+#[derive(Debug, Clone, Copy)]
 struct Triangle {
     dot: [f64; 3],
     len_sq: [f64; 3],
@@ -194,6 +252,28 @@ impl Triangle {
         }
     }
 
+    /// The same quantities from the squared edge lengths alone (`len_sq[k]`
+    /// opposite corner `k`), as an intrinsic triangulation knows them:
+    /// `u·v = (|u|² + |v|² − |u − v|²)/2` and Heron's formula in Kahan's
+    /// cancellation-free ordering for the area.
+    fn from_len_sq(len_sq: [f64; 3]) -> Triangle {
+        let mut dot = [0.0; 3];
+        for k in 0..3 {
+            dot[k] = 0.5 * (len_sq[(k + 1) % 3] + len_sq[(k + 2) % 3] - len_sq[k]);
+        }
+        let mut l = len_sq.map(f64::sqrt);
+        l.sort_by(|x, y| y.total_cmp(x));
+        let [a, b, c] = l;
+        let q = (a + (b + c)) * (c - (a - b)) * (c + (a - b)) * (a + (b - c));
+        let area = 0.25 * q.max(0.0).sqrt();
+        Triangle {
+            dot,
+            len_sq,
+            double_area: 2.0 * area,
+            area,
+        }
+    }
+
     /// Cotangent of the angle at corner `k`: `(u·v)/|u×v|`.
     fn cot(&self, k: usize) -> f64 {
         self.dot[k] / self.double_area
@@ -203,14 +283,20 @@ impl Triangle {
 /// Values of the symmetric cotangent matrix `½(cot α + cot β)` off the
 /// diagonal (negated: entry `(i, j)` is `−w_ij`) and the row sums on it, on
 /// the adjacency pattern.
-fn symmetric_cotangent_values(mesh: &Mesh, pattern: &AdjacencyPattern) -> Vec<f64> {
-    let p = mesh.positions();
+fn symmetric_cotangent_values(
+    triangles: impl Iterator<Item = ([usize; 3], Triangle)>,
+    pattern: &AdjacencyPattern,
+) -> Vec<f64> {
     let mut values = vec![0.0; pattern.row_idx.len()];
-    for f in mesh.faces() {
-        let t = Triangle::new([p[f[0]], p[f[1]], p[f[2]]]);
+    for (f, t) in triangles {
         for k in 0..3 {
-            // The edge opposite corner k joins corners k+1 and k+2.
+            // The edge opposite corner k joins corners k+1 and k+2. An
+            // intrinsic edge may join a vertex to itself: it contributes
+            // w (p_i − p_i) = 0 and is skipped.
             let (i, j) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+            if i == j {
+                continue;
+            }
             let w = 0.5 * t.cot(k);
             values[pattern.position(i, j)] -= w;
             values[pattern.position(j, i)] -= w;
