@@ -15,10 +15,13 @@
 //! [`laplacian`] → [`constraints`] → [`problem`] (assembly of `A, C, B, D`)
 //! → [`formulation`] (the paper's method and its alternatives) over
 //! [`backend`] (QR and SPD traits) → [`deform`] (the three-phase API) and
-//! [`report`].
+//! [`report`]; [`condition`] (condition-number estimates of the factored
+//! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
+//! [`interop`] (conversions to `sprs` and `nalgebra-sparse`).
 #![deny(missing_docs)]
 
 pub mod backend;
+pub mod condition;
 pub mod constraints;
 pub mod deform;
 pub mod error;
