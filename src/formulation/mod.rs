@@ -18,9 +18,11 @@ use crate::problem::LseProblem;
 use crate::report::Report;
 
 mod null_space;
+mod penalty;
 mod util;
 
 pub use null_space::NullSpaceQr;
+pub use penalty::{Penalty, PenaltyPoint, PenaltySolution, PenaltySweep};
 pub(crate) use util::lower_sym_mul;
 
 /// A way to solve `min ‖AX − C‖ s.t. BX = D`.
