@@ -17,10 +17,12 @@ use crate::error::Error;
 use crate::problem::LseProblem;
 use crate::report::Report;
 
+mod elimination;
 mod null_space;
 mod penalty;
 mod util;
 
+pub use elimination::Elimination;
 pub use null_space::NullSpaceQr;
 pub use penalty::{Penalty, PenaltyPoint, PenaltySolution, PenaltySweep};
 pub(crate) use util::lower_sym_mul;
