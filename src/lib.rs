@@ -36,7 +36,7 @@ pub mod scene;
 pub use constraints::{Constraint, ConstraintKind, ConstraintSet};
 pub use deform::{Deformer, Solution};
 pub use error::{Error, Result};
-pub use formulation::{Elimination, Formulation, NullSpaceQr, Penalty, PenaltySweep};
+pub use formulation::{Elimination, Formulation, Kkt, NullSpaceQr, Penalty, PenaltySweep};
 pub use laplacian::LaplacianKind;
 pub use mesh::Mesh;
 pub use report::Report;

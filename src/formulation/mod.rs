@@ -18,11 +18,13 @@ use crate::problem::LseProblem;
 use crate::report::Report;
 
 mod elimination;
+mod kkt;
 mod null_space;
 mod penalty;
 mod util;
 
 pub use elimination::Elimination;
+pub use kkt::{KKT_BACKWARD_ERROR_TOLERANCE, KKT_PIVOT_TOLERANCE, Kkt, kkt_ordering};
 pub use null_space::NullSpaceQr;
 pub use penalty::{Penalty, PenaltyPoint, PenaltySolution, PenaltySweep};
 pub(crate) use util::lower_sym_mul;
