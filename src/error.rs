@@ -498,6 +498,20 @@ pub enum NumericalError {
         /// Where and why.
         detail: String,
     },
+    /// A solve's verification failed: the computed solution does not solve
+    /// the factored system to the required backward error, even after
+    /// iterative refinement.
+    #[error(
+        "{matrix}: the solution failed its residual check: normwise backward error {backward_error:e} exceeds {tolerance:e} after iterative refinement (the factorisation lost too many digits)"
+    )]
+    InaccurateSolution {
+        /// Which matrix.
+        matrix: String,
+        /// `‖K y − b‖∞ / (‖K‖∞ ‖y‖∞ + ‖b‖∞)` after refinement.
+        backward_error: f64,
+        /// The largest accepted value.
+        tolerance: f64,
+    },
     /// The solve produced a non-finite value.
     #[error("solve produced a non-finite position at vertex {vertex}")]
     NonFiniteSolution {

@@ -15,17 +15,22 @@
 //! [`laplacian`] → [`constraints`] → [`problem`] (assembly of `A, C, B, D`)
 //! → [`formulation`] (the paper's method and its alternatives) over
 //! [`backend`] (QR and SPD traits) → [`deform`] (the three-phase API) and
-//! [`report`].
+//! [`report`]; [`condition`] (condition-number estimates of the factored
+//! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
+//! [`interop`] (conversions to `sprs` and `nalgebra-sparse`).
 #![deny(missing_docs)]
 // Numerical kernels index several arrays with one loop variable; iterator
 // chains would obscure the mathematics.
 #![allow(clippy::needless_range_loop)]
 
 pub mod backend;
+pub mod condition;
 pub mod constraints;
 pub mod deform;
 pub mod error;
+pub mod export;
 pub mod formulation;
+pub mod interop;
 pub mod laplacian;
 pub mod mesh;
 pub mod normal;
@@ -36,7 +41,7 @@ pub mod scene;
 pub use constraints::{Constraint, ConstraintKind, ConstraintSet};
 pub use deform::{Deformer, Solution};
 pub use error::{Error, Result};
-pub use formulation::{Formulation, NullSpaceQr};
+pub use formulation::{Elimination, Formulation, Kkt, NullSpaceQr, Penalty, PenaltySweep};
 pub use laplacian::LaplacianKind;
 pub use mesh::Mesh;
 pub use report::Report;

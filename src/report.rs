@@ -106,6 +106,15 @@ pub struct Report {
     pub timings_s: Timings,
     /// Things the user should know.
     pub warnings: Vec<String>,
+    /// Estimate of the 2-norm condition number of the factored matrix,
+    /// when asked for ([`crate::formulation::Prepared::estimate_condition`]:
+    /// it costs solves, so it is not computed by default).
+    pub condition_estimate: Option<crate::condition::ConditionEstimate>,
+    /// The penalty weight `w` of hard rows (penalty formulation only).
+    pub penalty_weight: Option<f64>,
+    /// The power-of-two scale `s` of the multiplier rows and columns of the
+    /// KKT matrix `[AᵀA sBᵀ; sB 0]` (KKT formulation only).
+    pub kkt_multiplier_scale: Option<f64>,
 }
 
 /// Relative tolerance for classifying a skipped hard constraint as

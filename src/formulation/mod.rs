@@ -1,16 +1,33 @@
 //! Formulations of the constrained least-squares problem: the same inputs
 //! (`A, C, B, D` of an [`LseProblem`]) and the same [`Report`], so that the
 //! paper's method can be compared with the alternatives on equal terms.
+//!
+//! | formulation | matrix factored | hard rows |
+//! |---|---|---|
+//! | [`NullSpaceQr`] (the paper) | `(AQ2)ᵀ(AQ2)`, SPD | exact; dependent rows skipped in list order |
+//! | [`Penalty`] | `AᵀA + w²BᵀB`, SPD | approximated (`exact() == false`) |
+//! | [`Kkt`] | `[AᵀA sBᵀ; sB 0]`, symmetric indefinite | exact; dependent rows make it singular (an error) |
+//! | [`Elimination`] | `A_Uᵀ A_U`, SPD | exact; position constraints only |
 
 use faer::Mat;
+use faer::sparse::SparseColMat;
 
+use crate::condition::ConditionEstimate;
 use crate::error::Error;
 use crate::problem::LseProblem;
 use crate::report::Report;
 
+mod elimination;
+mod kkt;
 mod null_space;
+mod penalty;
+mod util;
 
+pub use elimination::Elimination;
+pub use kkt::{KKT_BACKWARD_ERROR_TOLERANCE, KKT_PIVOT_TOLERANCE, Kkt, kkt_ordering};
 pub use null_space::NullSpaceQr;
+pub use penalty::{Penalty, PenaltyPoint, PenaltySolution, PenaltySweep};
+pub(crate) use util::lower_sym_mul;
 
 /// A way to solve `min ‖AX − C‖ s.t. BX = D`.
 pub trait Formulation: Send + Sync {
@@ -43,4 +60,23 @@ pub trait Prepared: Send {
     fn exact(&self) -> bool {
         true
     }
+
+    /// An estimate of the 2-norm condition number of the matrix that was
+    /// factored ([`Prepared::factored_matrix`]), by Lanczos on the matrix and
+    /// on its inverse through the factor (see [`crate::condition`]). Costs
+    /// up to a few hundred products and solves, hence on demand; store the
+    /// result in [`Report::condition_estimate`].
+    ///
+    /// Fails when nothing was factored (every unknown fixed by the hard
+    /// constraints) or when a solve produces a non-finite vector.
+    fn estimate_condition(&mut self) -> Result<ConditionEstimate, Error>;
+
+    /// The matrix that was factored, as a **full symmetric** matrix (both
+    /// triangles, sorted row indices) in the formulation's own unknown order
+    /// (not the fill-reducing permutation): the free directions `z` for
+    /// [`NullSpaceQr`], the vertices for [`Penalty`], the unknown
+    /// (non-fixed) vertices in increasing order for [`Elimination`], and the
+    /// vertices followed by the scaled multipliers for [`Kkt`]. `None` when
+    /// nothing was factored.
+    fn factored_matrix(&self) -> Option<SparseColMat<usize, f64>>;
 }

@@ -16,9 +16,11 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::SparseColMat;
 
+use super::util::lower_to_full;
 use super::{Formulation, Prepared};
 use crate::backend::qr::{ConstraintQr, DenseHouseholder, QrBackend, RankTolerance};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
+use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::normal::NormalPattern;
 use crate::problem::LseProblem;
@@ -188,4 +190,38 @@ impl Prepared for PreparedNullSpace {
     fn skipped(&self) -> &[usize] {
         self.qr.skipped()
     }
+
+    fn estimate_condition(&mut self) -> Result<ConditionEstimate, Error> {
+        let Some(factor) = self.factor.as_mut() else {
+            return Err(nothing_factored());
+        };
+        // The reduced normal matrix is rebuilt from `AQ2` (kept for the
+        // solves) rather than stored: it costs one sparse product, and only
+        // here and in `factored_matrix`.
+        let lower = reduced_normal(&self.aq2);
+        let mut matrix = LowerSymmetricOperator::new(lower.as_ref());
+        let mut inverse = InverseOperator::new(lower.ncols(), |rhs| {
+            factor.solve_in_place(rhs);
+            Ok(())
+        });
+        condition::estimate(&mut matrix, &mut inverse, "(AQ2)ᵀ(AQ2)")
+    }
+
+    fn factored_matrix(&self) -> Option<SparseColMat<usize, f64>> {
+        self.factor.as_ref()?;
+        Some(lower_to_full(reduced_normal(&self.aq2).as_ref()))
+    }
+}
+
+/// `tril((AQ2)ᵀ(AQ2))`.
+fn reduced_normal(aq2: &SparseColMat<usize, f64>) -> SparseColMat<usize, f64> {
+    NormalPattern::new(aq2.as_ref()).numeric(aq2.as_ref())
+}
+
+/// The error of a condition estimate when every unknown is fixed.
+pub(crate) fn nothing_factored() -> Error {
+    ProblemError::InvalidArgument {
+        message: "no matrix was factored (every unknown is fixed by the hard constraints), so it has no condition number".into(),
+    }
+    .into()
 }

@@ -1,0 +1,220 @@
+//! Elimination of known unknowns — what libigl's `min_quad_with_fixed` does
+//! for "known" values: with position constraints only, the hard rows fix
+//! the vertices `K`; the remaining vertices `U` solve
+//!
+//! `(A_Uᵀ A_U) X_U = A_Uᵀ (C − A_K X_K)`
+//!
+//! where `A_U`, `A_K` are the columns of `A` on `U` and `K`. This is the
+//! null-space method with `Q = I` (a position row of `B` is a unit vector),
+//! so it is exact: `X_K` is the target itself, bit for bit.
+//!
+//! Any other hard kind (edge, face, relative) couples several unknowns and
+//! cannot be eliminated by dropping columns: [`ProblemError::Unsupported`]
+//! names the first such constraint and its kind (inferred from its row:
+//! the problem keeps rows, not kinds). Two hard positions on the same
+//! vertex: the earlier (list priority) fixes it, the later is reported by
+//! [`Prepared::skipped`] — redundant if its target is equal, conflicting
+//! (with its residual) otherwise, as classified by the generic diagnostics.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use faer::Mat;
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+
+use super::null_space::{nothing_factored, with_context};
+use super::util::{at_times, lower_to_full, row_entries, row_kind};
+use super::{Formulation, Prepared};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
+use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
+use crate::error::{Error, ProblemError};
+use crate::normal::NormalPattern;
+use crate::problem::LseProblem;
+use crate::report::Report;
+
+/// Elimination of position-constrained vertices over an SPD back end.
+#[derive(Clone)]
+pub struct Elimination {
+    /// Cholesky of `A_Uᵀ A_U`.
+    pub spd: Arc<dyn SpdBackend>,
+}
+
+impl Default for Elimination {
+    fn default() -> Self {
+        Elimination {
+            spd: Arc::new(FaerLlt::auto()),
+        }
+    }
+}
+
+impl Elimination {
+    /// Elimination over the given back end.
+    pub fn new(spd: Arc<dyn SpdBackend>) -> Elimination {
+        Elimination { spd }
+    }
+}
+
+/// A vertex fixed by hard row `row` of `B`: `coefficient · p_vertex = d_row`.
+#[derive(Debug, Clone, Copy)]
+struct Known {
+    vertex: usize,
+    row: usize,
+    coefficient: f64,
+}
+
+impl Formulation for Elimination {
+    fn name(&self) -> String {
+        "elimination".into()
+    }
+
+    fn precompute(
+        &self,
+        problem: &LseProblem,
+        report: &mut Report,
+    ) -> Result<Box<dyn Prepared>, Error> {
+        report.method = self.name();
+        report.spd_backend = Some(self.spd.name().into());
+        let n = problem.n();
+        let b = problem.b().as_ref();
+
+        let t = Instant::now();
+        let mut fixed_by: Vec<Option<usize>> = vec![None; n];
+        let mut known = Vec::new();
+        let mut skipped = Vec::new();
+        for k in 0..b.nrows() {
+            let (cols, vals) = row_entries(b, k);
+            if cols.len() != 1 {
+                return Err(ProblemError::Unsupported {
+                    method: self.name(),
+                    index: problem.hard_constraints()[k],
+                    kind: row_kind(b, k),
+                    reason: "elimination fixes unknowns by dropping their columns, which only a hard position constraint (one vertex, one target) allows; use nullspace-qr or kkt, or make it soft",
+                }
+                .into());
+            }
+            let v = cols[0];
+            if fixed_by[v].is_some() {
+                skipped.push(k);
+            } else {
+                fixed_by[v] = Some(k);
+                known.push(Known {
+                    vertex: v,
+                    row: k,
+                    coefficient: vals[0],
+                });
+            }
+        }
+        let unknown: Vec<usize> = (0..n).filter(|&v| fixed_by[v].is_none()).collect();
+        report.rank = Some(known.len());
+
+        // A_U: the columns of A on the unknown vertices.
+        let a = problem.a();
+        let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+        let mut col_ptr = Vec::with_capacity(unknown.len() + 1);
+        col_ptr.push(0);
+        let mut a_rows = Vec::new();
+        let mut a_vals = Vec::new();
+        for &v in &unknown {
+            a_rows.extend_from_slice(&rows[ptr[v]..ptr[v + 1]]);
+            a_vals.extend_from_slice(&val[ptr[v]..ptr[v + 1]]);
+            col_ptr.push(a_rows.len());
+        }
+        let a_u = SparseColMat::new(
+            SymbolicSparseColMat::new_checked(a.nrows(), unknown.len(), col_ptr, None, a_rows),
+            a_vals,
+        );
+        report.timings_s.preparation = t.elapsed().as_secs_f64();
+
+        let (lower, factor) = if unknown.is_empty() {
+            report.nnz.normal = Some(0);
+            report.nnz.factor = Some(0);
+            (None, None)
+        } else {
+            let t = Instant::now();
+            let pattern = NormalPattern::new(a_u.as_ref());
+            let lower = pattern.numeric(a_u.as_ref());
+            report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
+            report.nnz.normal = Some(pattern.full_nnz());
+
+            let t = Instant::now();
+            let symbolic = self.spd.analyze(lower.symbolic())?;
+            report.timings_s.symbolic = t.elapsed().as_secs_f64();
+
+            let t = Instant::now();
+            let factor = symbolic.factorize(lower.as_ref()).map_err(|e| {
+                with_context(e, "the eliminated normal matrix A_UᵀA_U", |k| {
+                    unknown.get(k).copied()
+                })
+            })?;
+            report.timings_s.numeric = t.elapsed().as_secs_f64();
+            report.nnz.factor = Some(factor.nnz());
+            report.nnz.factor_bytes = Some(factor.bytes());
+            (Some(lower), Some(factor))
+        };
+        Ok(Box::new(PreparedElimination {
+            known,
+            unknown,
+            skipped,
+            lower,
+            factor,
+        }))
+    }
+}
+
+/// Invariant: `known` and `unknown` partition the vertices; `lower` and
+/// `factor` are `tril(A_UᵀA_U)` and its factor (both `None` iff `unknown`
+/// is empty); `skipped` holds the rows of `B` on an already fixed vertex.
+struct PreparedElimination {
+    known: Vec<Known>,
+    unknown: Vec<usize>,
+    skipped: Vec<usize>,
+    lower: Option<SparseColMat<usize, f64>>,
+    factor: Option<Box<dyn SpdFactor>>,
+}
+
+impl Prepared for PreparedElimination {
+    fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error> {
+        let n = problem.n();
+        let d = problem.d();
+        let mut x = Mat::<f64>::zeros(n, 3);
+        for k in &self.known {
+            for c in 0..3 {
+                x[(k.vertex, c)] = d[(k.row, c)] / k.coefficient;
+            }
+        }
+        if let Some(factor) = self.factor.as_mut() {
+            // C − A_K X_K (X is zero on U), then A_Uᵀ(·) restricted to U.
+            let residual = problem.c() - problem.a_times(&x);
+            let full = at_times(problem.a().as_ref(), residual.as_ref());
+            let mut z =
+                Mat::<f64>::from_fn(self.unknown.len(), 3, |j, c| full[(self.unknown[j], c)]);
+            factor.solve_in_place(z.as_mut());
+            for (j, &v) in self.unknown.iter().enumerate() {
+                for c in 0..3 {
+                    x[(v, c)] = z[(j, c)];
+                }
+            }
+        }
+        Ok(x)
+    }
+
+    fn skipped(&self) -> &[usize] {
+        &self.skipped
+    }
+
+    fn estimate_condition(&mut self) -> Result<ConditionEstimate, Error> {
+        let (Some(lower), Some(factor)) = (self.lower.as_ref(), self.factor.as_mut()) else {
+            return Err(nothing_factored());
+        };
+        let mut matrix = LowerSymmetricOperator::new(lower.as_ref());
+        let mut inverse = InverseOperator::new(lower.ncols(), |rhs| {
+            factor.solve_in_place(rhs);
+            Ok(())
+        });
+        condition::estimate(&mut matrix, &mut inverse, "A_UᵀA_U")
+    }
+
+    fn factored_matrix(&self) -> Option<SparseColMat<usize, f64>> {
+        self.lower.as_ref().map(|l| lower_to_full(l.as_ref()))
+    }
+}

@@ -1,0 +1,802 @@
+//! Lagrange multipliers: the KKT system of `min ‖AX − C‖ s.t. BX = D`,
+//!
+//! ```text
+//! [AᵀA  sBᵀ] [X ]   [AᵀC]
+//! [sB    0 ] [Λ'] = [sD ]        (Λ = sΛ' are the multipliers)
+//! ```
+//!
+//! factored by faer's sparse `LDLᵀ` **without numerical pivoting**, in a
+//! static order designed so that every pivot exists ([`kkt_ordering`]).
+//!
+//! **Scaling `s`.** For cotangent weights the entries of `AᵀA` are of order
+//! `1/h⁴` while those of `B` are of order 1. The multiplier rows and columns
+//! are scaled by `s = 2^round(log₂ max_j (AᵀA)_jj)`, which brings the
+//! constraint block to the magnitude of the largest entries of `AᵀA`: the
+//! normwise residual check then weighs constraint rows like vertex rows, and
+//! the condition estimate measures the problem rather than the unit
+//! mismatch. `s` is a power of two, so the scaling is exact; and `LDLᵀ`
+//! without pivoting commutes exactly with a power-of-two diagonal scaling
+//! (`L ↦ SLS⁻¹`, `D ↦ SDS`), so `s` changes neither the computed solution nor
+//! which pivot is flagged. [`Prepared::factored_matrix`] returns the scaled
+//! matrix; `s` is in [`Report::kkt_multiplier_scale`].
+//!
+//! **Pivots and singularity.** With the order of [`kkt_ordering`] every
+//! leading block is nonsingular when the kept constraints are independent
+//! and pin the mesh, so its inertia forces the signs: vertex pivots `> 0`,
+//! multiplier pivots `< 0`. The pivot of unknown `j` is computed as
+//! `d_j = K_jj − Σ_{k<j} L_jk² d_k`; it is declared zero when
+//! `|d_j| ≤ τ (|K_jj| + Σ_{k<j} L_jk² |d_k|)` with `τ =`
+//! [`KKT_PIVOT_TOLERANCE`], or when it has the wrong sign. A failing
+//! multiplier pivot means its constraint depends on the constraints
+//! eliminated before it (duplicates: the later in the list); the error is
+//! [`NumericalError::Singular`] naming that constraint. faer's `LDLᵀ` only
+//! stops at a pivot that is exactly zero, and rounding rarely leaves one, so
+//! this check is what turns a singular `K` into an error instead of inf/NaN.
+//!
+//! **Why `LDLᵀ` in a designed order rather than faer's intranode
+//! Bunch–Kaufman `LBLᵀ`.** The intranode factorisation pivots only inside a
+//! supernode, so it cannot rescue a zero pivot whose partner lies in another
+//! supernode (the common case here: a multiplier and its vertices are rarely
+//! in one supernode), and on a simplicial analysis faer's
+//! `factorize_numeric_intranode_lblt` silently runs `LDLᵀ` and discards its
+//! error. Its 2×2 blocks would also blur which constraint is dependent. A
+//! static order in which every pivot provably exists keeps the
+//! factorisation deterministic and makes a failing pivot a diagnosis.
+//!
+//! **Verification.** Every solve computes the normwise backward error
+//! `η = ‖K y − b‖∞ / (‖K‖∞ ‖y‖∞ + ‖b‖∞)`, refines iteratively (at most two
+//! steps) while `η > 64 ε`, and fails with
+//! [`NumericalError::InaccurateSolution`] if `η` stays above
+//! [`KKT_BACKWARD_ERROR_TOLERANCE`].
+
+use std::time::Instant;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
+use faer::perm::PermRef;
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::amd;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LdltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky, supernodal::SupernodalLdltRef,
+};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::{Conj, Mat, Par, Side};
+
+use super::util::{
+    at_times, lower_diag, lower_sym_mul, lower_sym_norm_inf, lower_to_full, row_entries, row_kind,
+    split_normal,
+};
+use super::{Formulation, Prepared};
+use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
+use crate::error::{Error, NumericalError};
+use crate::problem::LseProblem;
+use crate::report::{Report, first_non_finite};
+
+/// Singularity tolerance `τ` of a KKT pivot relative to the magnitude it
+/// was computed from: `|d_j| ≤ τ (|K_jj| + Σ_k L_jk² |d_k|)` declares `d_j`
+/// zero.
+///
+/// `τ = 1000 ε ≈ 2.2e-13`, the same as the SPD back ends'
+/// [`crate::backend::spd::BREAKDOWN_RATIO`] and for the same reason: the
+/// rounding error of `d_j` is a small multiple of `ε` times that magnitude,
+/// so a pivot below `1000 ε` of it has at most three significant digits left
+/// and is indistinguishable from zero. For a multiplier the ratio is the
+/// squared sine of the angle (in the `(AᵀA)⁻¹` metric) between its
+/// constraint row and the rows eliminated before it, so KKT flags rows whose
+/// new information is below `√τ ≈ 5e-7`, where the null-space QR (which
+/// works with the rows, not their squares) resolves down to its rank
+/// tolerance `1e-10`: KKT cannot tell near-dependence apart more finely.
+pub const KKT_PIVOT_TOLERANCE: f64 = 1000.0 * f64::EPSILON;
+
+/// Largest accepted normwise backward error of a KKT solve,
+/// `η = ‖K y − b‖∞ / (‖K‖∞ ‖y‖∞ + ‖b‖∞)`, after iterative refinement.
+///
+/// `1e-10`: a backward-stable solve gives `η` of order `ε` times the growth
+/// of the static-pivot factorisation; `1e-10` allows a growth of about 10⁵
+/// while still guaranteeing that `y` exactly solves a system within 1e-10
+/// relative of `K`. Because the multiplier rows are scaled to the magnitude
+/// of `‖AᵀA‖`, this bounds the hard-constraint residuals by about
+/// `1e-10 ‖X‖∞`, the accuracy the null-space method is tested to.
+pub const KKT_BACKWARD_ERROR_TOLERANCE: f64 = 1e-10;
+
+/// Backward error above which a solve is refined (one more solve).
+const REFINE_ABOVE: f64 = 64.0 * f64::EPSILON;
+
+/// Maximum number of refinement steps per solve.
+const MAX_REFINEMENT_STEPS: usize = 2;
+
+/// The KKT / Lagrange-multiplier formulation, factored by faer's sparse
+/// `LDLᵀ` in a static order.
+#[derive(Debug, Clone, Copy)]
+pub struct Kkt {
+    /// faer's choice between simplicial and supernodal factorisation.
+    pub threshold: SupernodalThreshold,
+}
+
+impl Default for Kkt {
+    fn default() -> Self {
+        Kkt {
+            threshold: SupernodalThreshold::AUTO,
+        }
+    }
+}
+
+impl Kkt {
+    /// Always simplicial (column by column).
+    pub fn simplicial() -> Kkt {
+        Kkt {
+            threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
+        }
+    }
+
+    /// Always supernodal (dense `LDLᵀ` on blocks of columns).
+    pub fn supernodal() -> Kkt {
+        Kkt {
+            threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+        }
+    }
+}
+
+const MATRIX: &str = "the KKT matrix [AᵀA sBᵀ; sB 0]";
+
+fn backend_error(e: impl std::fmt::Debug) -> Error {
+    NumericalError::Backend {
+        backend: "faer-ldlt".into(),
+        message: format!("{e:?}"),
+    }
+    .into()
+}
+
+/// The static elimination order of the KKT unknowns: entry `i` is the
+/// unknown eliminated `i`-th, with vertices numbered `0..n` and the
+/// multiplier of hard row `k` numbered `n + k`.
+///
+/// 1. **Vertices** in the approximate-minimum-degree order of the graph of
+///    `AᵀA + BᵀB` (the vertex graph with every constraint's vertices
+///    coupled, which is the fill its multiplier will cause).
+/// 2. **Multipliers** right after the last of their vertices, ties in list
+///    order. A multiplier eliminated before all its vertices meets a zero
+///    (or rank-deficient) leading block: its row restricted to the
+///    eliminated vertices may vanish or depend on others' restrictions even
+///    when the full rows are independent. After its last vertex, its full
+///    row is in the leading block, so the block is nonsingular exactly when
+///    the rows placed so far are independent.
+/// 3. **Deferred vertices.** `AᵀA` is singular when a mesh component is not
+///    pinned by soft rows (`L` annihilates the component's translations).
+///    A leading block holding a whole such component would then need its
+///    pinning multiplier already placed; to guarantee it, one vertex per
+///    component whose translation the soft rows leave free is moved to the
+///    end — preferably one that no hard row touches, so that every pinning
+///    multiplier comes before it. Before the tail, every leading vertex
+///    block is then positive definite; in the tail, the translations are
+///    pinned by the hard rows already placed (the condition
+///    [`crate::problem::check_pinned`] checks for the whole problem).
+///
+/// Under these rules every leading block is nonsingular iff the hard rows
+/// are independent, so a failing pivot names a dependent constraint. The
+/// one case the rule cannot cover — every vertex of a component is touched
+/// by hard rows and those not touching the deferred vertex do not pin it —
+/// shows up as a failing *vertex* pivot, reported as such.
+pub fn kkt_ordering(problem: &LseProblem) -> Result<Vec<usize>, Error> {
+    let (pattern, _, _) = split_normal(problem);
+    ordering_from_pattern(problem, &pattern)
+}
+
+fn ordering_from_pattern(
+    problem: &LseProblem,
+    pattern: &SymbolicSparseColMat<usize>,
+) -> Result<Vec<usize>, Error> {
+    let n = problem.n();
+    let b = problem.b().as_ref();
+    let m = b.nrows();
+
+    // 1. AMD on the vertex graph.
+    let mut amd_fwd = vec![0usize; n];
+    let mut amd_inv = vec![0usize; n];
+    let nnz = pattern.row_idx().len();
+    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(n, nnz)).map_err(backend_error)?;
+    amd::order(
+        &mut amd_fwd,
+        &mut amd_inv,
+        pattern.as_ref(),
+        amd::Control::default(),
+        MemStack::new(&mut mem),
+    )
+    .map_err(backend_error)?;
+
+    // 3. Components free under the soft rows, and their deferred vertices.
+    let mut in_hard = vec![false; n];
+    for k in 0..m {
+        for &v in row_entries(b, k).0 {
+            in_hard[v] = true;
+        }
+    }
+    let (component_of, n_components) = laplacian_components(problem);
+    let free = soft_free_components(problem, &component_of, n_components);
+    // Latest vertex in AMD order per free component: untouched by hard rows
+    // if possible, else any.
+    let mut best_untouched: Vec<Option<usize>> = vec![None; n_components];
+    let mut best_any: Vec<Option<usize>> = vec![None; n_components];
+    for &v in &amd_fwd {
+        let c = component_of[v];
+        if free[c] {
+            best_any[c] = Some(v);
+            if !in_hard[v] {
+                best_untouched[c] = Some(v);
+            }
+        }
+    }
+    let mut deferred = vec![false; n];
+    for c in 0..n_components {
+        if let Some(v) = best_untouched[c].or(best_any[c]) {
+            deferred[v] = true;
+        }
+    }
+    let vertex_order: Vec<usize> = amd_fwd
+        .iter()
+        .copied()
+        .filter(|&v| !deferred[v])
+        .chain(amd_fwd.iter().copied().filter(|&v| deferred[v]))
+        .collect();
+    let mut pos = vec![0usize; n];
+    for (p, &v) in vertex_order.iter().enumerate() {
+        pos[v] = p;
+    }
+
+    // 2. Multipliers after their last vertex, in list order on ties.
+    let mut after: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for k in 0..m {
+        let last = row_entries(b, k)
+            .0
+            .iter()
+            .map(|&v| pos[v])
+            .max()
+            .unwrap_or(n.saturating_sub(1));
+        after[last].push(k);
+    }
+    let mut order = Vec::with_capacity(n + m);
+    for (p, &v) in vertex_order.iter().enumerate() {
+        order.push(v);
+        order.extend(after[p].iter().map(|&k| n + k));
+    }
+    Ok(order)
+}
+
+/// Connected components of the graph of the Laplacian rows of `A` (vertices
+/// sharing a row are connected): the components whose translations `L`
+/// annihilates.
+fn laplacian_components(problem: &LseProblem) -> (Vec<usize>, usize) {
+    let n = problem.n();
+    let n_lap = problem.n_laplacian_rows();
+    let a = problem.a();
+    let (ptr, rows) = (a.symbolic().col_ptr(), a.symbolic().row_idx());
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    let mut anchor = vec![usize::MAX; n_lap];
+    for j in 0..n {
+        for &r in &rows[ptr[j]..ptr[j + 1]] {
+            if r < n_lap {
+                if anchor[r] == usize::MAX {
+                    anchor[r] = j;
+                } else {
+                    let (x, y) = (find(&mut parent, anchor[r]), find(&mut parent, j));
+                    if x != y {
+                        parent[x.max(y)] = x.min(y);
+                    }
+                }
+            }
+        }
+    }
+    let mut id = vec![usize::MAX; n];
+    let mut component_of = vec![0usize; n];
+    let mut count = 0;
+    for (v, component) in component_of.iter_mut().enumerate() {
+        let r = find(&mut parent, v);
+        if id[r] == usize::MAX {
+            id[r] = count;
+            count += 1;
+        }
+        *component = id[r];
+    }
+    (component_of, count)
+}
+
+/// For each component, whether its translation is left free by the soft
+/// rows: `null(A)` is spanned by `Σ_c t_c 1_c` with `S t = 0`, `S` the
+/// coefficient sums of the soft rows per component. Gaussian elimination
+/// with partial pivoting on the columns of `S`; a column without a pivot
+/// (entries `≤ 1e-12` × the row's coefficient norm count as zero, as in
+/// [`crate::problem::check_pinned`]) is free, and the pivot columns have
+/// full rank, so fixing the free components pins all the others.
+fn soft_free_components(
+    problem: &LseProblem,
+    component_of: &[usize],
+    n_components: usize,
+) -> Vec<bool> {
+    let n_lap = problem.n_laplacian_rows();
+    let a = problem.a();
+    let n_soft = a.nrows() - n_lap;
+    let mut free = vec![true; n_components];
+    if n_soft == 0 {
+        return free;
+    }
+    let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    // Sums per soft row and component, over the components soft rows touch.
+    let mut touched: Vec<usize> = Vec::new();
+    let mut column_of = vec![usize::MAX; n_components];
+    let mut sums: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n_soft];
+    let mut norms = vec![0.0f64; n_soft];
+    for j in 0..a.ncols() {
+        for p in ptr[j]..ptr[j + 1] {
+            if rows[p] >= n_lap {
+                let r = rows[p] - n_lap;
+                let c = component_of[j];
+                if column_of[c] == usize::MAX {
+                    column_of[c] = touched.len();
+                    touched.push(c);
+                }
+                norms[r] += val[p] * val[p];
+                match sums[r].iter_mut().find(|e| e.0 == c) {
+                    Some(e) => e.1 += val[p],
+                    None => sums[r].push((c, val[p])),
+                }
+            }
+        }
+    }
+    let cols = touched.len();
+    let mut dense: Vec<Vec<f64>> = sums
+        .iter()
+        .zip(&norms)
+        .map(|(row, &nrm)| {
+            let tol = 1e-12 * nrm.sqrt();
+            let mut d = vec![0.0; cols];
+            for &(c, s) in row {
+                if s.abs() > tol {
+                    d[column_of[c]] = s;
+                }
+            }
+            d
+        })
+        .collect();
+    let mut next = 0;
+    for col in 0..cols {
+        let pivot = (next..dense.len())
+            .max_by(|&x, &y| dense[x][col].abs().total_cmp(&dense[y][col].abs()))
+            .filter(|&p| dense[p][col].abs() > 1e-12);
+        let Some(p) = pivot else { continue };
+        dense.swap(next, p);
+        let pivot_row = dense[next].clone();
+        for r in dense.iter_mut().skip(next + 1) {
+            let f = r[col] / pivot_row[col];
+            if f != 0.0 {
+                for (x, &y) in r.iter_mut().zip(&pivot_row).skip(col) {
+                    *x -= f * y;
+                }
+            }
+        }
+        free[touched[col]] = false;
+        next += 1;
+    }
+    free
+}
+
+impl Formulation for Kkt {
+    fn name(&self) -> String {
+        "kkt".into()
+    }
+
+    fn precompute(
+        &self,
+        problem: &LseProblem,
+        report: &mut Report,
+    ) -> Result<Box<dyn Prepared>, Error> {
+        report.method = self.name();
+        report.spd_backend = Some(
+            match self.threshold {
+                t if t == SupernodalThreshold::FORCE_SIMPLICIAL => "faer-ldlt-simplicial",
+                t if t == SupernodalThreshold::FORCE_SUPERNODAL => "faer-ldlt-supernodal",
+                _ => "faer-ldlt-auto",
+            }
+            .into(),
+        );
+        let n = problem.n();
+        let b = problem.b().as_ref();
+        let m = b.nrows();
+        report.rank = Some(m);
+
+        // Normal pattern and values, the scale, and K (lower, original order).
+        let t = Instant::now();
+        let (pattern, ata, _) = split_normal(problem);
+        let ata_lower = SparseColMat::new(pattern.clone(), ata);
+        let max_diag = (0..n)
+            .map(|j| lower_diag(ata_lower.as_ref(), j))
+            .fold(0.0f64, f64::max);
+        let scale = if max_diag > 0.0 && max_diag.is_finite() {
+            2f64.powi(max_diag.log2().round() as i32)
+        } else {
+            1.0
+        };
+        report.kkt_multiplier_scale = Some(scale);
+        let k_lower = assemble_kkt(&ata_lower, problem, scale);
+        report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
+        report.nnz.normal = Some(2 * k_lower.val().len() - (n + m));
+
+        let t = Instant::now();
+        let order = ordering_from_pattern(problem, &pattern)?;
+        report.timings_s.preparation = t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let mut inv = vec![0usize; n + m];
+        for (new, &old) in order.iter().enumerate() {
+            inv[old] = new;
+        }
+        let perm = PermRef::new_checked(&order, &inv, n + m);
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: self.threshold,
+            ..Default::default()
+        };
+        let symbolic = factorize_symbolic_cholesky(
+            k_lower.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Custom(perm),
+            params,
+        )
+        .map_err(backend_error)?;
+        report.timings_s.symbolic = t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let mut values = vec![0.0f64; symbolic.len_val()];
+        let par = Par::rayon(0);
+        let mut mem = MemBuffer::try_new(
+            symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
+        )
+        .map_err(backend_error)?;
+        let result = symbolic.factorize_numeric_ldlt(
+            &mut values,
+            k_lower.as_ref(),
+            Side::Lower,
+            LdltRegularization::default(),
+            par,
+            MemStack::new(&mut mem),
+            Default::default(),
+        );
+        let faer_failed = result.err();
+        check_pivots(&symbolic, &values, &k_lower, problem, faer_failed)?;
+        report.timings_s.numeric = t.elapsed().as_secs_f64();
+        let (factor_nnz, factor_bytes) = factor_size(&symbolic);
+        report.nnz.factor = Some(factor_nnz);
+        report.nnz.factor_bytes = Some(factor_bytes);
+
+        let workspace = MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq))
+            .map_err(backend_error)?;
+        let norm = lower_sym_norm_inf(k_lower.as_ref());
+        Ok(Box::new(PreparedKkt {
+            symbolic,
+            values,
+            k_lower,
+            norm,
+            scale,
+            n,
+            workspace,
+        }))
+    }
+}
+
+/// `tril(K)` in the original order: column `j < n` holds `tril(AᵀA)[:, j]`
+/// then `s·b_kj` in rows `n + k`; column `n + k` holds an explicit zero
+/// diagonal (so that every column has its diagonal).
+fn assemble_kkt(
+    ata_lower: &SparseColMat<usize, f64>,
+    problem: &LseProblem,
+    scale: f64,
+) -> SparseColMat<usize, f64> {
+    let n = problem.n();
+    let b = problem.b().as_ref();
+    let m = b.nrows();
+    // Bᵀ by columns: for vertex j, the rows k (increasing) and values.
+    let mut count = vec![0usize; n + 1];
+    for &j in b.symbolic().col_idx() {
+        count[j + 1] += 1;
+    }
+    for j in 0..n {
+        count[j + 1] += count[j];
+    }
+    let mut bt_k = vec![0usize; count[n]];
+    let mut bt_v = vec![0.0; count[n]];
+    let mut fill = count.clone();
+    for k in 0..m {
+        let (cols, vals) = row_entries(b, k);
+        for (&j, &v) in cols.iter().zip(vals) {
+            bt_k[fill[j]] = k;
+            bt_v[fill[j]] = scale * v;
+            fill[j] += 1;
+        }
+    }
+    let (ptr, rows, val) = (
+        ata_lower.symbolic().col_ptr(),
+        ata_lower.symbolic().row_idx(),
+        ata_lower.val(),
+    );
+    let mut col_ptr = Vec::with_capacity(n + m + 1);
+    col_ptr.push(0);
+    let mut out_rows = Vec::with_capacity(rows.len() + bt_k.len() + m);
+    let mut out_vals = Vec::with_capacity(rows.len() + bt_k.len() + m);
+    for j in 0..n {
+        out_rows.extend_from_slice(&rows[ptr[j]..ptr[j + 1]]);
+        out_vals.extend_from_slice(&val[ptr[j]..ptr[j + 1]]);
+        for p in count[j]..count[j + 1] {
+            out_rows.push(n + bt_k[p]);
+            out_vals.push(bt_v[p]);
+        }
+        col_ptr.push(out_rows.len());
+    }
+    for k in 0..m {
+        out_rows.push(n + k);
+        out_vals.push(0.0);
+        col_ptr.push(out_rows.len());
+    }
+    SparseColMat::new(
+        SymbolicSparseColMat::new_checked(n + m, n + m, col_ptr, None, out_rows),
+        out_vals,
+    )
+}
+
+/// Visits every stored entry of the `LDLᵀ` factor in permuted coordinates:
+/// `f(i, k, value)` with `i == k` for the pivot `d_k` and `i > k` for
+/// `L_ik`.
+fn for_each_factor_entry(
+    symbolic: &SymbolicCholesky<usize>,
+    values: &[f64],
+    mut f: impl FnMut(usize, usize, f64),
+) {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
+            for k in 0..s.ncols() {
+                for p in col_ptr[k]..col_ptr[k + 1] {
+                    f(row_idx[p], k, values[p]);
+                }
+            }
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            let l = SupernodalLdltRef::new(s, values);
+            for sn in 0..s.n_supernodes() {
+                let node = l.supernode(sn);
+                let (start, pattern, block) = (node.start(), node.pattern(), node.val());
+                let width = block.ncols();
+                for t in 0..width {
+                    let k = start + t;
+                    f(k, k, block[(t, t)]);
+                    for r in t + 1..width {
+                        f(start + r, k, block[(r, t)]);
+                    }
+                    for (q, &i) in pattern.iter().enumerate() {
+                        f(i, k, block[(width + q, t)]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Lower-triangle entries of the factor and bytes of values + row indices.
+fn factor_size(symbolic: &SymbolicCholesky<usize>) -> (usize, usize) {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            (s.len_val(), s.len_val() * 8 + s.row_idx().len() * 8)
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            let (begin, end) = (s.supernode_begin(), s.supernode_end());
+            let mut nnz = 0;
+            let mut idx = 0;
+            for (k, &p) in s.nnz_per_super().iter().enumerate() {
+                let c = end[k] - begin[k];
+                nnz += c * (c + 1) / 2 + c * p;
+                idx += p;
+            }
+            (nnz, s.len_val() * 8 + idx * 8)
+        }
+    }
+}
+
+/// The pivot test of the module documentation, in elimination order; the
+/// first failing pivot becomes a [`NumericalError::Singular`] naming its
+/// constraint or vertex.
+fn check_pivots(
+    symbolic: &SymbolicCholesky<usize>,
+    values: &[f64],
+    k_lower: &SparseColMat<usize, f64>,
+    problem: &LseProblem,
+    faer_failed: Option<faer::linalg::cholesky::ldlt::factor::LdltError>,
+) -> Result<(), Error> {
+    let dim = symbolic.nrows();
+    let n = problem.n();
+    let fwd: Vec<usize> = match symbolic.perm() {
+        Some(p) => p.arrays().0.to_vec(),
+        None => (0..dim).collect(),
+    };
+    let mut d = vec![0.0f64; dim];
+    for_each_factor_entry(symbolic, values, |i, k, v| {
+        if i == k {
+            d[k] = v;
+        }
+    });
+    let mut reference: Vec<f64> = (0..dim)
+        .map(|i| lower_diag(k_lower.as_ref(), fwd[i]).abs())
+        .collect();
+    for_each_factor_entry(symbolic, values, |i, k, v| {
+        if i != k {
+            reference[i] += v * v * d[k].abs();
+        }
+    });
+    for i in 0..dim {
+        let unknown = fwd[i];
+        let is_vertex = unknown < n;
+        let ratio = d[i].abs() / reference[i];
+        let right_sign = if is_vertex { d[i] > 0.0 } else { d[i] < 0.0 };
+        let ok = d[i].is_finite() && ratio.is_finite() && ratio > KKT_PIVOT_TOLERANCE && right_sign;
+        if ok {
+            continue;
+        }
+        let detail = if is_vertex {
+            format!(
+                "the pivot of vertex {unknown} (eliminated {i}-th) is {:e}, {ratio:e} of the magnitude it was computed from (expected positive and above the tolerance {KKT_PIVOT_TOLERANCE:e}): AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",
+                d[i]
+            )
+        } else {
+            let k = unknown - n;
+            let index = problem.hard_constraints()[k];
+            format!(
+                "hard constraint {index} (row {k} of B, {}) depends on the constraints eliminated before it: the pivot of its multiplier is {:e}, {ratio:e} of the magnitude it was computed from (expected negative with a ratio above the tolerance {KKT_PIVOT_TOLERANCE:e}); redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
+                row_kind(problem.b().as_ref(), k),
+                d[i]
+            )
+        };
+        return Err(NumericalError::Singular {
+            matrix: MATRIX.into(),
+            detail,
+        }
+        .into());
+    }
+    if let Some(e) = faer_failed {
+        return Err(NumericalError::Singular {
+            matrix: MATRIX.into(),
+            detail: format!("faer's LDLᵀ reported {e:?}"),
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// A factored KKT system. Invariant: `values` is the `LDLᵀ` factor of
+/// `k_lower` (scaled by `scale`) under `symbolic`, all pivots checked.
+struct PreparedKkt {
+    symbolic: SymbolicCholesky<usize>,
+    values: Vec<f64>,
+    k_lower: SparseColMat<usize, f64>,
+    norm: f64,
+    scale: f64,
+    n: usize,
+    workspace: MemBuffer,
+}
+
+impl PreparedKkt {
+    fn solve_in_place(&mut self, rhs: faer::MatMut<'_, f64>) {
+        if rhs.ncols() > 3 {
+            // Only the condition estimate (1 column) and solves (3 columns)
+            // call this; a wider right-hand side gets its own workspace.
+            if let Ok(mut buf) = MemBuffer::try_new(
+                self.symbolic
+                    .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
+            ) {
+                LdltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+                    Conj::No,
+                    rhs,
+                    Par::Seq,
+                    MemStack::new(&mut buf),
+                );
+            }
+            return;
+        }
+        LdltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
+            Conj::No,
+            rhs,
+            Par::Seq,
+            MemStack::new(&mut self.workspace),
+        );
+    }
+
+    /// `max_c ‖b_c − K y_c‖∞ / (‖K‖∞ ‖y_c‖∞ + ‖b_c‖∞)` and the residual.
+    fn backward_error(&self, y: &Mat<f64>, b: &Mat<f64>) -> (f64, Mat<f64>) {
+        let mut ky = Mat::<f64>::zeros(y.nrows(), y.ncols());
+        lower_sym_mul(self.k_lower.as_ref(), y.as_ref(), ky.as_mut());
+        let r = b - &ky;
+        let mut worst = 0.0f64;
+        for c in 0..y.ncols() {
+            let (mut rn, mut yn, mut bn) = (0.0f64, 0.0f64, 0.0f64);
+            for i in 0..y.nrows() {
+                rn = rn.max(r[(i, c)].abs());
+                yn = yn.max(y[(i, c)].abs());
+                bn = bn.max(b[(i, c)].abs());
+            }
+            let denom = self.norm * yn + bn;
+            let eta = if denom > 0.0 { rn / denom } else { rn };
+            worst = worst.max(if eta.is_nan() { f64::INFINITY } else { eta });
+        }
+        (worst, r)
+    }
+}
+
+impl Prepared for PreparedKkt {
+    fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error> {
+        let n = self.n;
+        let m = problem.b().nrows();
+        let atc = at_times(problem.a().as_ref(), problem.c().as_ref());
+        let mut b = Mat::<f64>::zeros(n + m, 3);
+        b.as_mut().submatrix_mut(0, 0, n, 3).copy_from(&atc);
+        for k in 0..m {
+            for c in 0..3 {
+                b[(n + k, c)] = self.scale * problem.d()[(k, c)];
+            }
+        }
+        let mut y = b.clone();
+        self.solve_in_place(y.as_mut());
+        let (mut eta, mut r) = self.backward_error(&y, &b);
+        let mut steps = 0;
+        while eta > REFINE_ABOVE && steps < MAX_REFINEMENT_STEPS && eta.is_finite() {
+            self.solve_in_place(r.as_mut());
+            let candidate = &y + &r;
+            let (e, res) = self.backward_error(&candidate, &b);
+            steps += 1;
+            if e >= eta {
+                break;
+            }
+            y = candidate;
+            eta = e;
+            r = res;
+        }
+        if eta.is_nan() || eta > KKT_BACKWARD_ERROR_TOLERANCE {
+            return Err(NumericalError::InaccurateSolution {
+                matrix: MATRIX.into(),
+                backward_error: eta,
+                tolerance: KKT_BACKWARD_ERROR_TOLERANCE,
+            }
+            .into());
+        }
+        let x = y.submatrix(0, 0, n, 3).to_owned();
+        if let Some(vertex) = first_non_finite(&x) {
+            return Err(NumericalError::NonFiniteSolution { vertex }.into());
+        }
+        Ok(x)
+    }
+
+    fn skipped(&self) -> &[usize] {
+        &[]
+    }
+
+    fn estimate_condition(&mut self) -> Result<ConditionEstimate, Error> {
+        let k_lower = self.k_lower.clone();
+        let dim = k_lower.ncols();
+        let mut matrix = LowerSymmetricOperator::new(k_lower.as_ref());
+        let mut inverse = InverseOperator::new(dim, |rhs| {
+            self.solve_in_place(rhs);
+            Ok(())
+        });
+        condition::estimate(
+            &mut matrix,
+            &mut inverse,
+            "the scaled KKT matrix [AᵀA sBᵀ; sB 0]",
+        )
+    }
+
+    fn factored_matrix(&self) -> Option<SparseColMat<usize, f64>> {
+        Some(lower_to_full(self.k_lower.as_ref()))
+    }
+}
