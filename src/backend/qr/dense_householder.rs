@@ -194,7 +194,9 @@ impl BlockHouseholderQr {
                     block.reflect(h, bt.as_mut().subcols_mut(j, 1));
                 }
                 let rest = (k..n_c).map(|t| bt[(t, j)].powi(2)).sum::<f64>().sqrt();
-                if k == n_c || !(rest > tolerance.relative * col_norm) {
+                // NaN-safe: a NaN remainder counts as dependent.
+                let independent = rest > tolerance.relative * col_norm;
+                if k == n_c || !independent {
                     skipped.push(i);
                     continue;
                 }
