@@ -247,7 +247,7 @@ fn check_qr_operations(name: &str, qr: &dyn ConstraintQr, b: &SparseRowMat<usize
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(48))]
+    #![proptest_config(ProptestConfig::with_cases(128))]
 
     /// Every QR back end finds the rank and exactly the dependent rows
     /// (duplicates, scaled copies, combinations) in priority order, and its
@@ -255,9 +255,9 @@ proptest! {
     #[test]
     fn qr_backends_agree_on_rank_and_skipped(
         seed in any::<u64>(),
-        n in 6usize..40,
+        n in 6usize..150,
         n_base_frac in 0.2f64..0.9,
-        n_dep in 0usize..8,
+        n_dep in 0usize..12,
     ) {
         let n_base = ((n as f64 * n_base_frac) as usize / 2).max(1);
         let (b, dependent) = random_b(n, n_base, n_dep, seed);
@@ -408,7 +408,7 @@ fn null_space_method_agrees_over_every_backend_pair() {
     let qrs = qr_backends();
     let spds = spd_backends();
     assert!(qrs.len() >= 2 && spds.len() >= 4);
-    for seed in 0..12u64 {
+    for seed in 0..30u64 {
         let mut d = random_problem(seed);
         let rows: Vec<usize> = (0..d.problem().b().nrows()).collect();
         let reference = dense_reference(d.problem(), &rows);
@@ -588,9 +588,8 @@ fn factories_know_every_name() {
     for &name in qr::NAMES {
         match qr::by_name(name) {
             Ok(b) => assert_eq!(b.name(), name),
-            Err(ProblemError::InvalidArgument { message }) => {
+            Err(ProblemError::InvalidArgument { message }) if !cfg!(feature = "suitesparse") => {
                 assert_eq!(name, "spqr");
-                assert!(!cfg!(feature = "suitesparse"));
                 assert!(message.contains("--features suitesparse"), "{message}");
             }
             Err(e) => panic!("{e}"),
@@ -599,9 +598,8 @@ fn factories_know_every_name() {
     for &name in spd::NAMES {
         match spd::by_name(name) {
             Ok(b) => assert_eq!(b.name(), name),
-            Err(ProblemError::InvalidArgument { message }) => {
+            Err(ProblemError::InvalidArgument { message }) if !cfg!(feature = "suitesparse") => {
                 assert_eq!(name, "cholmod");
-                assert!(!cfg!(feature = "suitesparse"));
                 assert!(message.contains("--features suitesparse"), "{message}");
             }
             Err(e) => panic!("{e}"),
