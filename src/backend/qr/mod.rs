@@ -9,6 +9,14 @@
 //! `η ‖b_j‖₂` is *skipped* as numerically dependent on earlier ones
 //! ([`RankTolerance`]). Since constraints are processed in list order, the
 //! earlier of two dependent constraints is the one kept.
+//!
+//! Back ends ([`by_name`]): [`DenseHouseholder`] (the paper's method per
+//! independent block, the reference), [`SparseGivens`] (row-by-row Givens on
+//! the whole sparse `Bᵀ`, Heath's rank test) and, with the cargo feature
+//! `suitesparse`, `Spqr` (SuiteSparseQR). All three use the same relative
+//! test and return the same rank and skipped set whenever the dependencies
+//! are well separated from the tolerance; each module documents where they
+//! can differ near it.
 
 use std::sync::Arc;
 
