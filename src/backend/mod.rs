@@ -5,3 +5,5 @@
 
 pub mod qr;
 pub mod spd;
+#[cfg(feature = "suitesparse")]
+mod suitesparse;

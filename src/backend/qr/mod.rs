@@ -9,15 +9,60 @@
 //! `η ‖b_j‖₂` is *skipped* as numerically dependent on earlier ones
 //! ([`RankTolerance`]). Since constraints are processed in list order, the
 //! earlier of two dependent constraints is the one kept.
+//!
+//! Back ends ([`by_name`]): [`DenseHouseholder`] (the paper's method per
+//! independent block, the reference), [`SparseGivens`] (row-by-row Givens on
+//! the whole sparse `Bᵀ`, Heath's rank test) and, with the cargo feature
+//! `suitesparse`, `Spqr` (SuiteSparseQR). All three use the same relative
+//! test and return the same rank and skipped set whenever the dependencies
+//! are well separated from the tolerance; each module documents where they
+//! can differ near it.
+
+use std::sync::Arc;
 
 use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef};
 use faer::{Mat, MatMut, MatRef};
 
-use crate::error::Error;
+use crate::error::{Error, ProblemError};
 
 mod dense_householder;
+mod sparse_columns;
+mod sparse_givens;
+#[cfg(feature = "suitesparse")]
+mod spqr;
 
 pub use dense_householder::DenseHouseholder;
+pub use sparse_givens::{GivensQr, GivensRowOrder, SparseGivens};
+#[cfg(feature = "suitesparse")]
+pub use spqr::{Spqr, SpqrQr};
+
+/// Names accepted by [`by_name`], in the order they are listed to users.
+/// `spqr` needs the cargo feature `suitesparse`.
+pub const NAMES: &[&str] = &["dense-householder", "sparse-givens", "spqr"];
+
+/// The QR back end called `name` (one of [`NAMES`]).
+///
+/// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
+/// message lists [`NAMES`]) and for `spqr` in a build without the
+/// `suitesparse` feature (the message says how to enable it).
+pub fn by_name(name: &str) -> Result<Arc<dyn QrBackend>, ProblemError> {
+    match name {
+        "dense-householder" => Ok(Arc::new(DenseHouseholder)),
+        "sparse-givens" => Ok(Arc::new(SparseGivens::default())),
+        #[cfg(feature = "suitesparse")]
+        "spqr" => Ok(Arc::new(Spqr)),
+        #[cfg(not(feature = "suitesparse"))]
+        "spqr" => Err(ProblemError::InvalidArgument {
+            message: "the QR back end 'spqr' (SuiteSparseQR) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
+        }),
+        other => Err(ProblemError::InvalidArgument {
+            message: format!(
+                "unknown QR back end '{other}' (expected one of: {})",
+                NAMES.join(", ")
+            ),
+        }),
+    }
+}
 
 /// The rank-detection tolerance `η`: constraint `j` is skipped when the norm
 /// of what remains of it after projecting out the earlier kept constraints

@@ -12,14 +12,58 @@
 //! positive, or a pivot that lost all its digits to cancellation
 //! ([`BREAKDOWN_RATIO`]).
 
+use std::sync::Arc;
+
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, MatRef};
 
-use crate::error::NumericalError;
+use crate::error::{NumericalError, ProblemError};
 
+#[cfg(feature = "suitesparse")]
+mod cholmod;
 mod faer_llt;
+mod nalgebra;
 
+#[cfg(feature = "suitesparse")]
+pub use cholmod::Cholmod;
 pub use faer_llt::FaerLlt;
+pub use nalgebra::NalgebraCsc;
+
+/// Names accepted by [`by_name`], in the order they are listed to users.
+/// `cholmod` needs the cargo feature `suitesparse`.
+pub const NAMES: &[&str] = &[
+    "faer-supernodal",
+    "faer-simplicial",
+    "faer-auto",
+    "nalgebra",
+    "cholmod",
+];
+
+/// The SPD back end called `name` (one of [`NAMES`]).
+///
+/// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
+/// message lists [`NAMES`]) and for `cholmod` in a build without the
+/// `suitesparse` feature (the message says how to enable it).
+pub fn by_name(name: &str) -> Result<Arc<dyn SpdBackend>, ProblemError> {
+    match name {
+        "faer-supernodal" => Ok(Arc::new(FaerLlt::supernodal())),
+        "faer-simplicial" => Ok(Arc::new(FaerLlt::simplicial())),
+        "faer-auto" => Ok(Arc::new(FaerLlt::auto())),
+        "nalgebra" => Ok(Arc::new(NalgebraCsc)),
+        #[cfg(feature = "suitesparse")]
+        "cholmod" => Ok(Arc::new(Cholmod)),
+        #[cfg(not(feature = "suitesparse"))]
+        "cholmod" => Err(ProblemError::InvalidArgument {
+            message: "the SPD back end 'cholmod' (SuiteSparse CHOLMOD) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
+        }),
+        other => Err(ProblemError::InvalidArgument {
+            message: format!(
+                "unknown SPD back end '{other}' (expected one of: {})",
+                NAMES.join(", ")
+            ),
+        }),
+    }
+}
 
 /// Threshold on `L_kk² / A_kk` below which a completed Cholesky
 /// factorisation is declared broken down.
@@ -79,4 +123,52 @@ pub fn solve(factor: &mut dyn SpdFactor, rhs: MatRef<'_, f64>) -> faer::Mat<f64>
     let mut x = rhs.to_owned();
     factor.solve_in_place(x.as_mut());
     x
+}
+
+/// The breakdown check shared by every back end: rejects a completed factor
+/// `P A Pᵀ = L Lᵀ` whose pivot ratio `L_kk² / A_kk` is below
+/// [`BREAKDOWN_RATIO`] or not finite, naming the worst such pivot.
+///
+/// `l_diag[k]` is `L_kk` in the permuted order, `fwd[k]` the original index
+/// of permuted unknown `k`, `lower` the factored matrix (lower triangle,
+/// original order). A missing diagonal entry counts as `A_kk = 0`, which
+/// makes the ratio infinite or NaN; NaN is rejected.
+pub(crate) fn check_breakdown(
+    l_diag: &[f64],
+    fwd: &[usize],
+    lower: SparseColMatRef<'_, usize, f64>,
+) -> Result<(), NumericalError> {
+    let (col_ptr, row_idx, val) = (
+        lower.symbolic().col_ptr(),
+        lower.symbolic().row_idx(),
+        lower.val(),
+    );
+    let a_diag = |j: usize| -> f64 {
+        let range = col_ptr[j]..col_ptr[j + 1];
+        row_idx[range.clone()]
+            .iter()
+            .position(|&i| i == j)
+            .map(|p| val[range.start + p])
+            .unwrap_or(0.0)
+    };
+    // Report the worst pivot, not the first below the threshold.
+    let mut worst: Option<(usize, f64)> = None;
+    for (k, &l) in l_diag.iter().enumerate() {
+        let orig = fwd.get(k).copied().unwrap_or(k);
+        let ratio = l * l / a_diag(orig);
+        let healthy = ratio >= BREAKDOWN_RATIO; // false for NaN
+        if !healthy && worst.is_none_or(|(_, r)| ratio < r || ratio.is_nan()) {
+            worst = Some((orig, ratio));
+        }
+    }
+    match worst {
+        None => Ok(()),
+        Some((unknown, ratio)) => Err(NumericalError::Breakdown {
+            matrix: String::new(),
+            unknown,
+            vertex: None,
+            ratio,
+            threshold: BREAKDOWN_RATIO,
+        }),
+    }
 }

@@ -1,0 +1,61 @@
+//! Shared plumbing for the SuiteSparse back ends (feature `suitesparse`):
+//! an owned `cholmod_common`.
+
+use std::mem::MaybeUninit;
+
+use suitesparse_sys as ss;
+
+use crate::error::NumericalError;
+
+/// `SuiteSparse_long`, the index type of the `cholmod_l_*` / SPQR
+/// interfaces (a C macro for `long`, so bindgen does not emit it).
+pub(crate) type Long = std::os::raw::c_long;
+
+/// An owned, started `cholmod_common` (the 64-bit-index "long" interface).
+pub(crate) struct Common(Box<ss::cholmod_common>);
+
+impl Common {
+    /// `cholmod_l_start` with printing switched off (errors are reported
+    /// through `status`, which we turn into typed errors).
+    pub(crate) fn new() -> Result<Common, NumericalError> {
+        let mut c: Box<MaybeUninit<ss::cholmod_common>> = Box::new_uninit();
+        // SAFETY: cholmod_l_start initialises every field of the struct it is
+        // given and returns TRUE on success.
+        let ok = unsafe { ss::cholmod_l_start(c.as_mut_ptr()) };
+        if ok == 0 {
+            return Err(NumericalError::Backend {
+                backend: "suitesparse".into(),
+                message: "cholmod_l_start failed".into(),
+            });
+        }
+        // SAFETY: initialised by cholmod_l_start above.
+        let mut c = unsafe { c.assume_init() };
+        c.print = 0;
+        Ok(Common(c))
+    }
+
+    pub(crate) fn ptr(&mut self) -> *mut ss::cholmod_common {
+        &mut *self.0
+    }
+
+    pub(crate) fn status(&self) -> i32 {
+        self.0.status
+    }
+}
+
+impl Drop for Common {
+    fn drop(&mut self) {
+        // SAFETY: started in `new`; every object allocated with this common
+        // has been freed before (owners drop their objects first).
+        unsafe {
+            ss::cholmod_l_finish(self.ptr());
+        }
+    }
+}
+
+impl Common {
+    /// The settings, for configuration before a call.
+    pub(crate) fn get_mut(&mut self) -> &mut ss::cholmod_common {
+        &mut self.0
+    }
+}
