@@ -512,6 +512,20 @@ pub enum NumericalError {
         /// The largest accepted value.
         tolerance: f64,
     },
+    /// The solve's estimated forward error says the result has lost its
+    /// digits, although the factorisation completed (an ill-conditioned
+    /// penalty system).
+    #[error(
+        "{matrix}: the solution has lost its accuracy: estimated relative forward error {estimate:e} exceeds {tolerance:e} (condition number too large for double precision; lower the weight or use the null-space method)"
+    )]
+    LostAccuracy {
+        /// Which matrix.
+        matrix: String,
+        /// The forward error estimate.
+        estimate: f64,
+        /// The largest accepted value.
+        tolerance: f64,
+    },
     /// The solve produced a non-finite value.
     #[error("solve produced a non-finite position at vertex {vertex}")]
     NonFiniteSolution {

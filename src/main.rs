@@ -13,7 +13,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lse_deform::constraints::read_constraints;
 use lse_deform::mesh::{self, Quality, Topology, generate};
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, Error, LaplacianKind, NullSpaceQr};
+use lse_deform::export::export_problem;
+use lse_deform::{Deformer, Error, LaplacianKind, backend, formulation};
 
 #[derive(Parser)]
 #[command(
@@ -40,6 +41,70 @@ enum Command {
     /// Write a constraints file that fixes the bottom of a mesh and drags a
     /// handle at its top.
     Scene(SceneArgs),
+    /// Write A, C, B, D and the factored matrix in Matrix Market format.
+    ExportSystem(ExportArgs),
+    /// Run every formulation on every back end on one problem and print a
+    /// table (precompute, solve, constraint residual, condition).
+    Compare(CompareArgs),
+}
+
+/// How to solve: the formulation and its back ends.
+#[derive(Args, Clone)]
+struct MethodArgs {
+    /// nullspace-qr (the paper), penalty, kkt or eliminate.
+    #[arg(long, default_value = "nullspace-qr")]
+    method: String,
+    /// QR back end: dense-householder, sparse-givens or spqr.
+    #[arg(long, default_value = "dense-householder")]
+    qr: String,
+    /// SPD back end: faer-auto, faer-supernodal, faer-simplicial, nalgebra or
+    /// cholmod (for kkt: the faer LDLT variant).
+    #[arg(long, default_value = "faer-auto")]
+    spd: String,
+    /// Penalty weight of the hard rows (--method penalty).
+    #[arg(long)]
+    weight: Option<f64>,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// Input mesh.
+    mesh: PathBuf,
+    /// Constraints file (JSON).
+    #[arg(long, short = 'c')]
+    constraints: PathBuf,
+    /// Laplacian weights.
+    #[arg(long, default_value = "cotan")]
+    laplacian: LaplacianKind,
+    #[command(flatten)]
+    method: MethodArgs,
+    /// Output directory.
+    #[arg(long, short = 'o')]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+struct CompareArgs {
+    /// Input mesh.
+    mesh: PathBuf,
+    /// Constraints file (JSON).
+    #[arg(long, short = 'c')]
+    constraints: PathBuf,
+    /// Laplacian weights.
+    #[arg(long, default_value = "cotan")]
+    laplacian: LaplacianKind,
+    /// Penalty weights to try (comma-separated).
+    #[arg(long, default_value = "1e4,1e8,1e12", value_delimiter = ',')]
+    weights: Vec<f64>,
+    /// Solves per configuration (the median time is reported).
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Skip the condition estimates (they cost a few hundred solves each).
+    #[arg(long)]
+    no_condition: bool,
+    /// Also write every report as a JSON array here.
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -58,6 +123,12 @@ struct DeformArgs {
     /// Write the report as JSON here.
     #[arg(long)]
     report: Option<PathBuf>,
+    #[command(flatten)]
+    method: MethodArgs,
+    /// Estimate the condition number of the factored matrix (Lanczos; costs
+    /// up to a few hundred extra solves).
+    #[arg(long)]
+    condition: bool,
 }
 
 #[derive(Args)]
@@ -147,6 +218,8 @@ fn main() -> ExitCode {
         Command::Generate(a) => generate_cmd(a),
         Command::Info(a) => info(a),
         Command::Scene(a) => scene(a),
+        Command::ExportSystem(a) => export_system(a),
+        Command::Compare(a) => compare(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -191,10 +264,16 @@ fn load(path: &Path) -> Result<mesh::Mesh, Error> {
 fn deform(a: DeformArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh)?;
     let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
+    let m = &a.method;
+    let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
     let bar = phase("set-up");
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    bar.set_message("precompute (QR, normal matrix, Cholesky)");
-    deformer.precompute(&NullSpaceQr::default())?;
+    bar.set_message(format!("precompute ({})", formulation.name()));
+    deformer.precompute(formulation.as_ref())?;
+    if a.condition {
+        bar.set_message("condition estimate (Lanczos)");
+        deformer.estimate_condition()?;
+    }
     bar.set_message("solve");
     let solution = deformer.solve()?;
     bar.finish_and_clear();
@@ -212,18 +291,166 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
         std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
     }
     let t = &report.timings_s;
+    let rank = report
+        .rank
+        .map(|r| format!("rank {r} of "))
+        .unwrap_or_default();
     eprintln!(
-        "{} vertices, rank {} of {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s",
+        "{}: {} vertices, {rank}{} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s{}",
+        report.method,
         report.vertices,
-        report.rank.unwrap_or(0),
         report.hard_constraints,
         report.redundant.len(),
         report.conflicting.len(),
         report.max_constraint_residual,
         t.setup,
         t.precompute(),
-        t.solve
+        t.solve,
+        report
+            .condition_estimate
+            .as_ref()
+            .map(|c| format!(", condition ~{:.2e}", c.value))
+            .unwrap_or_default()
     );
+    Ok(())
+}
+
+fn export_system(a: ExportArgs) -> Result<(), Error> {
+    let mesh = load(&a.mesh)?;
+    let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
+    let m = &a.method;
+    let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
+    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    deformer.precompute(formulation.as_ref())?;
+    let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
+    eprintln!(
+        "wrote {}, {}, {}, {}{}",
+        files.a.display(),
+        files.c.display(),
+        files.b.display(),
+        files.d.display(),
+        files
+            .factored
+            .map(|f| format!(" and {} (the matrix {} factors)", f.display(), formulation.name()))
+            .unwrap_or_default()
+    );
+    Ok(())
+}
+
+/// One row of `compare`.
+#[derive(serde::Serialize)]
+struct CompareRow {
+    method: String,
+    qr: Option<String>,
+    spd: String,
+    weight: Option<f64>,
+    status: String,
+    precompute_s: Option<f64>,
+    solve_median_s: Option<f64>,
+    max_constraint_residual: Option<f64>,
+    condition: Option<f64>,
+    report: Option<lse_deform::Report>,
+}
+
+fn compare(a: CompareArgs) -> Result<(), Error> {
+    let mesh = load(&a.mesh)?;
+    let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
+    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    let available = |names: &[&'static str]| -> Vec<&'static str> {
+        names
+            .iter()
+            .copied()
+            .filter(|n| cfg!(feature = "suitesparse") || !matches!(*n, "spqr" | "cholmod"))
+            .collect()
+    };
+    let qrs = available(backend::qr::NAMES);
+    let spds: Vec<&str> = available(backend::spd::NAMES)
+        .into_iter()
+        .filter(|n| *n != "faer-auto")
+        .collect();
+    let mut configs: Vec<(&str, Option<&str>, &str, Option<f64>)> = Vec::new();
+    for &q in &qrs {
+        for &s in &spds {
+            configs.push(("nullspace-qr", Some(q), s, None));
+        }
+    }
+    for &w in &a.weights {
+        for &s in &spds {
+            configs.push(("penalty", None, s, Some(w)));
+        }
+    }
+    for s in ["faer-simplicial", "faer-supernodal"] {
+        configs.push(("kkt", None, s, None));
+    }
+    for &s in &spds {
+        configs.push(("eliminate", None, s, None));
+    }
+    let bar = ProgressBar::new(configs.len() as u64);
+    if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {
+        bar.set_style(style);
+    }
+    let mut rows = Vec::new();
+    for (method, qr, spd, weight) in configs {
+        bar.set_message(format!("{method} {} {spd}", qr.unwrap_or("")));
+        let mut row = CompareRow {
+            method: method.into(),
+            qr: qr.map(Into::into),
+            spd: spd.into(),
+            weight,
+            status: "ok".into(),
+            precompute_s: None,
+            solve_median_s: None,
+            max_constraint_residual: None,
+            condition: None,
+            report: None,
+        };
+        let outcome = (|| -> Result<(), Error> {
+            let f = formulation::build(method, qr.unwrap_or("dense-householder"), spd, weight)?;
+            deformer.precompute(f.as_ref())?;
+            let mut times = Vec::new();
+            for _ in 0..a.repeat.max(1) {
+                deformer.solve_matrix()?;
+                times.push(deformer.report().timings_s.solve);
+            }
+            times.sort_by(f64::total_cmp);
+            row.solve_median_s = Some(times[times.len() / 2]);
+            if !a.no_condition {
+                row.condition = Some(deformer.estimate_condition()?.value);
+            }
+            let r = deformer.report().clone();
+            row.precompute_s = Some(r.timings_s.precompute());
+            row.max_constraint_residual = Some(r.max_constraint_residual);
+            row.report = Some(r);
+            Ok(())
+        })();
+        if let Err(e) = outcome {
+            row.status = format!("error ({}): {e}", if e.is_input_error() { "input" } else { "numerical" });
+        }
+        rows.push(row);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    println!("| method | QR | SPD | weight | precompute (s) | solve, median (ms) | max ‖BX − D‖ | condition est. | status |");
+    println!("|---|---|---|---|---:|---:|---:|---:|---|");
+    let opt = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map(f).unwrap_or_else(|| "—".into());
+    for r in &rows {
+        println!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.method,
+            r.qr.as_deref().unwrap_or("—"),
+            r.spd,
+            opt(r.weight, &|w| format!("{w:.0e}")),
+            opt(r.precompute_s, &|t| format!("{t:.3}")),
+            opt(r.solve_median_s, &|t| format!("{:.2}", t * 1e3)),
+            opt(r.max_constraint_residual, &|v| format!("{v:.1e}")),
+            opt(r.condition, &|v| format!("{v:.2e}")),
+            if r.status.len() > 90 { format!("{}…", &r.status[..r.status.char_indices().nth(90).map(|c| c.0).unwrap_or(r.status.len())]) } else { r.status.clone() }
+        );
+    }
+    if let Some(path) = &a.json {
+        let json = serde_json::to_string_pretty(&rows).map_err(|e| Error::io(path, e.into()))?;
+        std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
+    }
     Ok(())
 }
 

@@ -26,7 +26,9 @@ mod util;
 pub use elimination::Elimination;
 pub use kkt::{KKT_BACKWARD_ERROR_TOLERANCE, KKT_PIVOT_TOLERANCE, Kkt, kkt_ordering};
 pub use null_space::NullSpaceQr;
-pub use penalty::{Penalty, PenaltyPoint, PenaltySolution, PenaltySweep};
+pub use penalty::{
+    PENALTY_FORWARD_ERROR_LIMIT, Penalty, PenaltyPoint, PenaltySolution, PenaltySweep,
+};
 pub(crate) use util::lower_sym_mul;
 
 /// A way to solve `min ‖AX − C‖ s.t. BX = D`.
@@ -79,4 +81,55 @@ pub trait Prepared: Send {
     /// vertices followed by the scaled multipliers for [`Kkt`]. `None` when
     /// nothing was factored.
     fn factored_matrix(&self) -> Option<SparseColMat<usize, f64>>;
+}
+
+/// The method names accepted by [`build`].
+pub const METHODS: &[&str] = &["nullspace-qr", "penalty", "kkt", "eliminate"];
+
+/// A formulation with its back ends, chosen by name (the CLI's `--method`,
+/// `--qr`, `--spd`, `--weight`).
+///
+/// - `nullspace-qr`: any QR back end × any SPD back end;
+/// - `penalty`: any SPD back end, `weight` required (there is no weight that
+///   is right for every mesh: it competes with the scale of `L`);
+/// - `kkt`: faer's `LDLᵀ`; `spd` selects its variant (`faer-auto`,
+///   `faer-simplicial`, `faer-supernodal`), other SPD names are refused;
+/// - `eliminate`: any SPD back end (position constraints only).
+pub fn build(
+    method: &str,
+    qr: &str,
+    spd: &str,
+    weight: Option<f64>,
+) -> Result<Box<dyn Formulation>, crate::error::ProblemError> {
+    use crate::backend::{qr as qr_backend, spd as spd_backend};
+    use crate::error::ProblemError;
+    let invalid = |message: String| ProblemError::InvalidArgument { message };
+    match method {
+        "nullspace-qr" => Ok(Box::new(NullSpaceQr::new(
+            qr_backend::by_name(qr)?,
+            spd_backend::by_name(spd)?,
+        ))),
+        "penalty" => {
+            let w = weight.ok_or_else(|| {
+                invalid("--method penalty needs --weight W (the weight of the former hard rows)".into())
+            })?;
+            if !(w.is_finite() && w > 0.0) {
+                return Err(invalid(format!("weight {w} must be finite and > 0")));
+            }
+            Ok(Box::new(Penalty::with_backend(w, spd_backend::by_name(spd)?)))
+        }
+        "kkt" => match spd {
+            "faer-auto" => Ok(Box::new(Kkt::default())),
+            "faer-simplicial" => Ok(Box::new(Kkt::simplicial())),
+            "faer-supernodal" => Ok(Box::new(Kkt::supernodal())),
+            other => Err(invalid(format!(
+                "--method kkt factors a symmetric indefinite matrix with faer's LDLᵀ; --spd must be faer-auto, faer-simplicial or faer-supernodal, not '{other}'"
+            ))),
+        },
+        "eliminate" => Ok(Box::new(Elimination::new(spd_backend::by_name(spd)?))),
+        other => Err(invalid(format!(
+            "unknown method '{other}' (expected one of: {})",
+            METHODS.join(", ")
+        ))),
+    }
 }

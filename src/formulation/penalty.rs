@@ -72,6 +72,15 @@ fn check_weight(w: f64) -> Result<(), Error> {
     Ok(())
 }
 
+/// Largest accepted [`PenaltySolution::forward_error_estimate`] for a
+/// solution returned through [`Formulation`]: `1e-2`, i.e. fewer than about
+/// two correct digits *estimated*. The estimate over-states the true error by
+/// two to three orders of magnitude on the test problems (it replaces
+/// `|N⁻¹|` by `N⁻¹` in LAPACK's bound), so a rejected solution has at most
+/// four to five correct digits — visibly wrong geometry. The weight sweep
+/// ([`PenaltySweep`]) reports the estimate instead of rejecting.
+pub const PENALTY_FORWARD_ERROR_LIMIT: f64 = 1e-2;
+
 /// The description of the penalty matrix used in error messages.
 fn matrix_name(w: f64) -> String {
     format!("the penalty normal matrix AᵀA + w²BᵀB (w = {w:e})")
@@ -228,6 +237,7 @@ impl PenaltySweep {
             weight: w,
             lower,
             factor,
+            accuracy_checked: false,
         })
     }
 
@@ -301,6 +311,10 @@ struct PreparedPenalty {
     weight: f64,
     lower: SparseColMat<usize, f64>,
     factor: Box<dyn SpdFactor>,
+    /// Whether the first solve's forward error was checked (the check costs
+    /// one more solve; the conditioning it measures is the matrix's, so once
+    /// per factorisation is enough).
+    accuracy_checked: bool,
 }
 
 impl PreparedPenalty {
@@ -348,7 +362,22 @@ impl PreparedPenalty {
 
 impl Prepared for PreparedPenalty {
     fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error> {
-        Ok(self.solve_with_rhs(problem)?.0)
+        let (x, rhs) = self.solve_with_rhs(problem)?;
+        if !self.accuracy_checked {
+            let estimate = self.forward_error_estimate(&x, &rhs);
+            // NaN-safe: a NaN estimate is rejected.
+            let accurate = estimate <= PENALTY_FORWARD_ERROR_LIMIT;
+            if !accurate {
+                return Err(NumericalError::LostAccuracy {
+                    matrix: matrix_name(self.weight),
+                    estimate,
+                    tolerance: PENALTY_FORWARD_ERROR_LIMIT,
+                }
+                .into());
+            }
+            self.accuracy_checked = true;
+        }
+        Ok(x)
     }
 
     fn skipped(&self) -> &[usize] {
