@@ -1,0 +1,4 @@
+//! The `experiments` program: regenerates `results/` (data, PNG and SVG
+//! plots, renders of original and deformed meshes). Work in progress.
+
+fn main() {}
