@@ -2,6 +2,7 @@
 //! plots, renders of original and deformed meshes). Work in progress.
 
 mod plot;
+mod render;
 mod text;
 
 fn main() {}
