@@ -1069,9 +1069,20 @@ impl AxisTicks {
 
     /// Ticks at 1–2–5 multiples of a power of ten, about six of them.
     fn linear(lo: f64, hi: f64) -> AxisTicks {
-        let step = nice_step((hi - lo) / 6.0);
+        // hi/6 − lo/6 stays finite even when hi − lo overflows.
+        let step = nice_step(hi / 6.0 - lo / 6.0);
         let first = (lo / step).ceil() as i64;
         let last = (hi / step).floor() as i64;
+        if last.saturating_sub(first) > 100 {
+            // Only when rounding defeats the step (spans near f64::MAX):
+            // label the ends.
+            return AxisTicks {
+                lo,
+                hi,
+                majors: vec![(lo, scientific_label(lo)), (hi, scientific_label(hi))],
+                minors: Vec::new(),
+            };
+        }
         let digits = (-step.log10().floor()).max(0.0) as usize;
         let max_abs = lo.abs().max(hi.abs());
         let scientific = max_abs >= 1e5 || step < 1e-3;
@@ -1095,6 +1106,7 @@ impl AxisTicks {
             step / 5.0
         };
         let minors = ((lo / minor_step).ceil() as i64..=(hi / minor_step).floor() as i64)
+            .take(1000)
             .map(|k| k as f64 * minor_step)
             .collect();
         AxisTicks {
@@ -2227,5 +2239,12 @@ mod tests {
         assert_eq!(labels, ["0", "0.2", "0.4", "0.6", "0.8", "1.0"]);
         let big = AxisTicks::linear(0.0, 1.6e6);
         assert_eq!(big.majors[1].1, "5×10⁵");
+        // The whole f64 range: a few ticks, no endless loop.
+        let huge = AxisTicks::linear(-f64::MAX, f64::MAX);
+        assert!(
+            huge.majors.len() >= 2 && huge.majors.len() <= 101,
+            "{:?}",
+            huge.majors
+        );
     }
 }

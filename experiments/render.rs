@@ -37,7 +37,7 @@ use crate::text::GoodText;
 pub const AUTO_EDGE_PIXELS: f64 = 20.0;
 
 /// Largest accepted image side (after supersampling), in pixels.
-pub const MAX_SIDE: u32 = 16_384;
+pub const MAX_SIDE: u32 = 8_192;
 
 /// Why a render failed.
 #[derive(Debug, thiserror::Error)]
@@ -163,6 +163,29 @@ impl Camera {
             elevation_deg,
             up_axis: 1,
         }
+    }
+
+    /// The camera looking at the scene from direction `toward` (scene to
+    /// camera, any length), with world up axis `up_axis`; the inverse of
+    /// the azimuth/elevation parametrisation. Errors for a zero or
+    /// non-finite direction, a bad axis, or a direction along the up axis.
+    pub fn from_direction(toward: [f64; 3], up_axis: usize) -> Result<Camera, RenderError> {
+        let len = dot(toward, toward).sqrt();
+        if up_axis > 2 || !(len.is_finite() && len > 0.0) {
+            return Err(RenderError::Invalid {
+                what: "camera",
+                message: format!("direction {toward:?} with up axis {up_axis}"),
+            });
+        }
+        let d = scale3(toward, 1.0 / len);
+        let (a, b) = ((up_axis + 1) % 3, (up_axis + 2) % 3);
+        let camera = Camera {
+            azimuth_deg: d[b].atan2(d[a]).to_degrees(),
+            elevation_deg: d[up_axis].clamp(-1.0, 1.0).asin().to_degrees(),
+            up_axis,
+        };
+        camera.basis()?;
+        Ok(camera)
     }
 
     /// The same camera with another world up axis.
@@ -510,7 +533,9 @@ pub fn render_with_stats(
         let [i0, i1, i2] = *face;
         let (a, b, c) = (projected[i0], projected[i1], projected[i2]);
         let area = edge_fn(a, b, c[0], c[1]);
-        if area.abs() < 1e-12 {
+        // Skip triangles seen edge-on, and any whose projection overflowed
+        // (coordinates near f64::MAX): they cover no pixel centre reliably.
+        if !(area.abs() >= 1e-12 && area.is_finite()) {
             continue;
         }
         // Clockwise on screen (y down) is counter-clockwise in the world
@@ -551,7 +576,8 @@ pub fn render_with_stats(
                 let l0 = edge_fn(b, c, px, py) * inv;
                 let l1 = edge_fn(c, a, px, py) * inv;
                 let l2 = 1.0 - l0 - l1;
-                if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                // Written so that NaN (overflow) counts as outside.
+                if !(l0 >= 0.0 && l1 >= 0.0 && l2 >= 0.0) {
                     continue;
                 }
                 let z = (l0 * a[2] + l1 * b[2] + l2 * c[2]) as f32;
@@ -1201,6 +1227,20 @@ mod tests {
     }
 
     #[test]
+    fn camera_from_direction_inverts_azimuth_and_elevation() {
+        let c = Camera::from_direction([0.0, 0.0, 2.0], 1).unwrap();
+        assert!(c.azimuth_deg.abs() < 1e-12 && c.elevation_deg.abs() < 1e-12);
+        let c = Camera::from_direction([1.0, 1.0, 0.0], 2).unwrap();
+        assert!((c.azimuth_deg - 45.0).abs() < 1e-12 && c.elevation_deg.abs() < 1e-12);
+        let original = Camera::new(-70.0, 15.0).with_up_axis(0);
+        let toward = original.basis().unwrap()[2];
+        let back = Camera::from_direction(toward, 0).unwrap();
+        assert!((back.azimuth_deg + 70.0).abs() < 1e-9 && (back.elevation_deg - 15.0).abs() < 1e-9);
+        assert!(Camera::from_direction([0.0, 1.0, 0.0], 1).is_err());
+        assert!(Camera::from_direction([0.0; 3], 1).is_err());
+    }
+
+    #[test]
     fn shared_framing_keeps_the_original_in_place() {
         let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
         let moved: Vec<[f64; 3]> = positions.iter().map(|p| [p[0] + 2.0, p[1], p[2]]).collect();
@@ -1254,6 +1294,17 @@ mod tests {
             View::fit(&front(), &[&positions], 0, 10, 0.0),
             Err(RenderError::BadSize { .. })
         ));
+        // Coordinates near f64::MAX: no panic, nothing drawn over the image.
+        let huge = [
+            [0.0, 0.0, 0.0],
+            [1e308, 0.0, 0.0],
+            [0.0, 1e308, 0.0],
+            [-1e308, -1e308, 0.0],
+        ];
+        let huge_faces = [[0, 1, 2], [0, 3, 1]];
+        let huge_view = View::fit(&front(), &[&positions], 10, 10, 0.0).unwrap();
+        let image = render(&RenderMesh::new(&huge, &huge_faces), &huge_view, &plain()).unwrap();
+        assert_eq!(image.pixels.len(), 100);
         let empty: [[usize; 3]; 0] = [];
         assert!(matches!(
             render(&RenderMesh::new(&positions, &empty), &view, &plain()),

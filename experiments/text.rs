@@ -101,20 +101,10 @@ fn layout<S: BackendTextStyle>(text: &str, style: &S) -> Result<Line, TextError>
     };
     let scale = PxScale::from(style.size().max(1.0) as f32);
     let scaled = font.as_scaled(scale);
-    let mut width = 0.0;
-    let mut previous = None;
-    for c in text.chars() {
-        let id = scaled.glyph_id(c);
-        if let Some(p) = previous {
-            width += scaled.kern(p, id);
-        }
-        width += scaled.h_advance(id);
-        previous = Some(id);
-    }
     Ok(Line {
         font,
         scale,
-        width,
+        width: advance(font, scale, text),
         ascent: scaled.ascent(),
         descent: scaled.descent(),
     })
@@ -124,7 +114,12 @@ fn layout<S: BackendTextStyle>(text: &str, style: &S) -> Result<Line, TextError>
 /// [`GoodText`] draws it (for layout before any backend exists).
 pub fn text_width(text: &str, size: f64) -> Result<f64, TextError> {
     let faces = faces()?;
-    let scaled = faces.regular.as_scaled(PxScale::from(size.max(1.0) as f32));
+    Ok(advance(&faces.regular, PxScale::from(size.max(1.0) as f32), text) as f64)
+}
+
+/// Total advance of `text` (advances plus kerning), pixels.
+fn advance(font: &FontRef<'static>, scale: PxScale, text: &str) -> f32 {
+    let scaled = font.as_scaled(scale);
     let mut width = 0.0;
     let mut previous = None;
     for c in text.chars() {
@@ -135,7 +130,7 @@ pub fn text_width(text: &str, size: f64) -> Result<f64, TextError> {
         width += scaled.h_advance(id);
         previous = Some(id);
     }
-    Ok(width as f64)
+    width
 }
 
 impl<B: DrawingBackend> DrawingBackend for GoodText<B> {
