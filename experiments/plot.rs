@@ -1937,12 +1937,31 @@ fn plain_total(v: f64) -> String {
 mod tests {
     use super::*;
 
-    /// A fresh directory under the system temp dir for this test.
-    fn tmp(name: &str) -> PathBuf {
+    /// A fresh directory under the system temp dir for this test, removed
+    /// when dropped unless `LSE_KEEP_TEST_PLOTS` is set (to look at them).
+    struct TmpDir(PathBuf);
+
+    impl TmpDir {
+        /// `name`'s file in the directory.
+        fn join(&self, name: &str) -> PathBuf {
+            self.0.join(name)
+        }
+    }
+
+    impl Drop for TmpDir {
+        fn drop(&mut self) {
+            if std::env::var_os("LSE_KEEP_TEST_PLOTS").is_none() {
+                let _ = std::fs::remove_dir_all(&self.0);
+            }
+        }
+    }
+
+    /// A [`TmpDir`] for the test `name`.
+    fn tmp(name: &str) -> TmpDir {
         let dir = std::env::temp_dir().join(format!("lse-plot-test-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
-        dir
+        TmpDir(dir)
     }
 
     #[test]
@@ -2104,7 +2123,6 @@ mod tests {
 
     #[test]
     fn every_feature_draws_to_png_and_svg() {
-        // Kept in the temp dir after the test, for looking at.
         let dir = tmp("features");
         let line = LineChart {
             title: "Relative error against penalty weight".into(),
