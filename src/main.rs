@@ -196,6 +196,26 @@ struct SceneArgs {
     output: PathBuf,
 }
 
+/// `println!` that treats a closed pipe (`lse-deform info m.obj | head`) as
+/// the end of the output rather than a panic.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        emit(format!($($arg)*))
+    };
+}
+
+fn emit(line: String) {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    if let Err(e) = writeln!(stdout, "{line}") {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: writing to standard output failed: {e}");
+        std::process::exit(2);
+    }
+}
+
 fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 3 {
@@ -430,11 +450,11 @@ fn compare(a: CompareArgs) -> Result<(), Error> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    println!("| method | QR | SPD | weight | precompute (s) | solve, median (ms) | max ‖BX − D‖ | condition est. | status |");
-    println!("|---|---|---|---|---:|---:|---:|---:|---|");
+    out!("| method | QR | SPD | weight | precompute (s) | solve, median (ms) | max ‖BX − D‖ | condition est. | status |");
+    out!("|---|---|---|---|---:|---:|---:|---:|---|");
     let opt = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map(f).unwrap_or_else(|| "—".into());
     for r in &rows {
-        println!(
+        out!(
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.method,
             r.qr.as_deref().unwrap_or("—"),
@@ -497,13 +517,13 @@ fn info(a: InfoArgs) -> Result<(), Error> {
             "faces_min_angle_below_1deg": q.count_below_1_deg,
             "edge_length_ratio": q.edge_length_ratio,
         });
-        println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        out!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
         return Ok(());
     }
-    println!("vertices            {}", mesh.n_vertices());
-    println!("faces               {}", mesh.n_faces());
-    println!("edges               {}", topo.n_edges);
-    println!(
+    out!("vertices            {}", mesh.n_vertices());
+    out!("faces               {}", mesh.n_faces());
+    out!("edges               {}", topo.n_edges);
+    out!(
         "boundary            {} edges in {} loops{}",
         topo.n_boundary_edges,
         topo.n_boundary_loops,
@@ -513,9 +533,9 @@ fn info(a: InfoArgs) -> Result<(), Error> {
             ""
         }
     );
-    println!("non-manifold edges  {}", topo.n_non_manifold_edges);
-    println!("components          {}", topo.n_components);
-    println!(
+    out!("non-manifold edges  {}", topo.n_non_manifold_edges);
+    out!("components          {}", topo.n_components);
+    out!(
         "orientation         {}",
         if topo.consistently_oriented {
             "consistent"
@@ -523,27 +543,27 @@ fn info(a: InfoArgs) -> Result<(), Error> {
             "inconsistent"
         }
     );
-    println!("Euler char.         {}", topo.euler_characteristic);
-    println!(
+    out!("Euler char.         {}", topo.euler_characteristic);
+    out!(
         "genus               {}",
         topo.genus
             .map(|g| g.to_string())
             .unwrap_or_else(|| "undefined (non-manifold)".into())
     );
-    println!(
+    out!(
         "bounding box        {lo:?} .. {hi:?} (diagonal {:.6})",
         mesh.bbox_diagonal()
     );
-    println!(
+    out!(
         "angles              min {:.4} deg, max {:.4} deg",
         q.min_angle_deg, q.max_angle_deg
     );
-    println!("worst aspect ratio  {:.2}", q.max_aspect_ratio);
-    println!(
+    out!("worst aspect ratio  {:.2}", q.max_aspect_ratio);
+    out!(
         "slivers             {:.2}% of faces with min angle < 10 deg, {} below 1 deg",
         q.percent_below_10_deg, q.count_below_1_deg
     );
-    println!("edge length ratio   {:.1}", q.edge_length_ratio);
+    out!("edge length ratio   {:.1}", q.edge_length_ratio);
     Ok(())
 }
 
