@@ -1,283 +1,184 @@
-//! The `experiments` program: regenerates `results/` (data, PNG and SVG
-//! plots, renders of original and deformed meshes).
+//! The `experiments` program: regenerates `results/` — the paper's
+//! evaluation (Table 1, Fig. 6–9) and the comparisons this crate's users come
+//! for (weight sweeps, scaling, interactive drag, performance against
+//! CHOLMOD), each as CSV/JSON data, PNG and SVG plots and a section of
+//! `results/README.md`.
 //!
-//! For now it has one subcommand, `viz-demo --out DIR`, which exercises the
-//! plotting and rendering toolkit ([`plot`], [`render`]) on a small real
-//! deformation: a bumpy sphere with the paper's default scene (20 % fixed,
-//! 2 % handle), deformed by the null-space method.
+//! ```sh
+//! cargo run --release --bin experiments -- all                       # generated meshes
+//! cargo run --release --bin experiments -- all --mesh-dir ../shared/meshes
+//! cargo run --release --bin experiments -- table1 --mesh-dir ../shared/meshes
+//! ```
 
+mod breakdown;
+mod conflicts;
+mod context;
+mod demo;
+mod drag;
+mod performance;
 mod plot;
+mod relative;
 mod render;
+mod renders;
+mod scaling;
+mod table1;
 mod text;
+mod weight_sweep;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use clap::{Parser, Subcommand};
-use lse_deform::mesh::{Mesh, generate};
-use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, LaplacianKind, NullSpaceQr, Report};
+use clap::{Parser, ValueEnum};
 
-use plot::{
-    Axis, Category, Drawn, Failure, LegendPosition, LineChart, Orientation, Output, ReferenceLine,
-    ScatterFits, Series, StackedBars,
-};
-use render::{Camera, Layout, Panel, RenderMesh, Style, View};
+use context::{Context, assemble_readme, markdown_table};
+
+/// Any failure of an experiment, as one line.
+pub type AnyError = Box<dyn std::error::Error>;
+
+/// What an experiment reports for the summary table.
+pub struct Summary {
+    /// One line: the main finding.
+    pub headline: String,
+}
 
 /// Command line of the experiments program.
 #[derive(Parser)]
 #[command(
     name = "experiments",
-    about = "Regenerates the results/ of lse-deform (data, plots, renders)"
+    about = "Regenerates results/ of lse-deform: data, plots, renders and results/README.md"
 )]
 struct Cli {
-    /// What to run.
-    #[command(subcommand)]
-    command: Command,
+    /// Which experiment(s) to run.
+    #[arg(value_enum)]
+    experiment: Experiment,
+    /// Directory of the real meshes (e.g. ../shared/meshes); without it the
+    /// experiments use generated meshes. Also read from LSE_MESH_DIR.
+    #[arg(long, env = "LSE_MESH_DIR")]
+    mesh_dir: Option<PathBuf>,
+    /// Output directory.
+    #[arg(long, default_value = "results")]
+    out: PathBuf,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Smaller meshes and fewer repetitions (a smoke test, not for results/).
+    #[arg(long)]
+    quick: bool,
+    /// For viz-demo: its output directory.
+    #[arg(long, default_value = "target/viz-demo")]
+    demo_out: PathBuf,
 }
 
-/// The subcommands.
-#[derive(Subcommand)]
-enum Command {
-    /// Draw one example of every plot kind and a side-by-side render of a
-    /// real deformation, and time the rasteriser on a ~50k-face mesh.
-    VizDemo {
-        /// Output directory (created if missing).
-        #[arg(long)]
-        out: PathBuf,
-    },
+/// The experiments.
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Experiment {
+    /// Every experiment below, in order, then results/README.md.
+    All,
+    /// The paper's Table 1.
+    Table1,
+    /// Penalty weight 10⁰ … 10¹⁶ against the null-space method.
+    WeightSweep,
+    /// The paper's Fig. 7 and 8: precompute time by phase.
+    PrecomputeBreakdown,
+    /// The paper's Fig. 9 and 11: many relative constraints.
+    RelativeConstraints,
+    /// The paper's Fig. 6: conflicting constraints.
+    Conflicts,
+    /// Precompute and solve time against vertex count.
+    Scaling,
+    /// 300 frames of an interactive drag.
+    Drag,
+    /// Renders of the table1, conflicts and relative-constraint scenes.
+    Renders,
+    /// Ours against CHOLMOD and the memory-bandwidth floor.
+    Performance,
+    /// Development aid: one plot of each kind and a render.
+    VizDemo,
 }
 
-/// Any failure of a subcommand, as one line.
-type AnyError = Box<dyn std::error::Error>;
+type Runner = fn(&Context) -> Result<Summary, AnyError>;
+
+const ORDER: &[(Experiment, &str, Runner)] = &[
+    (Experiment::Table1, "table1", table1::run),
+    (Experiment::WeightSweep, "weight-sweep", weight_sweep::run),
+    (
+        Experiment::PrecomputeBreakdown,
+        "precompute-breakdown",
+        breakdown::run,
+    ),
+    (
+        Experiment::RelativeConstraints,
+        "relative-constraints",
+        relative::run,
+    ),
+    (Experiment::Conflicts, "conflicts", conflicts::run),
+    (Experiment::Scaling, "scaling", scaling::run),
+    (Experiment::Drag, "drag", drag::run),
+    (Experiment::Renders, "renders", renders::run),
+    (Experiment::Performance, "performance", performance::run),
+];
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
-        Command::VizDemo { out } => viz_demo(&out),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-/// The deformation of the demo: positions, report and the constrained
-/// vertices (fixed and handle).
-struct Deformed {
-    /// Deformed positions.
-    positions: Vec<[f64; 3]>,
-    /// Report of the solve.
-    report: Report,
-}
-
-/// Deforms `mesh` with the paper's default scene, the handle hard (`None`)
-/// or soft with weight `w`.
-fn deform(mesh: &Mesh, handle_weight: Option<f64>) -> Result<Deformed, AnyError> {
-    let scene = FixedAndHandle {
-        handle_weight,
-        ..FixedAndHandle::paper_default(mesh)
-    };
-    let constraints = scene.constraints(mesh)?;
-    let mut deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints)?;
-    deformer.precompute(&NullSpaceQr::default())?;
-    let solution = deformer.solve()?;
-    Ok(Deformed {
-        positions: solution.positions,
-        report: solution.report,
-    })
-}
-
-/// Largest distance of a handle vertex from its target.
-fn handle_error(
-    mesh: &Mesh,
-    deformed: &[[f64; 3]],
-    scene: &FixedAndHandle,
-) -> Result<f64, AnyError> {
-    let (_, handle) = scene.regions(mesh)?;
-    let p = mesh.positions();
-    Ok(handle
-        .iter()
-        .map(|&v| {
-            (0..3)
-                .map(|k| (deformed[v][k] - p[v][k] - scene.offset[k]).powi(2))
-                .sum::<f64>()
-                .sqrt()
-        })
-        .fold(0.0, f64::max))
-}
-
-/// Prints what a plot call wrote and skipped.
-fn report_drawn(drawn: &Drawn) {
-    for f in &drawn.files {
-        println!("wrote {}", f.display());
-    }
-    for n in &drawn.notes {
-        println!("  note: {n}");
-    }
-}
-
-/// The `viz-demo` subcommand.
-fn viz_demo(out: &Path) -> Result<(), AnyError> {
-    std::fs::create_dir_all(out)?;
-    let mesh = generate::bumpy_sphere(4, 0.15, 6)?;
-    let scene = FixedAndHandle::paper_default(&mesh);
-    let (fixed, handle) = scene.regions(&mesh)?;
-    let constrained: Vec<usize> = fixed.iter().chain(&handle).copied().collect();
-
-    // Renders: original | hard handle | soft handle, one framing.
-    let hard = deform(&mesh, None)?;
-    let soft = deform(&mesh, Some(1.0))?;
-    // The handle moves along axis (up + 1) % 3, which a camera at azimuth
-    // −70° sees mostly sideways.
-    let camera = Camera::new(-70.0, 15.0).with_up_axis(scene.axis);
-    let layout = Layout {
-        camera,
-        title: Some(format!(
-            "Bumpy sphere ({} vertices): fixed bottom 20 %, handle 2 % dragged",
-            mesh.n_vertices()
-        )),
-        ..Layout::default()
-    };
-    let panels = [
-        Panel {
-            mesh: RenderMesh::from_mesh(&mesh).highlight(&constrained),
-            caption: "(a) original, constrained vertices red".into(),
-        },
-        Panel {
-            mesh: RenderMesh::new(&hard.positions, mesh.faces()).highlight(&constrained),
-            caption: "(b) hard handle (null-space QR)".into(),
-        },
-        Panel {
-            mesh: RenderMesh::new(&soft.positions, mesh.faces()).highlight(&constrained),
-            caption: "(c) soft handle, w = 1".into(),
-        },
-    ];
-    let path = out.join("render_bumpy_sphere.png");
-    render::render_side_by_side(&panels, &layout, &Style::default(), &path)?;
-    println!("wrote {}", path.display());
-
-    // Line chart: handle error against the soft weight, with the hard
-    // handle's error as the reference.
-    let weights: Vec<f64> = (-2..=8).map(|k| 10f64.powi(k)).collect();
-    let mut points = Vec::new();
-    let mut failures = Vec::new();
-    for &w in &weights {
-        match deform(&mesh, Some(w)) {
-            Ok(d) => points.push((w, handle_error(&mesh, &d.positions, &scene)?)),
+    if cli.experiment == Experiment::VizDemo {
+        return match demo::viz_demo(&cli.demo_out) {
+            Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
-                println!("  soft handle w = {w:e} failed: {e}");
-                failures.push(Failure { x: w, y: None });
+                eprintln!("error: {e}");
+                ExitCode::FAILURE
             }
+        };
+    }
+    if let Some(dir) = &cli.mesh_dir {
+        if !dir.is_dir() {
+            eprintln!("error: --mesh-dir {} is not a directory", dir.display());
+            return ExitCode::from(2);
         }
     }
-    let hard_error = handle_error(&mesh, &hard.positions, &scene)?;
-    let line = LineChart {
-        title: "Handle error of a soft handle against its weight".into(),
-        x: Axis::log10("soft-constraint weight w"),
-        y: Axis::log10("max handle distance from target"),
-        series: vec![Series::new("soft handle (null-space QR)", points).with_failures(failures)],
-        reference_lines: vec![ReferenceLine {
-            y: hard_error,
-            label: format!("hard handle ({hard_error:.1e})"),
-        }],
-        legend: LegendPosition::Auto,
-    };
-    report_drawn(&plot::line_chart(
-        &line,
-        &Output::new(out.join("demo_line_chart")),
-    )?);
-
-    // Stacked bars: precompute breakdown, hard vs soft handle, two sizes.
-    let segments = ["QR", "preparation", "normal matrix", "symbolic", "numeric"];
-    let mut categories = Vec::new();
-    let mut scaling_hard = Vec::new();
-    let mut scaling_soft = Vec::new();
-    for subdivisions in [2u32, 3, 4] {
-        let m = generate::bumpy_sphere(subdivisions, 0.15, 6)?;
-        for (kind, weight) in [("hard handle", None), ("soft handle", Some(1.0))] {
-            let d = deform(&m, weight)?;
-            let t = &d.report.timings_s;
-            if subdivisions >= 3 {
-                categories.push(Category {
-                    name: format!("{} vertices / {kind}", m.n_vertices()),
-                    values: vec![t.qr, t.preparation, t.normal_matrix, t.symbolic, t.numeric],
-                });
+    let ctx = Context::new(cli.out.clone(), cli.mesh_dir.clone(), cli.quick, cli.seed);
+    if let Err(e) = std::fs::create_dir_all(&ctx.out) {
+        eprintln!("error: cannot create {}: {e}", ctx.out.display());
+        return ExitCode::from(2);
+    }
+    eprintln!("{}", ctx.machine.one_line());
+    let started = Instant::now();
+    let mut rows = Vec::new();
+    let mut failed = false;
+    for &(which, name, run) in ORDER {
+        if cli.experiment != Experiment::All && cli.experiment != which {
+            continue;
+        }
+        let t = Instant::now();
+        let outcome = run(&ctx);
+        let seconds = t.elapsed().as_secs_f64();
+        let (status, headline) = match outcome {
+            Ok(s) => ("ok".to_string(), s.headline),
+            Err(e) => {
+                failed = true;
+                ("FAILED".to_string(), e.to_string())
             }
-            let target = if weight.is_none() {
-                &mut scaling_hard
-            } else {
-                &mut scaling_soft
-            };
-            target.push((m.n_vertices() as f64, t.precompute()));
-        }
+        };
+        eprintln!("{name}: {status} in {seconds:.1} s — {headline}");
+        rows.push(vec![
+            name.to_string(),
+            status,
+            format!("{seconds:.1}"),
+            headline,
+        ]);
     }
-    let bars = StackedBars {
-        title: "Breakdown of precomputation time".into(),
-        value_label: "time (s)".into(),
-        segments: segments.iter().map(|s| s.to_string()).collect(),
-        categories,
-        orientation: Orientation::Horizontal,
-        total_suffix: Some(" s".into()),
-        legend: LegendPosition::Auto,
-    };
-    report_drawn(&plot::stacked_bars(
-        &bars,
-        &Output::new(out.join("demo_stacked_bars")),
-    )?);
-
-    // Scatter with fits: precompute time against vertex count.
-    let scatter = ScatterFits {
-        title: "Precomputation time against mesh size".into(),
-        x_label: "vertices".into(),
-        y_label: "precompute time (s)".into(),
-        series: vec![
-            Series::new("hard handle", scaling_hard),
-            Series::new("soft handle", scaling_soft),
-        ],
-        legend: LegendPosition::Auto,
-    };
-    report_drawn(&plot::scatter_loglog_with_fits(
-        &scatter,
-        &Output::new(out.join("demo_scatter_fits")),
-    )?);
-
-    // Rasteriser timing at 800 × 800: a 51,200-face grid seen at an angle
-    // and an 81,920-face bumpy sphere.
-    let timing_meshes = [
-        (
-            "grid",
-            generate::grid(160, 160)?,
-            Camera::new(20.0, 35.0).with_up_axis(1),
-        ),
-        (
-            "sphere",
-            generate::bumpy_sphere(6, 0.15, 6)?,
-            Camera::default(),
-        ),
-    ];
-    for (name, big, camera) in &timing_meshes {
-        let view = View::fit(camera, &[big.positions()], 800, 800, 0.05)?;
-        for supersample in [1, 2] {
-            let style = Style {
-                supersample,
-                ..Style::default()
-            };
-            let t = Instant::now();
-            let image = render::render(&RenderMesh::from_mesh(big), &view, &style)?;
-            let elapsed = t.elapsed().as_secs_f64();
-            println!(
-                "render {name}: {} faces at 800×800, supersample {supersample}×{supersample}: {elapsed:.3} s",
-                big.n_faces(),
-            );
-            let path = out.join(format!("render_timing_{name}_ss{supersample}.png"));
-            image.save_png(&path)?;
-            println!("wrote {}", path.display());
-        }
+    if let Err(e) = assemble_readme(&ctx.out, &ctx.machine) {
+        eprintln!("error: writing {}/README.md: {e}", ctx.out.display());
+        failed = true;
     }
-    Ok(())
+    println!(
+        "\n{}",
+        markdown_table(&["experiment", "status", "seconds", "main finding"], &rows)
+    );
+    println!("total: {:.1} s", started.elapsed().as_secs_f64());
+    if failed {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    }
 }

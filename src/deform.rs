@@ -146,9 +146,12 @@ impl Deformer {
     /// Estimates the 2-norm condition number of the matrix the formulation
     /// factored (see [`crate::condition`]) and records it in the report.
     pub fn estimate_condition(&mut self) -> Result<&crate::condition::ConditionEstimate, Error> {
-        let system = self.system.as_mut().ok_or_else(|| ProblemError::BadUpdate {
-            message: "estimate_condition called before precompute".into(),
-        })?;
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "estimate_condition called before precompute".into(),
+            })?;
         let estimate = system.estimate_condition()?;
         Ok(self.report.condition_estimate.insert(estimate))
     }

@@ -11,9 +11,9 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use lse_deform::constraints::read_constraints;
+use lse_deform::export::export_problem;
 use lse_deform::mesh::{self, Quality, Topology, generate};
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::export::export_problem;
 use lse_deform::{Deformer, Error, LaplacianKind, backend, formulation};
 
 #[derive(Parser)]
@@ -351,7 +351,11 @@ fn export_system(a: ExportArgs) -> Result<(), Error> {
         files.d.display(),
         files
             .factored
-            .map(|f| format!(" and {} (the matrix {} factors)", f.display(), formulation.name()))
+            .map(|f| format!(
+                " and {} (the matrix {} factors)",
+                f.display(),
+                formulation.name()
+            ))
             .unwrap_or_default()
     );
     Ok(())
@@ -444,13 +448,22 @@ fn compare(a: CompareArgs) -> Result<(), Error> {
             Ok(())
         })();
         if let Err(e) = outcome {
-            row.status = format!("error ({}): {e}", if e.is_input_error() { "input" } else { "numerical" });
+            row.status = format!(
+                "error ({}): {e}",
+                if e.is_input_error() {
+                    "input"
+                } else {
+                    "numerical"
+                }
+            );
         }
         rows.push(row);
         bar.inc(1);
     }
     bar.finish_and_clear();
-    out!("| method | QR | SPD | weight | precompute (s) | solve, median (ms) | max ‖BX − D‖ | condition est. | status |");
+    out!(
+        "| method | QR | SPD | weight | precompute (s) | solve, median (ms) | max ‖BX − D‖ | condition est. | status |"
+    );
     out!("|---|---|---|---|---:|---:|---:|---:|---|");
     let opt = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map(f).unwrap_or_else(|| "—".into());
     for r in &rows {
@@ -464,7 +477,19 @@ fn compare(a: CompareArgs) -> Result<(), Error> {
             opt(r.solve_median_s, &|t| format!("{:.2}", t * 1e3)),
             opt(r.max_constraint_residual, &|v| format!("{v:.1e}")),
             opt(r.condition, &|v| format!("{v:.2e}")),
-            if r.status.len() > 90 { format!("{}…", &r.status[..r.status.char_indices().nth(90).map(|c| c.0).unwrap_or(r.status.len())]) } else { r.status.clone() }
+            if r.status.len() > 90 {
+                format!(
+                    "{}…",
+                    &r.status[..r
+                        .status
+                        .char_indices()
+                        .nth(90)
+                        .map(|c| c.0)
+                        .unwrap_or(r.status.len())]
+                )
+            } else {
+                r.status.clone()
+            }
         );
     }
     if let Some(path) = &a.json {
@@ -556,12 +581,14 @@ fn info(a: InfoArgs) -> Result<(), Error> {
     );
     out!(
         "angles              min {:.4} deg, max {:.4} deg",
-        q.min_angle_deg, q.max_angle_deg
+        q.min_angle_deg,
+        q.max_angle_deg
     );
     out!("worst aspect ratio  {:.2}", q.max_aspect_ratio);
     out!(
         "slivers             {:.2}% of faces with min angle < 10 deg, {} below 1 deg",
-        q.percent_below_10_deg, q.count_below_1_deg
+        q.percent_below_10_deg,
+        q.count_below_1_deg
     );
     out!("edge length ratio   {:.1}", q.edge_length_ratio);
     Ok(())

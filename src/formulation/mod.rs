@@ -111,12 +111,17 @@ pub fn build(
         ))),
         "penalty" => {
             let w = weight.ok_or_else(|| {
-                invalid("--method penalty needs --weight W (the weight of the former hard rows)".into())
+                invalid(
+                    "--method penalty needs --weight W (the weight of the former hard rows)".into(),
+                )
             })?;
             if !(w.is_finite() && w > 0.0) {
                 return Err(invalid(format!("weight {w} must be finite and > 0")));
             }
-            Ok(Box::new(Penalty::with_backend(w, spd_backend::by_name(spd)?)))
+            Ok(Box::new(Penalty::with_backend(
+                w,
+                spd_backend::by_name(spd)?,
+            )))
         }
         "kkt" => match spd {
             "faer-auto" => Ok(Box::new(Kkt::default())),

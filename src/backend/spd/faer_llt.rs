@@ -210,7 +210,6 @@ fn factor_diagonal(symbolic: &SymbolicCholesky<usize>, values: &[f64]) -> Vec<f6
     diag
 }
 
-
 struct FaerFactor {
     symbolic: Arc<SymbolicCholesky<usize>>,
     values: Vec<f64>,

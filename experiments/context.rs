@@ -1,0 +1,398 @@
+//! What every experiment shares: where results go, which meshes to use, the
+//! seed, the machine description recorded in every output, progress bars,
+//! and the writers for CSV, JSON and README sections.
+// Some helpers serve only part of the experiments.
+#![allow(dead_code)]
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use lse_deform::mesh::{Mesh, generate, read_mesh};
+use serde::Serialize;
+
+use crate::AnyError;
+
+/// The machine, build and inputs an output was produced with.
+#[derive(Debug, Clone, Serialize)]
+pub struct Machine {
+    /// CPU model (from `/proc/cpuinfo`).
+    pub cpu: String,
+    /// Logical cores available to this process.
+    pub cores: usize,
+    /// Total memory in GiB (from `/proc/meminfo`).
+    pub memory_gib: f64,
+    /// Operating system and architecture.
+    pub os: String,
+    /// `lse-deform` version.
+    pub crate_version: String,
+    /// `git rev-parse --short HEAD` (with `-dirty` if the tree has
+    /// uncommitted changes), or "unknown".
+    pub git_revision: String,
+    /// Cargo features compiled in.
+    pub features: Vec<String>,
+    /// Build profile ("release" or "debug").
+    pub profile: String,
+    /// The command line.
+    pub command: String,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// Mesh directory, or "generated meshes".
+    pub meshes: String,
+}
+
+impl Machine {
+    fn detect(seed: u64, mesh_dir: Option<&Path>) -> Machine {
+        let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+        let cpu = cpuinfo
+            .lines()
+            .find_map(|l| {
+                l.strip_prefix("model name")
+                    .map(|r| r.trim_start_matches([' ', '\t', ':']).to_string())
+            })
+            .unwrap_or_else(|| "unknown".into());
+        let meminfo = std::fs::read_to_string("/proc/meminfo").unwrap_or_default();
+        let memory_gib = meminfo
+            .lines()
+            .find_map(|l| l.strip_prefix("MemTotal:"))
+            .and_then(|r| r.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+            .map(|kb| kb / 1024.0 / 1024.0)
+            .unwrap_or(0.0);
+        let git = |args: &[&str]| {
+            std::process::Command::new("git")
+                .args(args)
+                .current_dir(env!("CARGO_MANIFEST_DIR"))
+                .output()
+                .ok()
+                .filter(|o| o.status.success())
+                .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        };
+        let git_revision = match git(&["rev-parse", "--short", "HEAD"]) {
+            Some(rev) => {
+                let dirty = git(&["status", "--porcelain", "--untracked-files=no"])
+                    .is_some_and(|s| !s.is_empty());
+                if dirty { format!("{rev}-dirty") } else { rev }
+            }
+            None => "unknown".into(),
+        };
+        let mut features = Vec::new();
+        if cfg!(feature = "suitesparse") {
+            features.push("suitesparse".to_string());
+        }
+        Machine {
+            cpu,
+            cores: std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1),
+            memory_gib,
+            os: format!("{} {}", std::env::consts::OS, std::env::consts::ARCH),
+            crate_version: env!("CARGO_PKG_VERSION").into(),
+            git_revision,
+            features,
+            profile: if cfg!(debug_assertions) {
+                "debug"
+            } else {
+                "release"
+            }
+            .into(),
+            command: std::env::args().collect::<Vec<_>>().join(" "),
+            seed,
+            meshes: mesh_dir
+                .map(|d| d.display().to_string())
+                .unwrap_or_else(|| "generated meshes".into()),
+        }
+    }
+
+    /// One line for the head of a CSV file or a section.
+    pub fn one_line(&self) -> String {
+        format!(
+            "lse-deform {} (git {}, {}{}), {} x {}, {:.0} GiB, {}; seed {}; {}",
+            self.crate_version,
+            self.git_revision,
+            self.profile,
+            if self.features.is_empty() {
+                String::new()
+            } else {
+                format!(", features: {}", self.features.join(","))
+            },
+            self.cores,
+            self.cpu,
+            self.memory_gib,
+            self.os,
+            self.seed,
+            self.meshes
+        )
+    }
+}
+
+/// A mesh an experiment runs on.
+#[derive(Debug, Clone)]
+pub struct MeshCase {
+    /// Short name used in tables and file names ("bunny-35k", "sliver").
+    pub name: String,
+    /// The mesh.
+    pub mesh: Mesh,
+    /// Where it came from (a file path or the generator and its size).
+    pub source: String,
+}
+
+/// The shared state of a run.
+pub struct Context {
+    /// The results directory (`results/` by default).
+    pub out: PathBuf,
+    /// The real meshes' directory, if given.
+    pub mesh_dir: Option<PathBuf>,
+    /// Smaller sizes and fewer repetitions (for smoke tests).
+    pub quick: bool,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// The machine description.
+    pub machine: Machine,
+    /// Progress bars (drawn on stderr when it is a terminal).
+    pub progress: MultiProgress,
+}
+
+impl Context {
+    /// A context writing to `out`.
+    pub fn new(out: PathBuf, mesh_dir: Option<PathBuf>, quick: bool, seed: u64) -> Context {
+        let machine = Machine::detect(seed, mesh_dir.as_deref());
+        Context {
+            out,
+            mesh_dir,
+            quick,
+            seed,
+            machine,
+            progress: MultiProgress::new(),
+        }
+    }
+
+    /// `results/<name>/`, created if missing.
+    pub fn dir(&self, name: &str) -> Result<PathBuf, AnyError> {
+        let d = self.out.join(name);
+        std::fs::create_dir_all(&d)?;
+        Ok(d)
+    }
+
+    /// A progress bar of `len` steps with a message.
+    pub fn bar(&self, len: usize, message: &str) -> ProgressBar {
+        let bar = self.progress.add(ProgressBar::new(len as u64));
+        if let Ok(style) = ProgressStyle::with_template(
+            "{bar:30.cyan/blue} {pos:>3}/{len:3} {msg} ({elapsed}, eta {eta})",
+        ) {
+            bar.set_style(style);
+        }
+        bar.set_message(message.to_string());
+        bar.enable_steady_tick(Duration::from_millis(200));
+        bar
+    }
+
+    /// Loads a mesh of the mesh directory by file name (e.g.
+    /// `"bunny-35k-stanford.obj"`); `None` without a mesh directory or if
+    /// the file is missing.
+    pub fn real_mesh(&self, file: &str) -> Result<Option<MeshCase>, AnyError> {
+        let Some(dir) = &self.mesh_dir else {
+            return Ok(None);
+        };
+        let path = dir.join(file);
+        if !path.exists() {
+            return Ok(None);
+        }
+        let mesh = read_mesh(&path)?.mesh;
+        let name = file
+            .trim_end_matches(".gz")
+            .trim_end_matches(".obj")
+            .to_string();
+        Ok(Some(MeshCase {
+            name,
+            mesh,
+            source: path.display().to_string(),
+        }))
+    }
+
+    /// The meshes of the paper's evaluation: with a mesh directory the
+    /// Stanford models (Bunny, Armadillo, Dragon) and two sliver-heavy scans;
+    /// without, generated stand-ins (a bumpy sphere, the paper's Fig. 1
+    /// unsymmetric grid and its Fig. 2 sliver mesh).
+    pub fn evaluation_meshes(&self) -> Result<Vec<MeshCase>, AnyError> {
+        if self.mesh_dir.is_some() {
+            let mut cases = Vec::new();
+            for file in [
+                "bunny-35k-stanford.obj",
+                "armadillo-43k.obj",
+                "dragon-50k.obj",
+                "bunny-35k-watertight.obj",
+                "nefertiti-50k.obj",
+            ] {
+                if let Some(case) = self.real_mesh(file)? {
+                    cases.push(case);
+                }
+            }
+            if !cases.is_empty() {
+                return Ok(cases);
+            }
+        }
+        self.generated_evaluation_meshes()
+    }
+
+    /// The generated stand-ins of [`Context::evaluation_meshes`].
+    pub fn generated_evaluation_meshes(&self) -> Result<Vec<MeshCase>, AnyError> {
+        let size = if self.quick { 1_500 } else { 10_000 };
+        let mut cases = Vec::new();
+        for (name, kind) in [
+            ("bumpy-sphere", generate::GeneratedKind::BumpySphere),
+            ("unsymmetric-grid", generate::GeneratedKind::UnsymmetricGrid),
+            ("sliver", generate::GeneratedKind::Sliver),
+        ] {
+            let mesh = generate::with_about_vertices(kind, size, self.seed)?;
+            cases.push(MeshCase {
+                name: name.into(),
+                source: format!(
+                    "generated {kind}, {} vertices, seed {}",
+                    mesh.n_vertices(),
+                    self.seed
+                ),
+                mesh,
+            });
+        }
+        Ok(cases)
+    }
+
+    /// Writes a CSV file whose first line is a `#` comment with the machine
+    /// description (`pandas.read_csv(path, comment="#")` reads it).
+    pub fn write_csv(
+        &self,
+        path: &Path,
+        header: &[&str],
+        rows: &[Vec<String>],
+    ) -> Result<(), AnyError> {
+        let mut s = format!("# {}\n", self.machine.one_line());
+        s.push_str(&header.join(","));
+        s.push('\n');
+        for row in rows {
+            let cells: Vec<String> = row
+                .iter()
+                .map(|c| {
+                    if c.contains([',', '"', '\n']) {
+                        format!("\"{}\"", c.replace('"', "\"\""))
+                    } else {
+                        c.clone()
+                    }
+                })
+                .collect();
+            s.push_str(&cells.join(","));
+            s.push('\n');
+        }
+        std::fs::write(path, s)?;
+        Ok(())
+    }
+
+    /// Writes `{"machine": …, "data": value}` as pretty JSON.
+    pub fn write_json(&self, path: &Path, value: &impl Serialize) -> Result<(), AnyError> {
+        let doc = serde_json::json!({ "machine": self.machine, "data": value });
+        std::fs::write(path, serde_json::to_string_pretty(&doc)? + "\n")?;
+        Ok(())
+    }
+
+    /// Writes the experiment's section of `results/README.md`
+    /// (`results/<name>/section.md`); [`assemble_readme`] joins them.
+    pub fn write_section(&self, name: &str, markdown: &str) -> Result<(), AnyError> {
+        let path = self.dir(name)?.join("section.md");
+        std::fs::write(path, markdown)?;
+        Ok(())
+    }
+}
+
+/// Formats seconds for tables: ms below one second.
+pub fn fmt_time(seconds: f64) -> String {
+    if seconds < 1.0 {
+        format!("{:.1} ms", seconds * 1e3)
+    } else {
+        format!("{seconds:.2} s")
+    }
+}
+
+/// Median of a non-empty slice (NaN for an empty one).
+pub fn median(values: &[f64]) -> f64 {
+    percentile(values, 0.5)
+}
+
+/// The `q`-quantile (nearest rank) of the values.
+pub fn percentile(values: &[f64], q: f64) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let idx = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1;
+    v[idx]
+}
+
+/// A markdown table from a header and rows.
+pub fn markdown_table(header: &[&str], rows: &[Vec<String>]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "| {} |", header.join(" | "));
+    let _ = writeln!(s, "|{}", "---|".repeat(header.len()));
+    for r in rows {
+        let _ = writeln!(s, "| {} |", r.join(" | "));
+    }
+    s
+}
+
+/// The order of the sections in `results/README.md`.
+pub const SECTIONS: &[(&str, &str)] = &[
+    (
+        "table1",
+        "Table 1 — stability of soft-only, hard + soft, KKT and elimination",
+    ),
+    ("weight-sweep", "Penalty weight sweep"),
+    (
+        "precompute-breakdown",
+        "Precompute breakdown (paper Fig. 7 and 8)",
+    ),
+    (
+        "relative-constraints",
+        "Relative constraints (paper Fig. 9 and 11)",
+    ),
+    ("conflicts", "Conflicting constraints (paper Fig. 6)"),
+    ("scaling", "Scaling with mesh size"),
+    ("drag", "Interactive drag"),
+    ("renders", "Renders"),
+    (
+        "performance",
+        "Performance against CHOLMOD and the bandwidth floor",
+    ),
+];
+
+/// Joins the sections present under `out` into `out/README.md`.
+pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
+    let mut s = String::from("# Results\n\n");
+    let _ = writeln!(
+        s,
+        "Everything in this directory is written by the `experiments` program; nothing is edited by hand. \
+         Regenerate all of it with\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- all --mesh-dir ../shared/meshes\n```\n\n\
+         (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out). \
+         Each section names the command that regenerates it alone. CSV files start with a `#` line describing the machine and build.\n"
+    );
+    let _ = writeln!(s, "Last full run: {}\n", machine.one_line());
+    let mut toc = String::new();
+    let mut body = String::new();
+    for (name, title) in SECTIONS {
+        let path = out.join(name).join("section.md");
+        if let Ok(section) = std::fs::read_to_string(&path) {
+            let anchor: String = title
+                .to_lowercase()
+                .chars()
+                .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-')
+                .collect::<String>()
+                .replace(' ', "-");
+            let _ = writeln!(toc, "- [{title}](#{anchor})");
+            let _ = writeln!(body, "## {title}\n\n{}\n", section.trim_end());
+        }
+    }
+    s.push_str(&toc);
+    s.push('\n');
+    s.push_str(&body);
+    std::fs::write(out.join("README.md"), s)?;
+    Ok(())
+}
