@@ -65,6 +65,11 @@ struct Cli {
     /// Smaller meshes and fewer repetitions (a smoke test, not for results/).
     #[arg(long)]
     quick: bool,
+    /// Internal: the child process of the performance experiment's peak
+    /// memory measurement (runs the paper's scene on this mesh and prints
+    /// JSON).
+    #[arg(long, hide = true)]
+    memory_probe: Option<PathBuf>,
     /// For viz-demo: its output directory.
     #[arg(long, default_value = "target/viz-demo")]
     demo_out: PathBuf,
@@ -121,6 +126,15 @@ const ORDER: &[(Experiment, &str, Runner)] = &[
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let (Experiment::Performance, Some(mesh)) = (cli.experiment, &cli.memory_probe) {
+        return match performance::memory_probe(mesh) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     if cli.experiment == Experiment::VizDemo {
         return match demo::viz_demo(&cli.demo_out) {
             Ok(()) => ExitCode::SUCCESS,

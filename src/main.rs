@@ -55,7 +55,7 @@ struct MethodArgs {
     #[arg(long, default_value = "nullspace-qr")]
     method: String,
     /// QR back end: dense-householder, sparse-givens or spqr.
-    #[arg(long, default_value = "dense-householder")]
+    #[arg(long, default_value = "sparse-givens")]
     qr: String,
     /// SPD back end: faer-auto, faer-supernodal, faer-simplicial, nalgebra or
     /// cholmod (for kkt: the faer LDLT variant).
@@ -429,7 +429,7 @@ fn compare(a: CompareArgs) -> Result<(), Error> {
             report: None,
         };
         let outcome = (|| -> Result<(), Error> {
-            let f = formulation::build(method, qr.unwrap_or("dense-householder"), spd, weight)?;
+            let f = formulation::build(method, qr.unwrap_or("sparse-givens"), spd, weight)?;
             deformer.precompute(f.as_ref())?;
             let mut times = Vec::new();
             for _ in 0..a.repeat.max(1) {

@@ -18,7 +18,7 @@ use faer::sparse::SparseColMat;
 
 use super::util::lower_to_full;
 use super::{Formulation, Prepared};
-use crate::backend::qr::{ConstraintQr, DenseHouseholder, QrBackend, RankTolerance};
+use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
@@ -37,10 +37,15 @@ pub struct NullSpaceQr {
     pub tolerance: RankTolerance,
 }
 
+/// The default pairs [`SparseGivens`] (the same rank decisions in the same
+/// priority order as the paper's per-block
+/// [`DenseHouseholder`](crate::backend::qr::DenseHouseholder), but its cost
+/// follows the sparsity inside a block instead of the block's size squared,
+/// and its Q is cheaper to apply) with [`FaerLlt::auto`].
 impl Default for NullSpaceQr {
     fn default() -> Self {
         NullSpaceQr {
-            qr: Arc::new(DenseHouseholder),
+            qr: Arc::new(SparseGivens::default()),
             spd: Arc::new(FaerLlt::auto()),
             tolerance: RankTolerance::default(),
         }
@@ -144,7 +149,13 @@ impl Formulation for NullSpaceQr {
             report.nnz.factor_bytes = Some(factor.bytes());
             Some(factor)
         };
-        Ok(Box::new(PreparedNullSpace { qr, aq2, factor }))
+        let workspace = SolveWorkspace::new(qr.n(), qr.rank(), problem.a().nrows());
+        Ok(Box::new(PreparedNullSpace {
+            qr,
+            aq2,
+            factor,
+            workspace,
+        }))
     }
 }
 
@@ -152,38 +163,87 @@ struct PreparedNullSpace {
     qr: Box<dyn ConstraintQr>,
     aq2: SparseColMat<usize, f64>,
     factor: Option<Box<dyn SpdFactor>>,
+    workspace: SolveWorkspace,
+}
+
+/// Buffers of one solve, allocated once at precompute so that a drag loop
+/// only allocates its output.
+struct SolveWorkspace {
+    /// `y` (rank × 3).
+    y: Mat<f64>,
+    /// `z` (free unknowns × 3).
+    z: Mat<f64>,
+    /// `X_p = Q[y; 0]` (n × 3).
+    xp: Mat<f64>,
+    /// `C − A X_p` (rows of A × 3).
+    residual: Mat<f64>,
+}
+
+impl SolveWorkspace {
+    fn new(n: usize, rank: usize, a_rows: usize) -> SolveWorkspace {
+        SolveWorkspace {
+            y: Mat::zeros(rank, 3),
+            z: Mat::zeros(n - rank, 3),
+            xp: Mat::zeros(n, 3),
+            residual: Mat::zeros(a_rows, 3),
+        }
+    }
 }
 
 impl Prepared for PreparedNullSpace {
     fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error> {
         let qr = &*self.qr;
         let (n, r) = (qr.n(), qr.rank());
-        let mut y = Mat::<f64>::zeros(r, 3);
-        qr.solve_r1t(problem.d().as_ref(), y.as_mut());
-        let mut z = Mat::<f64>::zeros(n - r, 3);
+        let ws = &mut self.workspace;
+        qr.solve_r1t(problem.d().as_ref(), ws.y.as_mut());
         if let Some(factor) = self.factor.as_mut() {
-            let mut xp = Mat::<f64>::zeros(n, 3);
-            qr.apply_q(y.as_ref(), z.as_ref(), xp.as_mut());
-            let residual = problem.c() - problem.a_times(&xp);
-            // z ← (AQ2)ᵀ (C − A X_p), then solve in place.
+            // X_p = Q[y; 0], so that A Q1 y = A X_p.
+            ws.z.fill(0.0);
+            qr.apply_q(ws.y.as_ref(), ws.z.as_ref(), ws.xp.as_mut());
+            // residual ← C − A X_p: one pass over A, three columns at once.
+            ws.residual.copy_from(problem.c());
+            let a = problem.a();
+            let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+            let xp = &ws.xp;
+            let (x0, x1, x2) = (xp.col(0), xp.col(1), xp.col(2));
+            let mut res = ws.residual.as_mut();
+            for j in 0..a.ncols() {
+                let (u0, u1, u2) = (x0[j], x1[j], x2[j]);
+                if u0 == 0.0 && u1 == 0.0 && u2 == 0.0 {
+                    continue;
+                }
+                for p in ptr[j]..ptr[j + 1] {
+                    let (i, v) = (rows[p], val[p]);
+                    res[(i, 0)] -= v * u0;
+                    res[(i, 1)] -= v * u1;
+                    res[(i, 2)] -= v * u2;
+                }
+            }
+            // z ← (AQ2)ᵀ residual: one pass over AQ2.
             let (ptr, rows, val) = (
                 self.aq2.symbolic().col_ptr(),
                 self.aq2.symbolic().row_idx(),
                 self.aq2.val(),
             );
-            for c in 0..3 {
-                for j in 0..self.aq2.ncols() {
-                    let mut s = 0.0;
-                    for p in ptr[j]..ptr[j + 1] {
-                        s += val[p] * residual[(rows[p], c)];
-                    }
-                    z[(j, c)] = s;
+            let res = ws.residual.as_ref();
+            let (r0, r1, r2) = (res.col(0), res.col(1), res.col(2));
+            for j in 0..self.aq2.ncols() {
+                let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+                for p in ptr[j]..ptr[j + 1] {
+                    let (i, v) = (rows[p], val[p]);
+                    s0 += v * r0[i];
+                    s1 += v * r1[i];
+                    s2 += v * r2[i];
                 }
+                ws.z[(j, 0)] = s0;
+                ws.z[(j, 1)] = s1;
+                ws.z[(j, 2)] = s2;
             }
-            factor.solve_in_place(z.as_mut());
+            factor.solve_in_place(ws.z.as_mut());
         }
         let mut x = Mat::<f64>::zeros(n, 3);
-        qr.apply_q(y.as_ref(), z.as_ref(), x.as_mut());
+        qr.apply_q(ws.y.as_ref(), ws.z.as_ref(), x.as_mut());
+        debug_assert_eq!(ws.y.nrows(), r);
         Ok(x)
     }
 

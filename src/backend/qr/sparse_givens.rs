@@ -146,6 +146,9 @@ pub struct GivensQr {
     free: Vec<usize>,
     /// Position of constraint `j` in `kept`, `usize::MAX` if skipped.
     kept_pos: Vec<usize>,
+    /// Row of `D` (original constraint index) of `y_k`: `kept` itself, or
+    /// its image under the fill-reducing order the factorisation used.
+    d_row: Vec<usize>,
     /// `R` rows of the kept constraints, in `kept` order: CSR with column
     /// indices in constraint numbering, leading entry on the diagonal.
     r_ptr: Vec<usize>,
@@ -156,7 +159,40 @@ pub struct GivensQr {
 impl GivensQr {
     /// Factors `Bᵀ` for `b` (m × n, one row per constraint in priority
     /// order). Fails only on a non-finite coefficient.
+    ///
+    /// **Column order.** When constraints share unknowns (relative, edge and
+    /// face constraints linking a region), the fill of `R` depends on the
+    /// column order, and the priority order can be a bad one (a breadth-first
+    /// chain of relative constraints fills `R` along the BFS front). The
+    /// factorisation is therefore first tried in an approximate-minimum-degree
+    /// order of `B Bᵀ`. If that finds full rank, every constraint is kept —
+    /// which is exactly what the priority order keeps when `B` has full row
+    /// rank — and the result is used (the minimiser on `{X : BX = D}` does
+    /// not depend on the basis of the null space). If it finds a dependent
+    /// constraint, the priority decides which one to drop, so the
+    /// factorisation is redone in priority order.
     pub fn new(
+        b: SparseRowMatRef<'_, usize, f64>,
+        tolerance: RankTolerance,
+        order: GivensRowOrder,
+    ) -> Result<GivensQr, Error> {
+        if let Some(perm) = fill_reducing_constraint_order(b)? {
+            let permuted = permute_rows(b, &perm)?;
+            let mut qr = GivensQr::in_column_order(permuted.as_ref(), tolerance, order)?;
+            if qr.skipped.is_empty() {
+                for r in &mut qr.d_row {
+                    *r = perm[*r];
+                }
+                // All kept: in the original numbering too, 0..m.
+                qr.kept = (0..b.nrows()).collect();
+                return Ok(qr);
+            }
+        }
+        GivensQr::in_column_order(b, tolerance, order)
+    }
+
+    /// The factorisation with the columns of `Bᵀ` in the order of `b`'s rows.
+    fn in_column_order(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
         order: GivensRowOrder,
@@ -346,6 +382,7 @@ impl GivensQr {
         Ok(GivensQr {
             n,
             rotations,
+            d_row: kept.clone(),
             kept,
             skipped,
             y_slot,
@@ -378,6 +415,8 @@ impl ConstraintQr for GivensQr {
     }
 
     fn kept(&self) -> &[usize] {
+        // In the fill-reduced case `kept` was replaced by 0..m (all kept);
+        // `kept_pos`, `r_col` stay in the numbering the factorisation used.
         &self.kept
     }
 
@@ -391,7 +430,7 @@ impl ConstraintQr for GivensQr {
         let r = self.kept.len();
         for c in 0..d.ncols() {
             for k in 0..r {
-                y[(k, c)] = d[(self.kept[k], c)];
+                y[(k, c)] = d[(self.d_row[k], c)];
             }
             for k in 0..r {
                 let range = self.r_ptr[k]..self.r_ptr[k + 1];
@@ -461,4 +500,96 @@ impl ConstraintQr for GivensQr {
     fn storage_nnz(&self) -> usize {
         self.rotations.len() + self.r_val.len()
     }
+}
+
+/// An approximate-minimum-degree order of the constraints for the pattern of
+/// `B Bᵀ` (constraints adjacent when they share an unknown): `perm[k]` is
+/// the constraint placed `k`-th. `None` when no two constraints share an
+/// unknown (then `R` is diagonal in any order).
+fn fill_reducing_constraint_order(
+    b: SparseRowMatRef<'_, usize, f64>,
+) -> Result<Option<Vec<usize>>, Error> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::sparse::SymbolicSparseColMat;
+    use faer::sparse::linalg::amd;
+
+    let (m, n) = (b.nrows(), b.ncols());
+    let (ptr, col) = (b.symbolic().row_ptr(), b.symbolic().col_idx());
+    // Constraints per unknown.
+    let mut by_unknown: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for i in 0..m {
+        for &u in &col[ptr[i]..ptr[i + 1]] {
+            if by_unknown[u].last() != Some(&i) {
+                by_unknown[u].push(i);
+            }
+        }
+    }
+    // Upper triangle of the pattern of B Bᵀ, as (column, row) pairs.
+    let mut pairs: Vec<(usize, usize)> = Vec::new();
+    for list in &by_unknown {
+        for (a, &i) in list.iter().enumerate() {
+            for &j in &list[a + 1..] {
+                pairs.push((j, i));
+            }
+        }
+    }
+    if pairs.is_empty() {
+        return Ok(None);
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    let mut col_ptr = vec![0usize; m + 1];
+    for &(j, _) in &pairs {
+        col_ptr[j + 1] += 1;
+    }
+    for j in 0..m {
+        col_ptr[j + 1] += col_ptr[j];
+    }
+    let row_idx: Vec<usize> = pairs.iter().map(|&(_, i)| i).collect();
+    let nnz = row_idx.len();
+    let pattern = SymbolicSparseColMat::new_checked(m, m, col_ptr, None, row_idx);
+    let backend = |e: &dyn std::fmt::Debug| {
+        Error::from(ProblemError::InvalidArgument {
+            message: format!("ordering the hard constraints failed: {e:?}"),
+        })
+    };
+    let mut fwd = vec![0usize; m];
+    let mut inv = vec![0usize; m];
+    let mut mem =
+        MemBuffer::try_new(amd::order_scratch::<usize>(m, nnz)).map_err(|e| backend(&e))?;
+    amd::order(
+        &mut fwd,
+        &mut inv,
+        pattern.as_ref(),
+        amd::Control::default(),
+        MemStack::new(&mut mem),
+    )
+    .map_err(|e| backend(&e))?;
+    Ok(Some(fwd))
+}
+
+/// `b` with its rows in the order `perm` (row `k` of the result is row
+/// `perm[k]` of `b`).
+fn permute_rows(
+    b: SparseRowMatRef<'_, usize, f64>,
+    perm: &[usize],
+) -> Result<faer::sparse::SparseRowMat<usize, f64>, Error> {
+    let (ptr, col, val) = (b.symbolic().row_ptr(), b.symbolic().col_idx(), b.val());
+    let mut new_ptr = Vec::with_capacity(perm.len() + 1);
+    new_ptr.push(0);
+    let mut new_col = Vec::with_capacity(col.len());
+    let mut new_val = Vec::with_capacity(val.len());
+    for &i in perm {
+        new_col.extend_from_slice(&col[ptr[i]..ptr[i + 1]]);
+        new_val.extend_from_slice(&val[ptr[i]..ptr[i + 1]]);
+        new_ptr.push(new_col.len());
+    }
+    let symbolic = faer::sparse::SymbolicSparseRowMat::new_checked(
+        b.nrows(),
+        b.ncols(),
+        new_ptr,
+        None,
+        new_col,
+    );
+    Ok(faer::sparse::SparseRowMat::new(symbolic, new_val))
 }
