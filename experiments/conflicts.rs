@@ -36,7 +36,7 @@ pub const GROUPS: [&str; 5] = [
 ];
 
 /// Weight of every constraint in the all-soft solve (the paper's Fig. 6b).
-pub const SOFT_WEIGHT: f64 = 1.0;
+pub const SOFT_WEIGHT: f64 = 10.0;
 
 /// Penalty weight of the penalty solve.
 pub const PENALTY_WEIGHT: f64 = 1e4;
@@ -336,14 +336,23 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         sc.constraints.len()
     );
     let _ = writeln!(s, "**Outcome per method.**\n");
-    for sv in &solved {
+    for (sv, res) in solved.iter().zip(&per_method) {
         match &sv.result {
             Ok((_, r)) => {
                 let _ = writeln!(
                     s,
-                    "- {}: solved; max residual over the constraints it keeps {}{}",
+                    "- {}: solved; max residual over all {} constraints {} of the diagonal, over the hard constraints it keeps {}{}",
                     sv.label,
-                    sci(r.max_constraint_residual_relative),
+                    sc.constraints.len(),
+                    sci(res
+                        .as_ref()
+                        .map_or(f64::NAN, |v| v.iter().fold(0.0, |a: f64, &b| a.max(b)))
+                        / diag),
+                    if r.hard_constraints == 0 {
+                        "– (none: all soft)".to_string()
+                    } else {
+                        sci(r.max_constraint_residual_relative)
+                    },
                     if r.method == "nullspace-qr" {
                         format!(
                             "; rank {} of {} hard rows; redundant (dropped, satisfied anyway): {:?}; conflicting (dropped): {}",

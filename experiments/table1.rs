@@ -1090,6 +1090,14 @@ mod tests {
     }
 
     #[test]
+    fn qr_reference_agrees_with_the_null_space_solution() {
+        let (d, xs) = grid_problem();
+        let xq = qr_reference(d.problem()).unwrap().unwrap();
+        assert!(relative_difference(&xq, &xs) < 1e-10);
+        assert!(max_hard_residual(d.problem(), &xq) == 0.0);
+    }
+
+    #[test]
     fn sci_formats_compactly() {
         assert_eq!(sci(1e8), "1e8");
         assert_eq!(sci(0.0), "0");
