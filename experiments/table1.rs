@@ -686,7 +686,7 @@ fn findings(rows: &[Row]) -> String {
         let _ = writeln!(
             s,
             "- All four methods factor a normal matrix (condition squared), so where the mesh itself is ill-conditioned for a Laplacian \
-             (sliver triangles: κ of the reduced matrix {} on {}/{}) even the exact methods keep only about {} correct digits \
+             (near-degenerate triangles: κ of the reduced matrix {} on {}/{}) even the exact methods keep only about {} correct digits \
              (‖X − X*‖/‖X*‖ = {}) against the QR reference — meeting the constraints exactly does not make the rest of the solution accurate.",
             r.condition.map(sci).unwrap_or_else(|| "–".into()),
             r.mesh,
