@@ -51,8 +51,15 @@ fn independent(
     let mut order: Vec<usize> = (0..n).collect();
     order.shuffle(rng);
     let p = mesh.positions();
+    // Each constraint has a nonzero coefficient at a vertex no earlier one
+    // touches, so the rows are triangular after a column permutation.
+    let mut touched: Vec<usize> = Vec::new();
+    let mut fresh = order.into_iter();
     let mut out = Vec::new();
-    for (k, v) in order.into_iter().take(count).enumerate() {
+    for k in 0..count {
+        let Some(v) = fresh.by_ref().find(|v| !touched.contains(v)) else {
+            break;
+        };
         let other = |rng: &mut ChaCha8Rng, not: &[usize]| loop {
             let u = rng.random_range(0..n);
             if !not.contains(&u) {
@@ -98,6 +105,7 @@ fn independent(
                 }
             }
         };
+        touched.extend_from_slice(c.vertices());
         out.push(Constraint::hard(c));
     }
     out

@@ -27,9 +27,9 @@ fn jitter(rng: &mut ChaCha8Rng, p: [f64; 3], amount: f64) -> [f64; 3] {
     ]
 }
 
-/// `count` independent hard constraints: each uses a vertex no earlier one
-/// uses, with a nonzero coefficient, so the rows are triangular after a
-/// permutation. The first three are positions.
+/// `count` independent hard constraints: each has a nonzero coefficient at a
+/// vertex that no earlier constraint touches, so the rows are triangular
+/// after a column permutation. The first three are positions.
 fn independent(mesh: &Mesh, rng: &mut ChaCha8Rng, count: usize) -> Vec<Constraint> {
     let n = mesh.n_vertices();
     let mut order: Vec<usize> = (0..n).collect();
@@ -39,8 +39,10 @@ fn independent(mesh: &Mesh, rng: &mut ChaCha8Rng, count: usize) -> Vec<Constrain
     let mut used: Vec<usize> = Vec::new();
     let mut out = Vec::new();
     for k in 0..count {
-        let Some(v) = fresh.next() else { break };
-        // Another vertex, distinct from v (may already be used).
+        let Some(v) = fresh.by_ref().find(|v| !used.contains(v)) else {
+            break;
+        };
+        // Another vertex, distinct from v (may be touched already).
         let other = |rng: &mut ChaCha8Rng, not: &[usize]| loop {
             let u = rng.random_range(0..n);
             if !not.contains(&u) {
@@ -82,7 +84,7 @@ fn independent(mesh: &Mesh, rng: &mut ChaCha8Rng, count: usize) -> Vec<Constrain
                 }
             }
         };
-        used.push(v);
+        used.extend_from_slice(c.vertices());
         out.push(Constraint::hard(c));
     }
     out

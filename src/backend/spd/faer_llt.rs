@@ -7,12 +7,13 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError as DenseLltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
     factorize_symbolic_cholesky, supernodal::SupernodalLltRef,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::{MatMut, Par, Side};
 
+use super::triangular::{SupernodalRows, solve_interleaved};
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
 use crate::error::NumericalError;
 
@@ -155,15 +156,17 @@ impl SpdSymbolic for FaerSymbolic {
             }
         }
         check_breakdown(&factor_diagonal(symbolic, &values), &fwd, lower)?;
-        let solve_req = symbolic.solve_in_place_scratch::<f64>(3, Par::Seq);
-        let workspace = MemBuffer::try_new(solve_req).map_err(|e| backend_error(self.name, e))?;
+        // From here on the values are in the row-major supernode layout of
+        // our triangular solves (faer's own solve must not see them).
+        SupernodalRows::transpose_in_place(symbolic, &mut values);
         Ok(Box::new(FaerFactor {
             symbolic: Arc::clone(&self.symbolic),
             values,
             nnz: self.nnz,
             index_bytes: self.index_bytes,
-            workspace,
-            workspace_cols: 3,
+            work: vec![0.0; 3 * n],
+            scratch: Vec::new(),
+            fwd,
         }))
     }
 
@@ -215,8 +218,13 @@ struct FaerFactor {
     values: Vec<f64>,
     nnz: usize,
     index_bytes: usize,
-    workspace: MemBuffer,
-    workspace_cols: usize,
+    /// `fwd[i]`: the original unknown at permuted position `i`.
+    fwd: Vec<usize>,
+    /// Interleaved right-hand sides in permuted order (`3 n`), reused by
+    /// every solve so that the drag loop allocates nothing.
+    work: Vec<f64>,
+    /// Per-supernode scratch of the triangular solves, reused likewise.
+    scratch: Vec<f64>,
 }
 
 impl SpdFactor for FaerFactor {
@@ -224,20 +232,32 @@ impl SpdFactor for FaerFactor {
         self.symbolic.nrows()
     }
 
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
-        if rhs.ncols() > self.workspace_cols {
-            let req = self
-                .symbolic
-                .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq);
-            // Growing the workspace only fails when memory is exhausted, which
-            // aborts the process anyway on allocation elsewhere.
-            if let Ok(buf) = MemBuffer::try_new(req) {
-                self.workspace = buf;
-                self.workspace_cols = rhs.ncols();
+    fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
+        let n = self.fwd.len();
+        let k = rhs.ncols();
+        // Three columns (x, y, z) together; anything else one at a time.
+        let (group, groups) = if k == 3 { (3, 1) } else { (1, k) };
+        if self.work.len() < group * n {
+            self.work.resize(group * n, 0.0);
+        }
+        for g in 0..groups {
+            let w = &mut self.work[..group * n];
+            for (i, &src) in self.fwd.iter().enumerate() {
+                for c in 0..group {
+                    w[group * i + c] = rhs[(src, g * group + c)];
+                }
+            }
+            if group == 3 {
+                solve_interleaved::<3>(&self.symbolic, &self.values, w, &mut self.scratch);
+            } else {
+                solve_interleaved::<1>(&self.symbolic, &self.values, w, &mut self.scratch);
+            }
+            for (i, &dst) in self.fwd.iter().enumerate() {
+                for c in 0..group {
+                    rhs[(dst, g * group + c)] = w[group * i + c];
+                }
             }
         }
-        let llt = LltRef::new(&self.symbolic, &self.values);
-        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.workspace));
     }
 
     fn nnz(&self) -> usize {
