@@ -281,10 +281,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                 let chosen = (!runs.is_empty()).then(|| &runs[median_index(&totals)]);
                 let status = match &errors[i] {
                     Some(e) => {
-                        notes.push(format!(
-                            "{name} / {} / {spd_name}: {e}",
-                            method.label()
-                        ));
+                        notes.push(format!("{name} / {} / {spd_name}: {e}", method.label()));
                         format!("failed: {}", short_error(e))
                     }
                     None => "ok".into(),
@@ -488,7 +485,10 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
          the bars show the run with the median total.\n",
         backends.join(", ")
     );
-    let _ = writeln!(s, "Regenerate this section alone:\n\n```sh\n{command}\n```\n");
+    let _ = writeln!(
+        s,
+        "Regenerate this section alone:\n\n```sh\n{command}\n```\n"
+    );
     let _ = writeln!(
         s,
         "**Table.** Precompute (QR + preparation + normal matrix + symbolic + numeric) and set-up + precompute per mesh and back end; ratio = hard + soft over soft only (set-up included, as in the paper's Fig. 7). \
@@ -532,7 +532,10 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             let _ = writeln!(s, "- {n}");
         }
     }
-    let _ = writeln!(s, "\nData: [`{NAME}/breakdown.csv`]({NAME}/breakdown.csv), [`{NAME}/breakdown.json`]({NAME}/breakdown.json).");
+    let _ = writeln!(
+        s,
+        "\nData: [`{NAME}/breakdown.csv`]({NAME}/breakdown.csv), [`{NAME}/breakdown.json`]({NAME}/breakdown.json)."
+    );
     let _ = writeln!(s, "\n_{}_", ctx.machine.one_line());
     ctx.write_section(NAME, &s)?;
 
@@ -589,7 +592,9 @@ mod tests {
                     .collect(),
             )
             .unwrap();
-        let c2 = FixedAndHandle::paper_default(&big).constraints(&big).unwrap();
+        let c2 = FixedAndHandle::paper_default(&big)
+            .constraints(&big)
+            .unwrap();
         let d2 = Deformer::new(big, LaplacianKind::Cotangent, c2).unwrap();
         let w2 = penalty_weight(d2.problem());
         assert!((w / w2 / 100.0 - 1.0).abs() < 1e-9, "{w} {w2}");

@@ -298,7 +298,9 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             if k == 0 {
                 t0 = med;
             }
-            let st = status[mi][ki].clone().or_else(|| solve_error[mi][ki].clone());
+            let st = status[mi][ki]
+                .clone()
+                .or_else(|| solve_error[mi][ki].clone());
             rows.push(Row {
                 method: m.label.clone(),
                 method_key: m.key.clone(),
@@ -423,7 +425,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     };
     let title_mesh = format!("{} ({} vertices)", case.name, mesh.n_vertices());
     let time_chart = LineChart {
-        title: format!("Precompute time against the number of relative constraints — {title_mesh}"),
+        title: format!("Precompute vs relative constraints — {title_mesh}"),
         x: Axis::linear("relative constraints k (one connected feature patch)"),
         y: Axis::log10("precompute time (s), median"),
         series: series_of(|r| r.precompute_median_s),
@@ -465,7 +467,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         .collect();
     let n_bars = categories.len() as u32;
     let bars = StackedBars {
-        title: format!("Precompute breakdown by number of relative constraints — {title_mesh}"),
+        title: format!("Precompute breakdown vs relative constraints — {title_mesh}"),
         value_label: "time (s), median run".into(),
         segments: PHASES.iter().map(|s| s.to_string()).collect(),
         categories,
@@ -519,12 +521,16 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             })
             .unwrap_or_else(|| "—".into()),
         ]);
-        if m.is_default || m.key == "kkt" || m.key.ends_with("dense-householder") {
+        {
             headline_parts.push(format!(
-                "{}: {} @300, {} @2000",
+                "{}{}: {} @300, {} @2000",
                 short_label(&m.label),
-                r300.map(|v| format!("{v:.2}×")).unwrap_or_else(|| "—".into()),
-                r2000.map(|v| format!("{v:.2}×")).unwrap_or_else(|| "—".into())
+                if m.is_default { " (default)" } else { "" },
+                r300.map(|v| format!("{v:.2}×"))
+                    .unwrap_or_else(|| "—".into()),
+                r2000
+                    .map(|v| format!("{v:.2}×"))
+                    .unwrap_or_else(|| "—".into())
             ));
         }
     }
@@ -579,10 +585,16 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         case.name,
         mesh.n_vertices(),
         case.source,
-        ks.iter().map(|k| k.to_string()).collect::<Vec<_>>().join(", "),
+        ks.iter()
+            .map(|k| k.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
         fmt_time(budget)
     );
-    let _ = writeln!(s, "Regenerate this section alone:\n\n```sh\n{command}\n```\n");
+    let _ = writeln!(
+        s,
+        "Regenerate this section alone:\n\n```sh\n{command}\n```\n"
+    );
     let _ = writeln!(
         s,
         "**Ratios to k = 0** (performance targets: ≤ 1.1× at k = 300, ≤ 1.3× at k = 2000). \
