@@ -70,6 +70,35 @@ pub(super) fn solve_interleaved<const K: usize>(
     w: &mut [f64],
     scratch: &mut Vec<f64>,
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU supports the features the variant is compiled for.
+        unsafe { solve_interleaved_avx2::<K>(symbolic, values, w, scratch) };
+        return;
+    }
+    solve_interleaved_body::<K>(symbolic, values, w, scratch);
+}
+
+/// [`solve_interleaved`] compiled for AVX2 + FMA (the default x86-64
+/// target has only SSE2; the kernels are the same source).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn solve_interleaved_avx2<const K: usize>(
+    symbolic: &SymbolicCholesky<usize>,
+    values: &[f64],
+    w: &mut [f64],
+    scratch: &mut Vec<f64>,
+) {
+    solve_interleaved_body::<K>(symbolic, values, w, scratch);
+}
+
+#[inline(always)]
+fn solve_interleaved_body<const K: usize>(
+    symbolic: &SymbolicCholesky<usize>,
+    values: &[f64],
+    w: &mut [f64],
+    scratch: &mut Vec<f64>,
+) {
     match symbolic.raw() {
         SymbolicCholeskyRaw::Supernodal(s) => {
             let begin = s.supernode_begin();
@@ -169,6 +198,47 @@ fn dot(a: &[f64], x: &[f64]) -> f64 {
     (s[0] + s[1]) + (s[2] + s[3]) + tail
 }
 
+/// `[Σ_j a[j] x_k[j]]_k` for the `K` vectors `x_k = xs[k·stride ..][..len]`,
+/// reading `a` once, with `LANES` partial sums per vector.
+#[inline(always)]
+fn dot_k<const K: usize>(a: &[f64], xs: &[f64], stride: usize) -> [f64; K] {
+    let len = a.len();
+    let mut s = [[0.0; LANES]; K];
+    let full = len / LANES * LANES;
+    let mut j = 0;
+    while j < full {
+        let pa = &a[j..j + LANES];
+        for k in 0..K {
+            let px = &xs[k * stride + j..k * stride + j + LANES];
+            for q in 0..LANES {
+                s[k][q] += pa[q] * px[q];
+            }
+        }
+        j += LANES;
+    }
+    let mut out = [0.0; K];
+    for k in 0..K {
+        let mut tail = 0.0;
+        for jj in full..len {
+            tail += a[jj] * xs[k * stride + jj];
+        }
+        out[k] = (s[k][0] + s[k][1]) + (s[k][2] + s[k][3]) + tail;
+    }
+    out
+}
+
+/// `y_k += α_k a` for the `K` vectors `y_k = ys[k·stride ..][..a.len()]`,
+/// reading `a` once.
+#[inline(always)]
+fn axpy_k<const K: usize>(alpha: [f64; K], a: &[f64], ys: &mut [f64], stride: usize) {
+    let len = a.len();
+    for (j, &av) in a.iter().enumerate().take(len) {
+        for k in 0..K {
+            ys[k * stride + j] += alpha[k] * av;
+        }
+    }
+}
+
 /// `y += α a` over equal-length slices.
 #[inline(always)]
 fn axpy(alpha: f64, a: &[f64], y: &mut [f64]) {
@@ -209,8 +279,9 @@ fn forward_supernode<const K: usize>(
     for (t, &r) in pattern.iter().enumerate() {
         let row = &l[(c + t) * c..(c + t + 1) * c];
         let mut wr = load::<K>(w, r);
+        let d = dot_k::<K>(row, xs, stride);
         for k in 0..K {
-            wr[k] -= dot(row, &xs[k * stride..k * stride + c]);
+            wr[k] -= d[k];
         }
         store::<K>(w, r, wr);
     }
@@ -236,9 +307,7 @@ fn backward_supernode<const K: usize>(
     for (t, &r) in pattern.iter().enumerate() {
         let row = &l[(c + t) * c..(c + t + 1) * c];
         let wr = load::<K>(w, r);
-        for k in 0..K {
-            axpy(wr[k], row, &mut acc[k * stride..k * stride + c]);
-        }
+        axpy_k::<K>(wr, row, acc, stride);
     }
     for i in 0..c {
         let wi = load::<K>(w, f + i);
