@@ -400,6 +400,17 @@ fn check_values(index: usize, c: &Constraint) -> Result<(), ConstraintError> {
 /// Reads a constraints file and checks its vertices against a mesh of
 /// `n_vertices` vertices.
 pub fn read_constraints(path: &Path, n_vertices: usize) -> Result<ConstraintSet, Error> {
+    if let Ok(meta) = std::fs::metadata(path).map(|m| m.len()) {
+        let estimate = meta.saturating_mul(crate::limits::CONSTRAINT_BYTES_PER_FILE_BYTE);
+        crate::limits::check(estimate, || {
+            format!(
+                "{} ({}) would need",
+                path.display(),
+                crate::limits::format_bytes(meta)
+            )
+        })
+        .map_err(|detail| ConstraintError::TooLarge { detail })?;
+    }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let set = parse_constraints(&text)?;
     set.check_vertices(n_vertices)?;

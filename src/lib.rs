@@ -32,6 +32,7 @@ pub mod export;
 pub mod formulation;
 pub mod interop;
 pub mod laplacian;
+pub mod limits;
 pub mod mesh;
 pub mod normal;
 pub mod problem;

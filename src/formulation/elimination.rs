@@ -25,7 +25,7 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use super::null_space::{nothing_factored, with_context};
 use super::util::{at_times, lower_to_full, row_entries, row_kind};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, ProblemError};
 use crate::normal::NormalPattern;
@@ -139,6 +139,11 @@ impl Formulation for Elimination {
             let t = Instant::now();
             let symbolic = self.spd.analyze(lower.symbolic())?;
             report.timings_s.symbolic = t.elapsed().as_secs_f64();
+            check_factor_size(
+                symbolic.factor_nnz(),
+                lower.ncols(),
+                "the eliminated normal matrix A_UᵀA_U",
+            )?;
 
             let t = Instant::now();
             let factor = symbolic.factorize(lower.as_ref()).map_err(|e| {

@@ -450,6 +450,11 @@ impl Formulation for Kkt {
         )
         .map_err(backend_error)?;
         report.timings_s.symbolic = t.elapsed().as_secs_f64();
+        crate::backend::spd::check_factor_size(
+            symbolic.len_val(),
+            n + m,
+            "the KKT matrix [AᵀA Bᵀ; B 0]",
+        )?;
 
         let t = Instant::now();
         let mut values = vec![0.0f64; symbolic.len_val()];

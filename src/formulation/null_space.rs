@@ -19,7 +19,7 @@ use faer::sparse::SparseColMat;
 use super::util::lower_to_full;
 use super::{Formulation, Prepared};
 use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::normal::NormalPattern;
@@ -137,6 +137,11 @@ impl Formulation for NullSpaceQr {
             let t = Instant::now();
             let symbolic = self.spd.analyze(normal.symbolic())?;
             report.timings_s.symbolic = t.elapsed().as_secs_f64();
+            check_factor_size(
+                symbolic.factor_nnz(),
+                normal.ncols(),
+                "the reduced normal matrix (AQ2)ᵀ(AQ2)",
+            )?;
 
             let t = Instant::now();
             let factor = symbolic.factorize(normal.as_ref()).map_err(|e| {

@@ -28,7 +28,7 @@ use super::util::{
     lower_sym_norm_inf, lower_to_full, split_normal,
 };
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::problem::LseProblem;
@@ -192,6 +192,7 @@ impl PenaltySweep {
         let t = Instant::now();
         let symbolic = spd.analyze(pattern.as_ref())?;
         let symbolic_s = t.elapsed().as_secs_f64();
+        check_factor_size(symbolic.factor_nnz(), pattern.ncols(), "AᵀA + w²BᵀB")?;
         Ok(PenaltySweep {
             ata,
             btb,

@@ -73,6 +73,7 @@ use ply_rs_bw::ply::{
 
 use super::Mesh;
 use crate::error::{Error, MeshError};
+use crate::limits;
 
 /// A supported mesh file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -188,6 +189,24 @@ pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
     let mut reader = BufReader::with_capacity(1 << 16, file);
     let head = reader.fill_buf().map_err(|e| Error::io(path, e))?;
     let gzip = head.starts_with(&GZIP_MAGIC);
+    if let Some(size) = size {
+        let expansion = if gzip { limits::GZIP_EXPANSION } else { 1 };
+        let estimate = size
+            .saturating_mul(expansion)
+            .saturating_mul(limits::MESH_BYTES_PER_FILE_BYTE);
+        limits::check(estimate, || {
+            format!(
+                "{} ({}{}) would need",
+                path.display(),
+                limits::format_bytes(size),
+                if gzip { ", gzip-compressed" } else { "" }
+            )
+        })
+        .map_err(|detail| MeshError::TooLarge {
+            what: "mesh file",
+            detail,
+        })?;
+    }
     let result = if gzip {
         read_from(
             BufReader::with_capacity(1 << 16, MultiGzDecoder::new(reader)),
@@ -664,6 +683,7 @@ fn read_off<R: BufRead>(reader: R, size: Option<u64>) -> Result<LoadedMesh, Read
         }
         .into());
     }
+    check_declared_counts(n_vertices, n_faces)?;
     let needed = n_vertices as u128 * OFF_MIN_VERTEX_BYTES + n_faces as u128 * OFF_MIN_FACE_BYTES;
     let reserve_cap = match size {
         Some(size) => {
@@ -954,6 +974,21 @@ fn ply_header_error(line: Option<usize>, message: impl Into<String>) -> MeshErro
     }
 }
 
+/// Refuses a header whose counts would not fit in the memory budget
+/// ([`crate::limits`]), before anything is reserved.
+fn check_declared_counts(n_vertices: usize, n_faces: usize) -> Result<(), MeshError> {
+    let estimate = (n_vertices as u64)
+        .saturating_mul(limits::MESH_BYTES_PER_VERTEX)
+        .saturating_add((n_faces as u64).saturating_mul(limits::MESH_BYTES_PER_FACE));
+    limits::check(estimate, || {
+        format!("the header's {n_vertices} vertices and {n_faces} faces would need")
+    })
+    .map_err(|detail| MeshError::TooLarge {
+        what: "mesh",
+        detail,
+    })
+}
+
 fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
     const F: &str = "PLY";
     let parser = Parser::<PlyElement>::new();
@@ -1051,6 +1086,7 @@ fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
         }
     }
 
+    check_declared_counts(vertex_def.count, face_def.count)?;
     let mut b = Builder::default();
     b.positions.reserve(vertex_def.count);
     let ascii = header.encoding == Encoding::Ascii;

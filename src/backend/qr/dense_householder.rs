@@ -28,7 +28,7 @@ use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef, SymbolicSpars
 use faer::{Mat, MatMut, MatRef};
 
 use super::{ConstraintQr, QrBackend, RankTolerance};
-use crate::error::Error;
+use crate::error::{Error, ProblemError};
 
 /// Per-block dense Householder QR with the paper's column skipping.
 #[derive(Debug, Clone, Copy, Default)]
@@ -44,7 +44,7 @@ impl QrBackend for DenseHouseholder {
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
-        Ok(Box::new(BlockHouseholderQr::new(b, tolerance)))
+        Ok(Box::new(BlockHouseholderQr::new(b, tolerance)?))
     }
 }
 
@@ -110,7 +110,17 @@ pub struct BlockHouseholderQr {
 
 impl BlockHouseholderQr {
     /// Factors `Bᵀ` block by block.
-    pub fn new(b: SparseRowMatRef<'_, usize, f64>, tolerance: RankTolerance) -> Self {
+    ///
+    /// Errors: [`ProblemError::TooLarge`] when the dense blocks would not fit
+    /// in the memory budget ([`crate::limits`]): a block of `k` unknowns and
+    /// `m` constraints stores `Bᵀ` and its reflectors densely
+    /// (`8(k m + k min(k, m) + min(k, m)²)` bytes) and makes a dense block of
+    /// at least `(k − min(k, m))²` entries in the normal matrix (16 bytes
+    /// each with its index). Checked before anything is allocated.
+    pub fn new(
+        b: SparseRowMatRef<'_, usize, f64>,
+        tolerance: RankTolerance,
+    ) -> Result<Self, ProblemError> {
         let (m, n) = (b.nrows(), b.ncols());
         let row_ptr = b.symbolic().row_ptr();
         let col_idx = b.symbolic().col_idx();
@@ -163,6 +173,8 @@ impl BlockHouseholderQr {
                 None => skipped.push(i), // an empty row is dependent on anything
             }
         }
+
+        check_block_sizes(&block_verts, &block_rows)?;
 
         let mut local = vec![usize::MAX; n];
         let mut blocks = Vec::with_capacity(block_verts.len());
@@ -238,13 +250,13 @@ impl BlockHouseholderQr {
             }
         }
         let kept = blocks.iter().flat_map(|b| b.kept.iter().copied()).collect();
-        BlockHouseholderQr {
+        Ok(BlockHouseholderQr {
             n,
             blocks,
             free,
             kept,
             skipped,
-        }
+        })
     }
 }
 
@@ -423,4 +435,31 @@ impl ConstraintQr for BlockHouseholderQr {
             .map(|b| b.verts.len() * b.rank() + b.rank() * (b.rank() + 1) / 2)
             .sum()
     }
+}
+
+/// See [`BlockHouseholderQr::new`]: the dense storage of every block and the
+/// dense blocks they put in the normal matrix, against the memory budget.
+fn check_block_sizes(verts: &[Vec<usize>], rows: &[Vec<usize>]) -> Result<(), ProblemError> {
+    let (mut bytes, mut largest) = (0u64, (0u64, 0u64));
+    for (v, r) in verts.iter().zip(rows) {
+        let (k, m) = (v.len() as u64, r.len() as u64);
+        let min = k.min(m);
+        let dense = k
+            .saturating_mul(m)
+            .saturating_add(k.saturating_mul(min))
+            .saturating_add(min.saturating_mul(min))
+            .saturating_mul(8);
+        let normal = (k - min).saturating_mul(k - min).saturating_mul(16);
+        bytes = bytes.saturating_add(dense).saturating_add(normal);
+        if k > largest.0 {
+            largest = (k, m);
+        }
+    }
+    crate::limits::check(bytes, || {
+        format!(
+            "the dense Householder blocks of Bᵀ (largest: {} unknowns linked by {} constraints; try --qr sparse-givens) would need",
+            largest.0, largest.1
+        )
+    })
+    .map_err(|detail| ProblemError::TooLarge { detail })
 }

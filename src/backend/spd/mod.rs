@@ -77,6 +77,17 @@ pub fn by_name(name: &str) -> Result<Arc<dyn SpdBackend>, ProblemError> {
 /// sixteen digits. We stop there rather than return such a solution.
 pub const BREAKDOWN_RATIO: f64 = 1000.0 * f64::EPSILON;
 
+/// Refuses a factorisation whose factor, as the symbolic analysis sized it,
+/// would not fit in the memory budget ([`crate::limits`]): `matrix` names
+/// the matrix for the message.
+pub fn check_factor_size(factor_nnz: usize, dim: usize, matrix: &str) -> Result<(), ProblemError> {
+    let bytes = (factor_nnz as u64).saturating_mul(crate::limits::FACTOR_BYTES_PER_ENTRY);
+    crate::limits::check(bytes, || {
+        format!("the Cholesky factor of {matrix} ({dim} unknowns, {factor_nnz} entries after fill-in) would need")
+    })
+    .map_err(|detail| ProblemError::TooLarge { detail })
+}
+
 /// A sparse SPD solver family.
 pub trait SpdBackend: Send + Sync {
     /// Name used on the command line and in reports.

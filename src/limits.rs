@@ -1,0 +1,170 @@
+//! The memory budget: inputs and systems that would not fit are refused up
+//! front, with the estimate, instead of the process being killed.
+//!
+//! The budget is `LSE_MEMORY_LIMIT` when set (bytes, with an optional
+//! `K`, `M`, `G` or `T` suffix, powers of 1024), otherwise the memory the
+//! kernel reports as available (`MemAvailable` in `/proc/meminfo`) when the
+//! process starts using it, otherwise unlimited. Four estimates are checked
+//! against it, each before the memory is allocated:
+//!
+//! | what | estimate | where |
+//! |---|---|---|
+//! | a mesh file | [`MESH_BYTES_PER_FILE_BYTE`] × file size (× [`GZIP_EXPANSION`] when compressed) | [`crate::mesh::read_mesh`] |
+//! | a mesh header's counts (OFF, PLY) | [`MESH_BYTES_PER_VERTEX`] × vertices + [`MESH_BYTES_PER_FACE`] × faces | the OFF and PLY readers |
+//! | a constraints file | [`CONSTRAINT_BYTES_PER_FILE_BYTE`] × file size | [`crate::constraints::read_constraints`] |
+//! | a dense Householder block | its reflectors, `8 k min(k, m)` bytes, and its dense `(k − m)²` block of the normal matrix | [`crate::backend::qr::DenseHouseholder`] |
+//! | a Cholesky factor | [`FACTOR_BYTES_PER_ENTRY`] × the factor's nnz from the symbolic analysis | every formulation, between analysis and numeric factorisation |
+//!
+//! The estimates are deliberately rough (within a small factor): their job
+//! is to turn "killed by the kernel" into a message with numbers in it.
+
+use std::sync::OnceLock;
+
+/// Bytes of a loaded mesh per byte of an uncompressed file, an upper
+/// estimate: a binary PLY with `float` coordinates and `int` indices holds
+/// 12 bytes per vertex and 13 per face in the file, and 32 + 32 in memory
+/// (positions, faces and their source line numbers), and the PLY reader
+/// keeps the file's bytes too.
+pub const MESH_BYTES_PER_FILE_BYTE: u64 = 4;
+
+/// Assumed expansion of gzip-compressed mesh files (text meshes typically
+/// compress 3–4×).
+pub const GZIP_EXPANSION: u64 = 4;
+
+/// Bytes of a loaded mesh per vertex: three `f64` and a line number.
+pub const MESH_BYTES_PER_VERTEX: u64 = 32;
+
+/// Bytes of a loaded mesh per face: three `usize` and a line number.
+pub const MESH_BYTES_PER_FACE: u64 = 32;
+
+/// Bytes of parsing per byte of a constraints file: the JSON document tree
+/// (`serde_json::Value`, about 5× the text for arrays of small numbers) and
+/// the constraints built from it.
+pub const CONSTRAINT_BYTES_PER_FILE_BYTE: u64 = 8;
+
+/// Bytes per entry of a Cholesky factor: the `f64` value and, amortised over
+/// a supernode, a little of its row index.
+pub const FACTOR_BYTES_PER_ENTRY: u64 = 12;
+
+/// The memory budget in bytes (see the module documentation), read once.
+pub fn memory_budget() -> u64 {
+    static BUDGET: OnceLock<u64> = OnceLock::new();
+    *BUDGET.get_or_init(|| {
+        std::env::var("LSE_MEMORY_LIMIT")
+            .ok()
+            .and_then(|s| parse_bytes(&s))
+            .or_else(available_memory)
+            .unwrap_or(u64::MAX)
+    })
+}
+
+/// Where the budget comes from, for messages.
+fn budget_source() -> &'static str {
+    if std::env::var("LSE_MEMORY_LIMIT")
+        .ok()
+        .and_then(|s| parse_bytes(&s))
+        .is_some()
+    {
+        "LSE_MEMORY_LIMIT"
+    } else {
+        "the available memory; set LSE_MEMORY_LIMIT to change it"
+    }
+}
+
+/// `MemAvailable` of `/proc/meminfo`, bytes (Linux only).
+pub fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// `"8G"`, `"512M"`, `"1000000"` → bytes (powers of 1024); `None` if
+/// malformed or zero.
+pub fn parse_bytes(s: &str) -> Option<u64> {
+    let s = s.trim();
+    let (digits, unit) = match s.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
+        Some((i, _)) => s.split_at(i),
+        None => (s, ""),
+    };
+    let shift = match unit.trim().to_ascii_uppercase().trim_end_matches("IB") {
+        "" | "B" => 0,
+        "K" => 10,
+        "M" => 20,
+        "G" => 30,
+        "T" => 40,
+        _ => return None,
+    };
+    let n: u64 = digits.parse().ok()?;
+    n.checked_mul(1u64 << shift).filter(|&b| b > 0)
+}
+
+/// `1.5 GiB`, `300 MiB`, … for messages.
+pub fn format_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{value:.1} {}", UNITS[unit])
+    }
+}
+
+/// `Err(detail)` when `estimate` exceeds the budget; the detail names the
+/// estimate, what it is made of and the budget.
+pub fn check(estimate: u64, what: impl FnOnce() -> String) -> Result<(), String> {
+    check_against(estimate, memory_budget(), what)
+}
+
+fn check_against(estimate: u64, budget: u64, what: impl FnOnce() -> String) -> Result<(), String> {
+    if estimate <= budget {
+        return Ok(());
+    }
+    Err(format!(
+        "{} about {}, more than the memory budget of {} ({})",
+        what(),
+        format_bytes(estimate),
+        format_bytes(budget),
+        budget_source()
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_sizes() {
+        assert_eq!(parse_bytes("1000"), Some(1000));
+        assert_eq!(parse_bytes("8G"), Some(8 << 30));
+        assert_eq!(parse_bytes("512 MiB"), Some(512 << 20));
+        assert_eq!(parse_bytes("2k"), Some(2048));
+        assert_eq!(parse_bytes("0"), None);
+        assert_eq!(parse_bytes("-1"), None);
+        assert_eq!(parse_bytes("12X"), None);
+        assert_eq!(parse_bytes("99999999999T"), None);
+    }
+
+    #[test]
+    fn formats_sizes() {
+        assert_eq!(format_bytes(512), "512 B");
+        assert_eq!(format_bytes(3 << 29), "1.5 GiB");
+    }
+
+    #[test]
+    fn check_names_the_numbers() {
+        assert!(check_against(10, 10, || unreachable!()).is_ok());
+        let e =
+            check_against(3 << 30, 1 << 30, || "the factor's 1e9 entries need".into()).unwrap_err();
+        assert!(
+            e.starts_with("the factor's 1e9 entries need about 3.0 GiB"),
+            "{e}"
+        );
+        assert!(e.contains("budget of 1.0 GiB"), "{e}");
+    }
+}

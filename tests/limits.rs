@@ -1,0 +1,188 @@
+//! Resource limits: inputs and systems beyond the memory budget are refused
+//! up front with the estimate (`src/limits.rs`), never by the kernel killing
+//! the process. The budget is set per run with `LSE_MEMORY_LIMIT`.
+
+use std::io::Write;
+use std::path::Path;
+use std::process::{Command, Output};
+
+use lse_deform::error::MeshError;
+use lse_deform::mesh::{MeshFormat, read_mesh_bytes};
+
+fn run(limit: Option<&str>, args: &[&str]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lse-deform"));
+    cmd.args(args);
+    match limit {
+        Some(l) => cmd.env("LSE_MEMORY_LIMIT", l),
+        None => cmd.env_remove("LSE_MEMORY_LIMIT"),
+    };
+    cmd.output().expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn p(dir: &Path, name: &str) -> String {
+    dir.join(name).to_string_lossy().into_owned()
+}
+
+/// Exit code 2 (bad input), one line, the expected words, no panic.
+fn assert_refused(o: &Output, words: &[&str]) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    for w in words {
+        assert!(err.contains(w), "expected '{w}' in: {err}");
+    }
+}
+
+fn generate(dir: &Path, kind: &str, vertices: &str) -> String {
+    let mesh = p(dir, &format!("{kind}-{vertices}.obj"));
+    let o = run(
+        None,
+        &["generate", kind, "--vertices", vertices, "-o", &mesh],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    mesh
+}
+
+#[test]
+fn a_mesh_file_beyond_the_budget_is_refused_with_its_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "grid", "10000");
+    let size = std::fs::metadata(&mesh).unwrap().len();
+    assert!(
+        size > 256 << 10,
+        "the test needs a file over 256 KiB: {size}"
+    );
+    let o = run(Some("1M"), &["info", &mesh]);
+    assert_refused(
+        &o,
+        &[
+            "mesh file too large",
+            "memory budget of 1.0 MiB",
+            "LSE_MEMORY_LIMIT",
+        ],
+    );
+    // The same file within a larger budget loads.
+    let o = run(Some("1G"), &["info", &mesh]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn a_header_declaring_more_than_memory_is_refused_before_reserving() {
+    // gzip hides the file size, so only the header's counts can tell:
+    // 10¹² vertices need 32 TB, more than any machine this runs on.
+    let text = b"OFF\n1000000000000 1 0\n0 0 0\n";
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(text).unwrap();
+    let bytes = gz.finish().unwrap();
+    match read_mesh_bytes(&bytes, MeshFormat::Off) {
+        Err(e @ MeshError::TooLarge { .. }) => {
+            let msg = e.to_string();
+            assert!(msg.contains("1000000000000 vertices"), "{msg}");
+            assert!(msg.contains("TiB"), "{msg}");
+        }
+        other => panic!("expected TooLarge, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_constraints_file_beyond_the_budget_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "grid", "100");
+    let scene = p(dir.path(), "big.json");
+    // A valid file made large by its comment: 200 kB × 8 > 1 MiB.
+    let comment = "x".repeat(200_000);
+    std::fs::write(
+        &scene,
+        format!(
+            r#"{{"constraints": [{{"type": "position", "vertex": 0, "target": [0, 0, 0], "comment": "{comment}"}}]}}"#
+        ),
+    )
+    .unwrap();
+    let out = p(dir.path(), "out.obj");
+    let o = run(Some("1M"), &["deform", &mesh, "-c", &scene, "-o", &out]);
+    assert_refused(&o, &["constraints file too large", "big.json"]);
+    assert!(!Path::new(&out).exists());
+}
+
+#[test]
+fn a_dense_householder_block_beyond_the_budget_is_refused_and_sparse_givens_is_suggested() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "grid", "10000");
+    let scene = p(dir.path(), "scene.json");
+    // 2000 relative constraints on one patch: one block of ~2000 unknowns,
+    // stored densely: 8 (k m + k m + m²) ≈ 96 MB.
+    let o = run(None, &["scene", &mesh, "--relative", "2000", "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = p(dir.path(), "out.obj");
+    let o = run(
+        Some("40M"),
+        &[
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--qr",
+            "dense-householder",
+        ],
+    );
+    assert_refused(
+        &o,
+        &[
+            "system too large",
+            "dense Householder blocks",
+            "--qr sparse-givens",
+        ],
+    );
+    // The sparse QR of the same constraints fits the same budget.
+    let o = run(
+        Some("40M"),
+        &[
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--qr",
+            "sparse-givens",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn a_factor_beyond_the_budget_is_refused_after_the_analysis() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "bumpy-sphere", "20000");
+    let scene = p(dir.path(), "scene.json");
+    let o = run(None, &["scene", &mesh, "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = p(dir.path(), "out.obj");
+    for method in [
+        &["--method", "nullspace-qr"][..],
+        &["--method", "penalty", "--weight", "1e8"],
+        &["--method", "kkt"],
+        &["--method", "eliminate"],
+    ] {
+        let mut args = vec!["deform", &mesh, "-c", &scene, "-o", &out];
+        args.extend_from_slice(method);
+        let o = run(Some("8M"), &args);
+        assert_refused(
+            &o,
+            &[
+                "system too large",
+                "Cholesky factor",
+                "entries after fill-in",
+            ],
+        );
+    }
+    let o = run(Some("1G"), &["deform", &mesh, "-c", &scene, "-o", &out]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
