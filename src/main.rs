@@ -630,8 +630,20 @@ fn scene(a: SceneArgs) -> Result<(), Error> {
     let set = mixed.constraints(&mesh)?;
     std::fs::write(&a.output, set.to_json()).map_err(|e| Error::io(&a.output, e))?;
     let (fixed, handle) = s.regions(&mesh)?;
+    let mut extra = String::new();
+    for (count, what) in [
+        (a.relative, "relative"),
+        (a.edges, "on-edge"),
+        (a.faces, "on-face"),
+        (usize::from(a.duplicate), "duplicate"),
+        (usize::from(a.conflict), "conflicting"),
+    ] {
+        if count > 0 {
+            extra.push_str(&format!(" + {count} {what}"));
+        }
+    }
     eprintln!(
-        "{} constraints: {} fixed + {} handle vertices (axis {}, offset {:?}) -> {}",
+        "{} constraints: {} fixed + {} handle vertices{extra} (axis {}, offset {:?}) -> {}",
         set.len(),
         fixed.len(),
         handle.len(),

@@ -119,21 +119,14 @@ fn a_dense_householder_block_beyond_the_budget_is_refused_and_sparse_givens_is_s
     let o = run(None, &["scene", &mesh, "--relative", "2000", "-o", &scene]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = p(dir.path(), "out.obj");
-    let o = run(
-        Some("40M"),
-        &[
-            "deform",
-            &mesh,
-            "-c",
-            &scene,
-            "-o",
-            &out,
-            "--qr",
-            "dense-householder",
-        ],
-    );
+    let deform = |qr: &str| {
+        run(
+            Some("40M"),
+            &["deform", &mesh, "-c", &scene, "-o", &out, "--qr", qr],
+        )
+    };
     assert_refused(
-        &o,
+        &deform("dense-householder"),
         &[
             "system too large",
             "dense Householder blocks",
@@ -141,19 +134,7 @@ fn a_dense_householder_block_beyond_the_budget_is_refused_and_sparse_givens_is_s
         ],
     );
     // The sparse QR of the same constraints fits the same budget.
-    let o = run(
-        Some("40M"),
-        &[
-            "deform",
-            &mesh,
-            "-c",
-            &scene,
-            "-o",
-            &out,
-            "--qr",
-            "sparse-givens",
-        ],
-    );
+    let o = deform("sparse-givens");
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
