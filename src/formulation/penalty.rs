@@ -64,7 +64,7 @@ fn check_weight(w: f64) -> Result<(), Error> {
     if w.is_nan() || w <= 0.0 || !(w * w).is_finite() || w * w == 0.0 {
         return Err(ProblemError::InvalidArgument {
             message: format!(
-                "penalty weight {w} is invalid: it must be finite and > 0 with w² finite and nonzero (1e-154 < w < 1e154)"
+                "penalty weight {w:e} is invalid: it must be finite and > 0 with w² finite and nonzero (1e-154 < w < 1e154)"
             ),
         }
         .into());
