@@ -570,6 +570,30 @@ fn no_constraint_row_is_all_zero() {
     }
 }
 
+#[test]
+fn target_updates_are_checked_and_change_nothing_when_refused() {
+    let mesh = generate::grid(2, 2).unwrap();
+    let cs = set(vec![pos(0, [0.0; 3]), pos(8, [1.0, 1.0, 0.3])]);
+    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs).unwrap();
+    d.precompute(&NullSpaceQr::default()).unwrap();
+    expect!(
+        d.set_target(1, [0.0, f64::NAN, 0.0]).unwrap_err(),
+        Error::Constraint(ConstraintError::NonFinite {
+            index: 1,
+            field: "target"
+        }),
+        "constraint 1: 'target' is not finite"
+    );
+    expect!(
+        d.set_target(2, [0.0; 3]).unwrap_err(),
+        Error::Problem(ProblemError::BadUpdate { .. }),
+        "constraint 2 does not exist (there are 2)"
+    );
+    // The refused updates changed nothing.
+    let s = d.solve().unwrap();
+    assert_eq!(s.positions[8], [1.0, 1.0, 0.3]);
+}
+
 // ---------------------------------------------------------------------------
 // Numerical trouble
 
