@@ -8,12 +8,12 @@ use faer::linalg::cholesky::llt::factor::{LltError as DenseLltError, LltRegulari
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-    factorize_symbolic_cholesky, supernodal::SupernodalLltRef,
+    factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, Par, Side};
 
-use super::triangular::{SupernodalRows, solve_interleaved};
+use super::triangular::{LANES, Lane, SupernodalRows, factor_diagonal, solve_lanes};
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
 use crate::error::NumericalError;
 
@@ -155,7 +155,9 @@ impl SpdSymbolic for FaerSymbolic {
                 });
             }
         }
-        check_breakdown(&factor_diagonal(symbolic, &values), &fwd, lower)?;
+        let diag = factor_diagonal(symbolic, &values);
+        check_breakdown(&diag, &fwd, lower)?;
+        let inv_diag = diag.iter().map(|d| 1.0 / d).collect();
         // From here on the values are in the row-major supernode layout of
         // our triangular solves (faer's own solve must not see them).
         SupernodalRows::transpose_in_place(symbolic, &mut values);
@@ -164,7 +166,8 @@ impl SpdSymbolic for FaerSymbolic {
             values,
             nnz: self.nnz,
             index_bytes: self.index_bytes,
-            work: vec![0.0; 3 * n],
+            work: vec![[0.0; LANES]; n],
+            inv_diag,
             scratch: Vec::new(),
             fwd,
         }))
@@ -188,31 +191,6 @@ pub(super) fn failing_column(symbolic: &SymbolicCholesky<usize>, index: usize) -
     }
 }
 
-/// The diagonal of `L` in permuted order.
-fn factor_diagonal(symbolic: &SymbolicCholesky<usize>, values: &[f64]) -> Vec<f64> {
-    let n = symbolic.nrows();
-    let mut diag = vec![0.0; n];
-    match symbolic.raw() {
-        SymbolicCholeskyRaw::Simplicial(s) => {
-            let col_ptr = s.col_ptr();
-            for (j, d) in diag.iter_mut().enumerate() {
-                *d = values[col_ptr[j]];
-            }
-        }
-        SymbolicCholeskyRaw::Supernodal(s) => {
-            let l = SupernodalLltRef::new(s, values);
-            for k in 0..s.n_supernodes() {
-                let node = l.supernode(k);
-                let (start, m) = (node.start(), node.val());
-                for t in 0..m.ncols() {
-                    diag[start + t] = m[(t, t)];
-                }
-            }
-        }
-    }
-    diag
-}
-
 struct FaerFactor {
     symbolic: Arc<SymbolicCholesky<usize>>,
     values: Vec<f64>,
@@ -220,11 +198,14 @@ struct FaerFactor {
     index_bytes: usize,
     /// `fwd[i]`: the original unknown at permuted position `i`.
     fwd: Vec<usize>,
-    /// Interleaved right-hand sides in permuted order (`3 n`), reused by
-    /// every solve so that the drag loop allocates nothing.
-    work: Vec<f64>,
-    /// Per-supernode scratch of the triangular solves, reused likewise.
-    scratch: Vec<f64>,
+    /// One group of right-hand sides in permuted order (a lane per
+    /// unknown), reused by every solve so that the drag loop allocates
+    /// nothing.
+    work: Vec<Lane>,
+    /// `1 / L_ii` in permuted order.
+    inv_diag: Vec<f64>,
+    /// Scratch of the triangular solves (one supernode's pattern lanes).
+    scratch: Vec<Lane>,
 }
 
 impl SpdFactor for FaerFactor {
@@ -235,26 +216,29 @@ impl SpdFactor for FaerFactor {
     fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         let n = self.fwd.len();
         let k = rhs.ncols();
-        // Three columns (x, y, z) together; anything else one at a time.
-        let (group, groups) = if k == 3 { (3, 1) } else { (1, k) };
-        if self.work.len() < group * n {
-            self.work.resize(group * n, 0.0);
+        if self.work.len() < n {
+            self.work.resize(n, [0.0; LANES]);
         }
-        for g in 0..groups {
-            let w = &mut self.work[..group * n];
-            for (i, &src) in self.fwd.iter().enumerate() {
-                for c in 0..group {
-                    w[group * i + c] = rhs[(src, g * group + c)];
+        let w = &mut self.work[..n];
+        // Groups of LANES columns (the three coordinates are one group).
+        for g0 in (0..k).step_by(LANES) {
+            let width = LANES.min(k - g0);
+            for (lane, &src) in w.iter_mut().zip(&self.fwd) {
+                *lane = [0.0; LANES];
+                for c in 0..width {
+                    lane[c] = rhs[(src, g0 + c)];
                 }
             }
-            if group == 3 {
-                solve_interleaved::<3>(&self.symbolic, &self.values, w, &mut self.scratch);
-            } else {
-                solve_interleaved::<1>(&self.symbolic, &self.values, w, &mut self.scratch);
-            }
-            for (i, &dst) in self.fwd.iter().enumerate() {
-                for c in 0..group {
-                    rhs[(dst, g * group + c)] = w[group * i + c];
+            solve_lanes(
+                &self.symbolic,
+                &self.values,
+                &self.inv_diag,
+                w,
+                &mut self.scratch,
+            );
+            for (lane, &dst) in w.iter().zip(&self.fwd) {
+                for c in 0..width {
+                    rhs[(dst, g0 + c)] = lane[c];
                 }
             }
         }
