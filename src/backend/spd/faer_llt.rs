@@ -214,19 +214,29 @@ impl SpdFactor for FaerFactor {
     }
 
     fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
-        let n = self.fwd.len();
         let k = rhs.ncols();
-        if self.work.len() < n {
-            self.work.resize(n, [0.0; LANES]);
-        }
-        let w = &mut self.work[..n];
         // Groups of LANES columns (the three coordinates are one group).
         for g0 in (0..k).step_by(LANES) {
             let width = LANES.min(k - g0);
-            for (lane, &src) in w.iter_mut().zip(&self.fwd) {
+            // `work` holds one lane per unknown (allocated at factorisation).
+            let w = &mut self.work;
+            for lane in w.iter_mut() {
                 *lane = [0.0; LANES];
-                for c in 0..width {
-                    lane[c] = rhs[(src, g0 + c)];
+            }
+            for c in 0..width {
+                let col = rhs.as_ref().col(g0 + c);
+                match col.try_as_col_major() {
+                    Some(col) => {
+                        let col = col.as_slice();
+                        for (lane, &src) in w.iter_mut().zip(&self.fwd) {
+                            lane[c] = col[src];
+                        }
+                    }
+                    None => {
+                        for (lane, &src) in w.iter_mut().zip(&self.fwd) {
+                            lane[c] = col[src];
+                        }
+                    }
                 }
             }
             solve_lanes(
@@ -236,9 +246,20 @@ impl SpdFactor for FaerFactor {
                 w,
                 &mut self.scratch,
             );
-            for (lane, &dst) in w.iter().zip(&self.fwd) {
-                for c in 0..width {
-                    rhs[(dst, g0 + c)] = lane[c];
+            for c in 0..width {
+                let mut col = rhs.as_mut().col_mut(g0 + c);
+                match col.as_mut().try_as_col_major_mut() {
+                    Some(col) => {
+                        let col = col.as_slice_mut();
+                        for (lane, &dst) in w.iter().zip(&self.fwd) {
+                            col[dst] = lane[c];
+                        }
+                    }
+                    None => {
+                        for (lane, &dst) in w.iter().zip(&self.fwd) {
+                            col[dst] = lane[c];
+                        }
+                    }
                 }
             }
         }
