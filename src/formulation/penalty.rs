@@ -270,10 +270,14 @@ impl PenaltySweep {
 
     /// One point per weight, in the order given: the analysis of
     /// [`PenaltySweep::new`] is reused, so the cost is one numeric
-    /// factorisation and one solve per weight.
+    /// factorisation and one solve per weight. The weights are independent
+    /// given the analysis, so they are dealt to rayon's threads (one weight
+    /// per thread at a time; up to one factor per thread in memory).
     pub fn run(&self, problem: &LseProblem, weights: &[f64]) -> Vec<PenaltyPoint> {
+        use rayon::prelude::*;
         weights
-            .iter()
+            .par_iter()
+            .with_max_len(1)
             .map(|&weight| PenaltyPoint {
                 weight,
                 result: self.solve(problem, weight),

@@ -124,7 +124,7 @@ impl SpdSymbolic for FaerSymbolic {
     ) -> Result<Box<dyn SpdFactor>, NumericalError> {
         let symbolic = &*self.symbolic;
         let n = symbolic.nrows();
-        let par = Par::rayon(0);
+        let par = numeric_parallelism(symbolic.len_val());
         let mut values = vec![0.0f64; symbolic.len_val()];
         let mut mem = MemBuffer::try_new(
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
@@ -175,6 +175,26 @@ impl SpdSymbolic for FaerSymbolic {
 
     fn factor_nnz(&self) -> usize {
         self.nnz
+    }
+}
+
+/// Factors with fewer stored values than this are factored on one thread.
+///
+/// faer's supernodal numeric factorisation with `Par::rayon` on this
+/// 2-core machine, against `Par::Seq` (medians of 5, reduced normal
+/// matrices of the paper's scene): Dragon 50k, 3.1 M values: 52 against
+/// 28 ms; Bunny 35k, 3.9 M: 60 against 35 ms; Igea 134k, 22 M: 310 against
+/// 270 ms; Igea 537k, 118 M: 1.85 against 2.2 s. Below tens of millions
+/// of values the supernodes are too small for the tasks to pay for their
+/// synchronisation.
+const PARALLEL_NUMERIC_MIN_VALUES: usize = 50_000_000;
+
+/// The parallelism of a numeric factorisation with `len_val` values.
+fn numeric_parallelism(len_val: usize) -> Par {
+    if len_val >= PARALLEL_NUMERIC_MIN_VALUES {
+        Par::rayon(0)
+    } else {
+        Par::Seq
     }
 }
 
