@@ -161,10 +161,25 @@ struct SideBySide {
     unknowns: usize,
     ours_precompute_s: f64,
     ours_phases_s: [f64; 5],
+    /// The solve phase as issue 5 defines it (`y`, right-hand side, two
+    /// triangular solves, `X = Q[y; z]`: `report.timings_s.solve`).
     ours_solve_s: f64,
+    /// The whole `solve_matrix` call: the solve phase plus the checks and
+    /// diagnostics the library computes after it (non-finite check,
+    /// constraint residuals, ‖AX − C‖).
+    ours_call_s: f64,
     ours_factor_nnz: usize,
     ours_factor_bytes: usize,
     reference: Option<ReferenceTimes>,
+}
+
+/// The "ours" cell of a solve target: the solve phase, and the whole call.
+fn solve_cell(case: &SideBySide) -> String {
+    format!(
+        "{} (whole call with diagnostics {})",
+        ms(case.ours_solve_s),
+        ms(case.ours_call_s)
+    )
 }
 
 fn side_by_side(
@@ -210,11 +225,12 @@ fn side_by_side(
     let unknowns = normal.as_ref().map_or(0, |n| n.ncols());
     let rhs = Mat::<f64>::from_fn(unknowns, 3, |i, c| ((i * 7 + c * 13) % 17) as f64 - 8.0);
     let mut work = rhs.clone();
-    let (mut ts, mut tr) = (Vec::new(), Vec::new());
+    let (mut ts, mut tc, mut tr) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..solves {
         let t = Instant::now();
         let x = d.solve_matrix()?;
-        ts.push(t.elapsed().as_secs_f64());
+        tc.push(t.elapsed().as_secs_f64());
+        ts.push(d.report().timings_s.solve);
         std::hint::black_box(x);
         if let Some(factor) = ref_factor.as_mut() {
             work.copy_from(&rhs);
@@ -237,6 +253,7 @@ fn side_by_side(
         ours_precompute_s: median(&pre),
         ours_phases_s: [0, 1, 2, 3, 4].map(|k| median(&phases[k])),
         ours_solve_s: median(&ts),
+        ours_call_s: median(&tc),
         ours_factor_nnz: report.nnz.factor.unwrap_or(0),
         ours_factor_bytes: report.nnz.factor_bytes.unwrap_or(0),
         reference,
@@ -647,7 +664,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             targets.push(row(
                 "2 solve vs CHOLMOD solve",
                 &main.case,
-                ms(main.ours_solve_s),
+                solve_cell(&main),
                 ms(r.solve_s),
                 Some(main.ours_solve_s / r.solve_s),
                 1.0,
@@ -666,7 +683,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     targets.push(row(
         "2 solve vs bandwidth floor",
         &main.case,
-        ms(main.ours_solve_s),
+        solve_cell(&main),
         format!(
             "{} ({} factor, {:.1} GB/s)",
             ms(main_floor),
@@ -691,7 +708,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         "4 weight sweep (17 weights) vs 17 × numeric + analysis",
         &main.case,
         format!(
-            "{} (analysis {}, Σ numeric {}, Σ solve {})",
+            "{} (analysis {}, Σ numeric {}, Σ solve {}; two weights at a time)",
             ms(sweep.total_s),
             ms(sweep.analysis_s),
             ms(sweep.numeric_sum_s),
@@ -713,7 +730,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         targets.push(row(
             "5 solve vs CHOLMOD solve",
             &large.case,
-            ms(large.ours_solve_s),
+            solve_cell(&large),
             ms(r.solve_s),
             Some(large.ours_solve_s / r.solve_s),
             1.0,
@@ -723,7 +740,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     targets.push(row(
         "5 solve vs bandwidth floor",
         &large.case,
-        ms(large.ours_solve_s),
+        solve_cell(&large),
         format!(
             "{} ({} factor)",
             ms(large_floor),
@@ -835,7 +852,10 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         md,
         "Ours (the paper's method: SparseGivens QR × faer supernodal Cholesky with our own supernodal triangular solve) against CHOLMOD \
          on the same reduced normal matrix `(AQ2)ᵀ(AQ2)`, medians of {reps} precomputes and {solves} solves, each repetition running ours and CHOLMOD back to back in one process. \
-         A ratio below the limit meets the target. The bandwidth floor is 2 × the factor's bytes / the single-thread read bandwidth measured in the same run ({:.1} GB/s).\n",
+         A ratio below the limit meets the target. Our solve is the solve phase as issue 5 defines it (y, right-hand side, two triangular solves, X = Q[y; z]; \
+         `report.timings_s.solve`); the whole `solve_matrix` call adds the checks and diagnostics the library computes after every solve (constraint residuals, ‖AX − C‖), given in brackets. \
+         The numeric factorisation runs on one thread below 50 M factor values and on two above; the triangular solves on one. \
+         The bandwidth floor is 2 × the factor's bytes / the single-thread read bandwidth measured in the same run ({:.1} GB/s).\n",
         bandwidth / 1e9
     );
     md.push_str(&markdown_table(&header, &rows));
