@@ -922,15 +922,25 @@ fn is_integer(t: &ScalarType) -> bool {
 
 /// Least number of payload bytes one element can take: binary, the scalar
 /// sizes plus the count of each list (lists may be empty); ASCII, one
-/// character and one separator per property. At least 1 either way.
-fn min_element_bytes(def: &ElementDef, encoding: Encoding) -> u128 {
-    let n = match encoding {
+/// character and one separator per property. At least 1 either way. In a
+/// binary file the vertex index list of a face counts with three items: a
+/// face with fewer vertices is refused anyway, so this stays a lower bound
+/// for every file the reader accepts, and a header that overstates its
+/// vertex count is caught here instead of face bytes being misread as
+/// coordinates. (In ASCII a short face is reported with its line instead.)
+fn min_element_bytes(name: &str, def: &ElementDef, encoding: Encoding) -> u128 {
+    let is_face_indices = |prop: &str| name == "face" && is_index_list(prop);
+    let n: u128 = match encoding {
         Encoding::Ascii => 2 * def.properties.len() as u128,
         Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => def
             .properties
-            .values()
-            .map(|p| match &p.data_type {
-                PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_size(t),
+            .iter()
+            .map(|(prop, p)| match &p.data_type {
+                PropertyType::Scalar(t) => scalar_size(t),
+                PropertyType::List(count, item) if is_face_indices(prop) => {
+                    scalar_size(count) + 3 * scalar_size(item)
+                }
+                PropertyType::List(count, _) => scalar_size(count),
             })
             .sum(),
     };
@@ -1069,16 +1079,18 @@ fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
 
     // The declared counts must fit in the bytes that follow the header.
     let mut needed: u128 = 0;
+    let mut declared: Vec<String> = Vec::new();
     for (name, def) in &header.elements {
-        let min = def.count as u128 * min_element_bytes(def, header.encoding);
-        needed = needed.saturating_add(min);
+        needed = needed
+            .saturating_add(def.count as u128 * min_element_bytes(name, def, header.encoding));
+        declared.push(format!("{} '{name}'", def.count));
         let slack = u128::from(header.encoding == Encoding::Ascii);
         if needed > payload.len() as u128 + slack {
             return Err(ply_header_error(
                 element_line(name),
                 format!(
-                    "the header declares {} '{name}' elements, which need at least {min} bytes, but only {} bytes follow the header (wrong count or truncated file)",
-                    def.count,
+                    "the header declares {} elements, which need at least {needed} bytes, but only {} bytes follow the header (wrong count or truncated file)",
+                    declared.join(" and "),
                     payload.len()
                 ),
             )
