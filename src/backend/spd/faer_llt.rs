@@ -245,18 +245,8 @@ impl SpdFactor for FaerFactor {
             }
             for c in 0..width {
                 let col = rhs.as_ref().col(g0 + c);
-                match col.try_as_col_major() {
-                    Some(col) => {
-                        let col = col.as_slice();
-                        for (lane, &src) in w.iter_mut().zip(&self.fwd) {
-                            lane[c] = col[src];
-                        }
-                    }
-                    None => {
-                        for (lane, &src) in w.iter_mut().zip(&self.fwd) {
-                            lane[c] = col[src];
-                        }
-                    }
+                for (lane, &src) in w.iter_mut().zip(&self.fwd) {
+                    lane[c] = col[src];
                 }
             }
             solve_lanes(
@@ -268,18 +258,8 @@ impl SpdFactor for FaerFactor {
             );
             for c in 0..width {
                 let mut col = rhs.as_mut().col_mut(g0 + c);
-                match col.as_mut().try_as_col_major_mut() {
-                    Some(col) => {
-                        let col = col.as_slice_mut();
-                        for (lane, &dst) in w.iter().zip(&self.fwd) {
-                            col[dst] = lane[c];
-                        }
-                    }
-                    None => {
-                        for (lane, &dst) in w.iter().zip(&self.fwd) {
-                            col[dst] = lane[c];
-                        }
-                    }
+                for (lane, &dst) in w.iter().zip(&self.fwd) {
+                    col[dst] = lane[c];
                 }
             }
         }
