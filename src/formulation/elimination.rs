@@ -20,10 +20,10 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use faer::Mat;
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::sparse::SparseColMat;
 
 use super::null_space::{nothing_factored, with_context};
-use super::util::{at_times, lower_to_full, row_entries, row_kind};
+use super::util::{at_times, gather_columns, lower_to_full, row_entries, row_kind};
 use super::{Formulation, Prepared};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
@@ -108,21 +108,7 @@ impl Formulation for Elimination {
         report.rank = Some(known.len());
 
         // A_U: the columns of A on the unknown vertices.
-        let a = problem.a();
-        let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
-        let mut col_ptr = Vec::with_capacity(unknown.len() + 1);
-        col_ptr.push(0);
-        let mut a_rows = Vec::new();
-        let mut a_vals = Vec::new();
-        for &v in &unknown {
-            a_rows.extend_from_slice(&rows[ptr[v]..ptr[v + 1]]);
-            a_vals.extend_from_slice(&val[ptr[v]..ptr[v + 1]]);
-            col_ptr.push(a_rows.len());
-        }
-        let a_u = SparseColMat::new(
-            SymbolicSparseColMat::new_checked(a.nrows(), unknown.len(), col_ptr, None, a_rows),
-            a_vals,
-        );
+        let a_u = gather_columns(problem.a().as_ref(), &unknown);
         report.timings_s.preparation = t.elapsed().as_secs_f64();
 
         let (lower, factor) = if unknown.is_empty() {

@@ -16,7 +16,7 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::SparseColMat;
 
-use super::util::lower_to_full;
+use super::util::{gather_columns, lower_to_full};
 use super::{Formulation, Prepared};
 use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, check_factor_size};
@@ -186,9 +186,8 @@ struct PreparedNullSpace {
 struct ConstrainedColumns {
     /// The unknowns, increasing.
     unknowns: Vec<usize>,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    val: Vec<f64>,
+    /// Column `t` is column `unknowns[t]` of `A`.
+    columns: SparseColMat<usize, f64>,
 }
 
 impl ConstrainedColumns {
@@ -196,22 +195,8 @@ impl ConstrainedColumns {
         let mut unknowns = problem.b().symbolic().col_idx().to_vec();
         unknowns.sort_unstable();
         unknowns.dedup();
-        let a = problem.a();
-        let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
-        let mut col_ptr = Vec::with_capacity(unknowns.len() + 1);
-        col_ptr.push(0);
-        let (mut row_idx, mut values) = (Vec::new(), Vec::new());
-        for &j in &unknowns {
-            row_idx.extend_from_slice(&rows[ptr[j]..ptr[j + 1]]);
-            values.extend_from_slice(&val[ptr[j]..ptr[j + 1]]);
-            col_ptr.push(row_idx.len());
-        }
-        ConstrainedColumns {
-            unknowns,
-            col_ptr,
-            row_idx,
-            val: values,
-        }
+        let columns = gather_columns(problem.a().as_ref(), &unknowns);
+        ConstrainedColumns { unknowns, columns }
     }
 }
 
@@ -259,7 +244,11 @@ impl Prepared for PreparedNullSpace {
                 }
             }
             let ac = &self.a_constrained;
-            let (ptr, rows, val) = (&ac.col_ptr, &ac.row_idx, &ac.val);
+            let (ptr, rows, val) = (
+                ac.columns.symbolic().col_ptr(),
+                ac.columns.symbolic().row_idx(),
+                ac.columns.val(),
+            );
             let (x0, x1, x2) = (
                 ws.xp.col_as_slice(0),
                 ws.xp.col_as_slice(1),

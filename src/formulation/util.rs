@@ -86,6 +86,26 @@ pub(crate) fn split_normal(
     )
 }
 
+/// The matrix whose `t`-th column is column `cols[t]` of `a` (rows kept).
+pub(crate) fn gather_columns(
+    a: SparseColMatRef<'_, usize, f64>,
+    cols: &[usize],
+) -> SparseColMat<usize, f64> {
+    let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    let mut col_ptr = Vec::with_capacity(cols.len() + 1);
+    col_ptr.push(0);
+    let (mut row_idx, mut values) = (Vec::new(), Vec::new());
+    for &j in cols {
+        row_idx.extend_from_slice(&rows[ptr[j]..ptr[j + 1]]);
+        values.extend_from_slice(&val[ptr[j]..ptr[j + 1]]);
+        col_ptr.push(row_idx.len());
+    }
+    SparseColMat::new(
+        SymbolicSparseColMat::new_checked(a.nrows(), cols.len(), col_ptr, None, row_idx),
+        values,
+    )
+}
+
 /// `Aᵀ C` for a sparse `A` (l × n) and a dense `C` (l × k).
 pub(crate) fn at_times(a: SparseColMatRef<'_, usize, f64>, c: MatRef<'_, f64>) -> Mat<f64> {
     let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());

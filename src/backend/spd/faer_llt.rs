@@ -224,7 +224,8 @@ struct FaerFactor {
     work: Vec<Lane>,
     /// `1 / L_ii` in permuted order.
     inv_diag: Vec<f64>,
-    /// Scratch of the triangular solves (one supernode's pattern lanes).
+    /// Scratch of the triangular solves (the backward accumulator of the
+    /// widest supernode).
     scratch: Vec<Lane>,
 }
 
