@@ -15,7 +15,9 @@ use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, Elimination, Formulation, Kkt, LaplacianKind, NullSpaceQr, Penalty};
 use serde::Serialize;
 
-use crate::breakdown::{link, note_drawn, penalty_weight, qr_backends, short_error, spd_backends};
+use crate::breakdown::{
+    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
+};
 use crate::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
 use crate::plot::{
     self, Axis, Category, LegendPosition, LineChart, Orientation, Output, Series, StackedBars,
@@ -190,7 +192,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let diag = mesh.bbox_diagonal();
     let original = mesh.positions().to_vec();
     let probe = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone())?;
-    let weight = penalty_weight(probe.problem());
+    let weight = PENALTY_RELATIVE_WEIGHT;
     drop(probe);
     let configs = configs(weight, ctx.mesh_dir.is_some())?;
 

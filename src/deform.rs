@@ -31,7 +31,9 @@ use faer::Mat;
 
 use crate::constraints::ConstraintSet;
 use crate::error::{Error, NumericalError, ProblemError};
-use crate::formulation::{Formulation, Prepared};
+use crate::formulation::{
+    FORWARD_ERROR_WARNING, Formulation, Prepared, Refine, RefineStop, refine,
+};
 use crate::laplacian::{self, LaplacianKind};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, check_pinned};
@@ -47,11 +49,25 @@ pub struct Solution {
 }
 
 /// A mesh with constraints, ready to be deformed again and again.
+///
+/// **Units.** The problem is assembled on the mesh and targets divided by
+/// the mesh's [`Mesh::length_unit`] (a power of two, so exactly), and the
+/// solution multiplied back: the result does not depend on the units the
+/// mesh is given in (scaled by `s`, it deforms to the same positions scaled
+/// by `s`, with the same rank and the same redundant and conflicting sets),
+/// and no coordinate product overflows for meshes from 1e-300 to 1e300.
 pub struct Deformer {
     mesh: Mesh,
     constraints: ConstraintSet,
     problem: LseProblem,
+    /// [`Mesh::length_unit`] of `mesh`.
+    unit: f64,
     system: Option<Box<dyn Prepared>>,
+    /// `None`: the formulation's default ([`Refine::Auto`] for the exact
+    /// formulations, [`Refine::Off`] for penalty, the classical baseline).
+    refine: Option<Refine>,
+    /// The warnings of set-up and precompute; each solve adds its own.
+    precompute_warnings: Vec<String>,
     report: Report,
 }
 
@@ -68,12 +84,26 @@ impl Deformer {
         constraints.check_vertices(n)?;
         let (component_of, n_components) = topology::vertex_components(n, mesh.faces());
         check_pinned(&component_of, n_components, &constraints)?;
-        let l = laplacian::laplacian(&mesh, laplacian)?;
-        let delta = laplacian::apply(&l, mesh.positions());
-        let problem = LseProblem::new(&l, &delta, &constraints, mesh.bbox_diagonal())?;
+        let unit = mesh.length_unit();
+        let unit_mesh = mesh.with_positions(
+            mesh.positions()
+                .iter()
+                .map(|p| [p[0] / unit, p[1] / unit, p[2] / unit])
+                .collect(),
+        )?;
+        let l = laplacian::laplacian(&unit_mesh, laplacian)?;
+        let delta = laplacian::apply(&l, unit_mesh.positions());
+        let mut unit_constraints = constraints.clone();
+        for (i, c) in constraints.as_slice().iter().enumerate() {
+            let r = c.kind.rhs();
+            unit_constraints.set_rhs(i, [r[0] / unit, r[1] / unit, r[2] / unit])?;
+        }
+        let problem = LseProblem::new(&l, &delta, &unit_constraints, unit_mesh.bbox_diagonal())?;
+        let warnings: Vec<String> = mesh.warnings().iter().map(|w| w.to_string()).collect();
         let mut report = Report {
             laplacian: Some(laplacian.name().into()),
-            warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
+            warnings: warnings.clone(),
+            length_unit: unit,
             ..Report::default()
         };
         report.timings_s.setup = t.elapsed().as_secs_f64();
@@ -81,9 +111,29 @@ impl Deformer {
             mesh,
             constraints,
             problem,
+            unit,
             system: None,
+            refine: None,
+            precompute_warnings: warnings,
             report,
         })
+    }
+
+    /// Sets the refinement of every following solve (see
+    /// [`crate::formulation::refine`]); `None` restores the formulation's
+    /// default ([`Refine::Auto`] for the exact formulations, [`Refine::Off`]
+    /// for penalty).
+    pub fn set_refine(&mut self, refine: Option<Refine>) {
+        self.refine = refine;
+    }
+
+    /// The refinement the next solve uses.
+    pub fn refine_mode(&self) -> Refine {
+        match (self.refine, &self.system) {
+            (Some(mode), _) => mode,
+            (None, Some(system)) if !system.exact() => Refine::Off,
+            _ => Refine::Auto,
+        }
     }
 
     /// Precompute phase: factors the system with `formulation`.
@@ -92,20 +142,23 @@ impl Deformer {
         let mut report = Report {
             laplacian: self.report.laplacian.clone(),
             warnings: self.report.warnings.clone(),
+            length_unit: self.unit,
             ..Report::default()
         };
         report.timings_s.setup = self.report.timings_s.setup;
         let system = formulation.precompute(&self.problem, &mut report)?;
         self.system = Some(system);
+        self.precompute_warnings = report.warnings.clone();
         self.report = report;
         Ok(())
     }
 
-    /// Solve phase: positions for the current targets.
+    /// Solve phase: positions for the current targets, in the mesh's units.
     pub fn solve(&mut self) -> Result<Solution, Error> {
         let x = self.solve_matrix()?;
+        let u = self.unit;
         let positions = (0..x.nrows())
-            .map(|i| [x[(i, 0)], x[(i, 1)], x[(i, 2)]])
+            .map(|i| [x[(i, 0)] * u, x[(i, 1)] * u, x[(i, 2)] * u])
             .collect();
         Ok(Solution {
             positions,
@@ -113,8 +166,17 @@ impl Deformer {
         })
     }
 
-    /// Solve phase returning `X` (n × 3) and updating [`Deformer::report`].
+    /// Solve phase returning `X` (n × 3) of the assembled problem
+    /// [`Deformer::problem`] — in its units, i.e. the positions divided by
+    /// [`Deformer::length_unit`] ([`Deformer::solve`] gives the positions in
+    /// the mesh's units) — and updating [`Deformer::report`]: the solve, then refinement as
+    /// [`Deformer::refine_mode`] says (its own phase, `timings_s.refine`),
+    /// then the diagnostics. A forward-error estimate above
+    /// [`FORWARD_ERROR_WARNING`] adds a warning to the report (the result is
+    /// still returned: callers that want an error check
+    /// [`Report::forward_error_estimate`]).
     pub fn solve_matrix(&mut self) -> Result<Mat<f64>, Error> {
+        let mode = self.refine_mode();
         let system = self
             .system
             .as_mut()
@@ -122,23 +184,39 @@ impl Deformer {
                 message: "solve called before precompute".into(),
             })?;
         let t = Instant::now();
-        let x = system.solve(&self.problem)?;
+        let mut x = system.solve(&self.problem)?;
         self.report.timings_s.solve = t.elapsed().as_secs_f64();
         if let Some(vertex) = first_non_finite(&x) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
         let t = Instant::now();
+        let refinement = refine(system.as_mut(), &self.problem, &mut x, mode)?;
+        self.report.timings_s.refine = t.elapsed().as_secs_f64();
+        if let Some(vertex) = first_non_finite(&x) {
+            return Err(NumericalError::NonFiniteSolution { vertex }.into());
+        }
+        let t = Instant::now();
         let skipped = system.skipped().to_vec();
-        fill_solution_diagnostics(&mut self.report, &self.problem, &x, &skipped);
+        let exact = system.exact();
+        fill_solution_diagnostics(&mut self.report, &self.problem, &x, &skipped, exact);
+        self.report.warnings = self.precompute_warnings.clone();
+        self.report.warnings.extend(refinement_warnings(
+            &refinement,
+            self.report.method.as_str(),
+        ));
+        self.report.forward_error_estimate = Some(refinement.forward_error_estimate);
+        self.report.refinement = Some(refinement);
         self.report.timings_s.diagnostics = t.elapsed().as_secs_f64();
         Ok(x)
     }
 
     /// Moves the target of constraint `index` (a position, edge or face
-    /// target, or a relative vector). The next [`Deformer::solve`] reuses
-    /// the factorisation.
+    /// target, or a relative vector; in the mesh's units). The next
+    /// [`Deformer::solve`] reuses the factorisation.
     pub fn set_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
-        self.problem.set_rhs(index, target)?;
+        let u = self.unit;
+        self.problem
+            .set_rhs(index, [target[0] / u, target[1] / u, target[2] / u])?;
         self.constraints.set_rhs(index, target)?;
         Ok(())
     }
@@ -176,8 +254,46 @@ impl Deformer {
         &self.constraints
     }
 
-    /// The assembled problem.
+    /// The assembled problem: on the mesh and targets divided by
+    /// [`Deformer::length_unit`].
     pub fn problem(&self) -> &LseProblem {
         &self.problem
     }
+
+    /// The power of two the problem's lengths are divided by
+    /// ([`Mesh::length_unit`]).
+    pub fn length_unit(&self) -> f64 {
+        self.unit
+    }
+}
+
+/// The warnings a refinement outcome calls for: an estimated forward error
+/// above [`FORWARD_ERROR_WARNING`], and conflicting hard constraints found
+/// by the method of multipliers.
+pub fn refinement_warnings(r: &crate::formulation::Refinement, method: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    if r.stop_reason == RefineStop::ConflictingConstraints {
+        out.push(format!(
+            "{method}: the multiplier updates stopped after {} steps because the hard-constraint residual stopped shrinking at {:.1e} of the length scale: the hard constraints conflict, and no weight satisfies them all (use nullspace-qr to find which)",
+            r.steps,
+            r.constraint_residuals.last().copied().unwrap_or(f64::NAN)
+        ));
+    }
+    let e = r.forward_error_estimate;
+    if (e.is_nan() || e > FORWARD_ERROR_WARNING)
+        && r.stop_reason != RefineStop::ConflictingConstraints
+    {
+        let how = if r.mode == "off" {
+            "refinement is off; --refine auto would correct it"
+        } else if r.stop_reason == RefineStop::StepLimit {
+            "refinement reached its step limit; allow more steps"
+        } else {
+            "after refinement: the conditioning puts the exact answer out of reach in double precision"
+        };
+        out.push(format!(
+            "{method}: estimated forward error {e:.1e} of the length scale exceeds {FORWARD_ERROR_WARNING:.0e} ({how}; {} refinement steps, stopped: {:?})",
+            r.steps, r.stop_reason
+        ));
+    }
+    out
 }

@@ -512,11 +512,12 @@ pub enum NumericalError {
         /// The largest accepted value.
         tolerance: f64,
     },
-    /// The solve's estimated forward error says the result has lost its
-    /// digits, although the factorisation completed (an ill-conditioned
-    /// penalty system).
+    /// The solution's estimated forward error exceeds what the caller
+    /// accepts (the CLI's `--strict`), although the factorisation
+    /// completed: an ill-conditioned system, or a penalty weight too small
+    /// to hold the hard constraints.
     #[error(
-        "{matrix}: the solution has lost its accuracy: estimated relative forward error {estimate:e} exceeds {tolerance:e} (condition number too large for double precision; lower the weight or use the null-space method)"
+        "{matrix}: the solution's estimated forward error {estimate:.2e} (relative to the length scale) exceeds {tolerance:.0e} (refine it with --refine auto, lower the condition number, or use the null-space method)"
     )]
     LostAccuracy {
         /// Which matrix.

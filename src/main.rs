@@ -64,6 +64,15 @@ struct MethodArgs {
     /// Penalty weight of the hard rows (--method penalty).
     #[arg(long)]
     weight: Option<f64>,
+    /// Iterative refinement with the same factor: off, auto or a number of
+    /// steps. Default: auto for the exact methods, off for penalty (where
+    /// refinement is the method of multipliers and makes it exact).
+    #[arg(long, value_parser = parse_refine)]
+    refine: Option<formulation::Refine>,
+}
+
+fn parse_refine(s: &str) -> Result<formulation::Refine, String> {
+    formulation::Refine::parse(s).map_err(|e| e.to_string())
 }
 
 #[derive(Args)]
@@ -93,9 +102,28 @@ struct CompareArgs {
     /// Laplacian weights.
     #[arg(long, default_value = "cotan")]
     laplacian: LaplacianKind,
+    /// Formulations to run (comma-separated; default all four).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "nullspace-qr,penalty,kkt,eliminate"
+    )]
+    methods: Vec<String>,
+    /// QR back ends for nullspace-qr (comma-separated; default all in this
+    /// build).
+    #[arg(long, value_delimiter = ',')]
+    qr: Vec<String>,
+    /// SPD back ends (comma-separated; default all in this build; kkt runs
+    /// the faer LDLT variants among them).
+    #[arg(long, value_delimiter = ',')]
+    spd: Vec<String>,
     /// Penalty weights to try (comma-separated).
     #[arg(long, default_value = "1e4,1e8,1e12", value_delimiter = ',')]
     weights: Vec<f64>,
+    /// Refinement of every configuration (default: each formulation's own;
+    /// the reference is always refined).
+    #[arg(long, value_parser = parse_refine)]
+    refine: Option<formulation::Refine>,
     /// Solves per configuration (the median time is reported).
     #[arg(long, default_value_t = 5)]
     repeat: usize,
@@ -129,6 +157,11 @@ struct DeformArgs {
     /// up to a few hundred extra solves).
     #[arg(long)]
     condition: bool,
+    /// Turn the accuracy warning into an error: exit 3 without writing
+    /// anything when the estimated forward error exceeds 1e-8 of the
+    /// bounding-box diagonal.
+    #[arg(long)]
+    strict: bool,
 }
 
 #[derive(Args)]
@@ -288,6 +321,7 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
     let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
     let bar = phase("set-up");
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    deformer.set_refine(m.refine);
     bar.set_message(format!("precompute ({})", formulation.name()));
     deformer.precompute(formulation.as_ref())?;
     if a.condition {
@@ -298,11 +332,23 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
     let solution = deformer.solve()?;
     bar.finish_and_clear();
     let report = &solution.report;
+    let estimate = report.forward_error_estimate.unwrap_or(0.0);
+    if a.strict && (estimate.is_nan() || estimate > formulation::FORWARD_ERROR_WARNING) {
+        return Err(lse_deform::error::NumericalError::LostAccuracy {
+            matrix: format!("{} (--strict)", report.method),
+            estimate,
+            tolerance: formulation::FORWARD_ERROR_WARNING,
+        }
+        .into());
+    }
     for c in &report.conflicting {
         eprintln!(
             "warning: constraint {} conflicts with earlier constraints and was dropped (residual {:.3e})",
             c.index, c.residual
         );
+    }
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
     }
     let out = deformer.mesh().with_positions(solution.positions)?;
     mesh::write_mesh(&out, &a.output)?;
@@ -310,18 +356,41 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
         let json = serde_json::to_string_pretty(report).map_err(|e| Error::io(path, e.into()))?;
         std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
     }
+    eprintln!("{}", summary_line(report));
+    Ok(())
+}
+
+/// The one-line summary of a deformation on stderr.
+fn summary_line(report: &lse_deform::Report) -> String {
     let t = &report.timings_s;
     let rank = report
         .rank
         .map(|r| format!("rank {r} of "))
         .unwrap_or_default();
-    eprintln!(
-        "{}: {} vertices, {rank}{} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s{}",
+    let dependence = if report.redundant.is_detected() {
+        format!(
+            "{} redundant, {} conflicting",
+            report.redundant.len(),
+            report.conflicting.len()
+        )
+    } else {
+        "redundancy and conflicts not detected".into()
+    };
+    let refinement = report
+        .refinement
+        .as_ref()
+        .map(|r| {
+            format!(
+                ", refine {} ({} steps, {:.4} s), forward error ~{:.1e}",
+                r.mode, r.steps, t.refine, r.forward_error_estimate
+            )
+        })
+        .unwrap_or_default();
+    format!(
+        "{}: {} vertices, {rank}{} hard constraints ({dependence}), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s{refinement}{}",
         report.method,
         report.vertices,
         report.hard_constraints,
-        report.redundant.len(),
-        report.conflicting.len(),
         report.max_constraint_residual,
         t.setup,
         t.precompute(),
@@ -331,8 +400,7 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
             .as_ref()
             .map(|c| format!(", condition ~{:.2e}", c.value))
             .unwrap_or_default()
-    );
-    Ok(())
+    )
 }
 
 fn export_system(a: ExportArgs) -> Result<(), Error> {
@@ -371,132 +439,244 @@ struct CompareRow {
     status: String,
     precompute_s: Option<f64>,
     solve_median_s: Option<f64>,
+    refine_s: Option<f64>,
     max_constraint_residual: Option<f64>,
+    /// `max_i ‖X_i − X*_i‖ / bbox diagonal` against the reference.
+    delta_x: Option<f64>,
+    /// `(E − E*) / E*` with `E = ‖AX − C‖²`, against the reference.
+    delta_e: Option<f64>,
+    forward_error_estimate: Option<f64>,
     condition: Option<f64>,
     report: Option<lse_deform::Report>,
 }
 
+/// The configurations `compare` runs: (method, QR, SPD, weight).
+type Config = (String, Option<String>, String, Option<f64>);
+
+/// Every configuration the filters of `a` allow, in table order.
+fn compare_configs(a: &CompareArgs) -> Result<Vec<Config>, Error> {
+    let invalid = |message: String| -> Error {
+        lse_deform::error::ProblemError::InvalidArgument { message }.into()
+    };
+    let available = |names: &[&'static str]| -> Vec<String> {
+        names
+            .iter()
+            .filter(|n| cfg!(feature = "suitesparse") || !matches!(**n, "spqr" | "cholmod"))
+            .map(|n| n.to_string())
+            .collect()
+    };
+    let qrs = if a.qr.is_empty() {
+        available(backend::qr::NAMES)
+    } else {
+        a.qr.clone()
+    };
+    let spds: Vec<String> = if a.spd.is_empty() {
+        available(backend::spd::NAMES)
+            .into_iter()
+            .filter(|n| n != "faer-auto")
+            .collect()
+    } else {
+        a.spd.clone()
+    };
+    for m in &a.methods {
+        if !formulation::METHODS.contains(&m.as_str()) {
+            return Err(invalid(format!(
+                "unknown method '{m}' in --methods (expected some of: {})",
+                formulation::METHODS.join(", ")
+            )));
+        }
+    }
+    let mut configs = Vec::new();
+    for method in &a.methods {
+        match method.as_str() {
+            "nullspace-qr" => {
+                for q in &qrs {
+                    for s in &spds {
+                        configs.push((method.clone(), Some(q.clone()), s.clone(), None));
+                    }
+                }
+            }
+            "penalty" => {
+                for &w in &a.weights {
+                    for s in &spds {
+                        configs.push((method.clone(), None, s.clone(), Some(w)));
+                    }
+                }
+            }
+            "kkt" => {
+                for s in spds.iter().filter(|s| s.starts_with("faer-")) {
+                    configs.push((method.clone(), None, s.clone(), None));
+                }
+            }
+            _ => {
+                for s in &spds {
+                    configs.push((method.clone(), None, s.clone(), None));
+                }
+            }
+        }
+    }
+    if configs.is_empty() {
+        return Err(invalid(
+            "--methods/--qr/--spd/--weights leave no configuration to run".into(),
+        ));
+    }
+    Ok(configs)
+}
+
+/// The reference solution of `compare`: the paper's method with the default
+/// back ends, refined until it converges, and its energy `‖AX − C‖²`.
+fn compare_reference(deformer: &mut Deformer) -> Result<(faer::Mat<f64>, f64), Error> {
+    deformer.set_refine(Some(formulation::Refine::Auto));
+    deformer.precompute(&lse_deform::NullSpaceQr::default())?;
+    let x = deformer.solve_matrix()?;
+    let r = deformer.report();
+    if let Some(e) = r.forward_error_estimate.filter(|&e| e > 1e-12) {
+        eprintln!(
+            "warning: the reference solution (nullspace-qr, refined) has an estimated forward error of {e:.1e}: differences below it are not resolved"
+        );
+    }
+    let energy = r.least_squares_residual.powi(2);
+    Ok((x, energy))
+}
+
+/// Runs one configuration and fills its row.
+fn compare_one(
+    deformer: &mut Deformer,
+    config: &Config,
+    a: &CompareArgs,
+    reference: &(faer::Mat<f64>, f64),
+    row: &mut CompareRow,
+) -> Result<(), Error> {
+    let (method, qr, spd, weight) = config;
+    let f = formulation::build(
+        method,
+        qr.as_deref().unwrap_or("sparse-givens"),
+        spd,
+        *weight,
+    )?;
+    deformer.set_refine(a.refine);
+    deformer.precompute(f.as_ref())?;
+    let mut times = Vec::new();
+    let mut x = faer::Mat::<f64>::zeros(0, 0);
+    for _ in 0..a.repeat.max(1) {
+        x = deformer.solve_matrix()?;
+        times.push(deformer.report().timings_s.solve);
+    }
+    times.sort_by(f64::total_cmp);
+    row.solve_median_s = Some(times[times.len() / 2]);
+    if !a.no_condition {
+        row.condition = Some(deformer.estimate_condition()?.value);
+    }
+    let r = deformer.report().clone();
+    let (x_ref, e_ref) = reference;
+    // X and the reference are in the problem's units (solve_matrix).
+    let diagonal = deformer.problem().length_scale().max(f64::MIN_POSITIVE);
+    row.delta_x = Some(
+        (0..x.nrows())
+            .map(|i| {
+                (0..3)
+                    .map(|c| (x[(i, c)] - x_ref[(i, c)]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .fold(0.0, f64::max)
+            / diagonal,
+    );
+    let energy = r.least_squares_residual.powi(2);
+    row.delta_e = Some(if *e_ref > 0.0 {
+        (energy - e_ref) / e_ref
+    } else {
+        energy
+    });
+    row.precompute_s = Some(r.timings_s.precompute());
+    row.refine_s = Some(r.timings_s.refine);
+    row.max_constraint_residual = Some(r.max_constraint_residual);
+    row.forward_error_estimate = r.forward_error_estimate;
+    row.report = Some(r);
+    Ok(())
+}
+
 fn compare(a: CompareArgs) -> Result<(), Error> {
+    let configs = compare_configs(&a)?;
     let mesh = load(&a.mesh)?;
     let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    let available = |names: &[&'static str]| -> Vec<&'static str> {
-        names
-            .iter()
-            .copied()
-            .filter(|n| cfg!(feature = "suitesparse") || !matches!(*n, "spqr" | "cholmod"))
-            .collect()
-    };
-    let qrs = available(backend::qr::NAMES);
-    let spds: Vec<&str> = available(backend::spd::NAMES)
-        .into_iter()
-        .filter(|n| *n != "faer-auto")
-        .collect();
-    let mut configs: Vec<(&str, Option<&str>, &str, Option<f64>)> = Vec::new();
-    for &q in &qrs {
-        for &s in &spds {
-            configs.push(("nullspace-qr", Some(q), s, None));
-        }
-    }
-    for &w in &a.weights {
-        for &s in &spds {
-            configs.push(("penalty", None, s, Some(w)));
-        }
-    }
-    for s in ["faer-simplicial", "faer-supernodal"] {
-        configs.push(("kkt", None, s, None));
-    }
-    for &s in &spds {
-        configs.push(("eliminate", None, s, None));
-    }
-    let bar = ProgressBar::new(configs.len() as u64);
+    let bar = ProgressBar::new(configs.len() as u64 + 1);
     if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {
         bar.set_style(style);
     }
+    bar.set_message("reference (nullspace-qr, refined)");
+    let reference = compare_reference(&mut deformer)?;
+    bar.inc(1);
     let mut rows = Vec::new();
-    for (method, qr, spd, weight) in configs {
-        bar.set_message(format!("{method} {} {spd}", qr.unwrap_or("")));
+    for config in &configs {
+        let (method, qr, spd, weight) = config;
+        bar.set_message(format!("{method} {} {spd}", qr.as_deref().unwrap_or("")));
         let mut row = CompareRow {
-            method: method.into(),
-            qr: qr.map(Into::into),
-            spd: spd.into(),
-            weight,
+            method: method.clone(),
+            qr: qr.clone(),
+            spd: spd.clone(),
+            weight: *weight,
             status: "ok".into(),
             precompute_s: None,
             solve_median_s: None,
+            refine_s: None,
             max_constraint_residual: None,
+            delta_x: None,
+            delta_e: None,
+            forward_error_estimate: None,
             condition: None,
             report: None,
         };
-        let outcome = (|| -> Result<(), Error> {
-            let f = formulation::build(method, qr.unwrap_or("sparse-givens"), spd, weight)?;
-            deformer.precompute(f.as_ref())?;
-            let mut times = Vec::new();
-            for _ in 0..a.repeat.max(1) {
-                deformer.solve_matrix()?;
-                times.push(deformer.report().timings_s.solve);
+        if let Err(e) = compare_one(&mut deformer, config, &a, &reference, &mut row) {
+            let class = if e.is_input_error() {
+                "input"
+            } else {
+                "numerical"
+            };
+            row.status = format!("error ({class}): {e}");
+        } else if let Some(r) = &row.report {
+            if !r.warnings.is_empty() {
+                row.status = format!("ok, warning: {}", r.warnings.join("; "));
             }
-            times.sort_by(f64::total_cmp);
-            row.solve_median_s = Some(times[times.len() / 2]);
-            if !a.no_condition {
-                row.condition = Some(deformer.estimate_condition()?.value);
-            }
-            let r = deformer.report().clone();
-            row.precompute_s = Some(r.timings_s.precompute());
-            row.max_constraint_residual = Some(r.max_constraint_residual);
-            row.report = Some(r);
-            Ok(())
-        })();
-        if let Err(e) = outcome {
-            row.status = format!(
-                "error ({}): {e}",
-                if e.is_input_error() {
-                    "input"
-                } else {
-                    "numerical"
-                }
-            );
         }
         rows.push(row);
         bar.inc(1);
     }
     bar.finish_and_clear();
+    print_compare_table(&rows);
+    if let Some(path) = &a.json {
+        let json = serde_json::to_string_pretty(&rows).map_err(|e| Error::io(path, e.into()))?;
+        std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
+    }
+    Ok(())
+}
+
+/// The Markdown table of `compare` on stdout (status text in full).
+fn print_compare_table(rows: &[CompareRow]) {
     out!(
-        "| method | QR | SPD | weight | precompute (s) | solve, median (ms) | max ‖BX − D‖ | condition est. | status |"
+        "| method | QR | SPD | weight | precompute (s) | solve, median (ms) | refine (ms) | max ‖BX − D‖ | ΔX | ΔE | forward error est. | condition est. | status |"
     );
-    out!("|---|---|---|---|---:|---:|---:|---:|---|");
+    out!("|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|");
     let opt = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map(f).unwrap_or_else(|| "—".into());
-    for r in &rows {
+    for r in rows {
         out!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.method,
             r.qr.as_deref().unwrap_or("—"),
             r.spd,
             opt(r.weight, &|w| format!("{w:.0e}")),
             opt(r.precompute_s, &|t| format!("{t:.3}")),
             opt(r.solve_median_s, &|t| format!("{:.2}", t * 1e3)),
+            opt(r.refine_s, &|t| format!("{:.2}", t * 1e3)),
             opt(r.max_constraint_residual, &|v| format!("{v:.1e}")),
+            opt(r.delta_x, &|v| format!("{v:.1e}")),
+            opt(r.delta_e, &|v| format!("{v:.1e}")),
+            opt(r.forward_error_estimate, &|v| format!("{v:.1e}")),
             opt(r.condition, &|v| format!("{v:.2e}")),
-            if r.status.len() > 90 {
-                format!(
-                    "{}…",
-                    &r.status[..r
-                        .status
-                        .char_indices()
-                        .nth(90)
-                        .map(|c| c.0)
-                        .unwrap_or(r.status.len())]
-                )
-            } else {
-                r.status.clone()
-            }
+            r.status.replace('|', "\\|")
         );
     }
-    if let Some(path) = &a.json {
-        let json = serde_json::to_string_pretty(&rows).map_err(|e| Error::io(path, e.into()))?;
-        std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
-    }
-    Ok(())
 }
 
 fn generate_cmd(a: GenerateArgs) -> Result<(), Error> {

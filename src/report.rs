@@ -1,6 +1,81 @@
 //! What happened in a deformation: the [`Report`] every formulation returns.
 
-use serde::Serialize;
+use serde::{Serialize, Serializer};
+
+/// A list that a method may or may not be able to produce — the redundant
+/// and conflicting hard constraints, which only the methods with rank
+/// detection find. Reads as a slice (empty when not detected); serialised
+/// as the list, or as the string `"not detected"`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Detected<T>(Option<Vec<T>>);
+
+impl<T> Default for Detected<T> {
+    fn default() -> Self {
+        Detected(Some(Vec::new()))
+    }
+}
+
+impl<T> Detected<T> {
+    /// The method does not detect this (penalty).
+    pub fn not_detected() -> Self {
+        Detected(None)
+    }
+
+    /// Whether the method detects this at all.
+    pub fn is_detected(&self) -> bool {
+        self.0.is_some()
+    }
+
+    /// Appends an item (making the list detected).
+    pub fn push(&mut self, item: T) {
+        self.0.get_or_insert_with(Vec::new).push(item);
+    }
+}
+
+impl<T> std::ops::Deref for Detected<T> {
+    type Target = [T];
+    fn deref(&self) -> &[T] {
+        self.0.as_deref().unwrap_or(&[])
+    }
+}
+
+impl<'a, T> IntoIterator for &'a Detected<T> {
+    type Item = &'a T;
+    type IntoIter = std::slice::Iter<'a, T>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter()
+    }
+}
+
+impl<T: PartialEq> PartialEq<Vec<T>> for Detected<T> {
+    fn eq(&self, other: &Vec<T>) -> bool {
+        self.0.as_ref() == Some(other)
+    }
+}
+
+impl<T: PartialEq, const N: usize> PartialEq<[T; N]> for Detected<T> {
+    fn eq(&self, other: &[T; N]) -> bool {
+        self.0.as_deref() == Some(&other[..])
+    }
+}
+
+impl<T: Serialize> Serialize for Detected<T> {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match &self.0 {
+            Some(list) => list.serialize(serializer),
+            None => serializer.serialize_str("not detected"),
+        }
+    }
+}
+
+/// How far a soft constraint fell short of its target.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SoftResidual {
+    /// Constraint index in the constraints file.
+    pub index: usize,
+    /// `‖b·X − d‖₂` (unweighted), in the mesh's units.
+    pub residual: f64,
+}
 
 /// A skipped hard constraint that the solution does not satisfy.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -51,6 +126,9 @@ pub struct Timings {
     /// The last solve: `R1ᵀy = D`, right-hand side, two triangular solves,
     /// `X = Q[y; z]`.
     pub solve: f64,
+    /// Iterative refinement after the last solve, including the
+    /// forward-error estimate (one more correction when refinement is off).
+    pub refine: f64,
     /// Residual checks and conflict classification after the last solve
     /// (not part of the paper's phases).
     pub diagnostics: f64,
@@ -85,19 +163,40 @@ pub struct Report {
     /// Numerical rank of `B` (methods with rank detection).
     pub rank: Option<usize>,
     /// Hard constraints skipped as dependent on earlier ones and satisfied
-    /// by the solution anyway (constraint indices, increasing).
-    pub redundant: Vec<usize>,
+    /// by the solution anyway (constraint indices, increasing); `"not
+    /// detected"` for penalty, which has no rank detection.
+    pub redundant: Detected<usize>,
     /// Hard constraints skipped as dependent and *not* satisfied: they
-    /// contradict earlier constraints, which win.
-    pub conflicting: Vec<Conflict>,
+    /// contradict earlier constraints, which win. `"not detected"` for
+    /// penalty.
+    pub conflicting: Detected<Conflict>,
     /// `max ‖b_k·X − d_k‖₂` over the hard constraints that were kept.
     pub max_constraint_residual: f64,
     /// The same divided by the length scale (bounding-box diagonal).
     pub max_constraint_residual_relative: f64,
-    /// `‖A X − C‖_F`.
+    /// `‖A X − C‖_F` of the assembled problem (for a mesh: assembled on
+    /// the positions divided by `length_unit`).
     pub least_squares_residual: f64,
+    /// `‖A X − C‖_F / ‖C‖_F` (0 when `C = 0`): independent of units.
+    pub least_squares_residual_relative: f64,
+    /// How far each soft constraint fell short of its target, in the
+    /// constraints' order.
+    pub soft_residuals: Vec<SoftResidual>,
     /// The length unit of tolerances: the mesh's bounding-box diagonal.
     pub length_scale: f64,
+    /// The power of two the mesh and its targets were divided by before
+    /// assembly ([`crate::mesh::Mesh::length_unit`]; 1 for problems given
+    /// as matrices). Positions, residuals and tolerances in this report are
+    /// in the mesh's own units.
+    pub length_unit: f64,
+    /// Iterative refinement of the last solve: steps, the size of every
+    /// correction, why it stopped.
+    pub refinement: Option<crate::formulation::Refinement>,
+    /// The estimated forward error of the last solution, as the largest
+    /// vertex error over the length scale (see [`crate::formulation::refine`]
+    /// for how it is estimated); a warning is issued above
+    /// [`crate::formulation::FORWARD_ERROR_WARNING`].
+    pub forward_error_estimate: Option<f64>,
     /// The tolerance that classified skipped constraints as conflicting.
     pub conflict_tolerance: f64,
     /// Matrix sizes.
@@ -110,8 +209,12 @@ pub struct Report {
     /// when asked for ([`crate::formulation::Prepared::estimate_condition`]:
     /// it costs solves, so it is not computed by default).
     pub condition_estimate: Option<crate::condition::ConditionEstimate>,
-    /// The penalty weight `w` of hard rows (penalty formulation only).
+    /// The relative penalty weight `w` of hard rows (penalty formulation
+    /// only).
     pub penalty_weight: Option<f64>,
+    /// `s`, the power of two the relative penalty weight is multiplied by:
+    /// hard rows enter with weight `w s` (penalty formulation only).
+    pub penalty_weight_unit: Option<f64>,
     /// The power-of-two scale `s` of the multiplier rows and columns of the
     /// KKT matrix `[AᵀA sBᵀ; sB 0]` (KKT formulation only).
     pub kkt_multiplier_scale: Option<f64>,
@@ -130,13 +233,25 @@ pub const CONFLICT_RELATIVE_TOLERANCE: f64 = 1e-8;
 
 /// Fills the solution diagnostics of `report` for the solution `x` of
 /// `problem`: the residual of every kept hard constraint, the split of the
-/// `skipped` rows of `B` into redundant and conflicting, and `‖AX − C‖`.
+/// `skipped` rows of `B` into redundant and conflicting (only when
+/// `detects_dependence`: the penalty method has no rank detection, and its
+/// lists say "not detected"), the soft residuals and `‖AX − C‖`.
+///
+/// Everything is computed in the problem's units and converted to the
+/// mesh's by `report.length_unit` (set by the caller; 1 for a problem given
+/// as matrices).
 pub fn fill_solution_diagnostics(
     report: &mut Report,
     problem: &crate::problem::LseProblem,
     x: &faer::Mat<f64>,
     skipped: &[usize],
+    detects_dependence: bool,
 ) {
+    let unit = if report.length_unit > 0.0 {
+        report.length_unit
+    } else {
+        1.0
+    };
     let scale = problem.length_scale();
     let tolerance = CONFLICT_RELATIVE_TOLERANCE * scale;
     let hard = problem.hard_constraints();
@@ -145,27 +260,59 @@ pub fn fill_solution_diagnostics(
         is_skipped[k] = true;
     }
     let mut max_kept = 0.0f64;
-    report.redundant.clear();
-    report.conflicting.clear();
+    let (mut redundant, mut conflicting) = if detects_dependence {
+        (Detected::default(), Detected::default())
+    } else {
+        (Detected::not_detected(), Detected::not_detected())
+    };
     for (k, &index) in hard.iter().enumerate() {
         let r = problem.hard_residual(k, x);
         if !is_skipped[k] {
             max_kept = max_kept.max(r);
         } else if r > tolerance {
-            report.conflicting.push(Conflict { index, residual: r });
+            conflicting.push(Conflict {
+                index,
+                residual: r * unit,
+            });
         } else {
-            report.redundant.push(index);
+            redundant.push(index);
         }
     }
-    report.max_constraint_residual = max_kept;
+    report.redundant = redundant;
+    report.conflicting = conflicting;
+    report.max_constraint_residual = max_kept * unit;
     report.max_constraint_residual_relative = if scale > 0.0 {
         max_kept / scale
     } else {
         max_kept
     };
-    report.least_squares_residual = problem.least_squares_residual(x);
-    report.length_scale = scale;
-    report.conflict_tolerance = tolerance;
+    let residual = problem.a_times(x) - problem.c();
+    let n_lap = problem.n_laplacian_rows();
+    report.soft_residuals = problem
+        .soft_constraints()
+        .iter()
+        .enumerate()
+        .map(|(k, &(index, w))| {
+            let row = residual.row(n_lap + k);
+            let norm = (0..row.ncols())
+                .map(|c| row[c] * row[c])
+                .sum::<f64>()
+                .sqrt();
+            SoftResidual {
+                index,
+                residual: norm / w * unit,
+            }
+        })
+        .collect();
+    report.least_squares_residual = residual.norm_l2();
+    let c_norm = problem.c().norm_l2();
+    report.least_squares_residual_relative = if c_norm > 0.0 {
+        report.least_squares_residual / c_norm
+    } else {
+        report.least_squares_residual
+    };
+    report.length_scale = scale * unit;
+    report.conflict_tolerance = tolerance * unit;
     report.hard_constraints = hard.len();
     report.soft_constraints = problem.soft_constraints().len();
     report.constraints = hard.len() + problem.soft_constraints().len();

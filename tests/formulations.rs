@@ -198,7 +198,8 @@ proptest! {
         for c in &hard {
             if let ConstraintKind::Position { vertex, target } = c.kind {
                 for k in 0..3 {
-                    prop_assert_eq!(elim[(vertex, k)], target[k]);
+                    // X is in the problem's units (an exact power of two).
+                    prop_assert_eq!(elim[(vertex, k)] * d.length_unit(), target[k]);
                 }
             }
         }
@@ -315,7 +316,10 @@ fn penalty_converges_then_breaks_down_with_one_analysis() {
         factorisations: Arc::clone(&factorisations),
     };
     let sweep = PenaltySweep::new(&problem, &backend).unwrap();
-    let weights: Vec<f64> = (0..=16).map(|e| 10f64.powi(e)).collect();
+    // Relative weights whose effective weights `w s` are 10⁰ … 10¹⁶ (`s`
+    // is a power of two, so `w s` is exactly the power of ten).
+    let unit = sweep.weight_unit;
+    let weights: Vec<f64> = (0..=16).map(|e| 10f64.powi(e) / unit).collect();
     let points = sweep.run(&problem, &weights);
     assert_eq!(analyses.load(Ordering::SeqCst), 1, "one symbolic analysis");
     assert_eq!(
@@ -353,7 +357,7 @@ fn penalty_converges_then_breaks_down_with_one_analysis() {
                 assert!(s.backward_error.is_finite());
                 // The forward error estimate is honest: the distance from
                 // an accurate (QR) penalty solution does not exceed it.
-                let reference = penalty_reference(&problem, point.weight);
+                let reference = penalty_reference(&problem, point.weight * unit);
                 let actual = relative_difference(&s.x, &reference);
                 assert!(
                     actual <= s.forward_error_estimate.max(1e-10),
@@ -362,7 +366,7 @@ fn penalty_converges_then_breaks_down_with_one_analysis() {
                     s.forward_error_estimate
                 );
                 errors.push((
-                    point.weight,
+                    point.weight * unit,
                     relative_difference(&s.x, &exact),
                     s.forward_error_estimate,
                 ));
@@ -431,7 +435,12 @@ fn penalty_converges_then_breaks_down_with_one_analysis() {
     let report = d.report();
     assert_eq!(report.penalty_weight, Some(1e4));
     assert!(report.max_constraint_residual > 0.0);
-    assert!((report.max_constraint_residual - from_sweep.max_constraint_residual).abs() < 1e-15);
+    // The report is in the mesh's units, the sweep in the problem's.
+    assert!(
+        (report.max_constraint_residual - from_sweep.max_constraint_residual * d.length_unit())
+            .abs()
+            < 1e-15
+    );
 }
 
 #[test]
@@ -555,7 +564,7 @@ fn kkt_handles_a_single_position_constraint_and_all_vertices_fixed() {
     let x = solve_with(&mut d, &Kkt::default()).unwrap();
     for v in 0..mesh.n_vertices() {
         for c in 0..3 {
-            assert!((x[(v, c)] - p[v][c]).abs() < 1e-9);
+            assert!((x[(v, c)] * d.length_unit() - p[v][c]).abs() < 1e-9);
         }
     }
 }
@@ -608,7 +617,8 @@ fn elimination_refuses_other_kinds_and_skips_repeated_positions() {
         ];
         let mut d = deformer(&mesh, LaplacianKind::Cotangent, cs);
         let x = solve_with(&mut d, &Elimination::default()).unwrap();
-        assert_eq!([x[(12, 0)], x[(12, 1)], x[(12, 2)]], first);
+        let u = d.length_unit();
+        assert_eq!([x[(12, 0)] * u, x[(12, 1)] * u, x[(12, 2)] * u], first);
         let report = d.report();
         if conflicting {
             assert_eq!(report.conflicting.len(), 1);

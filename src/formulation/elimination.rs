@@ -23,7 +23,7 @@ use faer::Mat;
 use faer::sparse::SparseColMat;
 
 use super::null_space::{nothing_factored, with_context};
-use super::util::{at_times, gather_columns, lower_to_full, row_entries, row_kind};
+use super::util::{at_residual, at_times, gather_columns, lower_to_full, row_entries, row_kind};
 use super::{Formulation, Prepared};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
@@ -187,6 +187,31 @@ impl Prepared for PreparedElimination {
             }
         }
         Ok(x)
+    }
+
+    /// Corrected semi-normal equations with `Q2` the selection of the free
+    /// columns: `Δx_U = (A_UᵀA_U)⁻¹ [Aᵀ(C − A X)]_U`; the fixed vertices
+    /// never move.
+    fn correction(
+        &mut self,
+        problem: &LseProblem,
+        x: &Mat<f64>,
+    ) -> Result<Option<Mat<f64>>, Error> {
+        let Some(factor) = self.factor.as_mut() else {
+            return Ok(None);
+        };
+        let gradient = at_residual(problem.a().as_ref(), problem.c().as_ref(), x.as_ref());
+        let k = x.ncols();
+        let mut dz =
+            Mat::<f64>::from_fn(self.unknown.len(), k, |j, c| gradient[(self.unknown[j], c)]);
+        factor.solve_in_place(dz.as_mut());
+        let mut dx = Mat::<f64>::zeros(x.nrows(), k);
+        for (j, &v) in self.unknown.iter().enumerate() {
+            for c in 0..k {
+                dx[(v, c)] = dz[(j, c)];
+            }
+        }
+        Ok(Some(dx))
     }
 
     fn skipped(&self) -> &[usize] {

@@ -43,11 +43,13 @@
 //! static order in which every pivot provably exists keeps the
 //! factorisation deterministic and makes a failing pivot a diagnosis.
 //!
-//! **Verification.** Every solve computes the normwise backward error
-//! `η = ‖K y − b‖∞ / (‖K‖∞ ‖y‖∞ + ‖b‖∞)`, refines iteratively (at most two
-//! steps) while `η > 64 ε`, and fails with
-//! [`NumericalError::InaccurateSolution`] if `η` stays above
-//! [`KKT_BACKWARD_ERROR_TOLERANCE`].
+//! **Verification and refinement.** Every solve computes the normwise
+//! backward error `η = ‖K y − b‖∞ / (‖K‖∞ ‖y‖∞ + ‖b‖∞)` and fails with
+//! [`NumericalError::InaccurateSolution`] if it exceeds
+//! [`KKT_BACKWARD_ERROR_TOLERANCE`] (a factor with runaway growth).
+//! Refinement (the `refine` phase, [`super::refine`]) works on the augmented
+//! system with the residual taken from `A` and `B` themselves:
+//! `K [Δx; Δμ] = [Aᵀ(C − A x) − s Bᵀ μ; s (D − B x)]`.
 
 use std::time::Instant;
 
@@ -64,8 +66,8 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 
 use super::util::{
-    at_times, lower_diag, lower_sym_mul, lower_sym_norm_inf, lower_to_full, row_entries, row_kind,
-    split_normal,
+    add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_mul,
+    lower_sym_norm_inf, lower_to_full, row_entries, row_kind, split_normal,
 };
 use super::{Formulation, Prepared};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
@@ -99,12 +101,6 @@ pub const KKT_PIVOT_TOLERANCE: f64 = 1000.0 * f64::EPSILON;
 /// of `‖AᵀA‖`, this bounds the hard-constraint residuals by about
 /// `1e-10 ‖X‖∞`, the accuracy the null-space method is tested to.
 pub const KKT_BACKWARD_ERROR_TOLERANCE: f64 = 1e-10;
-
-/// Backward error above which a solve is refined (one more solve).
-const REFINE_ABOVE: f64 = 64.0 * f64::EPSILON;
-
-/// Maximum number of refinement steps per solve.
-const MAX_REFINEMENT_STEPS: usize = 2;
 
 /// The KKT / Lagrange-multiplier formulation, factored by faer's sparse
 /// `LDLᵀ` in a static order.
@@ -490,6 +486,8 @@ impl Formulation for Kkt {
             scale,
             n,
             workspace,
+            multipliers: Mat::zeros(m, problem.c().ncols()),
+            pending_multipliers: None,
         }))
     }
 }
@@ -690,6 +688,11 @@ struct PreparedKkt {
     scale: f64,
     n: usize,
     workspace: MemBuffer,
+    /// `μ` (the scaled multipliers `Λ'`) of the last solve, refined along
+    /// with `x`.
+    multipliers: Mat<f64>,
+    /// `Δμ` of the last correction, added by `accept_correction`.
+    pending_multipliers: Option<Mat<f64>>,
 }
 
 impl PreparedKkt {
@@ -743,30 +746,18 @@ impl Prepared for PreparedKkt {
     fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error> {
         let n = self.n;
         let m = problem.b().nrows();
+        let k = problem.c().ncols();
         let atc = at_times(problem.a().as_ref(), problem.c().as_ref());
-        let mut b = Mat::<f64>::zeros(n + m, 3);
-        b.as_mut().submatrix_mut(0, 0, n, 3).copy_from(&atc);
-        for k in 0..m {
-            for c in 0..3 {
-                b[(n + k, c)] = self.scale * problem.d()[(k, c)];
+        let mut b = Mat::<f64>::zeros(n + m, k);
+        b.as_mut().submatrix_mut(0, 0, n, k).copy_from(&atc);
+        for r in 0..m {
+            for c in 0..k {
+                b[(n + r, c)] = self.scale * problem.d()[(r, c)];
             }
         }
         let mut y = b.clone();
         self.solve_in_place(y.as_mut());
-        let (mut eta, mut r) = self.backward_error(&y, &b);
-        let mut steps = 0;
-        while eta > REFINE_ABOVE && steps < MAX_REFINEMENT_STEPS && eta.is_finite() {
-            self.solve_in_place(r.as_mut());
-            let candidate = &y + &r;
-            let (e, res) = self.backward_error(&candidate, &b);
-            steps += 1;
-            if e >= eta {
-                break;
-            }
-            y = candidate;
-            eta = e;
-            r = res;
-        }
+        let (eta, _) = self.backward_error(&y, &b);
         if eta.is_nan() || eta > KKT_BACKWARD_ERROR_TOLERANCE {
             return Err(NumericalError::InaccurateSolution {
                 matrix: MATRIX.into(),
@@ -775,11 +766,49 @@ impl Prepared for PreparedKkt {
             }
             .into());
         }
-        let x = y.submatrix(0, 0, n, 3).to_owned();
+        let x = y.submatrix(0, 0, n, k).to_owned();
         if let Some(vertex) = first_non_finite(&x) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
+        self.multipliers = y.submatrix(n, 0, m, k).to_owned();
+        self.pending_multipliers = None;
         Ok(x)
+    }
+
+    /// Refinement on the augmented system with the residual from `A` and
+    /// `B`: `K [Δx; Δμ] = [Aᵀ(C − A x) − s Bᵀ μ; s (D − B x)]`.
+    fn correction(
+        &mut self,
+        problem: &LseProblem,
+        x: &Mat<f64>,
+    ) -> Result<Option<Mat<f64>>, Error> {
+        let n = self.n;
+        let m = problem.b().nrows();
+        let k = x.ncols();
+        let mut top = at_residual(problem.a().as_ref(), problem.c().as_ref(), x.as_ref());
+        add_bt_times(
+            problem.b().as_ref(),
+            self.multipliers.as_ref(),
+            -self.scale,
+            top.as_mut(),
+        );
+        let bottom = hard_residual(problem.b().as_ref(), problem.d().as_ref(), x.as_ref());
+        let mut y = Mat::<f64>::zeros(n + m, k);
+        y.as_mut().submatrix_mut(0, 0, n, k).copy_from(&top);
+        for r in 0..m {
+            for c in 0..k {
+                y[(n + r, c)] = self.scale * bottom[(r, c)];
+            }
+        }
+        self.solve_in_place(y.as_mut());
+        self.pending_multipliers = Some(y.submatrix(n, 0, m, k).to_owned());
+        Ok(Some(y.submatrix(0, 0, n, k).to_owned()))
+    }
+
+    fn accept_correction(&mut self) {
+        if let Some(dm) = self.pending_multipliers.take() {
+            self.multipliers += &dm;
+        }
     }
 
     fn skipped(&self) -> &[usize] {

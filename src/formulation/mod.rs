@@ -21,6 +21,7 @@ mod elimination;
 mod kkt;
 mod null_space;
 mod penalty;
+mod refine;
 mod util;
 
 pub use elimination::Elimination;
@@ -28,6 +29,9 @@ pub use kkt::{KKT_BACKWARD_ERROR_TOLERANCE, KKT_PIVOT_TOLERANCE, Kkt, kkt_orderi
 pub use null_space::NullSpaceQr;
 pub use penalty::{
     PENALTY_FORWARD_ERROR_LIMIT, Penalty, PenaltyPoint, PenaltySolution, PenaltySweep,
+};
+pub use refine::{
+    AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, Refine, RefineStop, Refinement, refine,
 };
 pub(crate) use util::lower_sym_mul;
 
@@ -51,6 +55,21 @@ pub trait Prepared: Send {
     /// Solves for the current `C` and `D` of `problem` (which must have the
     /// matrices the system was prepared with). Returns `X` (n × 3).
     fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error>;
+
+    /// One step of iterative refinement (see [`refine`]): the correction
+    /// `ΔX` to add to `x`, an approximation of the last [`Prepared::solve`]'s
+    /// result or of a refined one, computed from the residuals of the
+    /// original rows of `problem` and the existing factor (no new
+    /// factorisation). `None` when nothing was factored (every unknown is
+    /// fixed, so `x` is exact). State that a step advances (the KKT
+    /// multipliers, the penalty method's shifted targets) changes only
+    /// through [`Prepared::accept_correction`].
+    fn correction(&mut self, problem: &LseProblem, x: &Mat<f64>)
+    -> Result<Option<Mat<f64>>, Error>;
+
+    /// Commits the state of the last [`Prepared::correction`] after the
+    /// caller added it to `x`.
+    fn accept_correction(&mut self) {}
 
     /// Rows of `B` that the method does not enforce because they depend on
     /// earlier ones (increasing). Empty for methods that enforce all rows

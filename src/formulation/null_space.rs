@@ -16,7 +16,7 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::SparseColMat;
 
-use super::util::{gather_columns, lower_to_full};
+use super::util::{at_residual, gather_columns, lower_to_full};
 use super::{Formulation, Prepared};
 use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, check_factor_size};
@@ -293,6 +293,31 @@ impl Prepared for PreparedNullSpace {
         let mut x = Mat::<f64>::zeros(n, 3);
         qr.apply_q(ws.y.as_ref(), ws.z.as_ref(), x.as_mut());
         Ok(x)
+    }
+
+    /// Corrected semi-normal equations (Björck 1987) on the reduced
+    /// problem: `g = Q2ᵀ Aᵀ (C − A X)`, `Δz = H⁻¹ g`, `ΔX = Q [0; Δz]`. The
+    /// correction lies in the null space of the kept rows of `B`, so the
+    /// hard constraints stay exact.
+    fn correction(
+        &mut self,
+        problem: &LseProblem,
+        x: &Mat<f64>,
+    ) -> Result<Option<Mat<f64>>, Error> {
+        let Some(factor) = self.factor.as_mut() else {
+            return Ok(None);
+        };
+        let qr = &*self.qr;
+        let k = x.ncols();
+        let gradient = at_residual(problem.a().as_ref(), problem.c().as_ref(), x.as_ref());
+        let mut gy = Mat::<f64>::zeros(qr.rank(), k);
+        let mut gz = Mat::<f64>::zeros(qr.n() - qr.rank(), k);
+        qr.apply_qt(gradient.as_ref(), gy.as_mut(), gz.as_mut());
+        factor.solve_in_place(gz.as_mut());
+        gy.fill(0.0);
+        let mut dx = Mat::<f64>::zeros(qr.n(), k);
+        qr.apply_q(gy.as_ref(), gz.as_ref(), dx.as_mut());
+        Ok(Some(dx))
     }
 
     fn skipped(&self) -> &[usize] {

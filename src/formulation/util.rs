@@ -122,6 +122,68 @@ pub(crate) fn at_times(a: SparseColMatRef<'_, usize, f64>, c: MatRef<'_, f64>) -
     out
 }
 
+/// `Aᵀ (C − A X)` for a sparse `A` (l × n) and dense `C` (l × k), `X`
+/// (n × k): the gradient of `½‖A X − C‖²` (negated) computed from the
+/// residual of the original rows, never as `AᵀC − AᵀA X`. Two passes over
+/// `A` with the `k` columns of a row interleaved.
+pub(crate) fn at_residual(
+    a: SparseColMatRef<'_, usize, f64>,
+    c: MatRef<'_, f64>,
+    x: MatRef<'_, f64>,
+) -> Mat<f64> {
+    let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    let k = c.ncols();
+    let mut r = vec![0.0f64; a.nrows() * k];
+    for i in 0..a.nrows() {
+        for col in 0..k {
+            r[i * k + col] = c[(i, col)];
+        }
+    }
+    let mut xj = vec![0.0f64; k];
+    for j in 0..a.ncols() {
+        for col in 0..k {
+            xj[col] = x[(j, col)];
+        }
+        for p in ptr[j]..ptr[j + 1] {
+            let row = &mut r[rows[p] * k..rows[p] * k + k];
+            for col in 0..k {
+                row[col] -= val[p] * xj[col];
+            }
+        }
+    }
+    let mut out = Mat::<f64>::zeros(a.ncols(), k);
+    for j in 0..a.ncols() {
+        xj.fill(0.0);
+        for p in ptr[j]..ptr[j + 1] {
+            let row = &r[rows[p] * k..rows[p] * k + k];
+            for col in 0..k {
+                xj[col] += val[p] * row[col];
+            }
+        }
+        for col in 0..k {
+            out[(j, col)] = xj[col];
+        }
+    }
+    out
+}
+
+/// `D − B X` for a sparse `B` (m × n, CSR) and dense `D` (m × k), `X`
+/// (n × k).
+pub(crate) fn hard_residual(
+    b: SparseRowMatRef<'_, usize, f64>,
+    d: MatRef<'_, f64>,
+    x: MatRef<'_, f64>,
+) -> Mat<f64> {
+    let (ptr, cols, val) = (b.symbolic().row_ptr(), b.symbolic().col_idx(), b.val());
+    Mat::from_fn(b.nrows(), d.ncols(), |k, col| {
+        let mut s = d[(k, col)];
+        for p in ptr[k]..ptr[k + 1] {
+            s -= val[p] * x[(cols[p], col)];
+        }
+        s
+    })
+}
+
 /// `out += s · Bᵀ D` for a sparse `B` (m × n, CSR) and a dense `D` (m × k).
 pub(crate) fn add_bt_times(
     b: SparseRowMatRef<'_, usize, f64>,

@@ -143,7 +143,25 @@ impl Mesh {
     /// tolerances (constraint residuals) are measured against.
     pub fn bbox_diagonal(&self) -> f64 {
         let (lo, hi) = self.bounding_box();
-        ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt()
+        let extent = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+        // Scaled by the largest extent so that the squares neither overflow
+        // nor underflow (meshes in units from 1e-300 to 1e300).
+        let m = extent.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+        if m == 0.0 || !m.is_finite() {
+            return m;
+        }
+        m * extent.iter().map(|e| (e / m) * (e / m)).sum::<f64>().sqrt()
+    }
+
+    /// The unit of the mesh's numerics: the power of two nearest to its
+    /// bounding-box diagonal ([`quality::power_of_two_unit`]). The deformer
+    /// assembles its problem on the positions divided by it — exactly, since
+    /// it is a power of two — so that the answer does not depend on the
+    /// units of the mesh (a mesh scaled by `s` deforms to the same result
+    /// scaled by `s`, bit for bit when `s` is a power of two), and no
+    /// product of coordinates overflows or underflows.
+    pub fn length_unit(&self) -> f64 {
+        quality::power_of_two_unit(self.bbox_diagonal())
     }
 
     /// Warnings about a valid mesh (non-manifold edges).
@@ -199,12 +217,8 @@ pub fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), Mesh
                 line: None,
             });
         }
-        let area = quality::triangle_area(positions[a], positions[b], positions[c]);
-        let l2 = quality::longest_edge_sq(positions[a], positions[b], positions[c]);
-        // |e1 × e2| = 2·area; the rounding error of the cross product is a few
-        // ε·ℓ², so below 64 ε ℓ² the area is noise.
-        // Written so that a NaN area also counts as degenerate.
-        let clearly_positive = 2.0 * area > 64.0 * f64::EPSILON * l2;
+        let (clearly_positive, area) =
+            quality::area_is_clearly_positive(positions[a], positions[b], positions[c]);
         if !clearly_positive {
             return Err(MeshError::DegenerateFace {
                 face: f,

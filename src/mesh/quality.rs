@@ -186,3 +186,43 @@ pub fn longest_edge_sq(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
         .max(norm_sq(sub(c, b)))
         .max(norm_sq(sub(a, c)))
 }
+
+/// The power of two `2^e` nearest to the largest coordinate difference of
+/// `abc` (1 if the three points coincide). Dividing the edge vectors by it
+/// is exact and brings them to unit size, so that areas and squared lengths
+/// neither overflow (coordinates of 1e200) nor underflow (1e-200).
+fn edge_unit(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    let m = sub(b, a)
+        .iter()
+        .chain(sub(c, a).iter())
+        .chain(sub(c, b).iter())
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    power_of_two_unit(m)
+}
+
+/// `2^round(log2 x)` for a finite `x > 0`, else 1: the exact unit that
+/// normalises a length of size `x` to `[0.7, 1.4]`.
+pub fn power_of_two_unit(x: f64) -> f64 {
+    if x > 0.0 && x.is_finite() {
+        2f64.powi(x.log2().round() as i32)
+    } else {
+        1.0
+    }
+}
+
+/// Whether the triangle `abc` has clearly non-zero area, `|e1 × e2| > 64 ε
+/// ℓ²` (ℓ the longest edge; the rounding error of the cross product is a
+/// few `ε ℓ²`), and its area. Scale-invariant: the test runs on the edge
+/// vectors divided by an exact power of two ([`power_of_two_unit`]), so it
+/// decides the same for a mesh in any unit from 1e-300 to 1e300.
+pub fn area_is_clearly_positive(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> (bool, f64) {
+    let u = edge_unit(a, b, c);
+    let (e1, e2, e3) = (sub(b, a), sub(c, a), sub(c, b));
+    let scale = |e: [f64; 3]| [e[0] / u, e[1] / u, e[2] / u];
+    let (e1, e2, e3) = (scale(e1), scale(e2), scale(e3));
+    let twice_area = norm_sq(cross(e1, e2)).sqrt();
+    let l2 = norm_sq(e1).max(norm_sq(e2)).max(norm_sq(e3));
+    // Written so that a NaN area also counts as degenerate.
+    let clearly_positive = twice_area > 64.0 * f64::EPSILON * l2;
+    (clearly_positive, 0.5 * twice_area * u * u)
+}

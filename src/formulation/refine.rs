@@ -1,0 +1,282 @@
+//! Iterative refinement of a solution with the factor it was computed with,
+//! and the forward-error estimate every result carries.
+//!
+//! Every formulation factors a matrix of normal-equation type, whose
+//! condition number is the square of the least-squares problem's: a solve
+//! alone loses about `log10(ε κ(N))` digits. One refinement step computes the
+//! residual of the **original** rows (`C − A X`, `D − B X`, never
+//! `AᵀC − AᵀA X`), maps it through the same factor to a correction `ΔX` and
+//! adds it (DESIGN §6):
+//!
+//! - null-space QR: `g = Q2ᵀ Aᵀ (C − A X)`, `Δz = H⁻¹ g`, `ΔX = Q [0; Δz]`
+//!   (Björck's corrected semi-normal equations on the reduced problem; the
+//!   hard rows never move);
+//! - elimination: the same with `Q2` the selection of the free columns;
+//! - KKT: `K [Δx; Δμ] = [Aᵀ(C − A x) − s Bᵀ μ; s (D − B x)]`;
+//! - penalty: the method of multipliers (Van Loan 1985; Björck 1996 §5.1.5):
+//!   shifted targets `D_{k+1} = D_k + (D − B X_k)` and
+//!   `ΔX = K⁻¹ [Aᵀ(C − A X_k) + w² Bᵀ(D_{k+1} − B X_k)]`, which converges to
+//!   the exact constrained solution with the error shrinking by about
+//!   `max_i 1/(1 + w² μ_i)` per step (`μ_i` the eigenvalues of
+//!   `B (AᵀA)⁻¹ Bᵀ`).
+//!
+//! **Forward-error estimate.** The size of a correction,
+//! `max_i ‖ΔX_i‖₂ / length scale` (the largest vertex move over the mesh's
+//! bounding-box diagonal), estimates the error of the solution it corrects:
+//! to first order `ΔX = X* − X` when the factor is accurate enough for the
+//! iteration to contract, which is when refinement is useful at all. With
+//! [`Refine::Off`] one correction is computed and *not applied*: its size is
+//! the estimate (the cost of one more solve). With refinement on, the
+//! estimate is the size of the last correction computed, which is an upper
+//! bound of the remaining error while the iteration contracts (it is the
+//! error *before* that correction) and equals it once the corrections have
+//! reached the rounding floor. Above [`FORWARD_ERROR_WARNING`] a result is
+//! returned with a warning.
+
+use faer::Mat;
+use serde::Serialize;
+
+use crate::error::Error;
+use crate::problem::LseProblem;
+
+use super::Prepared;
+
+/// Whether and how far to refine a solution (the CLI's `--refine
+/// off|auto|N`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Refine {
+    /// No refinement; the forward error is still estimated (one correction
+    /// computed and not applied).
+    Off,
+    /// Refine until a correction is below [`CONVERGED_ULPS`] ulps of the
+    /// solution's size, stops shrinking, or [`AUTO_MAX_STEPS`] steps.
+    #[default]
+    Auto,
+    /// Exactly this many steps unless a correction stops shrinking or
+    /// reaches the rounding floor (then fewer).
+    Steps(usize),
+}
+
+impl Refine {
+    /// Parses `off`, `auto` or a step count (the CLI's and Python's words).
+    pub fn parse(word: &str) -> Result<Refine, crate::error::ProblemError> {
+        match word {
+            "off" => Ok(Refine::Off),
+            "auto" => Ok(Refine::Auto),
+            n => n.parse::<usize>().map(Refine::Steps).map_err(|_| {
+                crate::error::ProblemError::InvalidArgument {
+                    message: format!(
+                        "refinement '{word}' is not one of off, auto or a number of steps"
+                    ),
+                }
+            }),
+        }
+    }
+
+    /// The cap on steps.
+    fn max_steps(self) -> usize {
+        match self {
+            Refine::Off => 0,
+            Refine::Auto => AUTO_MAX_STEPS,
+            Refine::Steps(n) => n,
+        }
+    }
+}
+
+impl std::fmt::Display for Refine {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Refine::Off => write!(f, "off"),
+            Refine::Auto => write!(f, "auto"),
+            Refine::Steps(n) => write!(f, "{n}"),
+        }
+    }
+}
+
+/// The cap of [`Refine::Auto`]: 30 steps. The exact formulations converge in
+/// 1–4 steps whenever `ε κ(N) < 1` (each step gains about
+/// `−log10(ε κ(N))` digits); the method of multipliers contracts by
+/// `1/(1 + w² μ_min)` per step, so a small penalty weight can need more, and
+/// 30 steps of a rate of 1/3 gain 14 digits.
+pub const AUTO_MAX_STEPS: usize = 30;
+
+/// [`Refine::Auto`] stops once a correction is at most this many ulps of the
+/// solution's size (`‖ΔX‖ ≤ 8 ε max_i ‖X_i‖`): below that a correction only
+/// moves rounding noise.
+pub const CONVERGED_ULPS: f64 = 8.0;
+
+/// A result whose [`Refinement::forward_error_estimate`] exceeds `1e-8`
+/// (relative to the length scale) is returned with a warning: the same bound
+/// that classifies a skipped constraint as conflicting
+/// ([`crate::report::CONFLICT_RELATIVE_TOLERANCE`]); an error above it can
+/// show in a rendering or in a comparison of methods.
+pub const FORWARD_ERROR_WARNING: f64 = 1e-8;
+
+/// The penalty method's conflict test: a hard-constraint residual above
+/// the conflict tolerance and more than this many times the size of the
+/// last correction (for three steps running) cannot be the error of `X`
+/// (the rows of `B` have norm of order one, so `‖B ΔX‖ ≲ ‖ΔX‖`).
+const CONFLICT_STALL_RATIO: f64 = 1e3;
+
+/// Why refinement stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum RefineStop {
+    /// Refinement was off (one correction was computed for the estimate).
+    #[default]
+    Off,
+    /// A correction fell below [`CONVERGED_ULPS`] ulps of the solution.
+    Converged,
+    /// A correction did not shrink: the rounding floor of this factor; it
+    /// was not applied.
+    Stagnated,
+    /// The step cap was reached.
+    StepLimit,
+    /// Penalty only: the hard-constraint residual `‖D − B X_k‖` stopped
+    /// shrinking above the conflict tolerance while the shifted targets
+    /// kept moving — conflicting hard constraints, which the method of
+    /// multipliers cannot satisfy.
+    ConflictingConstraints,
+    /// Nothing to refine (every unknown fixed by the hard constraints).
+    Exact,
+}
+
+/// What refinement did, for the report.
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
+pub struct Refinement {
+    /// The mode asked for (`off`, `auto`, or the step count).
+    pub mode: String,
+    /// Corrections applied.
+    pub steps: usize,
+    /// `max_i ‖ΔX_i‖₂ / length scale` of every correction computed, in order
+    /// (one more than `steps` when the last was not applied).
+    pub corrections: Vec<f64>,
+    /// Why it stopped.
+    pub stop_reason: RefineStop,
+    /// The estimated forward error of the returned solution, relative to
+    /// the length scale (see the module documentation).
+    pub forward_error_estimate: f64,
+    /// Penalty only: `max_k ‖b_k X − d_k‖₂ / length scale` after each
+    /// step (the first entry before any), the quantity the method of
+    /// multipliers drives to zero.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub constraint_residuals: Vec<f64>,
+}
+
+/// `max_i ‖M_i‖₂` over the rows of `m`.
+pub(crate) fn max_row_norm(m: &Mat<f64>) -> f64 {
+    let mut worst = 0.0f64;
+    for i in 0..m.nrows() {
+        let mut s = 0.0;
+        for c in 0..m.ncols() {
+            s += m[(i, c)] * m[(i, c)];
+        }
+        worst = worst.max(s);
+    }
+    worst.sqrt()
+}
+
+/// `max_k ‖b_k X − d_k‖₂` over all hard rows.
+pub(crate) fn max_hard_residual(problem: &LseProblem, x: &Mat<f64>) -> f64 {
+    (0..problem.b().nrows())
+        .map(|k| problem.hard_residual(k, x))
+        .fold(0.0, f64::max)
+}
+
+/// Refines `x` in place with `system` (which produced it) as `mode` says,
+/// and returns what happened.
+///
+/// A correction is applied only if it is finite and smaller than the one
+/// before it (the first always, when finite), so refinement never returns a
+/// solution that a step made worse by more than that step's own size.
+pub fn refine(
+    system: &mut dyn Prepared,
+    problem: &LseProblem,
+    x: &mut Mat<f64>,
+    mode: Refine,
+) -> Result<Refinement, Error> {
+    let scale = positive_or_one(problem.length_scale());
+    let mut out = Refinement {
+        mode: mode.to_string(),
+        ..Refinement::default()
+    };
+    let track_constraints = !system.exact() && problem.b().nrows() > 0;
+    if track_constraints {
+        out.constraint_residuals
+            .push(max_hard_residual(problem, x) / scale);
+    }
+    let cap = mode.max_steps();
+    let mut stalled = 0;
+    loop {
+        let Some(dx) = system.correction(problem, x)? else {
+            out.stop_reason = RefineStop::Exact;
+            return Ok(out);
+        };
+        let size = max_row_norm(&dx) / scale;
+        let size = if size.is_nan() { f64::INFINITY } else { size };
+        let previous = out.corrections.last().copied();
+        out.corrections.push(size);
+        out.forward_error_estimate = size;
+        if mode == Refine::Off {
+            out.stop_reason = RefineStop::Off;
+            break;
+        }
+        let floor = CONVERGED_ULPS * f64::EPSILON * max_row_norm(x) / scale;
+        // A correction that does not shrink is rounding noise: every
+        // iteration here contracts (the exact formulations' by `ε κ(N)`,
+        // the method of multipliers' by `max_i 1/(1 + w²μ_i)`).
+        if !size.is_finite() || previous.is_some_and(|p| size >= p) {
+            out.stop_reason = RefineStop::Stagnated;
+            break;
+        }
+        *x += &dx;
+        system.accept_correction();
+        out.steps += 1;
+        if track_constraints {
+            let r = max_hard_residual(problem, x) / scale;
+            out.constraint_residuals.push(r);
+            stalled = if conflict_shows(r, size) {
+                stalled + 1
+            } else {
+                0
+            };
+            if stalled >= 3 {
+                out.stop_reason = RefineStop::ConflictingConstraints;
+                break;
+            }
+        }
+        if size <= floor {
+            out.stop_reason = RefineStop::Converged;
+            break;
+        }
+        if out.steps >= cap {
+            out.stop_reason = RefineStop::StepLimit;
+            break;
+        }
+    }
+    if track_constraints {
+        // `‖B (X − X*)‖ = ‖B X − D‖` and the rows of `B` have norm of order
+        // one: the residual bounds the error from below.
+        let r = *out.constraint_residuals.last().unwrap_or(&0.0);
+        let last = *out.corrections.last().unwrap_or(&0.0);
+        out.forward_error_estimate = out.forward_error_estimate.max(r);
+        if mode != Refine::Off && conflict_shows(r, last) {
+            out.stop_reason = RefineStop::ConflictingConstraints;
+        }
+    }
+    Ok(out)
+}
+
+/// The penalty method's conflict test: conflicting hard rows leave a
+/// residual `r` at the size of the conflict while the corrections of `X`
+/// die out; for consistent rows `‖B ΔX‖` follows the residual down. So a
+/// residual above the conflict tolerance and [`CONFLICT_STALL_RATIO`] times
+/// the last correction is a conflict.
+fn conflict_shows(residual: f64, correction: f64) -> bool {
+    residual > crate::report::CONFLICT_RELATIVE_TOLERANCE
+        && residual > CONFLICT_STALL_RATIO * correction
+}
+
+fn positive_or_one(s: f64) -> f64 {
+    if s > 0.0 && s.is_finite() { s } else { 1.0 }
+}
