@@ -33,6 +33,7 @@ use faer::Mat;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
 use super::null_space::with_context;
+use super::refine::{Refine, Refinement, refine};
 use super::util::{
     add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_abs_mul,
     lower_sym_max_row_nnz, lower_sym_mul, lower_sym_norm_inf, lower_to_full, split_normal,
@@ -270,22 +271,42 @@ impl PenaltySweep {
         })
     }
 
-    /// Factors for weight `w` and solves for the current `C`, `D` of
-    /// `problem` (the problem this sweep was built from), with the accuracy
-    /// of the result measured from `X`.
+    /// Factors for the relative weight `w` and solves for the current `C`,
+    /// `D` of `problem` (the problem this sweep was built from), with the
+    /// accuracy of the result measured from `X`.
     pub fn solve(&self, problem: &LseProblem, w: f64) -> Result<PenaltySolution, Error> {
+        self.solve_refined(problem, w, Refine::Off)
+            .map(|(solution, _)| solution)
+    }
+
+    /// [`PenaltySweep::solve`] followed by refinement with the same factor
+    /// (the method of multipliers, see [`super::refine`]): with
+    /// [`Refine::Off`] the plain penalty solution and the estimate of its
+    /// distance from the constrained solution; otherwise the refined one.
+    /// The solution's `backward_error` and `forward_error_estimate` are
+    /// those of the plain penalty solve (against the penalty system).
+    pub fn solve_refined(
+        &self,
+        problem: &LseProblem,
+        w: f64,
+        mode: Refine,
+    ) -> Result<(PenaltySolution, Refinement), Error> {
         let t = Instant::now();
         let mut prepared = self.factorize(w)?;
         let numeric_s = t.elapsed().as_secs_f64();
         let t = Instant::now();
-        let (x, rhs) = prepared.solve_with_rhs(problem)?;
+        let (mut x, rhs) = prepared.solve_with_rhs(problem)?;
         let solve_s = t.elapsed().as_secs_f64();
         let backward_error = backward_error(prepared.lower.as_ref(), &x, &rhs);
         let forward_error_estimate = prepared.forward_error_estimate(&x, &rhs);
+        let refinement = refine(&mut prepared, problem, &mut x, mode)?;
+        if let Some(vertex) = first_non_finite(&x) {
+            return Err(NumericalError::NonFiniteSolution { vertex }.into());
+        }
         let max_constraint_residual = (0..problem.b().nrows())
             .map(|k| problem.hard_residual(k, &x))
             .fold(0.0, f64::max);
-        Ok(PenaltySolution {
+        let solution = PenaltySolution {
             least_squares_residual: problem.least_squares_residual(&x),
             x,
             max_constraint_residual,
@@ -293,7 +314,8 @@ impl PenaltySweep {
             forward_error_estimate,
             numeric_s,
             solve_s,
-        })
+        };
+        Ok((solution, refinement))
     }
 
     /// One point per weight, in the order given: the analysis of
