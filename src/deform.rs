@@ -51,7 +51,7 @@ pub struct Solution {
 /// A mesh with constraints, ready to be deformed again and again.
 ///
 /// **Units.** The problem is assembled on the mesh and targets divided by
-/// the mesh's [`Mesh::length_unit`] (a power of two, so exactly), and the
+/// the mesh's [`Mesh::length_unit`] (its mean edge length), and the
 /// solution multiplied back: the result does not depend on the units the
 /// mesh is given in (scaled by `s`, it deforms to the same positions scaled
 /// by `s`, with the same rank and the same redundant and conflicting sets),
@@ -66,6 +66,8 @@ pub struct Deformer {
     /// `None`: the formulation's default ([`Refine::Auto`] for the exact
     /// formulations, [`Refine::Off`] for penalty, the classical baseline).
     refine: Option<Refine>,
+    /// The warnings of set-up (the mesh's).
+    setup_warnings: Vec<String>,
     /// The warnings of set-up and precompute; each solve adds its own.
     precompute_warnings: Vec<String>,
     report: Report,
@@ -114,6 +116,7 @@ impl Deformer {
             unit,
             system: None,
             refine: None,
+            setup_warnings: warnings.clone(),
             precompute_warnings: warnings,
             report,
         })
@@ -141,7 +144,7 @@ impl Deformer {
         self.system = None;
         let mut report = Report {
             laplacian: self.report.laplacian.clone(),
-            warnings: self.report.warnings.clone(),
+            warnings: self.setup_warnings.clone(),
             length_unit: self.unit,
             ..Report::default()
         };
@@ -260,8 +263,8 @@ impl Deformer {
         &self.problem
     }
 
-    /// The power of two the problem's lengths are divided by
-    /// ([`Mesh::length_unit`]).
+    /// The length the problem's lengths are divided by: the mesh's mean
+    /// edge length ([`Mesh::length_unit`]).
     pub fn length_unit(&self) -> f64 {
         self.unit
     }

@@ -184,8 +184,8 @@ pub struct Report {
     pub soft_residuals: Vec<SoftResidual>,
     /// The length unit of tolerances: the mesh's bounding-box diagonal.
     pub length_scale: f64,
-    /// The power of two the mesh and its targets were divided by before
-    /// assembly ([`crate::mesh::Mesh::length_unit`]; 1 for problems given
+    /// The length the mesh and its targets were divided by before assembly
+    /// (the mesh's mean edge length, [`crate::mesh::Mesh::length_unit`]; 1 for problems given
     /// as matrices). Positions, residuals and tolerances in this report are
     /// in the mesh's own units.
     pub length_unit: f64,

@@ -503,17 +503,14 @@ fn kinds_by_name_and_size_selection() {
 }
 
 #[test]
-fn million_vertex_grid_is_fast() {
-    let t = std::time::Instant::now();
+fn million_vertex_grid_has_the_right_topology() {
+    // Speed is measured in benches/, not asserted here.
     let m = generate::with_about_vertices(GeneratedKind::Grid, 1_000_000, 0).unwrap();
-    let elapsed = t.elapsed();
     assert_eq!(m.n_vertices(), 1_000_000);
     assert_eq!(m.n_faces(), 2 * 999 * 999);
     let topo = Topology::of(&m);
     assert_eq!(topo.n_boundary_loops, 1);
     assert_eq!(topo.genus, Some(0));
-    // Generous bound for the test profile on a loaded machine.
-    assert!(elapsed.as_secs_f64() < 5.0, "{elapsed:?}");
 }
 
 // ---------------------------------------------------------------------------

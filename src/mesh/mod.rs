@@ -153,15 +153,29 @@ impl Mesh {
         m * extent.iter().map(|e| (e / m) * (e / m)).sum::<f64>().sqrt()
     }
 
-    /// The unit of the mesh's numerics: the power of two nearest to its
-    /// bounding-box diagonal ([`quality::power_of_two_unit`]). The deformer
-    /// assembles its problem on the positions divided by it — exactly, since
-    /// it is a power of two — so that the answer does not depend on the
-    /// units of the mesh (a mesh scaled by `s` deforms to the same result
-    /// scaled by `s`, bit for bit when `s` is a power of two), and no
-    /// product of coordinates overflows or underflows.
+    /// The unit of the mesh's numerics: its mean edge length (each face's
+    /// three edges; 1 for a mesh where that is zero or not finite). The
+    /// deformer assembles its problem on the positions and targets divided
+    /// by it, so that the answer does not depend on the units, position or
+    /// orientation of the mesh — a mesh moved by a similarity `x ↦ s R x + t`
+    /// deforms to the same result moved (to rounding; the unit is invariant
+    /// under rotations and translations, unlike the bounding box), soft
+    /// weights mean the same in every unit, and no product of coordinates
+    /// overflows or underflows for meshes from 1e-300 to 1e300.
     pub fn length_unit(&self) -> f64 {
-        quality::power_of_two_unit(self.bbox_diagonal())
+        let p = &self.positions;
+        let mut sum = 0.0;
+        for f in &self.faces {
+            for k in 0..3 {
+                sum += quality::distance(p[f[k]], p[f[(k + 1) % 3]]);
+            }
+        }
+        let mean = sum / (3 * self.faces.len()).max(1) as f64;
+        if mean > 0.0 && mean.is_finite() {
+            mean
+        } else {
+            1.0
+        }
     }
 
     /// Warnings about a valid mesh (non-manifold edges).

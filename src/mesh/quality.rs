@@ -226,3 +226,14 @@ pub fn area_is_clearly_positive(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> (bool,
     let clearly_positive = twice_area > 64.0 * f64::EPSILON * l2;
     (clearly_positive, 0.5 * twice_area * u * u)
 }
+
+/// `‖a − b‖₂` without overflow or underflow of the squares (scaled by the
+/// largest coordinate difference).
+pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = sub(a, b);
+    let m = d.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if m == 0.0 || !m.is_finite() {
+        return m;
+    }
+    m * norm_sq([d[0] / m, d[1] / m, d[2] / m]).sqrt()
+}
