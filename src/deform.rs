@@ -27,15 +27,16 @@
 
 use std::time::Instant;
 
-use faer::Mat;
+use faer::{Mat, MatMut, MatRef};
 
 use crate::constraints::ConstraintSet;
-use crate::error::{Error, NumericalError, ProblemError};
+use crate::error::{ConstraintError, Error, ProblemError};
 use crate::formulation::{Formulation, Prepared};
 use crate::laplacian::{self, LaplacianKind};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, check_pinned};
-use crate::report::{Report, fill_solution_diagnostics, first_non_finite};
+use crate::report::Report;
+use crate::solver::LseSolver;
 
 /// Deformed positions and the report of how they were obtained.
 #[derive(Debug, Clone)]
@@ -46,14 +47,25 @@ pub struct Solution {
     pub report: Report,
 }
 
-/// A mesh with constraints, ready to be deformed again and again.
+/// A mesh with constraints, ready to be deformed again and again: the mesh
+/// layer (Laplacian, constraint kinds, component checks) over an
+/// [`LseSolver`].
+///
+/// Invariant: `constraints` holds the current targets (those of the
+/// problem), `rest[i]` the rest target of constraint `i` — the one given at
+/// construction or by the last [`Deformer::set_target`],
+/// [`Deformer::set_targets`] or [`Deformer::set_group_targets`];
+/// [`Deformer::transform_group`] moves current targets relative to it.
 pub struct Deformer {
     mesh: Mesh,
     constraints: ConstraintSet,
-    problem: LseProblem,
-    system: Option<Box<dyn Prepared>>,
-    report: Report,
+    rest: Vec<[f64; 3]>,
+    solver: LseSolver,
 }
+
+/// A 3 × 4 affine map `p ↦ M[:, 0..3] p + M[:, 3]`, row-major: the
+/// transform of a group of targets ([`Deformer::transform_group`]).
+pub type Affine = [[f64; 4]; 3];
 
 impl Deformer {
     /// Set-up phase: checks the constraints against the mesh (vertex range,
@@ -77,28 +89,22 @@ impl Deformer {
             ..Report::default()
         };
         report.timings_s.setup = t.elapsed().as_secs_f64();
+        let rest = constraints
+            .as_slice()
+            .iter()
+            .map(|c| c.kind.rhs())
+            .collect();
         Ok(Deformer {
             mesh,
             constraints,
-            problem,
-            system: None,
-            report,
+            rest,
+            solver: LseSolver::with_report(problem, report),
         })
     }
 
     /// Precompute phase: factors the system with `formulation`.
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
-        self.system = None;
-        let mut report = Report {
-            laplacian: self.report.laplacian.clone(),
-            warnings: self.report.warnings.clone(),
-            ..Report::default()
-        };
-        report.timings_s.setup = self.report.timings_s.setup;
-        let system = formulation.precompute(&self.problem, &mut report)?;
-        self.system = Some(system);
-        self.report = report;
-        Ok(())
+        self.solver.precompute(formulation)
     }
 
     /// Solve phase: positions for the current targets.
@@ -109,36 +115,159 @@ impl Deformer {
             .collect();
         Ok(Solution {
             positions,
-            report: self.report.clone(),
+            report: self.report().clone(),
         })
     }
 
-    /// Solve phase returning `X` (n × 3) and updating [`Deformer::report`].
+    /// Solve phase returning `X` (n × 3) and updating [`Deformer::report`]
+    /// (with the solution diagnostics).
     pub fn solve_matrix(&mut self) -> Result<Mat<f64>, Error> {
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "solve called before precompute".into(),
-            })?;
-        let t = Instant::now();
-        let x = system.solve(&self.problem)?;
-        self.report.timings_s.solve = t.elapsed().as_secs_f64();
-        if let Some(vertex) = first_non_finite(&x) {
-            return Err(NumericalError::NonFiniteSolution { vertex }.into());
-        }
-        let t = Instant::now();
-        let skipped = system.skipped().to_vec();
-        fill_solution_diagnostics(&mut self.report, &self.problem, &x, &skipped);
-        self.report.timings_s.diagnostics = t.elapsed().as_secs_f64();
-        Ok(x)
+        self.solver.solve()
+    }
+
+    /// Solve phase into `x` (n × 3, one row per vertex) without the solution
+    /// diagnostics ([`Deformer::diagnose`] computes them when wanted): the
+    /// call of an interactive loop. With the null-space formulation on the
+    /// faer back ends it allocates nothing. See [`LseSolver::solve_into`].
+    pub fn solve_into(&mut self, x: MatMut<'_, f64>) -> Result<(), Error> {
+        self.solver.solve_into(x)
+    }
+
+    /// Fills the report's solution diagnostics (residuals, redundant and
+    /// conflicting constraints) for `x`, the result of the last solve.
+    pub fn diagnose(&mut self, x: MatRef<'_, f64>) -> &Report {
+        self.solver.diagnose(x)
     }
 
     /// Moves the target of constraint `index` (a position, edge or face
     /// target, or a relative vector). The next [`Deformer::solve`] reuses
     /// the factorisation.
+    /// The rest target becomes `target` too.
     pub fn set_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
-        self.problem.set_rhs(index, target)?;
+        self.set_targets(&[(index, target)])
+    }
+
+    /// Moves several targets at once (constraint index, new target or
+    /// relative vector), which also become the rest targets. All updates
+    /// are checked first: on error nothing changes.
+    pub fn set_targets(&mut self, updates: &[(usize, [f64; 3])]) -> Result<(), Error> {
+        for &(index, target) in updates {
+            self.check_update(index, target)?;
+        }
+        for &(index, target) in updates {
+            self.write_target(index, target)?;
+            self.rest[index] = target;
+        }
+        Ok(())
+    }
+
+    /// Sets the targets of group `name`, one per member in increasing
+    /// constraint index ([`ConstraintSet::group`]); they become the rest
+    /// targets. On error (unknown group, wrong count, non-finite value)
+    /// nothing changes.
+    pub fn set_group_targets(&mut self, name: &str, targets: &[[f64; 3]]) -> Result<(), Error> {
+        let members = self.group_members(name)?;
+        if members.len() != targets.len() {
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "group '{name}' has {} constraints, {} targets were given",
+                    members.len(),
+                    targets.len()
+                ),
+            }
+            .into());
+        }
+        let updates: Vec<(usize, [f64; 3])> =
+            members.into_iter().zip(targets.iter().copied()).collect();
+        self.set_targets(&updates)
+    }
+
+    /// Applies the affine map `m` (3 × 4, row-major: `p ↦ R p + t` with
+    /// `R = m[:, 0..3]`, `t = m[:, 3]`) to the **rest** targets of group
+    /// `name`: a position, edge or face target `u` becomes `R u + t`, a
+    /// relative vector `v` becomes `R v` (a difference does not
+    /// translate). The rest targets stay, so successive calls with the
+    /// transforms of a dragged handle do not accumulate; the identity puts
+    /// the group back. The next solve reuses the factorisation. On error
+    /// (unknown group, non-finite `m` or result) nothing changes.
+    pub fn transform_group(&mut self, name: &str, m: &Affine) -> Result<(), Error> {
+        if m.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(ProblemError::BadUpdate {
+                message: format!("transform of group '{name}': the matrix has a non-finite entry"),
+            }
+            .into());
+        }
+        let members = self.group_members(name)?;
+        let moved: Vec<(usize, [f64; 3])> = members
+            .into_iter()
+            .map(|i| {
+                let u = self.rest[i];
+                let translate = self.constraints[i].kind.pins_translation();
+                let target = [0, 1, 2].map(|r| {
+                    let linear = m[r][0] * u[0] + m[r][1] * u[1] + m[r][2] * u[2];
+                    if translate { linear + m[r][3] } else { linear }
+                });
+                (i, target)
+            })
+            .collect();
+        for &(index, target) in &moved {
+            self.check_update(index, target)?;
+        }
+        for (index, target) in moved {
+            self.write_target(index, target)?;
+        }
+        Ok(())
+    }
+
+    /// The constraint indices of group `name` (increasing); an error naming
+    /// the groups there are if it has no member.
+    pub fn group_members(&self, name: &str) -> Result<Vec<usize>, Error> {
+        let members = self.constraints.group(name);
+        if members.is_empty() {
+            let names = self.constraints.group_names();
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "there is no constraint group '{name}' (groups: {})",
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            }
+            .into());
+        }
+        Ok(members)
+    }
+
+    /// The rest target of every constraint (see [`Deformer::transform_group`]).
+    pub fn rest_targets(&self) -> &[[f64; 3]] {
+        &self.rest
+    }
+
+    fn check_update(&self, index: usize, target: [f64; 3]) -> Result<(), Error> {
+        if index >= self.rest.len() {
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "constraint {index} does not exist (there are {})",
+                    self.rest.len()
+                ),
+            }
+            .into());
+        }
+        if target.iter().any(|v| !v.is_finite()) {
+            return Err(ConstraintError::NonFinite {
+                index,
+                field: "target",
+            }
+            .into());
+        }
+        Ok(())
+    }
+
+    /// Writes a checked target into the problem and the constraints.
+    fn write_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
+        self.solver.set_rhs(index, target)?;
         self.constraints.set_rhs(index, target)?;
         Ok(())
     }
@@ -146,24 +275,17 @@ impl Deformer {
     /// Estimates the 2-norm condition number of the matrix the formulation
     /// factored (see [`crate::condition`]) and records it in the report.
     pub fn estimate_condition(&mut self) -> Result<&crate::condition::ConditionEstimate, Error> {
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "estimate_condition called before precompute".into(),
-            })?;
-        let estimate = system.estimate_condition()?;
-        Ok(self.report.condition_estimate.insert(estimate))
+        self.solver.estimate_condition()
     }
 
     /// The prepared system of the last precompute, if any (for export).
     pub fn prepared(&self) -> Option<&dyn Prepared> {
-        self.system.as_deref()
+        self.solver.prepared()
     }
 
     /// The report of the last precompute and solve.
     pub fn report(&self) -> &Report {
-        &self.report
+        self.solver.report()
     }
 
     /// The mesh.
@@ -178,6 +300,6 @@ impl Deformer {
 
     /// The assembled problem.
     pub fn problem(&self) -> &LseProblem {
-        &self.problem
+        self.solver.problem()
     }
 }
