@@ -36,6 +36,7 @@ pub mod interop;
 pub mod laplacian;
 pub mod limits;
 pub mod mesh;
+pub mod mtx;
 pub mod normal;
 pub mod problem;
 pub mod report;
