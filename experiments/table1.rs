@@ -229,6 +229,7 @@ pub fn failure_kind(e: &Error) -> &'static str {
         Error::Numerical(N::NotPositiveDefinite { .. }) => "not positive definite",
         Error::Numerical(N::Breakdown { .. }) => "Cholesky breakdown",
         Error::Numerical(N::Singular { .. }) => "singular",
+        Error::Numerical(N::FreeUnknown { .. }) => "singular (free unknown)",
         Error::Numerical(N::InaccurateSolution { .. }) => "inaccurate solution",
         Error::Numerical(N::LostAccuracy { .. }) => "lost accuracy (rejected)",
         Error::Numerical(N::NonFiniteSolution { .. }) => "non-finite solution",
@@ -237,6 +238,7 @@ pub fn failure_kind(e: &Error) -> &'static str {
         Error::Constraint(_) => "bad constraint",
         Error::Mesh(_) => "bad mesh",
         Error::Io { .. } => "I/O error",
+        Error::MatrixFile(_) => "bad matrix file",
     }
 }
 

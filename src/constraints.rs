@@ -29,6 +29,10 @@
 //!   {"type": "position", "vertex": 40, "target": [1, 1, 1], "weight": 10.0}
 //! ]}
 //! ```
+//! A constraint may name a group, `"group": "handle"`: the constraints of a
+//! group move together ([`crate::Deformer::transform_group`],
+//! [`crate::Deformer::set_group_targets`]).
+//!
 //! Unknown fields are an error (a misspelt `"wieght"` must not silently
 //! make a soft constraint hard), except `"name"` and `"comment"`, which are
 //! free text and ignored.
@@ -76,14 +80,27 @@ pub enum ConstraintKind {
     },
 }
 
-/// One constraint: its kind and whether it is hard (`weight == None`) or
-/// soft with a weight `w > 0`.
+/// One constraint: its kind, whether it is hard (`weight == None`) or
+/// soft with a weight `w > 0`, and the named group it belongs to, if any.
+///
+/// ```
+/// use lse_deform::Constraint;
+/// let fixed = Constraint::position(0, [0.0, 0.0, 0.0]);
+/// let handle = Constraint::position(7, [1.0, 2.0, 3.0]).in_group("handle");
+/// let soft = Constraint::edge([3, 4], 0.25, [0.0, 1.0, 0.0]).with_weight(10.0);
+/// assert!(fixed.is_hard() && !soft.is_hard());
+/// assert_eq!(handle.group.as_deref(), Some("handle"));
+/// ```
 #[derive(Debug, Clone, PartialEq)]
 pub struct Constraint {
     /// What is constrained.
     pub kind: ConstraintKind,
     /// `None` for a hard constraint, `Some(w)` (finite, > 0) for a soft one.
     pub weight: Option<f64>,
+    /// The named group (a handle, a fixed region) the constraint belongs
+    /// to: groups are moved together
+    /// ([`crate::Deformer::transform_group`]). `"group"` in the JSON format.
+    pub group: Option<String>,
 }
 
 /// A sparse constraint row: up to three `(vertex, coefficient)` pairs.
@@ -203,7 +220,11 @@ impl ConstraintKind {
 impl Constraint {
     /// A hard constraint.
     pub fn hard(kind: ConstraintKind) -> Constraint {
-        Constraint { kind, weight: None }
+        Constraint {
+            kind,
+            weight: None,
+            group: None,
+        }
     }
 
     /// A soft constraint of weight `w`.
@@ -211,7 +232,50 @@ impl Constraint {
         Constraint {
             kind,
             weight: Some(w),
+            group: None,
         }
+    }
+
+    /// Hard `p_vertex = target` (eq. 3).
+    pub fn position(vertex: usize, target: [f64; 3]) -> Constraint {
+        Constraint::hard(ConstraintKind::Position { vertex, target })
+    }
+
+    /// Hard `t p_i + (1−t) p_j = target` (eq. 4), `vertices = [i, j]`.
+    pub fn edge(vertices: [usize; 2], t: f64, target: [f64; 3]) -> Constraint {
+        Constraint::hard(ConstraintKind::Edge {
+            vertices,
+            t,
+            target,
+        })
+    }
+
+    /// Hard `s p_i + t p_j + (1−s−t) p_k = target` (eq. 5),
+    /// `vertices = [i, j, k]`, `barycentric = [s, t]`.
+    pub fn face(vertices: [usize; 3], barycentric: [f64; 2], target: [f64; 3]) -> Constraint {
+        Constraint::hard(ConstraintKind::Face {
+            vertices,
+            barycentric,
+            target,
+        })
+    }
+
+    /// Hard `p_i − p_j = vector` (eq. 6), `vertices = [i, j]`.
+    pub fn relative(vertices: [usize; 2], vector: [f64; 3]) -> Constraint {
+        Constraint::hard(ConstraintKind::Relative { vertices, vector })
+    }
+
+    /// The same constraint made soft with weight `w` (checked when it is
+    /// added to a [`ConstraintSet`]).
+    pub fn with_weight(mut self, w: f64) -> Constraint {
+        self.weight = Some(w);
+        self
+    }
+
+    /// The same constraint in the named group.
+    pub fn in_group(mut self, name: impl Into<String>) -> Constraint {
+        self.group = Some(name.into());
+        self
     }
 
     /// `true` for hard constraints.
@@ -243,11 +307,32 @@ impl ConstraintSet {
         Ok(ConstraintSet { constraints })
     }
 
-    /// Appends a constraint, checking its values.
-    pub fn push(&mut self, c: Constraint) -> Result<(), ConstraintError> {
-        check_values(self.constraints.len(), &c)?;
+    /// Appends a constraint, checking its values; returns its index (the
+    /// index [`crate::Deformer::set_target`] and the report use).
+    pub fn push(&mut self, c: Constraint) -> Result<usize, ConstraintError> {
+        let index = self.constraints.len();
+        check_values(index, &c)?;
         self.constraints.push(c);
-        Ok(())
+        Ok(index)
+    }
+
+    /// The indices of the constraints in group `name`, increasing (empty if
+    /// there is no such group).
+    pub fn group(&self, name: &str) -> Vec<usize> {
+        (0..self.constraints.len())
+            .filter(|&i| self.constraints[i].group.as_deref() == Some(name))
+            .collect()
+    }
+
+    /// The group names, each once, in order of first appearance.
+    pub fn group_names(&self) -> Vec<&str> {
+        let mut names: Vec<&str> = Vec::new();
+        for name in self.constraints.iter().filter_map(|c| c.group.as_deref()) {
+            if !names.contains(&name) {
+                names.push(name);
+            }
+        }
+        names
     }
 
     /// The constraints in priority order.
@@ -523,14 +608,16 @@ fn parse_one(index: usize, item: &Value) -> Result<Constraint, ConstraintError> 
         }
     };
     for key in map.keys() {
-        let known = matches!(key.as_str(), "type" | "weight" | "name" | "comment")
-            || allowed.contains(&key.as_str());
+        let known = matches!(
+            key.as_str(),
+            "type" | "weight" | "group" | "name" | "comment"
+        ) || allowed.contains(&key.as_str());
         if !known {
             return Err(ConstraintError::UnknownField {
                 index,
                 field: key.clone(),
                 kind: ty.to_string(),
-                allowed: format!("type, {}, weight, name, comment", allowed.join(", ")),
+                allowed: format!("type, {}, weight, group, name, comment", allowed.join(", ")),
             });
         }
     }
@@ -542,7 +629,22 @@ fn parse_one(index: usize, item: &Value) -> Result<Constraint, ConstraintError> 
             problem: "must be a number".into(),
         })?),
     };
-    Ok(Constraint { kind, weight })
+    let group = match map.get("group") {
+        None => None,
+        Some(Value::String(name)) => Some(name.clone()),
+        Some(_) => {
+            return Err(ConstraintError::BadField {
+                index,
+                field: "group",
+                problem: "must be a string (the group's name)".into(),
+            });
+        }
+    };
+    Ok(Constraint {
+        kind,
+        weight,
+        group,
+    })
 }
 
 /// Reads a JSON number, accepting the strings "NaN", "inf", "-inf" so that
@@ -668,6 +770,9 @@ fn constraint_to_json(c: &Constraint) -> Value {
     };
     if let (Some(w), Some(map)) = (c.weight, v.as_object_mut()) {
         map.insert("weight".into(), json!(w));
+    }
+    if let (Some(name), Some(map)) = (&c.group, v.as_object_mut()) {
+        map.insert("group".into(), json!(name));
     }
     v
 }

@@ -27,17 +27,16 @@
 
 use std::time::Instant;
 
-use faer::Mat;
+use faer::{Mat, MatMut, MatRef};
 
 use crate::constraints::ConstraintSet;
-use crate::error::{Error, NumericalError, ProblemError};
-use crate::formulation::{
-    FORWARD_ERROR_WARNING, Formulation, Prepared, Refine, RefineStop, refine,
-};
+use crate::error::{ConstraintError, Error, ProblemError};
+use crate::formulation::{Formulation, Prepared, Refine};
 use crate::laplacian::{self, LaplacianKind};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, check_pinned};
-use crate::report::{Report, fill_solution_diagnostics, first_non_finite};
+use crate::report::Report;
+use crate::solver::LseSolver;
 
 /// Deformed positions and the report of how they were obtained.
 #[derive(Debug, Clone)]
@@ -48,30 +47,38 @@ pub struct Solution {
     pub report: Report,
 }
 
-/// A mesh with constraints, ready to be deformed again and again.
+/// A mesh with constraints, ready to be deformed again and again: the mesh
+/// layer (Laplacian, constraint kinds, component checks) over an
+/// [`LseSolver`].
+///
+/// Invariant: `constraints` holds the current targets (those of the
+/// problem), `rest[i]` the rest target of constraint `i` — the one given at
+/// construction or by the last [`Deformer::set_target`],
+/// [`Deformer::set_targets`] or [`Deformer::set_group_targets`];
+/// [`Deformer::transform_group`] moves current targets relative to it.
 ///
 /// **Units.** The problem is assembled on the mesh and targets divided by
 /// the mesh's [`Mesh::length_unit`] (its mean edge length), and the
-/// solution multiplied back: the result does not depend on the units the
-/// mesh is given in (scaled by `s`, it deforms to the same positions scaled
-/// by `s`, with the same rank and the same redundant and conflicting sets),
-/// and no coordinate product overflows for meshes from 1e-300 to 1e300.
+/// solution multiplied back: the result does not depend on the units,
+/// position or orientation the mesh is given in (moved by a similarity, it
+/// deforms to the same positions moved, with the same rank and the same
+/// redundant and conflicting sets), and no coordinate product overflows for
+/// meshes from 1e-300 to 1e300. Targets given to the deformer are in the
+/// mesh's units; [`Deformer::problem`], [`Deformer::solve_matrix`],
+/// [`Deformer::solve_into`] are in the problem's.
 pub struct Deformer {
     mesh: Mesh,
     constraints: ConstraintSet,
-    problem: LseProblem,
-    /// [`Mesh::length_unit`] of `mesh`.
+    rest: Vec<[f64; 3]>,
+    /// [`Mesh::length_unit`] of `mesh`: the problem is in lengths divided
+    /// by it.
     unit: f64,
-    system: Option<Box<dyn Prepared>>,
-    /// `None`: the formulation's default ([`Refine::Auto`] for the exact
-    /// formulations, [`Refine::Off`] for penalty, the classical baseline).
-    refine: Option<Refine>,
-    /// The warnings of set-up (the mesh's).
-    setup_warnings: Vec<String>,
-    /// The warnings of set-up and precompute; each solve adds its own.
-    precompute_warnings: Vec<String>,
-    report: Report,
+    solver: LseSolver,
 }
+
+/// A 3 × 4 affine map `p ↦ M[:, 0..3] p + M[:, 3]`, row-major: the
+/// transform of a group of targets ([`Deformer::transform_group`]).
+pub type Affine = [[f64; 4]; 3];
 
 impl Deformer {
     /// Set-up phase: checks the constraints against the mesh (vertex range,
@@ -101,24 +108,24 @@ impl Deformer {
             unit_constraints.set_rhs(i, [r[0] / unit, r[1] / unit, r[2] / unit])?;
         }
         let problem = LseProblem::new(&l, &delta, &unit_constraints, unit_mesh.bbox_diagonal())?;
-        let warnings: Vec<String> = mesh.warnings().iter().map(|w| w.to_string()).collect();
         let mut report = Report {
             laplacian: Some(laplacian.name().into()),
-            warnings: warnings.clone(),
+            warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
             length_unit: unit,
             ..Report::default()
         };
         report.timings_s.setup = t.elapsed().as_secs_f64();
+        let rest = constraints
+            .as_slice()
+            .iter()
+            .map(|c| c.kind.rhs())
+            .collect();
         Ok(Deformer {
             mesh,
             constraints,
-            problem,
+            rest,
             unit,
-            system: None,
-            refine: None,
-            setup_warnings: warnings.clone(),
-            precompute_warnings: warnings,
-            report,
+            solver: LseSolver::with_report(problem, report),
         })
     }
 
@@ -127,33 +134,17 @@ impl Deformer {
     /// default ([`Refine::Auto`] for the exact formulations, [`Refine::Off`]
     /// for penalty).
     pub fn set_refine(&mut self, refine: Option<Refine>) {
-        self.refine = refine;
+        self.solver.set_refine(refine);
     }
 
     /// The refinement the next solve uses.
     pub fn refine_mode(&self) -> Refine {
-        match (self.refine, &self.system) {
-            (Some(mode), _) => mode,
-            (None, Some(system)) if !system.exact() => Refine::Off,
-            _ => Refine::Auto,
-        }
+        self.solver.refine_mode()
     }
 
     /// Precompute phase: factors the system with `formulation`.
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
-        self.system = None;
-        let mut report = Report {
-            laplacian: self.report.laplacian.clone(),
-            warnings: self.setup_warnings.clone(),
-            length_unit: self.unit,
-            ..Report::default()
-        };
-        report.timings_s.setup = self.report.timings_s.setup;
-        let system = formulation.precompute(&self.problem, &mut report)?;
-        self.system = Some(system);
-        self.precompute_warnings = report.warnings.clone();
-        self.report = report;
-        Ok(())
+        self.solver.precompute(formulation)
     }
 
     /// Solve phase: positions for the current targets, in the mesh's units.
@@ -165,60 +156,164 @@ impl Deformer {
             .collect();
         Ok(Solution {
             positions,
-            report: self.report.clone(),
+            report: self.report().clone(),
         })
     }
 
-    /// Solve phase returning `X` (n × 3) of the assembled problem
-    /// [`Deformer::problem`] — in its units, i.e. the positions divided by
-    /// [`Deformer::length_unit`] ([`Deformer::solve`] gives the positions in
-    /// the mesh's units) — and updating [`Deformer::report`]: the solve, then refinement as
-    /// [`Deformer::refine_mode`] says (its own phase, `timings_s.refine`),
-    /// then the diagnostics. A forward-error estimate above
-    /// [`FORWARD_ERROR_WARNING`] adds a warning to the report (the result is
-    /// still returned: callers that want an error check
-    /// [`Report::forward_error_estimate`]).
+    /// Solve phase returning `X` (n × 3) of the assembled problem — in its
+    /// units, the positions divided by [`Deformer::length_unit`] — after
+    /// refinement ([`Deformer::refine_mode`]), updating
+    /// [`Deformer::report`] with the solution diagnostics, the refinement
+    /// and its warnings.
     pub fn solve_matrix(&mut self) -> Result<Mat<f64>, Error> {
-        let mode = self.refine_mode();
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "solve called before precompute".into(),
-            })?;
-        let t = Instant::now();
-        let mut x = system.solve(&self.problem)?;
-        self.report.timings_s.solve = t.elapsed().as_secs_f64();
-        if let Some(vertex) = first_non_finite(&x) {
-            return Err(NumericalError::NonFiniteSolution { vertex }.into());
-        }
-        let t = Instant::now();
-        let refinement = refine(system.as_mut(), &self.problem, &mut x, mode)?;
-        self.report.timings_s.refine = t.elapsed().as_secs_f64();
-        if let Some(vertex) = first_non_finite(&x) {
-            return Err(NumericalError::NonFiniteSolution { vertex }.into());
-        }
-        let t = Instant::now();
-        let skipped = system.skipped().to_vec();
-        let exact = system.exact();
-        fill_solution_diagnostics(&mut self.report, &self.problem, &x, &skipped, exact);
-        self.report.warnings = self.precompute_warnings.clone();
-        self.report.warnings.extend(refinement_warnings(
-            &refinement,
-            self.report.method.as_str(),
-        ));
-        self.report.forward_error_estimate = Some(refinement.forward_error_estimate);
-        self.report.refinement = Some(refinement);
-        self.report.timings_s.diagnostics = t.elapsed().as_secs_f64();
-        Ok(x)
+        self.solver.solve()
+    }
+
+    /// Solve phase into `x` (n × 3, one row per vertex) without the solution
+    /// diagnostics ([`Deformer::diagnose`] computes them when wanted): the
+    /// call of an interactive loop. With the null-space formulation on the
+    /// faer back ends it allocates nothing. See [`LseSolver::solve_into`].
+    pub fn solve_into(&mut self, x: MatMut<'_, f64>) -> Result<(), Error> {
+        self.solver.solve_into(x)
+    }
+
+    /// Fills the report's solution diagnostics (residuals, redundant and
+    /// conflicting constraints) for `x`, the result of the last solve.
+    pub fn diagnose(&mut self, x: MatRef<'_, f64>) -> &Report {
+        self.solver.diagnose(x)
     }
 
     /// Moves the target of constraint `index` (a position, edge or face
-    /// target, or a relative vector; in the mesh's units). The next
-    /// [`Deformer::solve`] reuses the factorisation.
+    /// target, or a relative vector). The next [`Deformer::solve`] reuses
+    /// the factorisation.
+    /// The rest target becomes `target` too.
     pub fn set_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
+        self.set_targets(&[(index, target)])
+    }
+
+    /// Moves several targets at once (constraint index, new target or
+    /// relative vector), which also become the rest targets. All updates
+    /// are checked first: on error nothing changes.
+    pub fn set_targets(&mut self, updates: &[(usize, [f64; 3])]) -> Result<(), Error> {
+        for &(index, target) in updates {
+            self.check_update(index, target)?;
+        }
+        for &(index, target) in updates {
+            self.write_target(index, target)?;
+            self.rest[index] = target;
+        }
+        Ok(())
+    }
+
+    /// Sets the targets of group `name`, one per member in increasing
+    /// constraint index ([`ConstraintSet::group`]); they become the rest
+    /// targets. On error (unknown group, wrong count, non-finite value)
+    /// nothing changes.
+    pub fn set_group_targets(&mut self, name: &str, targets: &[[f64; 3]]) -> Result<(), Error> {
+        let members = self.group_members(name)?;
+        if members.len() != targets.len() {
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "group '{name}' has {} constraints, {} targets were given",
+                    members.len(),
+                    targets.len()
+                ),
+            }
+            .into());
+        }
+        let updates: Vec<(usize, [f64; 3])> =
+            members.into_iter().zip(targets.iter().copied()).collect();
+        self.set_targets(&updates)
+    }
+
+    /// Applies the affine map `m` (3 × 4, row-major: `p ↦ R p + t` with
+    /// `R = m[:, 0..3]`, `t = m[:, 3]`) to the **rest** targets of group
+    /// `name`: a position, edge or face target `u` becomes `R u + t`, a
+    /// relative vector `v` becomes `R v` (a difference does not
+    /// translate). The rest targets stay, so successive calls with the
+    /// transforms of a dragged handle do not accumulate; the identity puts
+    /// the group back. The next solve reuses the factorisation. On error
+    /// (unknown group, non-finite `m` or result) nothing changes.
+    pub fn transform_group(&mut self, name: &str, m: &Affine) -> Result<(), Error> {
+        if m.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(ProblemError::BadUpdate {
+                message: format!("transform of group '{name}': the matrix has a non-finite entry"),
+            }
+            .into());
+        }
+        let members = self.group_members(name)?;
+        let moved: Vec<(usize, [f64; 3])> = members
+            .into_iter()
+            .map(|i| {
+                let u = self.rest[i];
+                let translate = self.constraints[i].kind.pins_translation();
+                let target = [0, 1, 2].map(|r| {
+                    let linear = m[r][0] * u[0] + m[r][1] * u[1] + m[r][2] * u[2];
+                    if translate { linear + m[r][3] } else { linear }
+                });
+                (i, target)
+            })
+            .collect();
+        for &(index, target) in &moved {
+            self.check_update(index, target)?;
+        }
+        for (index, target) in moved {
+            self.write_target(index, target)?;
+        }
+        Ok(())
+    }
+
+    /// The constraint indices of group `name` (increasing); an error naming
+    /// the groups there are if it has no member.
+    pub fn group_members(&self, name: &str) -> Result<Vec<usize>, Error> {
+        let members = self.constraints.group(name);
+        if members.is_empty() {
+            let names = self.constraints.group_names();
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "there is no constraint group '{name}' (groups: {})",
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            }
+            .into());
+        }
+        Ok(members)
+    }
+
+    /// The rest target of every constraint (see [`Deformer::transform_group`]).
+    pub fn rest_targets(&self) -> &[[f64; 3]] {
+        &self.rest
+    }
+
+    fn check_update(&self, index: usize, target: [f64; 3]) -> Result<(), Error> {
+        if index >= self.rest.len() {
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "constraint {index} does not exist (there are {})",
+                    self.rest.len()
+                ),
+            }
+            .into());
+        }
+        if target.iter().any(|v| !v.is_finite()) {
+            return Err(ConstraintError::NonFinite {
+                index,
+                field: "target",
+            }
+            .into());
+        }
+        Ok(())
+    }
+
+    /// Writes a checked target (in the mesh's units) into the problem (in
+    /// its units) and the constraints.
+    fn write_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
         let u = self.unit;
-        self.problem
+        self.solver
             .set_rhs(index, [target[0] / u, target[1] / u, target[2] / u])?;
         self.constraints.set_rhs(index, target)?;
         Ok(())
@@ -227,24 +322,17 @@ impl Deformer {
     /// Estimates the 2-norm condition number of the matrix the formulation
     /// factored (see [`crate::condition`]) and records it in the report.
     pub fn estimate_condition(&mut self) -> Result<&crate::condition::ConditionEstimate, Error> {
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "estimate_condition called before precompute".into(),
-            })?;
-        let estimate = system.estimate_condition()?;
-        Ok(self.report.condition_estimate.insert(estimate))
+        self.solver.estimate_condition()
     }
 
     /// The prepared system of the last precompute, if any (for export).
     pub fn prepared(&self) -> Option<&dyn Prepared> {
-        self.system.as_deref()
+        self.solver.prepared()
     }
 
     /// The report of the last precompute and solve.
     pub fn report(&self) -> &Report {
-        &self.report
+        self.solver.report()
     }
 
     /// The mesh.
@@ -260,7 +348,7 @@ impl Deformer {
     /// The assembled problem: on the mesh and targets divided by
     /// [`Deformer::length_unit`].
     pub fn problem(&self) -> &LseProblem {
-        &self.problem
+        self.solver.problem()
     }
 
     /// The length the problem's lengths are divided by: the mesh's mean
@@ -268,35 +356,4 @@ impl Deformer {
     pub fn length_unit(&self) -> f64 {
         self.unit
     }
-}
-
-/// The warnings a refinement outcome calls for: an estimated forward error
-/// above [`FORWARD_ERROR_WARNING`], and conflicting hard constraints found
-/// by the method of multipliers.
-pub fn refinement_warnings(r: &crate::formulation::Refinement, method: &str) -> Vec<String> {
-    let mut out = Vec::new();
-    if r.stop_reason == RefineStop::ConflictingConstraints {
-        out.push(format!(
-            "{method}: the multiplier updates stopped after {} steps because the hard-constraint residual stopped shrinking at {:.1e} of the length scale: the hard constraints conflict, and no weight satisfies them all (use nullspace-qr to find which)",
-            r.steps,
-            r.constraint_residuals.last().copied().unwrap_or(f64::NAN)
-        ));
-    }
-    let e = r.forward_error_estimate;
-    if (e.is_nan() || e > FORWARD_ERROR_WARNING)
-        && r.stop_reason != RefineStop::ConflictingConstraints
-    {
-        let how = if r.mode == "off" {
-            "refinement is off; --refine auto would correct it"
-        } else if r.stop_reason == RefineStop::StepLimit {
-            "refinement reached its step limit; allow more steps"
-        } else {
-            "after refinement: the conditioning puts the exact answer out of reach in double precision"
-        };
-        out.push(format!(
-            "{method}: estimated forward error {e:.1e} of the length scale exceeds {FORWARD_ERROR_WARNING:.0e} ({how}; {} refinement steps, stopped: {:?})",
-            r.steps, r.stop_reason
-        ));
-    }
-    out
 }

@@ -30,6 +30,9 @@ pub enum Error {
     /// A factorisation or solve failed numerically.
     #[error(transparent)]
     Numerical(#[from] NumericalError),
+    /// A Matrix Market file is invalid.
+    #[error(transparent)]
+    MatrixFile(#[from] MatrixFileError),
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
     Io {
@@ -395,6 +398,19 @@ pub enum ConstraintError {
     },
 }
 
+/// An invalid Matrix Market file (`crate::mtx`): the file, the 1-based
+/// line where known, and what is wrong there.
+#[derive(Debug, Error, Clone, PartialEq)]
+#[error("{}{}: {message}", path.display(), line.map(|l| format!(", line {l}")).unwrap_or_default())]
+pub struct MatrixFileError {
+    /// The file.
+    pub path: PathBuf,
+    /// 1-based line, if the problem is on one line.
+    pub line: Option<usize>,
+    /// What is wrong.
+    pub message: String,
+}
+
 /// Mesh and constraints that are each valid but do not define a unique
 /// solution. Detected before any factorisation.
 #[derive(Debug, Error, Clone, PartialEq)]
@@ -438,6 +454,46 @@ pub enum ProblemError {
     TooLarge {
         /// The estimate and the limit.
         detail: String,
+    },
+    /// The matrices given to
+    /// [`LseProblem::from_parts`](crate::problem::LseProblem::from_parts)
+    /// do not fit together (or one is empty).
+    #[error("problem matrices: {message}")]
+    Dimensions {
+        /// Which sizes disagree.
+        message: String,
+    },
+    /// An entry of `A`, `B`, `C` or `D` is NaN or infinite.
+    #[error(
+        "problem matrices: {matrix}[{row}, {col}] = {value} is not finite (0-based row and column)"
+    )]
+    NonFiniteEntry {
+        /// `"A"`, `"B"`, `"C"` or `"D"`.
+        matrix: &'static str,
+        /// 0-based row.
+        row: usize,
+        /// 0-based column.
+        col: usize,
+        /// The value.
+        value: f64,
+    },
+    /// A row of `B` has no nonzero coefficient (stored zeros do not count):
+    /// the constraint `0 = d` says nothing about `X`.
+    #[error(
+        "row {row} of B has no nonzero entry: the constraint 0·X = D[{row}, :] says nothing about X; remove it"
+    )]
+    EmptyConstraintRow {
+        /// 0-based row of `B`.
+        row: usize,
+    },
+    /// An unknown appears in no row of `A` or `B` (both columns empty), so
+    /// it is free and the problem has no unique solution.
+    #[error(
+        "unknown {unknown} (row {unknown} of X) appears in no row of A or B (column {unknown} of both is empty): it is free, so the problem has no unique solution"
+    )]
+    UnusedUnknown {
+        /// 0-based unknown (column of `A` and `B`).
+        unknown: usize,
     },
     /// An argument (a fraction, an axis, a method option) is out of range.
     #[error("invalid argument: {message}")]
@@ -526,6 +582,22 @@ pub enum NumericalError {
         estimate: f64,
         /// The largest accepted value.
         tolerance: f64,
+    },
+    /// The matrix a formulation factored for a general problem (one built
+    /// by [`LseProblem::from_parts`](crate::problem::LseProblem::from_parts))
+    /// is singular: an unknown of `X` is not determined by `A` together with
+    /// the kept rows of `B`. (For meshes the same situation is an unpinned
+    /// component, diagnosed before factorising.)
+    #[error(
+        "{matrix} is singular: unknown {unknown} (row {unknown} of X) is free — A together with the kept rows of B does not determine it ({detail})"
+    )]
+    FreeUnknown {
+        /// Which matrix.
+        matrix: String,
+        /// 0-based unknown of `X` named by the failing pivot.
+        unknown: usize,
+        /// What the factorisation saw.
+        detail: String,
     },
     /// The solve produced a non-finite value.
     #[error("solve produced a non-finite position at vertex {vertex}")]

@@ -10,18 +10,11 @@
 //! | `B.mtx` | `B`, hard constraints in priority order (m × n) | `coordinate real general` |
 //! | `D.mtx` | `D` (m × 3) | `array real general` |
 //! | `factored.mtx` | [`Prepared::factored_matrix`], both triangles | `coordinate real general` |
+//! | `meta.json` | [`export_meta`]: method, back ends, weight, Laplacian, KKT multiplier scale, the unknown order of `factored.mtx`, and what `solve` needs to treat the files as the mesh problem they came from (Laplacian rows, length scale) | JSON |
 //!
-//! **Writers.** Sparse matrices go through `sprs`'s Matrix Market writer
-//! (`sprs::io::write_matrix_market_to_bufwrite`, into a buffer we flush
-//! ourselves so that no error is lost), which reports I/O failures as errors
-//! (nalgebra-sparse's file writer `expect`s its final flush, i.e. panics on
-//! a full disk) and prints values with Rust's shortest round-trip decimal
-//! representation, so a file read back gives the same `f64` bit for bit.
-//! Neither crate writes the dense `array` format, which is what makes
-//! `mmread` return a dense array for `C` and `D`; a twenty-line writer
-//! ([`write_dense`]) does, column-major as the format requires, with the
-//! same round-trip formatting (`{:e}`). [`read_dense`] and [`read_sparse`]
-//! read the files back.
+//! The writers and the reader are in [`crate::mtx`] (values in shortest
+//! round-trip form, so a file read back gives the same `f64` bit for bit);
+//! `lse-deform solve` reads a directory written here and solves it.
 //!
 //! The factored matrix is written in full (both triangles, `general`) rather
 //! than as a `symmetric` lower triangle: every reader then gets the matrix
@@ -29,16 +22,13 @@
 //! order is the formulation's own (see [`Prepared::factored_matrix`]); for
 //! KKT the multiplier rows are scaled by [`crate::Report::kkt_multiplier_scale`].
 
-use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
-
-use faer::sparse::{SparseColMat, SparseColMatRef};
-use faer::{Mat, MatRef};
 
 use crate::error::Error;
 use crate::formulation::Prepared;
-use crate::interop::{faer_rows_to_sprs, faer_to_sprs, sprs_to_faer};
+use crate::interop::faer_rows_to_sprs;
+use crate::mtx::write_sprs;
+pub use crate::mtx::{read_dense, read_sparse, write_dense, write_sparse};
 use crate::problem::LseProblem;
 
 /// The paths [`export_problem`] wrote.
@@ -55,20 +45,6 @@ pub struct ExportedFiles {
     /// `factored.mtx`, if a prepared system with a factored matrix was
     /// given.
     pub factored: Option<PathBuf>,
-}
-
-fn invalid(path: &Path, message: impl Into<String>) -> Error {
-    Error::io(
-        path,
-        std::io::Error::new(std::io::ErrorKind::InvalidData, message.into()),
-    )
-}
-
-fn sprs_error(path: &Path, e: sprs::io::IoError) -> Error {
-    match e {
-        sprs::io::IoError::Io(source) => Error::io(path, source),
-        other => invalid(path, format!("Matrix Market: {other}")),
-    }
 }
 
 /// Writes `A`, `C`, `B`, `D` of `problem` and, if given, the matrix
@@ -102,112 +78,131 @@ pub fn export_problem(
     Ok(ExportedFiles { factored, ..files })
 }
 
-/// Writes a sparse matrix as `%%MatrixMarket matrix coordinate real
-/// general` (1-based indices, shortest round-trip values) with `sprs`.
-pub fn write_sparse(path: &Path, m: SparseColMatRef<'_, usize, f64>) -> Result<(), Error> {
-    write_sprs(path, &faer_to_sprs(m))
-}
+/// The file [`export_meta`] writes.
+pub const META_FILE: &str = "meta.json";
 
-/// `sprs`'s writer into our own buffered file, flushed explicitly:
-/// `sprs::io::write_matrix_market` drops its `BufWriter` without flushing,
-/// which would lose an error on the last block (a full disk).
-fn write_sprs(path: &Path, m: &sprs::CsMat<f64>) -> Result<(), Error> {
-    let file = File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut w = BufWriter::new(file);
-    sprs::io::write_matrix_market_to_bufwrite(&mut w, m).map_err(|e| Error::io(path, e))?;
-    w.flush().map_err(|e| Error::io(path, e))
-}
-
-/// Reads a `coordinate` Matrix Market file (real; `general` or
-/// `symmetric`, as `sprs` supports) into a faer CSC matrix; duplicate
-/// entries are summed.
-pub fn read_sparse(path: &Path) -> Result<SparseColMat<usize, f64>, Error> {
-    let tri =
-        sprs::io::read_matrix_market::<f64, usize, _>(path).map_err(|e| sprs_error(path, e))?;
-    let csc: sprs::CsMat<f64> = tri.to_csc();
-    Ok(sprs_to_faer(csc.view()))
-}
-
-/// Writes a dense matrix as `%%MatrixMarket matrix array real general`:
-/// the dimensions, then every entry in column-major order, one per line,
-/// in Rust's shortest round-trip exponent notation.
-pub fn write_dense(path: &Path, m: MatRef<'_, f64>) -> Result<(), Error> {
-    let file = File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut w = BufWriter::new(file);
-    let io = |e| Error::io(path, e);
-    writeln!(w, "%%MatrixMarket matrix array real general").map_err(io)?;
-    writeln!(w, "% written by lse-deform").map_err(io)?;
-    writeln!(w, "{} {}", m.nrows(), m.ncols()).map_err(io)?;
-    for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            writeln!(w, "{:e}", m[(i, j)]).map_err(io)?;
-        }
-    }
-    w.flush().map_err(io)
-}
-
-/// Reads an `array real general` Matrix Market file (as written by
-/// [`write_dense`], or by SciPy's `mmwrite` for a dense array).
-pub fn read_dense(path: &Path) -> Result<Mat<f64>, Error> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut lines = BufReader::new(file).lines().enumerate();
-    let (_, header) = lines.next().ok_or_else(|| invalid(path, "empty file"))?;
-    let header = header.map_err(|e| Error::io(path, e))?.to_ascii_lowercase();
-    let fields: Vec<&str> = header.split_whitespace().collect();
-    if fields.len() != 5
-        || fields[0] != "%%matrixmarket"
-        || fields[1] != "matrix"
-        || fields[2] != "array"
-        || fields[3] != "real"
-        || fields[4] != "general"
-    {
-        return Err(invalid(
-            path,
+/// Writes `meta.json` into `dir`: how the exported problem was set up and
+/// factored, from the `report` of its precompute:
+///
+/// - `method`, `qr_backend`, `spd_backend`, `penalty_weight`, `laplacian`,
+///   `kkt_multiplier_scale` (null where they do not apply);
+/// - `factored_unknowns`: the unknown order of `factored.mtx` in words, and
+///   for elimination `factored_unknown_list`, the unknowns (vertices) in
+///   that order;
+/// - `unknowns` (n), `rhs_columns` (k), `laplacian_rows` (the rows of `A`
+///   that are the Laplacian, before the soft rows), `length_scale` (the
+///   unit of the conflict tolerance), `length_unit` (the mesh length the
+///   problem's lengths are divided by: `X` times it is the deformed
+///   positions, see [`crate::Deformer`]), `constraint_of_b_row` and
+///   `constraint_of_soft_row` (the constraint index of each row of `B` and
+///   of each soft row of `A`).
+///
+/// `lse-deform solve` reads `laplacian_rows` and `length_scale` back
+/// ([`LseProblem::with_laplacian_rows`], [`LseProblem::with_length_scale`]),
+/// so that the files solve to the same positions and the same report as
+/// the mesh problem.
+pub fn export_meta(
+    dir: &Path,
+    problem: &LseProblem,
+    report: &crate::Report,
+) -> Result<PathBuf, Error> {
+    let n = problem.n();
+    let (order, list): (String, Option<Vec<usize>>) = match report.method.as_str() {
+        "nullspace-qr" => (
             format!(
-                "line 1: expected '%%MatrixMarket matrix array real general', found '{header}'"
+                "the free directions z of X = Q[y; z] ({} of them: unknowns minus the rank of B), in the QR back end's order",
+                n - report.rank.unwrap_or(0)
             ),
-        ));
-    }
-    let mut size: Option<(usize, usize)> = None;
-    let mut values = Vec::new();
-    for (number, line) in lines {
-        let line = line.map_err(|e| Error::io(path, e))?;
-        let text = line.trim();
-        if text.is_empty() || text.starts_with('%') {
-            continue;
-        }
-        let bad = |what: &str| invalid(path, format!("line {}: {what}: '{text}'", number + 1));
-        match size {
-            None => {
-                let dims: Vec<usize> = text
-                    .split_whitespace()
-                    .map(|t| t.parse::<usize>())
-                    .collect::<Result<_, _>>()
-                    .map_err(|_| bad("expected the dimensions 'rows cols'"))?;
-                if dims.len() != 2 {
-                    return Err(bad("expected the dimensions 'rows cols'"));
-                }
-                let total = dims[0]
-                    .checked_mul(dims[1])
-                    .ok_or_else(|| bad("dimensions overflow"))?;
-                values.reserve(total.min(1 << 24));
-                size = Some((dims[0], dims[1]));
+            None,
+        ),
+        "penalty" => (format!("the unknowns 0..{n} (vertices for a mesh)"), None),
+        "elimination" => {
+            let mut fixed = vec![false; n];
+            for &j in problem.b().symbolic().col_idx() {
+                fixed[j] = true;
             }
-            Some((r, c)) => {
-                if values.len() == r * c {
-                    return Err(bad("more values than rows × cols"));
-                }
-                let v: f64 = text.parse().map_err(|_| bad("expected one real value"))?;
-                values.push(v);
-            }
+            (
+                "the unknowns not fixed by a hard row, increasing (factored_unknown_list)".into(),
+                Some((0..n).filter(|&j| !fixed[j]).collect()),
+            )
+        }
+        "kkt" => (
+            format!(
+                "the unknowns 0..{n}, then the multipliers of the {} rows of B divided by kkt_multiplier_scale (rows and columns n.. scaled by it)",
+                problem.b().nrows()
+            ),
+            None,
+        ),
+        other => (format!("unknown for method '{other}'"), None),
+    };
+    let meta = serde_json::json!({
+        "format": "lse-deform export-system",
+        "method": report.method,
+        "qr_backend": report.qr_backend,
+        "spd_backend": report.spd_backend,
+        "penalty_weight": report.penalty_weight,
+        "laplacian": report.laplacian,
+        "kkt_multiplier_scale": report.kkt_multiplier_scale,
+        "factored_unknowns": order,
+        "factored_unknown_list": list,
+        "unknowns": n,
+        "rhs_columns": problem.n_rhs(),
+        "laplacian_rows": problem.n_laplacian_rows(),
+        "length_scale": problem.length_scale(),
+        "length_unit": report.length_unit,
+        "constraint_of_b_row": problem.hard_constraints(),
+        "constraint_of_soft_row": problem.soft_constraints().iter().map(|s| s.0).collect::<Vec<_>>(),
+    });
+    let path = dir.join(META_FILE);
+    let text = serde_json::to_string_pretty(&meta).map_err(|e| Error::io(&path, e.into()))?;
+    std::fs::write(&path, text + "\n").map_err(|e| Error::io(&path, e))?;
+    Ok(path)
+}
+
+/// What `lse-deform solve` takes from a `meta.json`: the Laplacian rows and
+/// the length scale (either may be absent).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ProblemMeta {
+    /// `laplacian_rows`.
+    pub laplacian_rows: Option<usize>,
+    /// `length_scale`.
+    pub length_scale: Option<f64>,
+}
+
+/// Reads the fields of [`ProblemMeta`] from a `meta.json`; a file that is
+/// not JSON, or a field of the wrong type, is an error naming the file.
+pub fn read_meta(path: &Path) -> Result<ProblemMeta, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bad = |message: String| -> Error {
+        crate::error::MatrixFileError {
+            path: path.to_path_buf(),
+            line: None,
+            message,
+        }
+        .into()
+    };
+    let value: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
+    let mut meta = ProblemMeta::default();
+    match value.get("laplacian_rows") {
+        None | Some(serde_json::Value::Null) => {}
+        Some(v) => {
+            meta.laplacian_rows = Some(
+                v.as_u64()
+                    .and_then(|u| usize::try_from(u).ok())
+                    .ok_or_else(|| bad("'laplacian_rows' must be a non-negative integer".into()))?,
+            )
         }
     }
-    let (r, c) = size.ok_or_else(|| invalid(path, "no dimension line"))?;
-    if values.len() != r * c {
-        return Err(invalid(
-            path,
-            format!("{} values for a {r} × {c} matrix", values.len()),
-        ));
+    match value.get("length_scale") {
+        None | Some(serde_json::Value::Null) => {}
+        Some(v) => {
+            meta.length_scale = Some(
+                v.as_f64()
+                    .filter(|s| s.is_finite() && *s > 0.0)
+                    .ok_or_else(|| bad("'length_scale' must be a finite number > 0".into()))?,
+            )
+        }
     }
-    Ok(Mat::from_fn(r, c, |i, j| values[j * r + i]))
+    Ok(meta)
 }

@@ -14,7 +14,9 @@
 //! Module map: [`mesh`] (types, I/O, validation, generators) →
 //! [`laplacian`] → [`constraints`] → [`problem`] (assembly of `A, C, B, D`)
 //! → [`formulation`] (the paper's method and its alternatives) over
-//! [`backend`] (QR and SPD traits) → [`deform`] (the three-phase API) and
+//! [`backend`] (QR and SPD traits) → [`solver`] (precompute and solve of
+//! any problem, including general ones from their matrices) → [`deform`]
+//! (the three-phase mesh API) and
 //! [`report`]; [`condition`] (condition-number estimates of the factored
 //! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
 //! [`interop`] (conversions to `sprs` and `nalgebra-sparse`).
@@ -34,10 +36,12 @@ pub mod interop;
 pub mod laplacian;
 pub mod limits;
 pub mod mesh;
+pub mod mtx;
 pub mod normal;
 pub mod problem;
 pub mod report;
 pub mod scene;
+pub mod solver;
 
 pub use constraints::{Constraint, ConstraintKind, ConstraintSet};
 pub use deform::{Deformer, Solution};
@@ -46,3 +50,4 @@ pub use formulation::{Elimination, Formulation, Kkt, NullSpaceQr, Penalty, Penal
 pub use laplacian::LaplacianKind;
 pub use mesh::Mesh;
 pub use report::Report;
+pub use solver::LseSolver;

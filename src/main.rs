@@ -11,10 +11,11 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use lse_deform::constraints::read_constraints;
-use lse_deform::export::export_problem;
+use lse_deform::export::{META_FILE, export_meta, export_problem, read_meta};
 use lse_deform::mesh::{self, Quality, Topology, generate};
+use lse_deform::problem::LseProblem;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, Error, LaplacianKind, backend, formulation};
+use lse_deform::{Deformer, Error, LaplacianKind, LseSolver, Report, backend, formulation, mtx};
 
 #[derive(Parser)]
 #[command(
@@ -41,8 +42,11 @@ enum Command {
     /// Write a constraints file that fixes the bottom of a mesh and drags a
     /// handle at its top.
     Scene(SceneArgs),
-    /// Write A, C, B, D and the factored matrix in Matrix Market format.
+    /// Write A, C, B, D, the factored matrix (Matrix Market) and meta.json.
     ExportSystem(ExportArgs),
+    /// Solve min ‖AX − C‖ s.t. BX = D for matrices in Matrix Market files
+    /// (a directory as export-system writes it, or --a/--c/--b/--d).
+    Solve(SolveArgs),
     /// Run every formulation on every back end on one problem and print a
     /// table (precompute, solve, constraint residual, condition).
     Compare(CompareArgs),
@@ -90,6 +94,41 @@ struct ExportArgs {
     /// Output directory.
     #[arg(long, short = 'o')]
     output: PathBuf,
+}
+
+#[derive(Args)]
+struct SolveArgs {
+    /// Directory holding A.mtx, C.mtx, B.mtx, D.mtx (and meta.json), as
+    /// export-system writes it.
+    dir: Option<PathBuf>,
+    /// A (l × n, sparse); default DIR/A.mtx.
+    #[arg(long)]
+    a: Option<PathBuf>,
+    /// C (l × k, dense); default DIR/C.mtx.
+    #[arg(long)]
+    c: Option<PathBuf>,
+    /// B (m × n, sparse, one hard constraint per row in priority order);
+    /// default DIR/B.mtx.
+    #[arg(long)]
+    b: Option<PathBuf>,
+    /// D (m × k, dense); default DIR/D.mtx.
+    #[arg(long)]
+    d: Option<PathBuf>,
+    /// meta.json of export-system (Laplacian rows, length scale); default
+    /// DIR/meta.json when it exists.
+    #[arg(long)]
+    meta: Option<PathBuf>,
+    #[command(flatten)]
+    method: MethodArgs,
+    /// Output: X (n × k) as a dense Matrix Market file.
+    #[arg(long, short = 'o')]
+    output: PathBuf,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Estimate the condition number of the factored matrix.
+    #[arg(long)]
+    condition: bool,
 }
 
 #[derive(Args)]
@@ -272,6 +311,7 @@ fn main() -> ExitCode {
         Command::Info(a) => info(a),
         Command::Scene(a) => scene(a),
         Command::ExportSystem(a) => export_system(a),
+        Command::Solve(a) => solve(a),
         Command::Compare(a) => compare(a),
     };
     match result {
@@ -331,16 +371,126 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
     bar.set_message("solve");
     let solution = deformer.solve()?;
     bar.finish_and_clear();
-    let report = &solution.report;
-    let estimate = report.forward_error_estimate.unwrap_or(0.0);
-    if a.strict && (estimate.is_nan() || estimate > formulation::FORWARD_ERROR_WARNING) {
-        return Err(lse_deform::error::NumericalError::LostAccuracy {
-            matrix: format!("{} (--strict)", report.method),
-            estimate,
-            tolerance: formulation::FORWARD_ERROR_WARNING,
+    check_strict(&solution.report, a.strict)?;
+    let out = deformer.mesh().with_positions(solution.positions)?;
+    mesh::write_mesh(&out, &a.output)?;
+    finish_report(
+        &solution.report,
+        a.report.as_deref(),
+        "vertices",
+        "constraints",
+    )
+}
+
+fn export_system(a: ExportArgs) -> Result<(), Error> {
+    let mesh = load(&a.mesh)?;
+    let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
+    let m = &a.method;
+    let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
+    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    deformer.precompute(formulation.as_ref())?;
+    let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
+    let meta = export_meta(&a.output, deformer.problem(), deformer.report())?;
+    eprintln!(
+        "wrote {}, {}, {}, {}, {}{}",
+        files.a.display(),
+        files.c.display(),
+        files.b.display(),
+        files.d.display(),
+        meta.display(),
+        files
+            .factored
+            .map(|f| format!(
+                " and {} (the matrix {} factors)",
+                f.display(),
+                formulation.name()
+            ))
+            .unwrap_or_default()
+    );
+    Ok(())
+}
+
+/// The path of one of `solve`'s matrices: the flag, else `DIR/NAME`.
+fn matrix_path(
+    flag: &Option<PathBuf>,
+    dir: &Option<PathBuf>,
+    name: &str,
+) -> Result<PathBuf, Error> {
+    match (flag, dir) {
+        (Some(p), _) => Ok(p.clone()),
+        (None, Some(d)) => Ok(d.join(name)),
+        (None, None) => Err(lse_deform::error::ProblemError::InvalidArgument {
+            message: format!(
+                "no {name}: give a directory or --{}",
+                name.trim_end_matches(".mtx").to_lowercase()
+            ),
         }
-        .into());
+        .into()),
     }
+}
+
+fn solve(a: SolveArgs) -> Result<(), Error> {
+    let path = |flag: &Option<PathBuf>, name: &str| matrix_path(flag, &a.dir, name);
+    let (pa, pc, pb, pd) = (
+        path(&a.a, "A.mtx")?,
+        path(&a.c, "C.mtx")?,
+        path(&a.b, "B.mtx")?,
+        path(&a.d, "D.mtx")?,
+    );
+    let m = &a.method;
+    let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
+    let meta_path = a.meta.clone().or_else(|| {
+        a.dir
+            .as_ref()
+            .map(|d| d.join(META_FILE))
+            .filter(|p| p.exists())
+    });
+    let meta = meta_path
+        .as_deref()
+        .map(read_meta)
+        .transpose()?
+        .unwrap_or_default();
+    let bar = phase("reading the matrices");
+    let t = std::time::Instant::now();
+    let (ma, mc) = (mtx::read_sparse(&pa)?, mtx::read_dense(&pc)?);
+    let (mb, md) = (mtx::read_sparse(&pb)?, mtx::read_dense(&pd)?);
+    let mut problem = LseProblem::from_parts(ma.as_ref(), mc.as_ref(), mb.as_ref(), md.as_ref())?;
+    if let Some(rows) = meta.laplacian_rows {
+        problem = problem.with_laplacian_rows(rows);
+    }
+    if let Some(scale) = meta.length_scale {
+        problem = problem.with_length_scale(scale);
+    }
+    let mut base = Report::default();
+    base.timings_s.setup = t.elapsed().as_secs_f64();
+    let mut solver = LseSolver::with_report(problem, base);
+    solver.set_refine(m.refine);
+    bar.set_message(format!("precompute ({})", formulation.name()));
+    solver.precompute(formulation.as_ref())?;
+    if a.condition {
+        bar.set_message("condition estimate (Lanczos)");
+        solver.estimate_condition()?;
+    }
+    bar.set_message("solve");
+    let x = solver.solve()?;
+    bar.finish_and_clear();
+    mtx::write_dense(&a.output, x.as_ref())?;
+    finish_report(
+        solver.report(),
+        a.report.as_deref(),
+        "unknowns",
+        "rows of B",
+    )
+}
+
+/// Conflict warnings, the `--report` file and the summary line of
+/// `deform` and `solve`.
+fn finish_report(
+    report: &Report,
+    path: Option<&Path>,
+    unknowns: &str,
+    constraints: &str,
+) -> Result<(), Error> {
     for c in &report.conflicting {
         eprintln!(
             "warning: constraint {} conflicts with earlier constraints and was dropped (residual {:.3e})",
@@ -350,18 +500,31 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
-    let out = deformer.mesh().with_positions(solution.positions)?;
-    mesh::write_mesh(&out, &a.output)?;
-    if let Some(path) = &a.report {
+    if let Some(path) = path {
         let json = serde_json::to_string_pretty(report).map_err(|e| Error::io(path, e.into()))?;
         std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
     }
-    eprintln!("{}", summary_line(report));
+    eprintln!("{}", summary_line(report, unknowns, constraints));
     Ok(())
 }
 
-/// The one-line summary of a deformation on stderr.
-fn summary_line(report: &lse_deform::Report) -> String {
+/// `--strict`: an estimated forward error above the warning threshold is
+/// an error (exit 3) before anything is written.
+fn check_strict(report: &Report, strict: bool) -> Result<(), Error> {
+    let estimate = report.forward_error_estimate.unwrap_or(0.0);
+    if strict && (estimate.is_nan() || estimate > formulation::FORWARD_ERROR_WARNING) {
+        return Err(lse_deform::error::NumericalError::LostAccuracy {
+            matrix: format!("{} (--strict)", report.method),
+            estimate,
+            tolerance: formulation::FORWARD_ERROR_WARNING,
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// The one-line summary of a deformation or solve on stderr.
+fn summary_line(report: &Report, unknowns: &str, constraints: &str) -> String {
     let t = &report.timings_s;
     let rank = report
         .rank
@@ -387,7 +550,7 @@ fn summary_line(report: &lse_deform::Report) -> String {
         })
         .unwrap_or_default();
     format!(
-        "{}: {} vertices, {rank}{} hard constraints ({dependence}), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s{refinement}{}",
+        "{}: {} {unknowns}, {rank}{} hard {constraints} ({dependence}), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s{refinement}{}",
         report.method,
         report.vertices,
         report.hard_constraints,
@@ -401,32 +564,6 @@ fn summary_line(report: &lse_deform::Report) -> String {
             .map(|c| format!(", condition ~{:.2e}", c.value))
             .unwrap_or_default()
     )
-}
-
-fn export_system(a: ExportArgs) -> Result<(), Error> {
-    let mesh = load(&a.mesh)?;
-    let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
-    let m = &a.method;
-    let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
-    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    deformer.precompute(formulation.as_ref())?;
-    let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
-    eprintln!(
-        "wrote {}, {}, {}, {}{}",
-        files.a.display(),
-        files.c.display(),
-        files.b.display(),
-        files.d.display(),
-        files
-            .factored
-            .map(|f| format!(
-                " and {} (the matrix {} factors)",
-                f.display(),
-                formulation.name()
-            ))
-            .unwrap_or_default()
-    );
-    Ok(())
 }
 
 /// One row of `compare`.

@@ -1,13 +1,26 @@
 //! The constrained least-squares problem (paper eq. 11):
-//! `min ‖A X − C‖  subject to  B X = D`, three right-hand sides together.
+//! `min ‖A X − C‖  subject to  B X = D`, all right-hand sides together.
 //!
-//! `A = [L; w·B_soft]` (l × n) and `C = [δ; w·D_soft]` (l × 3): the Laplacian
-//! rows first, then one row per soft constraint scaled by its weight. `B`
-//! (m × n) and `D` (m × 3) hold the hard constraints, one row each, in the
-//! constraints' list order (their priority).
+//! Two ways in:
+//! - [`LseProblem::new`], a mesh: `A = [L; w·B_soft]` (l × n) and
+//!   `C = [δ; w·D_soft]` (l × 3): the Laplacian rows first, then one row per
+//!   soft constraint scaled by its weight. `B` (m × n) and `D` (m × 3) hold
+//!   the hard constraints, one row each, in the constraints' list order
+//!   (their priority).
+//! - [`LseProblem::from_parts`], any sparse `A` (l × n) and `B` (m × n) with
+//!   dense `C` (l × k) and `D` (m × k), `k ≥ 1`: the rows of `B` are the
+//!   hard constraints in priority order (constraint `i` is row `i`), every
+//!   row of `A` is an energy row.
+//!
+//! The formulations solve three right-hand-side columns at a time
+//! ([`RHS_BLOCK`]); [`crate::solver::LseSolver`] splits other `k` into
+//! blocks of three.
 
-use faer::Mat;
-use faer::sparse::{SparseColMat, SparseRowMat, SymbolicSparseColMat, SymbolicSparseRowMat};
+use faer::sparse::{
+    SparseColMat, SparseColMatRef, SparseRowMat, SymbolicSparseColMat, SymbolicSparseRowMat,
+    Triplet,
+};
+use faer::{Mat, MatRef};
 
 use crate::constraints::ConstraintSet;
 use crate::error::{ConstraintError, Error, ProblemError};
@@ -33,9 +46,77 @@ pub struct LseProblem {
     hard: Vec<usize>,
     soft: Vec<(usize, f64)>,
     length_scale: f64,
+    general: bool,
 }
 
+/// The number of right-hand-side columns a formulation's
+/// [`Prepared::solve`](crate::formulation::Prepared::solve) works on: the
+/// x, y and z coordinates of a mesh. Problems with another number of
+/// columns are solved in blocks of this many by
+/// [`crate::solver::LseSolver`].
+pub const RHS_BLOCK: usize = 3;
+
 impl LseProblem {
+    /// A general problem `min ‖A X − C‖ s.t. B X = D` from its matrices:
+    /// `A` (l × n) and `B` (m × n) sparse, `C` (l × k) and `D` (m × k)
+    /// dense, `k ≥ 1`, `n ≥ 1`; `l` or `m` may be zero. Row `i` of `B` is
+    /// hard constraint `i` (list order = priority: of two dependent rows the
+    /// earlier is kept).
+    ///
+    /// The matrices are copied into canonical form: duplicate entries
+    /// summed, row indices sorted; stored zeros are kept in `A` (they are
+    /// harmless) and dropped from `B` (so that a row's entries are its
+    /// coefficients). Checks, each a [`ProblemError`] naming the place:
+    /// shapes ([`ProblemError::Dimensions`]), NaN or infinite entries
+    /// ([`ProblemError::NonFiniteEntry`], matrix, row and column), rows of
+    /// `B` without a nonzero ([`ProblemError::EmptyConstraintRow`]) and
+    /// unknowns in no row of `A` or `B` ([`ProblemError::UnusedUnknown`]).
+    /// Other rank deficiencies are found by the factorisation
+    /// ([`crate::error::NumericalError::FreeUnknown`]).
+    ///
+    /// The length scale of the conflict tolerance
+    /// ([`LseProblem::length_scale`]) is the largest `|D_ij|` (1 when `D`
+    /// is zero or empty); [`LseProblem::with_length_scale`] overrides it.
+    pub fn from_parts(
+        a: SparseColMatRef<'_, usize, f64>,
+        c: MatRef<'_, f64>,
+        b: SparseColMatRef<'_, usize, f64>,
+        d: MatRef<'_, f64>,
+    ) -> Result<LseProblem, ProblemError> {
+        check_shapes(a, c, b, d)?;
+        check_dense_finite("C", c)?;
+        check_dense_finite("D", d)?;
+        let a = canonical_csc("A", a, true)?;
+        let b_csc = canonical_csc("B", b, false)?;
+        let b = csc_to_csr(b_csc.as_ref());
+        let (l, n, m) = (a.nrows(), a.ncols(), b.nrows());
+        if let Some(row) = (0..m).find(|&k| b.symbolic().row_range(k).is_empty()) {
+            return Err(ProblemError::EmptyConstraintRow { row });
+        }
+        let a_ptr = a.symbolic().col_ptr();
+        let b_ptr = b_csc.symbolic().col_ptr();
+        if let Some(unknown) =
+            (0..n).find(|&j| a_ptr[j] == a_ptr[j + 1] && b_ptr[j] == b_ptr[j + 1])
+        {
+            return Err(ProblemError::UnusedUnknown { unknown });
+        }
+        let max_d = (0..d.ncols())
+            .flat_map(|j| (0..d.nrows()).map(move |i| (i, j)))
+            .fold(0.0f64, |acc, (i, j)| acc.max(d[(i, j)].abs()));
+        Ok(LseProblem {
+            a,
+            c: c.to_owned(),
+            b,
+            d: d.to_owned(),
+            n_laplacian_rows: l,
+            places: (0..m).map(RowPlace::Hard).collect(),
+            hard: (0..m).collect(),
+            soft: Vec::new(),
+            length_scale: if max_d > 0.0 { max_d } else { 1.0 },
+            general: true,
+        })
+    }
+
     /// Assembles `A, C, B, D` from a Laplacian `l` (n × n), the Laplacian
     /// coordinates `delta = L P` (n × 3) and the constraints (whose vertices
     /// must be `< n`). `length_scale` (the mesh's bounding-box diagonal) is
@@ -141,6 +222,7 @@ impl LseProblem {
             hard,
             soft,
             length_scale,
+            general: false,
         };
         for (i, c) in constraints.as_slice().iter().enumerate() {
             problem.write_rhs(i, c.kind.rhs());
@@ -177,6 +259,15 @@ impl LseProblem {
             }
             .into());
         }
+        if self.c.ncols() != RHS_BLOCK {
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "a 3-vector target needs a problem with 3 right-hand-side columns, this one has {} (use set_rhs_matrices)",
+                    self.c.ncols()
+                ),
+            }
+            .into());
+        }
         if value.iter().any(|v| !v.is_finite()) {
             return Err(ConstraintError::NonFinite {
                 index,
@@ -188,12 +279,87 @@ impl LseProblem {
         Ok(())
     }
 
+    /// Replaces `C` and `D` (same shapes, finite entries); the matrices stay,
+    /// so a prepared system re-solves without refactoring. On error nothing
+    /// changes.
+    pub fn set_rhs_matrices(
+        &mut self,
+        c: MatRef<'_, f64>,
+        d: MatRef<'_, f64>,
+    ) -> Result<(), Error> {
+        let same = |m: MatRef<'_, f64>, old: &Mat<f64>| {
+            m.nrows() == old.nrows() && m.ncols() == old.ncols()
+        };
+        if !same(c, &self.c) || !same(d, &self.d) {
+            return Err(ProblemError::Dimensions {
+                message: format!(
+                    "new C is {} × {} and D {} × {}, expected {} × {} and {} × {}",
+                    c.nrows(),
+                    c.ncols(),
+                    d.nrows(),
+                    d.ncols(),
+                    self.c.nrows(),
+                    self.c.ncols(),
+                    self.d.nrows(),
+                    self.d.ncols()
+                ),
+            }
+            .into());
+        }
+        check_dense_finite("C", c)?;
+        check_dense_finite("D", d)?;
+        self.c.copy_from(c);
+        self.d.copy_from(d);
+        Ok(())
+    }
+
+    /// Swaps `C` and `D` with the given matrices (for solving a block of
+    /// columns at a time; the caller swaps back).
+    pub(crate) fn swap_rhs(&mut self, c: &mut Mat<f64>, d: &mut Mat<f64>) {
+        std::mem::swap(&mut self.c, c);
+        std::mem::swap(&mut self.d, d);
+    }
+
+    /// Sets the length unit of absolute constraint tolerances (see
+    /// [`LseProblem::length_scale`]); non-finite or non-positive values are
+    /// ignored.
+    pub fn with_length_scale(mut self, scale: f64) -> LseProblem {
+        if scale.is_finite() && scale > 0.0 {
+            self.length_scale = scale;
+        }
+        self
+    }
+
+    /// Declares the first `rows` rows of `A` to be the Laplacian (the rows
+    /// whose null space is the translations of mesh components) and the
+    /// rest soft constraint rows, as [`LseProblem::new`] assembles them:
+    /// what `export-system` records in `meta.json`, so that a problem read
+    /// back from files is ordered for KKT exactly as the mesh problem was.
+    /// Ignored when `rows > l`.
+    pub fn with_laplacian_rows(mut self, rows: usize) -> LseProblem {
+        if rows <= self.a.nrows() {
+            self.n_laplacian_rows = rows;
+        }
+        self
+    }
+
+    /// `true` for a problem built by [`LseProblem::from_parts`] (no mesh:
+    /// errors name unknowns, not vertices or components).
+    pub fn is_general(&self) -> bool {
+        self.general
+    }
+
+    /// `k`, the number of right-hand-side columns of `C` and `D`.
+    pub fn n_rhs(&self) -> usize {
+        self.c.ncols()
+    }
+
     /// `A` (l × n).
     pub fn a(&self) -> &SparseColMat<usize, f64> {
         &self.a
     }
 
-    /// `C` (l × 3).
+    /// `C` (l × k).
     pub fn c(&self) -> &Mat<f64> {
         &self.c
     }
@@ -203,12 +369,12 @@ impl LseProblem {
         &self.b
     }
 
-    /// `D` (m × 3).
+    /// `D` (m × k).
     pub fn d(&self) -> &Mat<f64> {
         &self.d
     }
 
-    /// Number of unknowns `n` (vertices).
+    /// Number of unknowns `n` (vertices, for a mesh).
     pub fn n(&self) -> usize {
         self.a.ncols()
     }
@@ -238,13 +404,14 @@ impl LseProblem {
         self.length_scale
     }
 
-    /// Euclidean norm of the residual `b_k·X − d_k` of hard row `k`.
+    /// Euclidean norm of the residual `b_k·X − d_k` of hard row `k` (over
+    /// all `k` columns).
     pub fn hard_residual(&self, k: usize, x: &Mat<f64>) -> f64 {
         let range = self.b.symbolic().row_range(k);
         let cols = &self.b.symbolic().col_idx()[range.clone()];
         let vals = &self.b.val()[range];
         let mut s = 0.0;
-        for c in 0..3 {
+        for c in 0..self.d.ncols() {
             let mut r = -self.d[(k, c)];
             for (&v, &a) in cols.iter().zip(vals) {
                 r += a * x[(v, c)];
@@ -280,6 +447,151 @@ impl LseProblem {
         }
         out
     }
+}
+
+/// Shapes of [`LseProblem::from_parts`]'s inputs.
+fn check_shapes(
+    a: SparseColMatRef<'_, usize, f64>,
+    c: MatRef<'_, f64>,
+    b: SparseColMatRef<'_, usize, f64>,
+    d: MatRef<'_, f64>,
+) -> Result<(), ProblemError> {
+    let dims = |message: String| Err(ProblemError::Dimensions { message });
+    let shape = |r: usize, c: usize| format!("{r} × {c}");
+    let all = format!(
+        "A is {}, C {}, B {}, D {}",
+        shape(a.nrows(), a.ncols()),
+        shape(c.nrows(), c.ncols()),
+        shape(b.nrows(), b.ncols()),
+        shape(d.nrows(), d.ncols())
+    );
+    if a.ncols() == 0 {
+        return dims(format!("no unknowns ({all})"));
+    }
+    if b.ncols() != a.ncols() {
+        return dims(format!(
+            "A and B must have the same number of columns (unknowns): {all}"
+        ));
+    }
+    if c.nrows() != a.nrows() {
+        return dims(format!("C must have as many rows as A: {all}"));
+    }
+    if d.nrows() != b.nrows() {
+        return dims(format!("D must have as many rows as B: {all}"));
+    }
+    if c.ncols() != d.ncols() {
+        return dims(format!(
+            "C and D must have the same number of columns (right-hand sides): {all}"
+        ));
+    }
+    if c.ncols() == 0 {
+        return dims(format!("C and D need at least one column: {all}"));
+    }
+    if a.nrows() + b.nrows() == 0 {
+        return dims(format!("A and B have no rows: {all}"));
+    }
+    Ok(())
+}
+
+/// The first non-finite entry of a dense matrix as an error.
+fn check_dense_finite(matrix: &'static str, m: MatRef<'_, f64>) -> Result<(), ProblemError> {
+    for col in 0..m.ncols() {
+        for row in 0..m.nrows() {
+            let value = m[(row, col)];
+            if !value.is_finite() {
+                return Err(ProblemError::NonFiniteEntry {
+                    matrix,
+                    row,
+                    col,
+                    value,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A copy of `m` in canonical CSC form (compact column pointers, sorted
+/// rows, duplicates summed), refusing non-finite entries; stored zeros are
+/// kept when `keep_zeros`, dropped otherwise.
+fn canonical_csc(
+    matrix: &'static str,
+    m: SparseColMatRef<'_, usize, f64>,
+    keep_zeros: bool,
+) -> Result<SparseColMat<usize, f64>, ProblemError> {
+    let mut triplets = Vec::with_capacity(m.compute_nnz());
+    for col in 0..m.ncols() {
+        let range = m.symbolic().col_range(col);
+        let rows = &m.symbolic().row_idx()[range.clone()];
+        for (&row, &value) in rows.iter().zip(&m.val()[range]) {
+            if !value.is_finite() {
+                return Err(ProblemError::NonFiniteEntry {
+                    matrix,
+                    row,
+                    col,
+                    value,
+                });
+            }
+            triplets.push(Triplet::new(row, col, value));
+        }
+    }
+    let summed =
+        SparseColMat::try_new_from_triplets(m.nrows(), m.ncols(), &triplets).map_err(|e| {
+            ProblemError::Dimensions {
+                message: format!("{matrix}: {e:?}"),
+            }
+        })?;
+    if keep_zeros {
+        return Ok(summed);
+    }
+    let (ptr, rows, val) = (
+        summed.symbolic().col_ptr(),
+        summed.symbolic().row_idx(),
+        summed.val(),
+    );
+    let mut col_ptr = Vec::with_capacity(m.ncols() + 1);
+    col_ptr.push(0);
+    let (mut out_rows, mut out_vals) = (Vec::new(), Vec::new());
+    for j in 0..m.ncols() {
+        for p in ptr[j]..ptr[j + 1] {
+            if val[p] != 0.0 {
+                out_rows.push(rows[p]);
+                out_vals.push(val[p]);
+            }
+        }
+        col_ptr.push(out_rows.len());
+    }
+    Ok(SparseColMat::new(
+        SymbolicSparseColMat::new_checked(m.nrows(), m.ncols(), col_ptr, None, out_rows),
+        out_vals,
+    ))
+}
+
+/// The CSR copy (sorted columns) of a canonical CSC matrix.
+fn csc_to_csr(m: SparseColMatRef<'_, usize, f64>) -> SparseRowMat<usize, f64> {
+    let (ptr, rows, val) = (m.symbolic().col_ptr(), m.symbolic().row_idx(), m.val());
+    let mut row_ptr = vec![0usize; m.nrows() + 1];
+    for &r in rows {
+        row_ptr[r + 1] += 1;
+    }
+    for r in 0..m.nrows() {
+        row_ptr[r + 1] += row_ptr[r];
+    }
+    let mut fill = row_ptr.clone();
+    let mut cols = vec![0usize; rows.len()];
+    let mut vals = vec![0.0; rows.len()];
+    for j in 0..m.ncols() {
+        for p in ptr[j]..ptr[j + 1] {
+            let r = rows[p];
+            cols[fill[r]] = j;
+            vals[fill[r]] = val[p];
+            fill[r] += 1;
+        }
+    }
+    SparseRowMat::new(
+        SymbolicSparseRowMat::new_checked(m.nrows(), m.ncols(), row_ptr, None, cols),
+        vals,
+    )
 }
 
 /// Checks that no connected component of the mesh is free to translate.

@@ -97,6 +97,7 @@ impl FixedAndHandle {
             list.push(Constraint {
                 kind,
                 weight: self.handle_weight,
+                group: None,
             });
         }
         Ok(ConstraintSet::from_vec(list)?)

@@ -188,3 +188,207 @@ fn bad_inputs_are_one_line_errors() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// `export-system` then `solve` reproduces `deform`: same positions to
+/// 1e-12 relative and the same redundant and conflicting constraints, for
+/// every method that applies to a mixed scene.
+#[test]
+fn export_system_then_solve_reproduces_deform() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = p(dir.path(), "sphere.obj");
+    let o = run(&[
+        "generate",
+        "bumpy-sphere",
+        "--vertices",
+        "1500",
+        "-o",
+        &mesh,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = p(dir.path(), "scene.json");
+    let o = run(&[
+        "scene",
+        &mesh,
+        "--relative",
+        "4",
+        "--edges",
+        "3",
+        "--faces",
+        "3",
+        "--duplicate",
+        "--conflict",
+        "-o",
+        &scene,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for method in [
+        vec!["--method", "nullspace-qr"],
+        vec![
+            "--method",
+            "nullspace-qr",
+            "--qr",
+            "dense-householder",
+            "--spd",
+            "faer-simplicial",
+        ],
+        vec!["--method", "penalty", "--weight", "1e3"],
+    ] {
+        let deformed = p(dir.path(), "deformed.obj");
+        let deform_report = p(dir.path(), "deform.json");
+        let mut args = vec![
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &deformed,
+            "--report",
+            &deform_report,
+        ];
+        args.extend(&method);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let system = p(dir.path(), "system");
+        let mut args = vec!["export-system", &mesh, "-c", &scene, "-o", &system];
+        args.extend(&method);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let meta: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(Path::new(&system).join("meta.json")).unwrap(),
+        )
+        .unwrap();
+        for key in [
+            "method",
+            "spd_backend",
+            "laplacian",
+            "kkt_multiplier_scale",
+            "penalty_weight",
+            "factored_unknowns",
+            "laplacian_rows",
+            "length_scale",
+        ] {
+            assert!(meta.get(key).is_some(), "meta.json lacks {key}");
+        }
+        assert_eq!(meta["laplacian"], "cotan");
+        let x_path = p(dir.path(), "X.mtx");
+        let solve_report = p(dir.path(), "solve.json");
+        let mut args = vec!["solve", &system, "-o", &x_path, "--report", &solve_report];
+        args.extend(&method);
+        let o = run(&args);
+        assert!(o.status.success(), "{:?}: {}", method, stderr(&o));
+        let x = lse_deform::mtx::read_dense(Path::new(&x_path)).unwrap();
+        let positions = read_mesh(Path::new(&deformed))
+            .unwrap()
+            .mesh
+            .positions()
+            .to_vec();
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        // X is in the problem's units: the positions over `length_unit`.
+        let unit = meta["length_unit"].as_f64().unwrap();
+        for (i, q) in positions.iter().enumerate() {
+            for c in 0..3 {
+                num = num.max((x[(i, c)] * unit - q[c]).abs());
+                den = den.max(q[c].abs());
+            }
+        }
+        assert!(
+            num / den <= 1e-12,
+            "{method:?}: relative difference {:e}",
+            num / den
+        );
+        let read = |path: &str| -> serde_json::Value {
+            serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+        };
+        let (r1, r2) = (read(&deform_report), read(&solve_report));
+        for key in ["rank", "redundant", "conflicting", "length_scale", "method"] {
+            assert_eq!(r1[key], r2[key], "{method:?}: {key}");
+        }
+    }
+}
+
+/// `solve` on a random sparse LSE written as Matrix Market files names
+/// exactly the dependent rows of B; bad matrix files are one-line errors
+/// with exit code 2.
+#[test]
+fn solve_names_dependent_rows_and_refuses_bad_files() {
+    use faer::Mat;
+    use faer::sparse::{SparseColMat, Triplet};
+    let dir = tempfile::tempdir().unwrap();
+    let n = 12;
+    let a: Vec<Triplet<usize, usize, f64>> = (0..n)
+        .flat_map(|j| {
+            [
+                Triplet::new(j, j, 2.0 + j as f64 * 0.1),
+                Triplet::new((j + 1) % n, j, -1.0),
+            ]
+        })
+        .collect();
+    let a = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &a).unwrap();
+    // Rows 0, 1 independent; row 2 = row 0 + row 1 (consistent: redundant);
+    // row 3 independent; row 4 = 2 row 3 with D off by 1 (conflicting).
+    let b = [
+        (0, 0, 1.0),
+        (0, 3, 1.0),
+        (1, 5, 2.0),
+        (1, 3, -1.0),
+        (2, 0, 1.0),
+        (2, 3, 0.0 + 0.0),
+        (2, 5, 2.0),
+        (3, 7, 1.0),
+        (3, 8, 0.5),
+        (4, 7, 2.0),
+        (4, 8, 1.0),
+    ];
+    let b: Vec<_> = b.iter().map(|&(i, j, v)| Triplet::new(i, j, v)).collect();
+    let b = SparseColMat::<usize, f64>::try_new_from_triplets(5, n, &b).unwrap();
+    let c = Mat::from_fn(n, 2, |i, k| (i as f64 * 0.3 + k as f64).sin());
+    let mut d = Mat::from_fn(5, 2, |i, k| i as f64 - k as f64 * 0.5);
+    d[(2, 0)] = d[(0, 0)] + d[(1, 0)];
+    d[(2, 1)] = d[(0, 1)] + d[(1, 1)];
+    d[(4, 0)] = 2.0 * d[(3, 0)] + 1.0;
+    d[(4, 1)] = 2.0 * d[(3, 1)];
+    let sys = dir.path().join("lse");
+    std::fs::create_dir_all(&sys).unwrap();
+    lse_deform::mtx::write_sparse(&sys.join("A.mtx"), a.as_ref()).unwrap();
+    lse_deform::mtx::write_dense(&sys.join("C.mtx"), c.as_ref()).unwrap();
+    lse_deform::mtx::write_sparse(&sys.join("B.mtx"), b.as_ref()).unwrap();
+    lse_deform::mtx::write_dense(&sys.join("D.mtx"), d.as_ref()).unwrap();
+    let x_path = p(dir.path(), "X.mtx");
+    let report = p(dir.path(), "r.json");
+    let sys_s = sys.to_string_lossy().into_owned();
+    let o = run(&["solve", &sys_s, "-o", &x_path, "--report", &report]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["rank"], serde_json::json!(3));
+    assert_eq!(r["redundant"], serde_json::json!([2]));
+    assert_eq!(r["conflicting"][0]["index"], serde_json::json!(4));
+    assert_eq!(r["conflicting"].as_array().unwrap().len(), 1);
+    let x = lse_deform::mtx::read_dense(Path::new(&x_path)).unwrap();
+    assert_eq!((x.nrows(), x.ncols()), (n, 2));
+    assert!((x[(0, 0)] + x[(3, 0)] - d[(0, 0)]).abs() < 1e-12);
+
+    // Bad files: exit code 2, one line naming the file and line.
+    let bad_c = p(dir.path(), "badC.mtx");
+    std::fs::write(
+        &bad_c,
+        "%%MatrixMarket matrix array real general\n12 2\n1\nfoo\n",
+    )
+    .unwrap();
+    let o = run(&["solve", &sys_s, "--c", &bad_c, "-o", &x_path]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("badC.mtx, line 4: 'foo' is not a number"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    let short_d = p(dir.path(), "shortD.mtx");
+    lse_deform::mtx::write_dense(Path::new(&short_d), Mat::<f64>::zeros(4, 2).as_ref()).unwrap();
+    let o = run(&["solve", &sys_s, "--d", &short_d, "-o", &x_path]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("D must have as many rows as B"), "{err}");
+    let o = run(&["solve", "-o", &x_path]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

@@ -648,6 +648,17 @@ fn check_pivots(
         if ok {
             continue;
         }
+        if is_vertex && problem.is_general() {
+            return Err(NumericalError::FreeUnknown {
+                matrix: MATRIX.into(),
+                unknown,
+                detail: format!(
+                    "its pivot (eliminated {i}-th) is {:e}, {ratio:e} of the magnitude it was computed from; expected positive and above the tolerance {KKT_PIVOT_TOLERANCE:e}",
+                    d[i]
+                ),
+            }
+            .into());
+        }
         let detail = if is_vertex {
             format!(
                 "the pivot of vertex {unknown} (eliminated {i}-th) is {:e}, {ratio:e} of the magnitude it was computed from (expected positive and above the tolerance {KKT_PIVOT_TOLERANCE:e}): AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",

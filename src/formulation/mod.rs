@@ -9,8 +9,8 @@
 //! | [`Kkt`] | `[AᵀA sBᵀ; sB 0]`, symmetric indefinite | exact; dependent rows make it singular (an error) |
 //! | [`Elimination`] | `A_Uᵀ A_U`, SPD | exact; position constraints only |
 
-use faer::Mat;
 use faer::sparse::SparseColMat;
+use faer::{Mat, MatMut};
 
 use crate::condition::ConditionEstimate;
 use crate::error::Error;
@@ -53,7 +53,10 @@ pub trait Formulation: Send + Sync {
 /// same matrices without refactoring.
 pub trait Prepared: Send {
     /// Solves for the current `C` and `D` of `problem` (which must have the
-    /// matrices the system was prepared with). Returns `X` (n × 3).
+    /// matrices the system was prepared with, and
+    /// [`RHS_BLOCK`](crate::problem::RHS_BLOCK) `= 3` right-hand-side
+    /// columns: [`crate::solver::LseSolver`] splits other widths). Returns
+    /// `X` (n × 3).
     fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error>;
 
     /// One step of iterative refinement (see [`refine`]): the correction
@@ -70,6 +73,16 @@ pub trait Prepared: Send {
     /// Commits the state of the last [`Prepared::correction`] after the
     /// caller added it to `x`.
     fn accept_correction(&mut self) {}
+
+    /// [`Prepared::solve`] into `out` (n × 3). The default copies the
+    /// result of `solve`; formulations that keep their buffers from
+    /// precompute (the null-space method) write `out` directly and allocate
+    /// nothing.
+    fn solve_into(&mut self, problem: &LseProblem, mut out: MatMut<'_, f64>) -> Result<(), Error> {
+        let x = self.solve(problem)?;
+        out.copy_from(&x);
+        Ok(())
+    }
 
     /// Rows of `B` that the method does not enforce because they depend on
     /// earlier ones (increasing). Empty for methods that enforce all rows

@@ -13,8 +13,8 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use faer::Mat;
 use faer::sparse::SparseColMat;
+use faer::{Mat, MatMut};
 
 use super::util::{at_residual, gather_columns, lower_to_full};
 use super::{Formulation, Prepared};
@@ -227,8 +227,13 @@ impl SolveWorkspace {
 
 impl Prepared for PreparedNullSpace {
     fn solve(&mut self, problem: &LseProblem) -> Result<Mat<f64>, Error> {
+        let mut x = Mat::<f64>::zeros(self.qr.n(), 3);
+        self.solve_into(problem, x.as_mut())?;
+        Ok(x)
+    }
+
+    fn solve_into(&mut self, problem: &LseProblem, x: MatMut<'_, f64>) -> Result<(), Error> {
         let qr = &*self.qr;
-        let n = qr.n();
         let ws = &mut self.workspace;
         qr.solve_r1t(problem.d().as_ref(), ws.y.as_mut());
         if let Some(factor) = self.factor.as_mut() {
@@ -290,9 +295,8 @@ impl Prepared for PreparedNullSpace {
             }
             factor.solve_in_place(ws.z.as_mut());
         }
-        let mut x = Mat::<f64>::zeros(n, 3);
-        qr.apply_q(ws.y.as_ref(), ws.z.as_ref(), x.as_mut());
-        Ok(x)
+        qr.apply_q(ws.y.as_ref(), ws.z.as_ref(), x);
+        Ok(())
     }
 
     /// Corrected semi-normal equations (Björck 1987) on the reduced

@@ -63,16 +63,17 @@ pub fn dense_reference(problem: &LseProblem, rows: &[usize]) -> Mat<f64> {
             k[(j, n + r)] = b[(i, j)];
         }
     }
-    let mut rhs = Mat::<f64>::zeros(n + m, 3);
+    let k_rhs = problem.n_rhs();
+    let mut rhs = Mat::<f64>::zeros(n + m, k_rhs);
     let atc = a.transpose() * problem.c();
-    rhs.as_mut().submatrix_mut(0, 0, n, 3).copy_from(&atc);
+    rhs.as_mut().submatrix_mut(0, 0, n, k_rhs).copy_from(&atc);
     for (r, &i) in rows.iter().enumerate() {
-        for c in 0..3 {
+        for c in 0..k_rhs {
             rhs[(n + r, c)] = problem.d()[(i, c)];
         }
     }
     let sol = k.full_piv_lu().solve(&rhs);
-    sol.submatrix(0, 0, n, 3).to_owned()
+    sol.submatrix(0, 0, n, k_rhs).to_owned()
 }
 
 /// `max |x − y| / max |y|`.

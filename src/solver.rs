@@ -1,0 +1,399 @@
+//! The driver of a solve, for any [`LseProblem`] — a mesh's (through
+//! [`crate::Deformer`]) or one built from its matrices
+//! ([`LseProblem::from_parts`]): precompute with a [`Formulation`], solve
+//! for the current right-hand sides as often as needed, and the [`Report`].
+//!
+//! ```
+//! use faer::Mat;
+//! use faer::sparse::{SparseColMat, Triplet};
+//! use lse_deform::problem::LseProblem;
+//! use lse_deform::solver::LseSolver;
+//! use lse_deform::NullSpaceQr;
+//!
+//! // min ‖x − c‖ subject to x0 + x1 + x2 = 1, one right-hand side.
+//! let a = SparseColMat::<usize, f64>::try_new_from_triplets(
+//!     3, 3, &[Triplet::new(0, 0, 1.0), Triplet::new(1, 1, 1.0), Triplet::new(2, 2, 1.0)],
+//! ).unwrap();
+//! let b = SparseColMat::<usize, f64>::try_new_from_triplets(
+//!     1, 3, &[Triplet::new(0, 0, 1.0), Triplet::new(0, 1, 1.0), Triplet::new(0, 2, 1.0)],
+//! ).unwrap();
+//! let c = Mat::from_fn(3, 1, |i, _| i as f64);
+//! let d = Mat::from_fn(1, 1, |_, _| 1.0);
+//! let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref()).unwrap();
+//! let mut solver = LseSolver::new(problem);
+//! solver.precompute(&NullSpaceQr::default()).unwrap();
+//! let x = solver.solve().unwrap();
+//! // The projection of c = (0, 1, 2) onto the plane: c − (Σc − 1)/3.
+//! assert!((x[(0, 0)] + 2.0 / 3.0).abs() < 1e-14);
+//! assert!((x[(2, 0)] - 4.0 / 3.0).abs() < 1e-14);
+//! assert_eq!(solver.report().rank, Some(1));
+//! ```
+//!
+//! **Right-hand-side blocks.** Formulations solve [`RHS_BLOCK`] `= 3`
+//! columns at a time (their kernels interleave x, y, z). A problem with
+//! `k ≠ 3` columns is solved in `⌈k/3⌉` blocks of three, the last padded
+//! with zero columns; each block costs what a mesh solve costs.
+//!
+//! **Singular problems.** For a general problem a factorisation that meets
+//! a zero pivot is reported as [`NumericalError::FreeUnknown`] naming the
+//! unknown of `X` the pivot belongs to; for meshes the mesh layer has
+//! already ruled this out (every component pinned) and the back end's error
+//! is passed on with its vertex.
+
+use std::time::Instant;
+
+use faer::{Mat, MatMut, MatRef};
+
+use crate::condition::ConditionEstimate;
+use crate::error::{Error, NumericalError, ProblemError};
+use crate::formulation::{
+    FORWARD_ERROR_WARNING, Formulation, Prepared, Refine, RefineStop, Refinement, refine,
+};
+use crate::problem::{LseProblem, RHS_BLOCK};
+use crate::report::{Report, fill_solution_diagnostics};
+
+/// A problem with its precomputed system and the report of the last
+/// precompute and solve.
+pub struct LseSolver {
+    problem: LseProblem,
+    system: Option<Box<dyn Prepared>>,
+    /// What every precompute's report starts from (Laplacian, set-up time,
+    /// mesh warnings).
+    base: Report,
+    report: Report,
+    /// `None`: the formulation's default ([`Refine::Auto`] for the exact
+    /// formulations, [`Refine::Off`] for penalty, the classical baseline).
+    refine: Option<Refine>,
+    /// The warnings of set-up and precompute; each solve adds its own.
+    precompute_warnings: Vec<String>,
+    /// The refinement of the last solve.
+    last_refinement: Option<Refinement>,
+}
+
+impl LseSolver {
+    /// A solver for `problem`, not yet precomputed.
+    pub fn new(problem: LseProblem) -> LseSolver {
+        LseSolver::with_report(problem, Report::default())
+    }
+
+    /// A solver whose reports start from `base` (the mesh layer's
+    /// Laplacian, set-up time and warnings).
+    pub fn with_report(problem: LseProblem, mut base: Report) -> LseSolver {
+        if base.length_unit == 0.0 {
+            base.length_unit = 1.0;
+        }
+        LseSolver {
+            problem,
+            system: None,
+            report: base.clone(),
+            precompute_warnings: base.warnings.clone(),
+            base,
+            refine: None,
+            last_refinement: None,
+        }
+    }
+
+    /// Sets the refinement of every following solve (see
+    /// [`crate::formulation::refine`]); `None` restores the formulation's
+    /// default ([`Refine::Auto`] for the exact formulations, [`Refine::Off`]
+    /// for penalty).
+    pub fn set_refine(&mut self, refine: Option<Refine>) {
+        self.refine = refine;
+    }
+
+    /// The refinement the next solve uses.
+    pub fn refine_mode(&self) -> Refine {
+        match (self.refine, &self.system) {
+            (Some(mode), _) => mode,
+            (None, Some(system)) if !system.exact() => Refine::Off,
+            _ => Refine::Auto,
+        }
+    }
+
+    /// Precompute phase: factors the system with `formulation`. On error the
+    /// previous system is gone (solve then fails until a precompute
+    /// succeeds).
+    pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
+        self.system = None;
+        let mut report = self.base.clone();
+        let system = formulation
+            .precompute(&self.problem, &mut report)
+            .map_err(|e| name_free_unknown(e, &self.problem))?;
+        self.system = Some(system);
+        self.precompute_warnings = report.warnings.clone();
+        self.report = report;
+        self.last_refinement = None;
+        Ok(())
+    }
+
+    /// Solve phase: `X` (n × k) for the current `C` and `D`, refined as
+    /// [`LseSolver::refine_mode`] says (with [`Refine::Off`] one correction
+    /// is still computed, for the forward-error estimate), with the report's
+    /// diagnostics (residuals, redundant and conflicting rows, refinement,
+    /// warnings).
+    pub fn solve(&mut self) -> Result<Mat<f64>, Error> {
+        let mut x = Mat::zeros(self.problem.n(), self.problem.n_rhs());
+        self.solve_refined(x.as_mut(), true)?;
+        self.diagnose(x.as_ref());
+        Ok(x)
+    }
+
+    /// Solve phase into `x` (n × k), refined unless the mode is
+    /// [`Refine::Off`], without diagnostics (call [`LseSolver::diagnose`]
+    /// when they are wanted): what a drag loop calls every frame. Without
+    /// refinement, a 3-column problem allocates nothing with the null-space
+    /// formulation on the faer back ends (the buffers were sized at
+    /// precompute); refinement and other formulations allocate their
+    /// temporaries.
+    ///
+    /// Errors: a shape mismatch of `x`, a solve before precompute, the
+    /// formulation's numerical errors, and a non-finite result
+    /// ([`NumericalError::NonFiniteSolution`], naming the row of `X`). On
+    /// error the contents of `x` are unspecified.
+    pub fn solve_into(&mut self, x: MatMut<'_, f64>) -> Result<(), Error> {
+        self.solve_refined(x, false)
+    }
+
+    /// The solve and, when refinement is on or `estimate` asks for it, the
+    /// refine phase (timed apart, `timings_s.refine`).
+    fn solve_refined(&mut self, mut x: MatMut<'_, f64>, estimate: bool) -> Result<(), Error> {
+        let (n, k) = (self.problem.n(), self.problem.n_rhs());
+        if x.nrows() != n || x.ncols() != k {
+            return Err(ProblemError::Dimensions {
+                message: format!(
+                    "the output is {} × {}, the solution is {n} × {k}",
+                    x.nrows(),
+                    x.ncols()
+                ),
+            }
+            .into());
+        }
+        let mode = self.refine_mode();
+        let refining = mode != Refine::Off || estimate;
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "solve called before precompute".into(),
+            })?;
+        let t = Instant::now();
+        let mut refinements = Vec::new();
+        if k == RHS_BLOCK {
+            system.solve_into(&self.problem, x.as_mut())?;
+            self.report.timings_s.solve = t.elapsed().as_secs_f64();
+            if refining {
+                check_finite(x.as_ref())?;
+                let t = Instant::now();
+                let mut refined = x.to_owned();
+                refinements.push(refine(system.as_mut(), &self.problem, &mut refined, mode)?);
+                x.copy_from(&refined);
+                self.report.timings_s.refine = t.elapsed().as_secs_f64();
+            }
+        } else {
+            let blocks_mode = refining.then_some(mode);
+            refinements =
+                solve_in_blocks(system.as_mut(), &mut self.problem, x.as_mut(), blocks_mode)?;
+            self.report.timings_s.solve = t.elapsed().as_secs_f64();
+        }
+        self.last_refinement = refinements.into_iter().max_by(|a, b| {
+            a.forward_error_estimate
+                .total_cmp(&b.forward_error_estimate)
+        });
+        check_finite(x.as_ref())
+    }
+
+    /// Fills the report's solution diagnostics for `x` (the result of the
+    /// last solve): residual of every kept hard row, the skipped rows split
+    /// into redundant and conflicting (or "not detected" for penalty),
+    /// `‖AX − C‖`, soft residuals, sizes, and the last refinement with its
+    /// forward-error estimate and warnings.
+    pub fn diagnose(&mut self, x: MatRef<'_, f64>) -> &Report {
+        let t = Instant::now();
+        let (skipped, exact) = self
+            .system
+            .as_ref()
+            .map(|s| (s.skipped().to_vec(), s.exact()))
+            .unwrap_or_default();
+        fill_solution_diagnostics(
+            &mut self.report,
+            &self.problem,
+            &x.to_owned(),
+            &skipped,
+            exact,
+        );
+        self.report.warnings = self.precompute_warnings.clone();
+        if let Some(r) = &self.last_refinement {
+            self.report
+                .warnings
+                .extend(refinement_warnings(r, self.report.method.as_str()));
+        }
+        self.report.forward_error_estimate = self
+            .last_refinement
+            .as_ref()
+            .map(|r| r.forward_error_estimate);
+        self.report.refinement = self.last_refinement.clone();
+        self.report.timings_s.diagnostics = t.elapsed().as_secs_f64();
+        &self.report
+    }
+
+    /// Sets the right-hand side of constraint `index` (a 3-column problem):
+    /// the matrices stay, the next solve reuses the factorisation.
+    pub fn set_rhs(&mut self, index: usize, value: [f64; 3]) -> Result<(), Error> {
+        self.problem.set_rhs(index, value)
+    }
+
+    /// Replaces `C` and `D` (same shapes); the next solve reuses the
+    /// factorisation.
+    pub fn set_rhs_matrices(
+        &mut self,
+        c: MatRef<'_, f64>,
+        d: MatRef<'_, f64>,
+    ) -> Result<(), Error> {
+        self.problem.set_rhs_matrices(c, d)
+    }
+
+    /// Estimates the 2-norm condition number of the matrix the formulation
+    /// factored (see [`crate::condition`]) and records it in the report.
+    pub fn estimate_condition(&mut self) -> Result<&ConditionEstimate, Error> {
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "estimate_condition called before precompute".into(),
+            })?;
+        let estimate = system.estimate_condition()?;
+        Ok(self.report.condition_estimate.insert(estimate))
+    }
+
+    /// The prepared system of the last precompute, if any (for export).
+    pub fn prepared(&self) -> Option<&dyn Prepared> {
+        self.system.as_deref()
+    }
+
+    /// The report of the last precompute and solve.
+    pub fn report(&self) -> &Report {
+        &self.report
+    }
+
+    /// The problem.
+    pub fn problem(&self) -> &LseProblem {
+        &self.problem
+    }
+}
+
+/// The first non-finite row of `x` as an error.
+fn check_finite(x: MatRef<'_, f64>) -> Result<(), Error> {
+    match (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !x[(i, c)].is_finite())) {
+        Some(row) => Err(NumericalError::NonFiniteSolution { vertex: row }.into()),
+        None => Ok(()),
+    }
+}
+
+/// Solves a problem whose `k ≠ 3` columns are taken three at a time: each
+/// block's `C` and `D` (zero-padded) are swapped into the problem, solved
+/// (and refined with `refine_mode`, if given), and swapped back before any
+/// error is returned. Returns each block's refinement.
+fn solve_in_blocks(
+    system: &mut dyn Prepared,
+    problem: &mut LseProblem,
+    mut x: MatMut<'_, f64>,
+    refine_mode: Option<Refine>,
+) -> Result<Vec<Refinement>, Error> {
+    let k = problem.n_rhs();
+    let (l, m, n) = (problem.a().nrows(), problem.b().nrows(), problem.n());
+    let mut x_block = Mat::<f64>::zeros(n, RHS_BLOCK);
+    let mut refinements = Vec::new();
+    for start in (0..k).step_by(RHS_BLOCK) {
+        let width = RHS_BLOCK.min(k - start);
+        let (c, d) = (problem.c(), problem.d());
+        let mut c_block = Mat::from_fn(l, RHS_BLOCK, |i, j| {
+            if j < width { c[(i, start + j)] } else { 0.0 }
+        });
+        let mut d_block = Mat::from_fn(m, RHS_BLOCK, |i, j| {
+            if j < width { d[(i, start + j)] } else { 0.0 }
+        });
+        problem.swap_rhs(&mut c_block, &mut d_block);
+        let mut result = system.solve_into(problem, x_block.as_mut());
+        if let (Ok(()), Some(mode)) = (&result, refine_mode) {
+            result = check_finite(x_block.as_ref())
+                .and_then(|()| refine(system, problem, &mut x_block, mode))
+                .map(|r| refinements.push(r));
+        }
+        problem.swap_rhs(&mut c_block, &mut d_block);
+        result?;
+        x.as_mut()
+            .submatrix_mut(0, start, n, width)
+            .copy_from(x_block.as_ref().submatrix(0, 0, n, width));
+    }
+    Ok(refinements)
+}
+
+/// The warnings a refinement outcome calls for: an estimated forward error
+/// above [`FORWARD_ERROR_WARNING`], and conflicting hard constraints found
+/// by the method of multipliers.
+pub fn refinement_warnings(r: &Refinement, method: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    if r.stop_reason == RefineStop::ConflictingConstraints {
+        out.push(format!(
+            "{method}: the multiplier updates stopped after {} steps because the hard-constraint residual stopped shrinking at {:.1e} of the length scale: the hard constraints conflict, and no weight satisfies them all (use nullspace-qr to find which)",
+            r.steps,
+            r.constraint_residuals.last().copied().unwrap_or(f64::NAN)
+        ));
+    }
+    let e = r.forward_error_estimate;
+    if (e.is_nan() || e > FORWARD_ERROR_WARNING)
+        && r.stop_reason != RefineStop::ConflictingConstraints
+    {
+        let how = if r.mode == "off" {
+            "refinement is off; --refine auto would correct it"
+        } else if r.stop_reason == RefineStop::StepLimit {
+            "refinement reached its step limit; allow more steps"
+        } else {
+            "after refinement: the conditioning puts the exact answer out of reach in double precision"
+        };
+        out.push(format!(
+            "{method}: estimated forward error {e:.1e} of the length scale exceeds {FORWARD_ERROR_WARNING:.0e} ({how}; {} refinement steps, stopped: {:?})",
+            r.steps, r.stop_reason
+        ));
+    }
+    out
+}
+
+/// For a general problem, a zero or lost pivot names the free unknown of
+/// `X` ([`NumericalError::FreeUnknown`]); other errors pass unchanged.
+fn name_free_unknown(e: Error, problem: &LseProblem) -> Error {
+    if !problem.is_general() {
+        return e;
+    }
+    match e {
+        Error::Numerical(NumericalError::NotPositiveDefinite {
+            matrix,
+            unknown,
+            vertex: Some(x_unknown),
+            pivot,
+        }) => NumericalError::FreeUnknown {
+            matrix,
+            unknown: x_unknown,
+            detail: format!(
+                "the pivot of unknown {unknown} of the factored matrix is not positive{}",
+                pivot.map(|p| format!(" ({p:e})")).unwrap_or_default()
+            ),
+        }
+        .into(),
+        Error::Numerical(NumericalError::Breakdown {
+            matrix,
+            unknown,
+            vertex: Some(x_unknown),
+            ratio,
+            threshold,
+        }) => NumericalError::FreeUnknown {
+            matrix,
+            unknown: x_unknown,
+            detail: format!(
+                "the pivot of unknown {unknown} of the factored matrix lost its digits: pivot/diagonal = {ratio:e} < {threshold:e}"
+            ),
+        }
+        .into(),
+        other => other,
+    }
+}
