@@ -167,6 +167,9 @@ pub struct ProblemMeta {
     pub laplacian_rows: Option<usize>,
     /// `length_scale`.
     pub length_scale: Option<f64>,
+    /// `length_unit`: reports of the solve give lengths times it, as the
+    /// mesh problem's report does.
+    pub length_unit: Option<f64>,
 }
 
 /// Reads the fields of [`ProblemMeta`] from a `meta.json`; a file that is
@@ -194,14 +197,19 @@ pub fn read_meta(path: &Path) -> Result<ProblemMeta, Error> {
             )
         }
     }
-    match value.get("length_scale") {
-        None | Some(serde_json::Value::Null) => {}
-        Some(v) => {
-            meta.length_scale = Some(
-                v.as_f64()
-                    .filter(|s| s.is_finite() && *s > 0.0)
-                    .ok_or_else(|| bad("'length_scale' must be a finite number > 0".into()))?,
-            )
+    for (key, field) in [
+        ("length_scale", &mut meta.length_scale),
+        ("length_unit", &mut meta.length_unit),
+    ] {
+        match value.get(key) {
+            None | Some(serde_json::Value::Null) => {}
+            Some(v) => {
+                *field = Some(
+                    v.as_f64()
+                        .filter(|s| s.is_finite() && *s > 0.0)
+                        .ok_or_else(|| bad(format!("'{key}' must be a finite number > 0")))?,
+                )
+            }
         }
     }
     Ok(meta)

@@ -461,7 +461,10 @@ fn solve(a: SolveArgs) -> Result<(), Error> {
     if let Some(scale) = meta.length_scale {
         problem = problem.with_length_scale(scale);
     }
-    let mut base = Report::default();
+    let mut base = Report {
+        length_unit: meta.length_unit.unwrap_or(1.0),
+        ..Report::default()
+    };
     base.timings_s.setup = t.elapsed().as_secs_f64();
     let mut solver = LseSolver::with_report(problem, base);
     solver.set_refine(m.refine);
