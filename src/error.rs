@@ -393,6 +393,13 @@ pub enum ConstraintError {
         /// The estimate and the limit.
         detail: String,
     },
+    /// The file's `"mesh"` object names another mesh (an error only when
+    /// asked to be strict; otherwise a warning).
+    #[error("constraints file was {detail}")]
+    MeshMismatch {
+        /// What differs (counts or fingerprint).
+        detail: String,
+    },
 }
 
 /// Mesh and constraints that are each valid but do not define a unique
