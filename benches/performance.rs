@@ -16,7 +16,12 @@
 //!   factorisation (× 17 by the reader) and one analysis;
 //! - `t5_large`: precompute and solve on the large mesh and its floor;
 //! - `t6_setup`: reading an OBJ file and building L and A;
-//! - `t7_scaling`: precompute and solve at 1k … 64k vertices.
+//! - `t7_scaling`: precompute and solve at 1k … 64k vertices;
+//! - `t8_crowded`: set-up, precompute and solve with 20,000 and 200,000
+//!   constraints through one vertex (one position constraint repeated;
+//!   relative constraints from one hub to 1,000 vertices in turn) on a
+//!   10k-vertex sphere: the 200k rows should take at most ~10× the 20k ones
+//!   (issue 14: cost proportional to the input).
 
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -32,7 +37,7 @@ use lse_deform::constraints::ConstraintSet;
 use lse_deform::formulation::{NullSpaceQr, PenaltySweep};
 use lse_deform::mesh::{Mesh, generate, read_mesh, write_mesh};
 use lse_deform::normal::NormalPattern;
-use lse_deform::scene::{FixedAndHandle, MixedScene};
+use lse_deform::scene::{CrowdedScene, FixedAndHandle, MixedScene};
 use lse_deform::{Deformer, LaplacianKind};
 
 fn ours() -> NullSpaceQr {
@@ -300,6 +305,34 @@ fn t7_scaling(c: &mut Criterion) {
     g.finish();
 }
 
+fn t8_crowded(c: &mut Criterion) {
+    let mesh = generate::with_about_vertices(generate::GeneratedKind::BumpySphere, 10_000, 1)
+        .expect("generated mesh");
+    let mut g = c.benchmark_group("t8_crowded");
+    g.sample_size(10).measurement_time(Duration::from_secs(8));
+    let f = ours();
+    for (name, partners) in [("repeated position", 0usize), ("hub relatives", 1000)] {
+        for count in [20_000usize, 200_000] {
+            let cs = CrowdedScene {
+                base: FixedAndHandle::paper_default(&mesh),
+                partners,
+                count,
+                conflict_every: 7,
+            }
+            .constraints(&mesh)
+            .expect("scene");
+            g.bench_with_input(BenchmarkId::new(name, count), &count, |b, _| {
+                b.iter(|| {
+                    let mut d = deformer(&mesh, &cs);
+                    d.precompute(&f).expect("precompute");
+                    black_box(d.solve().expect("solve"))
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
 criterion_group!(
     benches,
     t1_precompute,
@@ -308,6 +341,7 @@ criterion_group!(
     t4_weight_sweep,
     t5_large,
     t6_setup,
-    t7_scaling
+    t7_scaling,
+    t8_crowded
 );
 criterion_main!(benches);

@@ -36,12 +36,19 @@
 //! Unknown fields are an error (a misspelt `"wieght"` must not silently
 //! make a soft constraint hard), except `"name"` and `"comment"`, which are
 //! free text and ignored.
+//!
+//! An optional top-level `"mesh": {"vertices": n, "faces": m, "fingerprint":
+//! "…"}` names the mesh the constraints were made for
+//! ([`MeshSignature`], written by [`crate::scene`]);
+//! [`ConstraintSet::mesh_mismatch`] compares it with the mesh at hand.
 
 use std::path::Path;
 
+use serde::Deserialize;
 use serde_json::{Map, Value};
 
 use crate::error::{ConstraintError, Error};
+use crate::mesh::{Mesh, MeshSignature};
 
 /// The geometric content of a constraint.
 #[derive(Debug, Clone, PartialEq)]
@@ -289,6 +296,8 @@ impl Constraint {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ConstraintSet {
     constraints: Vec<Constraint>,
+    /// The mesh the constraints were made for, when known.
+    mesh: Option<MeshSignature>,
 }
 
 impl ConstraintSet {
@@ -304,7 +313,30 @@ impl ConstraintSet {
         for (index, c) in constraints.iter().enumerate() {
             check_values(index, c)?;
         }
-        Ok(ConstraintSet { constraints })
+        Ok(ConstraintSet {
+            constraints,
+            mesh: None,
+        })
+    }
+
+    /// The mesh the constraints were made for (the file's `"mesh"` object),
+    /// if recorded.
+    pub fn mesh(&self) -> Option<&MeshSignature> {
+        self.mesh.as_ref()
+    }
+
+    /// Records (or forgets) the mesh the constraints were made for; written
+    /// by [`ConstraintSet::to_json`].
+    pub fn set_mesh(&mut self, mesh: Option<MeshSignature>) {
+        self.mesh = mesh;
+    }
+
+    /// `None` when no mesh is recorded or the recorded one matches `mesh`
+    /// (counts and [fingerprint](crate::mesh::fingerprint)); otherwise a
+    /// sentence saying what differs (for a warning or, strictly, a
+    /// [`ConstraintError::MeshMismatch`]).
+    pub fn mesh_mismatch(&self, mesh: &Mesh) -> Option<String> {
+        self.mesh.as_ref().and_then(|sig| sig.mismatch(mesh))
     }
 
     /// Appends a constraint, checking its values; returns its index (the
@@ -396,7 +428,13 @@ impl ConstraintSet {
     /// Serialises to the JSON file format.
     pub fn to_json(&self) -> String {
         let items: Vec<Value> = self.constraints.iter().map(constraint_to_json).collect();
-        let mut s = String::from("{\"constraints\": [\n");
+        let mut s = String::from("{");
+        if let Some(mesh) = &self.mesh {
+            s.push_str("\"mesh\": ");
+            s.push_str(&serde_json::to_string(mesh).unwrap_or_else(|_| "null".into()));
+            s.push_str(",\n ");
+        }
+        s.push_str("\"constraints\": [\n");
         for (k, item) in items.iter().enumerate() {
             s.push_str("  ");
             s.push_str(&item.to_string());
@@ -485,6 +523,15 @@ fn check_values(index: usize, c: &Constraint) -> Result<(), ConstraintError> {
 /// Reads a constraints file and checks its vertices against a mesh of
 /// `n_vertices` vertices.
 pub fn read_constraints(path: &Path, n_vertices: usize) -> Result<ConstraintSet, Error> {
+    let set = read_constraints_file(path)?;
+    set.check_vertices(n_vertices)?;
+    Ok(set)
+}
+
+/// Reads a constraints file without checking vertex ranges (so that a
+/// caller can first compare the file's `"mesh"` with the mesh at hand; see
+/// [`ConstraintSet::mesh_mismatch`], then [`ConstraintSet::check_vertices`]).
+pub fn read_constraints_file(path: &Path) -> Result<ConstraintSet, Error> {
     if let Ok(meta) = std::fs::metadata(path).map(|m| m.len()) {
         let estimate = meta.saturating_mul(crate::limits::CONSTRAINT_BYTES_PER_FILE_BYTE);
         crate::limits::check(estimate, || {
@@ -497,14 +544,16 @@ pub fn read_constraints(path: &Path, n_vertices: usize) -> Result<ConstraintSet,
         .map_err(|detail| ConstraintError::TooLarge { detail })?;
     }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let set = parse_constraints(&text)?;
-    set.check_vertices(n_vertices)?;
-    Ok(set)
+    Ok(parse_constraints(&text)?)
 }
 
 /// Parses the JSON constraint format (vertex ranges are not checked here;
 /// see [`ConstraintSet::check_vertices`]).
+///
+/// A leading UTF-8 byte-order mark (which Windows editors write) is skipped;
+/// JSON itself (RFC 8259 §8.1) forbids it but allows parsers to ignore it.
 pub fn parse_constraints(text: &str) -> Result<ConstraintSet, ConstraintError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let root: Value = serde_json::from_str(text).map_err(|e| {
         // serde_json's message ends in " at line L column C", which the
         // error's own fields already carry.
@@ -516,6 +565,16 @@ pub fn parse_constraints(text: &str) -> Result<ConstraintSet, ConstraintError> {
             message: full.strip_suffix(&suffix).unwrap_or(&full).to_string(),
         }
     })?;
+    let mesh = match root.get("mesh") {
+        None | Some(Value::Null) => None,
+        Some(v) => Some(
+            MeshSignature::deserialize(v).map_err(|e| ConstraintError::Shape {
+                message: format!(
+                    "'mesh' must be {{\"vertices\": n, \"faces\": m, \"fingerprint\": \"…\"}}: {e}"
+                ),
+            })?,
+        ),
+    };
     let list = match &root {
         Value::Object(map) => match map.get("constraints") {
             Some(Value::Array(list)) => list,
@@ -542,7 +601,7 @@ pub fn parse_constraints(text: &str) -> Result<ConstraintSet, ConstraintError> {
         check_values(index, &c)?;
         constraints.push(c);
     }
-    Ok(ConstraintSet { constraints })
+    Ok(ConstraintSet { constraints, mesh })
 }
 
 fn parse_one(index: usize, item: &Value) -> Result<Constraint, ConstraintError> {

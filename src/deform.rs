@@ -30,7 +30,7 @@ use std::time::Instant;
 use faer::{Mat, MatMut, MatRef};
 
 use crate::constraints::ConstraintSet;
-use crate::error::{ConstraintError, Error, ProblemError};
+use crate::error::{ConstraintError, Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine};
 use crate::laplacian::{self, LaplacianKind};
 use crate::mesh::{Mesh, topology};
@@ -105,7 +105,18 @@ impl Deformer {
         let mut unit_constraints = constraints.clone();
         for (i, c) in constraints.as_slice().iter().enumerate() {
             let r = c.kind.rhs();
-            unit_constraints.set_rhs(i, [r[0] / unit, r[1] / unit, r[2] / unit])?;
+            let scaled = r.map(|v| v / unit);
+            if scaled.iter().any(|v| !v.is_finite()) {
+                let value = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                return Err(NumericalError::TargetOutOfRange {
+                    index: i,
+                    value,
+                    unit,
+                    ratio: value / unit,
+                }
+                .into());
+            }
+            unit_constraints.set_rhs(i, scaled)?;
         }
         let problem = LseProblem::new(&l, &delta, &unit_constraints, unit_mesh.bbox_diagonal())?;
         let mut report = Report {

@@ -396,6 +396,13 @@ pub enum ConstraintError {
         /// The estimate and the limit.
         detail: String,
     },
+    /// The file's `"mesh"` object names another mesh (an error only when
+    /// asked to be strict; otherwise a warning).
+    #[error("constraints file was {detail}")]
+    MeshMismatch {
+        /// What differs (counts or fingerprint).
+        detail: String,
+    },
 }
 
 /// An invalid Matrix Market file (`crate::mtx`): the file, the 1-based
@@ -598,6 +605,21 @@ pub enum NumericalError {
         unknown: usize,
         /// What the factorisation saw.
         detail: String,
+    },
+    /// A target (or relative vector) is so large against the mesh's length
+    /// unit that the problem cannot be represented in double precision.
+    #[error(
+        "constraint {index}: its target {value:e} is {ratio:e} times the mesh's length unit (mean edge length {unit:e}), beyond the range of double precision"
+    )]
+    TargetOutOfRange {
+        /// Constraint index.
+        index: usize,
+        /// The largest coordinate of the target.
+        value: f64,
+        /// The mesh's length unit.
+        unit: f64,
+        /// `value / unit` (infinite).
+        ratio: f64,
     },
     /// The solve produced a non-finite value.
     #[error("solve produced a non-finite position at vertex {vertex}")]

@@ -4,7 +4,7 @@
 //! The budget is `LSE_MEMORY_LIMIT` when set (bytes, with an optional
 //! `K`, `M`, `G` or `T` suffix, powers of 1024), otherwise the memory the
 //! kernel reports as available (`MemAvailable` in `/proc/meminfo`) when the
-//! process starts using it, otherwise unlimited. Four estimates are checked
+//! process starts using it, otherwise unlimited. Five estimates are checked
 //! against it, each before the memory is allocated:
 //!
 //! | what | estimate | where |
@@ -14,6 +14,7 @@
 //! | a constraints file | [`CONSTRAINT_BYTES_PER_FILE_BYTE`] × file size | [`crate::constraints::read_constraints`] |
 //! | a dense Householder block | its reflectors, `8 k min(k, m)` bytes, and its dense `(k − m)²` block of the normal matrix | [`crate::backend::qr::DenseHouseholder`] |
 //! | a Cholesky factor | [`FACTOR_BYTES_PER_ENTRY`] × the factor's nnz from the symbolic analysis | every formulation, between analysis and numeric factorisation |
+//! | the `R` of a sparse QR of `Bᵀ` | 16 bytes × `nnz(R)` counted from the column elimination tree of `Bᵀ` (never forming `B Bᵀ`) | `sparse-givens` (each column order it tries) and `spqr`, before factoring |
 //!
 //! The estimates are deliberately rough (within a small factor): their job
 //! is to turn "killed by the kernel" into a message with numbers in it.

@@ -9,8 +9,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
-use lse_deform::constraints::read_constraints;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use lse_deform::constraints::{ConstraintSet, read_constraints_file};
 use lse_deform::export::{META_FILE, export_meta, export_problem, read_meta};
 use lse_deform::mesh::{self, Quality, Topology, generate};
 use lse_deform::problem::LseProblem;
@@ -196,9 +196,9 @@ struct DeformArgs {
     /// up to a few hundred extra solves).
     #[arg(long)]
     condition: bool,
-    /// Turn the accuracy warning into an error: exit 3 without writing
-    /// anything when the estimated forward error exceeds 1e-8 of the
-    /// bounding-box diagonal.
+    /// Turn warnings that have a strict form into errors, writing nothing:
+    /// an estimated forward error above 1e-8 of the bounding-box diagonal
+    /// (exit 3) and a constraints file made for another mesh (exit 2).
     #[arg(long)]
     strict: bool,
 }
@@ -330,15 +330,32 @@ fn main() -> ExitCode {
     }
 }
 
-/// A spinner on stderr for one phase (drawn only on a terminal).
+/// A spinner on stderr for one phase. It is drawn only on a terminal
+/// (indicatif's stderr target hides itself otherwise) and only once the
+/// phase has lasted a second, so quick runs and pipes print nothing extra.
+/// Several phases can share it through `set_message`.
 fn phase(message: &str) -> ProgressBar {
-    let bar = ProgressBar::new_spinner();
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
         bar.set_style(style);
     }
     bar.set_message(message.to_string());
-    bar.enable_steady_tick(Duration::from_millis(100));
+    show_after_a_second(&bar);
     bar
+}
+
+/// Points `bar` at stderr one second from now unless it has finished.
+fn show_after_a_second(bar: &ProgressBar) {
+    let weak = bar.downgrade();
+    std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_secs(1));
+        if let Some(bar) = weak.upgrade() {
+            if !bar.is_finished() {
+                bar.set_draw_target(ProgressDrawTarget::stderr());
+                bar.enable_steady_tick(Duration::from_millis(100));
+            }
+        }
+    });
 }
 
 fn load(path: &Path) -> Result<mesh::Mesh, Error> {
@@ -354,9 +371,42 @@ fn load(path: &Path) -> Result<mesh::Mesh, Error> {
     Ok(loaded.mesh)
 }
 
+/// Fail fast: the output mesh (its format and its directory) and any other
+/// output file are checked before the input is read or anything is solved.
+fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result<(), Error> {
+    if let Some(path) = mesh_out {
+        mesh::check_mesh_output(path)?;
+    }
+    if let Some(path) = file_out {
+        mesh::check_writable(path)?;
+    }
+    Ok(())
+}
+
+/// Reads a constraints file for `mesh`: a `"mesh"` object in it that names
+/// another mesh is a warning, or with `strict` an error (exit code 2); then
+/// the vertex ranges are checked.
+fn constraints_for(path: &Path, mesh: &mesh::Mesh, strict: bool) -> Result<ConstraintSet, Error> {
+    let bar = phase(&format!("reading {}", path.display()));
+    let set = read_constraints_file(path)?;
+    bar.finish_and_clear();
+    if let Some(detail) = set.mesh_mismatch(mesh) {
+        if strict {
+            return Err(lse_deform::error::ConstraintError::MeshMismatch { detail }.into());
+        }
+        eprintln!(
+            "warning: {} was {detail} (--strict makes this an error)",
+            path.display()
+        );
+    }
+    set.check_vertices(mesh.n_vertices())?;
+    Ok(set)
+}
+
 fn deform(a: DeformArgs) -> Result<(), Error> {
+    check_outputs(Some(&a.output), a.report.as_deref())?;
     let mesh = load(&a.mesh)?;
-    let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
+    let constraints = constraints_for(&a.constraints, &mesh, a.strict)?;
     let m = &a.method;
     let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
     let bar = phase("set-up");
@@ -373,7 +423,9 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
     bar.finish_and_clear();
     check_strict(&solution.report, a.strict)?;
     let out = deformer.mesh().with_positions(solution.positions)?;
+    let bar = phase(&format!("writing {}", a.output.display()));
     mesh::write_mesh(&out, &a.output)?;
+    bar.finish_and_clear();
     finish_report(
         &solution.report,
         a.report.as_deref(),
@@ -383,8 +435,12 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
 }
 
 fn export_system(a: ExportArgs) -> Result<(), Error> {
+    // Fail fast: the directory (created now, as the export would) must take
+    // files before the mesh is read and the system factored.
+    std::fs::create_dir_all(&a.output).map_err(|e| Error::io(&a.output, e))?;
+    mesh::check_writable(&a.output.join("A.mtx"))?;
     let mesh = load(&a.mesh)?;
-    let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
+    let constraints = constraints_for(&a.constraints, &mesh, false)?;
     let m = &a.method;
     let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
@@ -494,10 +550,18 @@ fn finish_report(
     unknowns: &str,
     constraints: &str,
 ) -> Result<(), Error> {
-    for c in &report.conflicting {
+    // A few lines, not one per conflict: a file can hold 10⁵ of them.
+    const SHOWN_CONFLICTS: usize = 10;
+    for c in report.conflicting.iter().take(SHOWN_CONFLICTS) {
         eprintln!(
             "warning: constraint {} conflicts with earlier constraints and was dropped (residual {:.3e})",
             c.index, c.residual
+        );
+    }
+    if report.conflicting.len() > SHOWN_CONFLICTS {
+        eprintln!(
+            "warning: … and {} more conflicting constraints (all are listed in the report, --report)",
+            report.conflicting.len() - SHOWN_CONFLICTS
         );
     }
     for w in &report.warnings {
@@ -737,14 +801,17 @@ fn compare_one(
 }
 
 fn compare(a: CompareArgs) -> Result<(), Error> {
+    check_outputs(None, a.json.as_deref())?;
     let configs = compare_configs(&a)?;
     let mesh = load(&a.mesh)?;
-    let constraints = read_constraints(&a.constraints, mesh.n_vertices())?;
+    let constraints = constraints_for(&a.constraints, &mesh, false)?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    let bar = ProgressBar::new(configs.len() as u64 + 1);
+    let bar =
+        ProgressBar::with_draw_target(Some(configs.len() as u64 + 1), ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {
         bar.set_style(style);
     }
+    show_after_a_second(&bar);
     bar.set_message("reference (nullspace-qr, refined)");
     let reference = compare_reference(&mut deformer)?;
     bar.inc(1);
@@ -824,11 +891,31 @@ fn generate_cmd(a: GenerateArgs) -> Result<(), Error> {
         .kind
         .parse()
         .map_err(|e: lse_deform::error::MeshError| Error::Mesh(e))?;
-    let mesh = generate::with_about_vertices(kind, a.vertices, a.seed)?;
+    mesh::check_mesh_output(&a.output)?;
+    let size = generate::size_for_vertices(kind, a.vertices)?;
+    let mesh = generate::generate(kind, size, a.seed)?;
     mesh::write_mesh(&mesh, &a.output)?;
+    let n = mesh.n_vertices();
+    let nearest = if n == a.vertices {
+        String::new()
+    } else {
+        // The family's sizes next to the one chosen, so the user sees why N
+        // was not hit exactly.
+        let neighbours: Vec<String> = [size.checked_sub(1), size.checked_add(1)]
+            .into_iter()
+            .flatten()
+            .filter(|&s| s >= kind.min_size())
+            .filter_map(|s| kind.vertex_count(s))
+            .map(|c| c.to_string())
+            .collect();
+        format!(
+            " (the nearest {kind} to the {} vertices asked for; the neighbouring sizes have {})",
+            a.vertices,
+            neighbours.join(" and ")
+        )
+    };
     eprintln!(
-        "{kind}: {} vertices, {} faces -> {}",
-        mesh.n_vertices(),
+        "{kind}: {n} vertices, {} faces{nearest} -> {}",
         mesh.n_faces(),
         a.output.display()
     );
@@ -915,6 +1002,7 @@ fn info(a: InfoArgs) -> Result<(), Error> {
 }
 
 fn scene(a: SceneArgs) -> Result<(), Error> {
+    check_outputs(None, Some(&a.output))?;
     let mesh = load(&a.mesh)?;
     let mut s = FixedAndHandle::paper_default(&mesh);
     if let Some(axis) = a.axis {

@@ -3,7 +3,7 @@
 
 use crate::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use crate::error::{Error, ProblemError};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, MeshSignature};
 
 /// "Fix the bottom, drag the top": the `fixed_fraction` of vertices lowest
 /// along `axis` are held in place (hard), and the `handle_fraction` of
@@ -100,7 +100,9 @@ impl FixedAndHandle {
                 group: None,
             });
         }
-        Ok(ConstraintSet::from_vec(list)?)
+        let mut set = ConstraintSet::from_vec(list)?;
+        set.set_mesh(Some(MeshSignature::of(mesh)));
+        Ok(set)
     }
 }
 
@@ -262,6 +264,125 @@ impl MixedScene {
                 list.push(c);
             }
         }
-        Ok(ConstraintSet::from_vec(list)?)
+        let mut set = ConstraintSet::from_vec(list)?;
+        set.set_mesh(Some(MeshSignature::of(mesh)));
+        Ok(set)
+    }
+}
+
+/// Many constraints through one vertex, appended to a [`FixedAndHandle`]
+/// scene: the legal but unkind inputs whose cost must stay proportional to
+/// their size (issue 14).
+///
+/// The *hub* is the free vertex (neither fixed nor in the handle) nearest to
+/// the middle of the axis; `count` constraints follow the base scene:
+/// - `partners == 0`: `p_hub = p_hub⁰` (its rest position), `count` times —
+///   one position constraint repeated;
+/// - `partners = P > 0`: `p_hub − p_v = p_hub⁰ − p_v⁰` for `v` cycling over
+///   the `P` free vertices nearest the hub, `count` relative constraints
+///   all sharing the hub.
+///
+/// Every `conflict_every`-th copy after the first round (`k ≥ max(P, 1)`,
+/// `k % conflict_every == 0`; `0` for none) has its target or vector moved by
+/// 1 % of the bounding-box diagonal along x. So in exact terms: the first
+/// round is independent of the base and of each other (rank `+ max(P, 1)`),
+/// the later unmoved copies are redundant and the moved ones conflicting —
+/// see [`CrowdedScene::expected`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CrowdedScene {
+    /// The fixed region and handle.
+    pub base: FixedAndHandle,
+    /// `0`: a repeated position constraint; `P > 0`: relative constraints
+    /// from the hub to `P` vertices in turn.
+    pub partners: usize,
+    /// Number of crowded constraints.
+    pub count: usize,
+    /// Every this many-th later copy conflicts (`0`: none).
+    pub conflict_every: usize,
+}
+
+impl CrowdedScene {
+    fn copy_conflicts(&self, k: usize) -> bool {
+        self.conflict_every > 0 && k >= self.partners.max(1) && k % self.conflict_every == 0
+    }
+
+    /// The constraints: the base scene's, then the crowded ones.
+    pub fn constraints(&self, mesh: &Mesh) -> Result<ConstraintSet, Error> {
+        let base = self.base.constraints(mesh)?;
+        let (fixed, handle) = self.base.regions(mesh)?;
+        let p = mesh.positions();
+        let n = mesh.n_vertices();
+        let mut used = vec![false; n];
+        for &v in fixed.iter().chain(&handle) {
+            used[v] = true;
+        }
+        let (lo, hi) = mesh.bounding_box();
+        let axis = self.base.axis;
+        let mid = 0.5 * (lo[axis] + hi[axis]);
+        let mut free: Vec<usize> = (0..n).filter(|&v| !used[v]).collect();
+        free.sort_by(|&a, &b| {
+            (p[a][axis] - mid)
+                .abs()
+                .total_cmp(&(p[b][axis] - mid).abs())
+                .then(a.cmp(&b))
+        });
+        let bad = |message: String| -> Error { ProblemError::InvalidArgument { message }.into() };
+        let Some((&hub, rest)) = free.split_first() else {
+            return Err(bad("no free vertex for the hub".into()));
+        };
+        let d2 = |v: usize| (0..3).map(|k| (p[v][k] - p[hub][k]).powi(2)).sum::<f64>();
+        let mut partners = rest.to_vec();
+        partners.sort_by(|&a, &b| d2(a).total_cmp(&d2(b)).then(a.cmp(&b)));
+        if partners.len() < self.partners {
+            return Err(bad(format!(
+                "{} partners asked for, {} free vertices",
+                self.partners,
+                partners.len()
+            )));
+        }
+        partners.truncate(self.partners);
+        let shift = 0.01 * mesh.bbox_diagonal();
+        let mut list = base.as_slice().to_vec();
+        list.reserve(self.count);
+        for k in 0..self.count {
+            let mut kind = if self.partners == 0 {
+                ConstraintKind::Position {
+                    vertex: hub,
+                    target: p[hub],
+                }
+            } else {
+                let v = partners[k % self.partners];
+                ConstraintKind::Relative {
+                    vertices: [hub, v],
+                    vector: [0, 1, 2].map(|c| p[hub][c] - p[v][c]),
+                }
+            };
+            if self.copy_conflicts(k) {
+                let r = kind.rhs();
+                kind.set_rhs([r[0] + shift, r[1], r[2]]);
+            }
+            list.push(Constraint::hard(kind));
+        }
+        let mut set = ConstraintSet::from_vec(list)?;
+        set.set_mesh(Some(MeshSignature::of(mesh)));
+        Ok(set)
+    }
+
+    /// `(rank added, redundant, conflicting)` of the crowded constraints,
+    /// as indices into [`CrowdedScene::constraints`] (which start at
+    /// `base_len`, the base scene's constraint count).
+    pub fn expected(&self, base_len: usize) -> (usize, Vec<usize>, Vec<usize>) {
+        let first_round = self.partners.max(1).min(self.count);
+        let later = first_round..self.count;
+        let redundant = later
+            .clone()
+            .filter(|&k| !self.copy_conflicts(k))
+            .map(|k| base_len + k)
+            .collect();
+        let conflicting = later
+            .filter(|&k| self.copy_conflicts(k))
+            .map(|k| base_len + k)
+            .collect();
+        (first_round, redundant, conflicting)
     }
 }

@@ -709,6 +709,131 @@ fn sliver_meshes_solve_exactly_or_fail_with_a_reason() {
 }
 
 // ---------------------------------------------------------------------------
+// Crowded constraints: many constraints through one vertex. The cost must
+// stay proportional to the input (full counts in benches/performance.rs,
+// group t8_crowded); here the answers are checked on smaller counts.
+
+/// The QR back ends of this build.
+fn qr_names() -> Vec<&'static str> {
+    lse_deform::backend::qr::NAMES
+        .iter()
+        .copied()
+        .filter(|n| cfg!(feature = "suitesparse") || *n != "spqr")
+        .collect()
+}
+
+/// Runs a [`CrowdedScene`] on every QR back end and checks the rank, the
+/// redundant and the conflicting sets against [`CrowdedScene::expected`]
+/// (derived from how the scene is built, not from a solver), the conflict
+/// residuals (the 1 % shift) and that the kept constraints hold.
+fn check_crowded(partners: usize, count: usize) {
+    use lse_deform::scene::{CrowdedScene, FixedAndHandle};
+    let mesh = generate::grid(20, 20).unwrap();
+    let scene = CrowdedScene {
+        base: FixedAndHandle::paper_default(&mesh),
+        partners,
+        count,
+        conflict_every: 7,
+    };
+    let cs = scene.constraints(&mesh).unwrap();
+    let base_len = cs.len() - count;
+    let (added, redundant, conflicting) = scene.expected(base_len);
+    assert!(!redundant.is_empty() && !conflicting.is_empty());
+    let shift = 0.01 * mesh.bbox_diagonal();
+    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs).unwrap();
+    for qr in qr_names() {
+        let f = lse_deform::formulation::build("nullspace-qr", qr, "faer-auto", None).unwrap();
+        d.precompute(f.as_ref()).unwrap();
+        let s = d.solve().unwrap();
+        let r = &s.report;
+        // The base scene's position constraints are on distinct vertices.
+        assert_eq!(r.rank, Some(base_len + added), "{qr}");
+        assert_eq!(r.redundant, redundant, "{qr}");
+        let found: Vec<usize> = r.conflicting.iter().map(|c| c.index).collect();
+        assert_eq!(found, conflicting, "{qr}");
+        for c in &r.conflicting {
+            assert!((c.residual - shift).abs() < 1e-9 * shift, "{qr}: {c:?}");
+        }
+        assert!(r.max_constraint_residual < 1e-12, "{qr}: {r:?}");
+    }
+}
+
+#[test]
+fn one_position_constraint_repeated_thousands_of_times() {
+    check_crowded(0, 5_000);
+}
+
+#[test]
+fn thousands_of_relative_constraints_through_one_hub() {
+    check_crowded(40, 5_000);
+}
+
+#[test]
+fn a_byte_order_mark_is_not_malformed_json() {
+    let text = format!(
+        "\u{feff}{}",
+        one(r#"{"type": "position", "vertex": 1, "target": [0,0,0]}"#)
+    );
+    let set = parse_constraints(&text).unwrap();
+    assert_eq!(set.len(), 2);
+    assert_eq!(set[1], pos(1, [0.0, 0.0, 0.0]));
+    // Only one mark, and only at the start.
+    let twice = format!("\u{feff}{text}");
+    expect!(
+        constraint_err(&twice, 4),
+        ConstraintError::Json {
+            line: 1,
+            column: 1,
+            ..
+        },
+        "line 1"
+    );
+}
+
+#[test]
+fn a_constraints_file_knows_its_mesh() {
+    use lse_deform::scene::FixedAndHandle;
+    let mesh = generate::grid(10, 10).unwrap();
+    let cs = FixedAndHandle::paper_default(&mesh)
+        .constraints(&mesh)
+        .unwrap();
+    let back = parse_constraints(&cs.to_json()).unwrap();
+    // (Targets can differ in the last bit: serde_json parses decimals
+    // without `float_roundtrip`.)
+    assert_eq!(back.mesh(), cs.mesh(), "the mesh object survives the file");
+    assert_eq!(back.len(), cs.len());
+    assert_eq!(back.mesh().unwrap().vertices, 121);
+    assert_eq!(back.mesh_mismatch(&mesh), None);
+    // Same counts, other positions: the fingerprint says so.
+    let moved: Vec<[f64; 3]> = mesh
+        .positions()
+        .iter()
+        .map(|p| [p[0], p[1], p[2] + 0.01 * p[0]])
+        .collect();
+    let other = mesh.with_positions(moved).unwrap();
+    let msg = back.mesh_mismatch(&other).unwrap();
+    assert!(msg.contains("fingerprint"), "{msg}");
+    // Other counts.
+    let small = generate::grid(5, 5).unwrap();
+    let msg = back.mesh_mismatch(&small).unwrap();
+    assert!(msg.contains("121 vertices") && msg.contains("36"), "{msg}");
+    // A malformed mesh object is a shape error naming the field.
+    let bad = r#"{"mesh": {"vertices": 3, "faces": 1}, "constraints": []}"#;
+    expect!(
+        constraint_err(bad, 3),
+        ConstraintError::Shape { .. },
+        "'mesh'",
+        "fingerprint"
+    );
+    let extra = r#"{"mesh": {"vertices": 3, "faces": 1, "fingerprint": "x", "colour": 1}, "constraints": []}"#;
+    expect!(
+        constraint_err(extra, 3),
+        ConstraintError::Shape { .. },
+        "colour"
+    );
+}
+
+// ---------------------------------------------------------------------------
 // The binary: exit codes and one-line messages
 
 fn run(args: &[&str]) -> Output {

@@ -1203,6 +1203,34 @@ fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
 // ---------------------------------------------------------------------------
 // Writers
 
+/// Checks, before any work, that [`write_mesh`] will be able to write
+/// `path`: the extension names a format it writes and the file can be opened
+/// for writing (the directory exists, permissions allow it). See
+/// [`check_writable`].
+pub fn check_mesh_output(path: &Path) -> Result<(), Error> {
+    MeshFormat::from_path(path)?;
+    check_writable(path)
+}
+
+/// Checks that `path` can be opened for writing, without changing it: an
+/// existing file is opened for writing and left as it is (no truncation), a
+/// missing one is created and removed again. Lets a command refuse a
+/// misspelt directory or a read-only location before a long computation
+/// instead of after it.
+pub fn check_writable(path: &Path) -> Result<(), Error> {
+    let existed = path.symlink_metadata().is_ok();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(path)
+        .map_err(|e| Error::io(path, e))?;
+    if !existed {
+        std::fs::remove_file(path).map_err(|e| Error::io(path, e))?;
+    }
+    Ok(())
+}
+
 /// Writes a mesh, choosing the format from the extension: `.obj`, `.off`,
 /// `.ply` (binary little-endian, double coordinates), each optionally
 /// followed by `.gz` (gzip-compressed).

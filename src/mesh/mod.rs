@@ -28,12 +28,17 @@
 
 use crate::error::MeshError;
 
+pub mod fingerprint;
 pub mod generate;
 pub mod io;
 pub mod quality;
 pub mod topology;
 
-pub use io::{LoadedMesh, MeshFormat, PlyEncoding, read_mesh, read_mesh_bytes, write_mesh};
+pub use fingerprint::MeshSignature;
+pub use io::{
+    LoadedMesh, MeshFormat, PlyEncoding, check_mesh_output, check_writable, read_mesh,
+    read_mesh_bytes, write_mesh,
+};
 pub use quality::Quality;
 pub use topology::Topology;
 

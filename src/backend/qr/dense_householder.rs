@@ -27,6 +27,8 @@
 use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef, SymbolicSparseColMat};
 use faer::{Mat, MatMut, MatRef};
 
+use super::distinct_rows::factor_distinct_rows;
+use super::graph_rows::factor_graph_rows;
 use super::{ConstraintQr, QrBackend, RankTolerance};
 use crate::error::{Error, ProblemError};
 
@@ -44,7 +46,11 @@ impl QrBackend for DenseHouseholder {
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
-        Ok(Box::new(BlockHouseholderQr::new(b, tolerance)?))
+        factor_distinct_rows(b, |b| {
+            factor_graph_rows(b, |b| {
+                Ok(Box::new(BlockHouseholderQr::new(b, tolerance)?) as Box<dyn ConstraintQr>)
+            })
+        })
     }
 }
 

@@ -10,6 +10,16 @@
 //! ([`RankTolerance`]). Since constraints are processed in list order, the
 //! earlier of two dependent constraints is the one kept.
 //!
+//! Rows of `B` that repeat an earlier row up to sign are dependent whatever
+//! the tolerance; every back end decides them in linear time before
+//! factoring (`distinct_rows.rs`), so a constraint repeated `k` times costs
+//! `O(k)`, not the `O(k²)` of a dense `k × k` block of `B Bᵀ`. Then, when
+//! every row is a position or relative row and an unknown is shared by many
+//! of them (a hub), rank is decided by union–find and the rows are replaced
+//! by an equivalent set with a sparse `B Bᵀ` (`graph_rows.rs`); and the fill
+//! of `R` is counted before factoring and checked against the memory budget
+//! (`fill.rs`).
+//!
 //! Back ends ([`by_name`]): [`DenseHouseholder`] (the paper's method per
 //! independent block, the reference), [`SparseGivens`] (row-by-row Givens on
 //! the whole sparse `Bᵀ`, Heath's rank test) and, with the cargo feature
@@ -26,12 +36,16 @@ use faer::{Mat, MatMut, MatRef};
 use crate::error::{Error, ProblemError};
 
 mod dense_householder;
+mod distinct_rows;
+mod fill;
+mod graph_rows;
 mod sparse_columns;
 mod sparse_givens;
 #[cfg(feature = "suitesparse")]
 mod spqr;
 
 pub use dense_householder::DenseHouseholder;
+pub use graph_rows::HUB_DEGREE;
 pub use sparse_givens::{GivensQr, GivensRowOrder, SparseGivens};
 #[cfg(feature = "suitesparse")]
 pub use spqr::{Spqr, SpqrQr};

@@ -67,6 +67,9 @@
 use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef};
 use faer::{MatMut, MatRef};
 
+use super::distinct_rows::factor_distinct_rows;
+use super::fill::{check_r_fill, fill_reducing_constraint_order};
+use super::graph_rows::factor_graph_rows;
 use super::sparse_columns::ColumnWorkspace;
 use super::{ConstraintQr, QrBackend, RankTolerance};
 use crate::error::{Error, ProblemError};
@@ -112,7 +115,11 @@ impl QrBackend for SparseGivens {
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
-        Ok(Box::new(GivensQr::new(b, tolerance, self.order)?))
+        factor_distinct_rows(b, |b| {
+            factor_graph_rows(b, |b| {
+                Ok(Box::new(GivensQr::new(b, tolerance, self.order)?) as Box<dyn ConstraintQr>)
+            })
+        })
     }
 }
 
@@ -158,26 +165,34 @@ pub struct GivensQr {
 
 impl GivensQr {
     /// Factors `Bᵀ` for `b` (m × n, one row per constraint in priority
-    /// order). Fails only on a non-finite coefficient.
+    /// order).
     ///
     /// **Column order.** When constraints share unknowns (relative, edge and
     /// face constraints linking a region), the fill of `R` depends on the
     /// column order, and the priority order can be a bad one (a breadth-first
     /// chain of relative constraints fills `R` along the BFS front). The
-    /// factorisation is therefore first tried in an approximate-minimum-degree
-    /// order of `B Bᵀ`. If that finds full rank, every constraint is kept —
-    /// which is exactly what the priority order keeps when `B` has full row
-    /// rank — and the result is used (the minimiser on `{X : BX = D}` does
-    /// not depend on the basis of the null space). If it finds a dependent
-    /// constraint, the priority decides which one to drop, so the
-    /// factorisation is redone in priority order.
+    /// factorisation is therefore first tried in a fill-reducing order
+    /// (COLAMD on `Bᵀ`, which never forms `B Bᵀ`; see `fill.rs`). If that
+    /// finds full rank, every constraint is kept — which is exactly what the
+    /// priority order keeps when `B` has full row rank — and the result is
+    /// used (the minimiser on `{X : BX = D}` does not depend on the basis of
+    /// the null space). If it finds a dependent constraint, the priority
+    /// decides which one to drop, so the factorisation is redone in priority
+    /// order.
+    ///
+    /// Errors: a non-finite coefficient; [`ProblemError::TooLarge`] when the
+    /// `R` of an order, counted before that factorisation starts
+    /// (`nnz(R)` from the symbolic analysis of `B Bᵀ`, 16 bytes an entry),
+    /// would not fit in the memory budget ([`crate::limits`]).
     pub fn new(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
         order: GivensRowOrder,
     ) -> Result<GivensQr, Error> {
-        if let Some(perm) = fill_reducing_constraint_order(b)? {
-            let permuted = permute_rows(b, &perm)?;
+        let fill_order = fill_reducing_constraint_order(b)?;
+        if let Some(perm) = &fill_order {
+            check_r_fill(b, Some(perm), "sparse-givens, fill-reducing order")?;
+            let permuted = permute_rows(b, perm)?;
             let mut qr = GivensQr::in_column_order(permuted.as_ref(), tolerance, order)?;
             if qr.skipped.is_empty() {
                 for r in &mut qr.d_row {
@@ -187,6 +202,7 @@ impl GivensQr {
                 qr.kept = (0..b.nrows()).collect();
                 return Ok(qr);
             }
+            check_r_fill(b, None, "sparse-givens, priority order")?;
         }
         GivensQr::in_column_order(b, tolerance, order)
     }
@@ -500,72 +516,6 @@ impl ConstraintQr for GivensQr {
     fn storage_nnz(&self) -> usize {
         self.rotations.len() + self.r_val.len()
     }
-}
-
-/// An approximate-minimum-degree order of the constraints for the pattern of
-/// `B Bᵀ` (constraints adjacent when they share an unknown): `perm[k]` is
-/// the constraint placed `k`-th. `None` when no two constraints share an
-/// unknown (then `R` is diagonal in any order).
-fn fill_reducing_constraint_order(
-    b: SparseRowMatRef<'_, usize, f64>,
-) -> Result<Option<Vec<usize>>, Error> {
-    use faer::dyn_stack::{MemBuffer, MemStack};
-    use faer::sparse::SymbolicSparseColMat;
-    use faer::sparse::linalg::amd;
-
-    let (m, n) = (b.nrows(), b.ncols());
-    let (ptr, col) = (b.symbolic().row_ptr(), b.symbolic().col_idx());
-    // Constraints per unknown.
-    let mut by_unknown: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for i in 0..m {
-        for &u in &col[ptr[i]..ptr[i + 1]] {
-            if by_unknown[u].last() != Some(&i) {
-                by_unknown[u].push(i);
-            }
-        }
-    }
-    // Upper triangle of the pattern of B Bᵀ, as (column, row) pairs.
-    let mut pairs: Vec<(usize, usize)> = Vec::new();
-    for list in &by_unknown {
-        for (a, &i) in list.iter().enumerate() {
-            for &j in &list[a + 1..] {
-                pairs.push((j, i));
-            }
-        }
-    }
-    if pairs.is_empty() {
-        return Ok(None);
-    }
-    pairs.sort_unstable();
-    pairs.dedup();
-    let mut col_ptr = vec![0usize; m + 1];
-    for &(j, _) in &pairs {
-        col_ptr[j + 1] += 1;
-    }
-    for j in 0..m {
-        col_ptr[j + 1] += col_ptr[j];
-    }
-    let row_idx: Vec<usize> = pairs.iter().map(|&(_, i)| i).collect();
-    let nnz = row_idx.len();
-    let pattern = SymbolicSparseColMat::new_checked(m, m, col_ptr, None, row_idx);
-    let backend = |e: &dyn std::fmt::Debug| {
-        Error::from(ProblemError::InvalidArgument {
-            message: format!("ordering the hard constraints failed: {e:?}"),
-        })
-    };
-    let mut fwd = vec![0usize; m];
-    let mut inv = vec![0usize; m];
-    let mut mem =
-        MemBuffer::try_new(amd::order_scratch::<usize>(m, nnz)).map_err(|e| backend(&e))?;
-    amd::order(
-        &mut fwd,
-        &mut inv,
-        pattern.as_ref(),
-        amd::Control::default(),
-        MemStack::new(&mut mem),
-    )
-    .map_err(|e| backend(&e))?;
-    Ok(Some(fwd))
 }
 
 /// `b` with its rows in the order `perm` (row `k` of the result is row

@@ -51,6 +51,9 @@ use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef};
 use faer::{Mat, MatMut, MatRef};
 use suitesparse_sys as ss;
 
+use super::distinct_rows::factor_distinct_rows;
+use super::fill::check_r_fill;
+use super::graph_rows::factor_graph_rows;
 use super::sparse_columns::ColumnWorkspace;
 use super::{ConstraintQr, QrBackend, RankTolerance};
 use crate::backend::suitesparse::{Common, Long};
@@ -116,7 +119,13 @@ impl QrBackend for Spqr {
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
-        Ok(Box::new(SpqrQr::new(b, tolerance)?))
+        factor_distinct_rows(b, |b| {
+            factor_graph_rows(b, |b| {
+                // Fixed ordering: R's fill is that of B Bᵀ in list order.
+                check_r_fill(b, None, "spqr, fixed order")?;
+                Ok(Box::new(SpqrQr::new(b, tolerance)?) as Box<dyn ConstraintQr>)
+            })
+        })
     }
 }
 

@@ -1,0 +1,514 @@
+//! Constraints that form a graph, with a hub: rank by union–find, and an
+//! equivalent set of rows whose `B Bᵀ` is sparse.
+//!
+//! **When.** Every row of `B` is a position row `e_u` (its coefficient
+//! exactly 1) or a relative row `e_u − e_v` (coefficients exactly `+1`, `−1`) — the
+//! constraints of the paper's eq. 3 and 6 — and some unknown is shared by
+//! more than [`HUB_DEGREE`] of the independent ones. Then `B Bᵀ` has a dense
+//! block of that size, which any QR of `Bᵀ` fills into `R` (`RᵀR = B Bᵀ`):
+//! 200,000 relative constraints from one hub to distinct vertices would need
+//! `2·10¹⁰` entries. Otherwise the back end factors `B` as it is.
+//!
+//! **Rank, exactly.** Read the rows as edges of a graph on the unknowns plus
+//! a *ground* node `G` (`e_u` is the edge `u–G`, `p_G = 0`). A set of such
+//! rows is linearly independent iff its edges form a forest, so walking the
+//! rows in priority order with a union–find keeps an edge iff it joins two
+//! trees: the same kept and skipped sets as the QR's priority-order test
+//! (a dependent row's remainder is exactly zero, an independent one's is
+//! at least `1/√(tree size)`, far above the tolerance), in `O(m α(m))`.
+//!
+//! **Equivalent rows.** The kept rows fix exactly this: on each tree `T`,
+//! `p_a − p_b = φ(a) − φ(b)` for the *potential* `φ` obtained by summing the
+//! right-hand sides along tree paths (`φ(G) = 0`). So they can be replaced by
+//! any rows with the same span and the matching right-hand sides:
+//! - a tree containing `G` pins each of its unknowns: rows `e_v`, right-hand
+//!   side `φ(v)` — `R` diagonal, no rotation;
+//! - a tree without `G` whose largest degree exceeds [`HUB_DEGREE`] becomes
+//!   a binomial tree over its unknowns `v_0, …, v_{k−1}` in depth-first
+//!   order: rows `e_{v_i} − e_{v_{i+s}}` for `s = 1, 2, 4, …` and
+//!   `i ≡ 0 (mod 2s)`, right-hand sides `φ(v_i) − φ(v_{i+s})`. Every unknown
+//!   is in at most `⌈log₂ k⌉` rows, so `B Bᵀ` stays sparse; and the
+//!   rotations that eliminate it merge columns of `A` pairwise, level by
+//!   level (`O(k log k)` fill in `A Q`), where a path `v_0 − v_1 − ⋯` would
+//!   merge them one after another (`O(k²)`: 20,000 partners took 90 s and
+//!   17 GB that way);
+//! - other trees keep their rows.
+//!
+//! The minimiser of `‖AX − C‖` on `{X : B_kept X = D_kept}` is unchanged
+//! (the same affine set). `φ` is recomputed from `D` at every solve
+//! (`O(m)`), so targets can still change without refactoring. Rounding: a
+//! potential sums at most `depth` right-hand sides, so a kept row holds to
+//! about `depth · ε · max|d|`.
+
+use faer::sparse::{
+    SparseColMat, SparseColMatRef, SparseRowMat, SparseRowMatRef, SymbolicSparseRowMat,
+};
+use faer::{Mat, MatMut, MatRef};
+
+use super::ConstraintQr;
+use crate::error::Error;
+
+/// An unknown shared by more independent graph rows than this makes the
+/// rows be replaced (see the module documentation). Meshes have vertex
+/// degrees around 6, so constraint trees built along mesh edges stay below
+/// it and keep their rows; a hub constrained to many vertices does not.
+pub const HUB_DEGREE: usize = 32;
+
+/// A row of `B` read as an edge `a − b` (`b = None`: the ground).
+#[derive(Debug, Clone, Copy)]
+struct Edge {
+    a: usize,
+    b: Option<usize>,
+}
+
+/// Row `j` as an edge, if it is a graph row.
+fn edge(cols: &[usize], vals: &[f64]) -> Option<Edge> {
+    match (cols, vals) {
+        ([u], [v]) if *v == 1.0 => Some(Edge { a: *u, b: None }),
+        ([u, w], [x, y]) if *x == 1.0 && *y == -1.0 && u != w => Some(Edge { a: *u, b: Some(*w) }),
+        ([u, w], [x, y]) if *x == -1.0 && *y == 1.0 && u != w => Some(Edge { a: *w, b: Some(*u) }),
+        _ => None,
+    }
+}
+
+fn find(parent: &mut [usize], mut x: usize) -> usize {
+    while parent[x] != x {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    x
+}
+
+/// One step of the potential: `φ[node] = φ[parent] + sign · d[row]`
+/// (`parent == usize::MAX`: a root, `φ = 0`). Indices into the traversal.
+#[derive(Debug, Clone, Copy)]
+struct Step {
+    parent: usize,
+    row: usize,
+    sign: f64,
+}
+
+/// Right-hand side of a replacement row, from the potentials (traversal
+/// indices) or an original row.
+#[derive(Debug, Clone, Copy)]
+enum Rhs {
+    Pin(usize),
+    Diff(usize, usize),
+    Row(usize),
+}
+
+/// Factors `b` with `factor`, replacing hub-shaped graph rows first when
+/// the module's conditions hold; otherwise calls `factor(b)`.
+pub(super) fn factor_graph_rows(
+    b: SparseRowMatRef<'_, usize, f64>,
+    factor: impl Fn(SparseRowMatRef<'_, usize, f64>) -> Result<Box<dyn ConstraintQr>, Error>,
+) -> Result<Box<dyn ConstraintQr>, Error> {
+    let Some(plan) = Plan::new(b) else {
+        return factor(b);
+    };
+    let inner = factor(plan.rows.as_ref())?;
+    if inner.rank() != plan.rhs.len() {
+        // Cannot happen for exact ±1 rows; stay safe rather than wrong.
+        return factor(b);
+    }
+    Ok(Box::new(GraphRows {
+        inner,
+        steps: plan.steps,
+        rhs: plan.rhs,
+        kept: plan.kept,
+        skipped: plan.skipped,
+    }))
+}
+
+struct Plan {
+    rows: SparseRowMat<usize, f64>,
+    steps: Vec<Step>,
+    rhs: Vec<Rhs>,
+    kept: Vec<usize>,
+    skipped: Vec<usize>,
+}
+
+impl Plan {
+    fn new(b: SparseRowMatRef<'_, usize, f64>) -> Option<Plan> {
+        let (m, n) = (b.nrows(), b.ncols());
+        let (ptr, col, val) = (b.symbolic().row_ptr(), b.symbolic().col_idx(), b.val());
+        let ground = n;
+        let mut edges = Vec::with_capacity(m);
+        for j in 0..m {
+            edges.push(edge(&col[ptr[j]..ptr[j + 1]], &val[ptr[j]..ptr[j + 1]])?);
+        }
+        // Union–find in priority order.
+        let mut parent: Vec<usize> = (0..=n).collect();
+        let mut kept = Vec::new();
+        let mut skipped = Vec::new();
+        let mut degree = vec![0usize; n + 1];
+        for (j, e) in edges.iter().enumerate() {
+            let b_node = e.b.unwrap_or(ground);
+            let (ra, rb) = (find(&mut parent, e.a), find(&mut parent, b_node));
+            if ra == rb {
+                skipped.push(j);
+            } else {
+                parent[ra] = rb;
+                kept.push(j);
+                degree[e.a] += 1;
+                degree[b_node] += 1;
+            }
+        }
+        if degree[..n].iter().all(|&d| d <= HUB_DEGREE) {
+            return None;
+        }
+        // Adjacency of the kept forest (CSR over nodes 0..=n).
+        let mut adj_ptr = vec![0usize; n + 2];
+        for &j in &kept {
+            let e = edges[j];
+            adj_ptr[e.a + 1] += 1;
+            adj_ptr[e.b.unwrap_or(ground) + 1] += 1;
+        }
+        for v in 0..=n {
+            adj_ptr[v + 1] += adj_ptr[v];
+        }
+        let mut fill = adj_ptr.clone();
+        let mut adj = vec![(0usize, 0usize); adj_ptr[n + 1]];
+        for &j in &kept {
+            let e = edges[j];
+            let bn = e.b.unwrap_or(ground);
+            adj[fill[e.a]] = (bn, j);
+            fill[e.a] += 1;
+            adj[fill[bn]] = (e.a, j);
+            fill[bn] += 1;
+        }
+        // Traverse each tree depth-first (ground's tree first), recording
+        // the potential steps and the replacement rows.
+        let mut slot = vec![usize::MAX; n + 1];
+        let mut steps: Vec<Step> = Vec::new();
+        let mut nodes: Vec<usize> = Vec::new();
+        let mut triplets: Vec<(usize, f64, Option<usize>)> = Vec::new();
+        let mut rhs: Vec<Rhs> = Vec::new();
+        let roots = std::iter::once(ground).chain(0..n);
+        let mut stack = Vec::new();
+        for root in roots {
+            if slot[root] != usize::MAX || adj_ptr[root + 1] == adj_ptr[root] {
+                continue;
+            }
+            let first = steps.len();
+            slot[root] = first;
+            steps.push(Step {
+                parent: usize::MAX,
+                row: 0,
+                sign: 0.0,
+            });
+            nodes.push(root);
+            let mut max_degree = 0;
+            stack.push(root);
+            while let Some(v) = stack.pop() {
+                if v != ground {
+                    max_degree = max_degree.max(degree[v]);
+                }
+                for &(w, j) in adj[adj_ptr[v]..adj_ptr[v + 1]].iter().rev() {
+                    if slot[w] != usize::MAX {
+                        continue;
+                    }
+                    // Row j: p_a − p_b = d_j.
+                    let sign = if edges[j].a == w { 1.0 } else { -1.0 };
+                    slot[w] = steps.len();
+                    steps.push(Step {
+                        parent: slot[v],
+                        row: j,
+                        sign,
+                    });
+                    nodes.push(w);
+                    stack.push(w);
+                }
+            }
+            let tree = first..steps.len();
+            if root == ground {
+                for t in tree.start + 1..tree.end {
+                    triplets.push((nodes[t], 1.0, None));
+                    rhs.push(Rhs::Pin(t));
+                }
+            } else if max_degree > HUB_DEGREE {
+                // A binomial tree over the depth-first order: pairs at
+                // distance 1, then 2, 4, … (every unknown in at most
+                // ⌈log₂ k⌉ rows).
+                let k = tree.end - tree.start;
+                let mut step = 1;
+                while step < k {
+                    for i in (0..k).step_by(2 * step) {
+                        if i + step < k {
+                            let (s, t) = (tree.start + i, tree.start + i + step);
+                            triplets.push((nodes[s], 1.0, Some(nodes[t])));
+                            rhs.push(Rhs::Diff(s, t));
+                        }
+                    }
+                    step *= 2;
+                }
+            } else {
+                for t in tree.start + 1..tree.end {
+                    let e = edges[steps[t].row];
+                    triplets.push((e.a, 1.0, e.b));
+                    rhs.push(Rhs::Row(steps[t].row));
+                }
+            }
+        }
+        let mut row_ptr = Vec::with_capacity(triplets.len() + 1);
+        row_ptr.push(0);
+        let mut cols = Vec::with_capacity(2 * triplets.len());
+        let mut vals = Vec::with_capacity(2 * triplets.len());
+        for &(a, _, b_node) in &triplets {
+            match b_node {
+                None => {
+                    cols.push(a);
+                    vals.push(1.0);
+                }
+                Some(w) => {
+                    let (lo, hi, vlo, vhi) = if a < w {
+                        (a, w, 1.0, -1.0)
+                    } else {
+                        (w, a, -1.0, 1.0)
+                    };
+                    cols.extend([lo, hi]);
+                    vals.extend([vlo, vhi]);
+                }
+            }
+            row_ptr.push(cols.len());
+        }
+        let symbolic = SymbolicSparseRowMat::new_checked(triplets.len(), n, row_ptr, None, cols);
+        Some(Plan {
+            rows: SparseRowMat::new(symbolic, vals),
+            steps,
+            rhs,
+            kept,
+            skipped,
+        })
+    }
+}
+
+/// The factorisation of the replacement rows, answering for the rows of
+/// `B`.
+struct GraphRows {
+    inner: Box<dyn ConstraintQr>,
+    steps: Vec<Step>,
+    rhs: Vec<Rhs>,
+    kept: Vec<usize>,
+    skipped: Vec<usize>,
+}
+
+impl GraphRows {
+    /// The right-hand sides of the replacement rows for `d` (rows of `B`).
+    fn replacement_rhs(&self, d: MatRef<'_, f64>) -> Mat<f64> {
+        let k = d.ncols();
+        let mut phi = Mat::<f64>::zeros(self.steps.len(), k);
+        for (t, s) in self.steps.iter().enumerate() {
+            if s.parent != usize::MAX {
+                for c in 0..k {
+                    phi[(t, c)] = phi[(s.parent, c)] + s.sign * d[(s.row, c)];
+                }
+            }
+        }
+        Mat::from_fn(self.rhs.len(), k, |i, c| match self.rhs[i] {
+            Rhs::Pin(t) => phi[(t, c)],
+            Rhs::Diff(s, t) => phi[(s, c)] - phi[(t, c)],
+            Rhs::Row(j) => d[(j, c)],
+        })
+    }
+}
+
+impl ConstraintQr for GraphRows {
+    fn n(&self) -> usize {
+        self.inner.n()
+    }
+
+    fn rank(&self) -> usize {
+        self.inner.rank()
+    }
+
+    fn kept(&self) -> &[usize] {
+        &self.kept
+    }
+
+    fn skipped(&self) -> &[usize] {
+        &self.skipped
+    }
+
+    fn solve_r1t(&self, d: MatRef<'_, f64>, y: MatMut<'_, f64>) {
+        let replaced = self.replacement_rhs(d);
+        self.inner.solve_r1t(replaced.as_ref(), y);
+    }
+
+    fn apply_q(&self, y: MatRef<'_, f64>, z: MatRef<'_, f64>, x: MatMut<'_, f64>) {
+        self.inner.apply_q(y, z, x);
+    }
+
+    fn apply_qt(&self, x: MatRef<'_, f64>, y: MatMut<'_, f64>, z: MatMut<'_, f64>) {
+        self.inner.apply_qt(x, y, z);
+    }
+
+    fn mul_a_q2(&self, a: SparseColMatRef<'_, usize, f64>) -> SparseColMat<usize, f64> {
+        self.inner.mul_a_q2(a)
+    }
+
+    fn free_unknown(&self, k: usize) -> usize {
+        self.inner.free_unknown(k)
+    }
+
+    fn storage_nnz(&self) -> usize {
+        self.inner.storage_nnz()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backend::qr::{
+        DenseHouseholder, GivensQr, GivensRowOrder, QrBackend, RankTolerance, SparseGivens,
+        particular_solution,
+    };
+    use faer::sparse::Triplet;
+    use proptest::prelude::*;
+
+    /// Rows from edges: `(a, None)` = `e_a`, `(a, Some(b))` = `e_a − e_b`.
+    fn b_of(n: usize, edges: &[(usize, Option<usize>)]) -> SparseRowMat<usize, f64> {
+        let mut t = Vec::new();
+        for (i, &(a, b)) in edges.iter().enumerate() {
+            t.push(Triplet::new(i, a, 1.0));
+            if let Some(b) = b {
+                t.push(Triplet::new(i, b, -1.0));
+            }
+        }
+        SparseRowMat::try_new_from_triplets(edges.len(), n, &t).unwrap()
+    }
+
+    /// Checks a back end against the plain priority-order Givens QR (no
+    /// replacement): same kept and skipped rows, `B_kept Q2 = 0`, and the
+    /// particular solution meets every kept row.
+    fn agrees(n: usize, edges: &[(usize, Option<usize>)], backend: &dyn QrBackend) {
+        let b = b_of(n, edges);
+        let plain = GivensQr::new(
+            b.as_ref(),
+            RankTolerance::default(),
+            GivensRowOrder::Natural,
+        )
+        .unwrap();
+        let qr = backend
+            .factor(b.as_ref(), RankTolerance::default())
+            .unwrap();
+        assert_eq!(qr.skipped(), plain.skipped(), "{}", backend.name());
+        let mut kept = qr.kept().to_vec();
+        kept.sort_unstable();
+        let mut plain_kept = plain.kept().to_vec();
+        plain_kept.sort_unstable();
+        assert_eq!(kept, plain_kept, "{}", backend.name());
+        assert_eq!(qr.rank(), kept.len());
+        // B_kept Q2 = 0.
+        let mut t = Vec::new();
+        for (r, &j) in kept.iter().enumerate() {
+            let (a, b_node) = edges[j];
+            t.push(Triplet::new(r, a, 1.0));
+            if let Some(w) = b_node {
+                t.push(Triplet::new(r, w, -1.0));
+            }
+        }
+        let bk = SparseColMat::try_new_from_triplets(kept.len(), n, &t).unwrap();
+        let bq2 = qr.mul_a_q2(bk.as_ref()).to_dense();
+        let worst = (0..bq2.nrows())
+            .flat_map(|i| (0..bq2.ncols()).map(move |c| (i, c)))
+            .map(|(i, c)| bq2[(i, c)].abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-12, "{}: B_kept Q2 = {worst:e}", backend.name());
+        // Particular solution for d_j = j + 1 (and a second column).
+        let d = Mat::from_fn(edges.len(), 2, |j, c| (j + 1) as f64 * (1.0 + c as f64));
+        let (_, x) = particular_solution(qr.as_ref(), d.as_ref());
+        for &j in &kept {
+            let (a, b_node) = edges[j];
+            for c in 0..2 {
+                let got = x[(a, c)] - b_node.map_or(0.0, |w| x[(w, c)]);
+                assert!(
+                    (got - d[(j, c)]).abs() < 1e-9 * d[(j, c)].abs().max(1.0),
+                    "{}: row {j}: {got} ≠ {}",
+                    backend.name(),
+                    d[(j, c)]
+                );
+            }
+        }
+    }
+
+    fn backends() -> Vec<Box<dyn QrBackend>> {
+        vec![
+            Box::new(SparseGivens::default()),
+            Box::new(DenseHouseholder),
+        ]
+    }
+
+    #[test]
+    fn a_star_from_a_hub_becomes_a_binomial_tree() {
+        // 100 relative rows hub 0 → v, v = 1..=100, a repeat-free cycle row
+        // (1 − 2, dependent), and a pin elsewhere.
+        let mut edges: Vec<(usize, Option<usize>)> = (1..=100).map(|v| (0, Some(v))).collect();
+        edges.push((1, Some(2)));
+        edges.push((150, None));
+        edges.push((2, Some(0))); // dependent: −(0 − 2)
+        let plan = Plan::new(b_of(160, &edges).as_ref()).expect("a hub of degree 100");
+        assert_eq!(plan.skipped, vec![100, 102]);
+        // 100 tree rows (101 unknowns in one tree) + 1 pin.
+        assert_eq!(plan.rhs.len(), 101);
+        let ptr = plan.rows.symbolic().row_ptr();
+        assert!((0..101).all(|i| ptr[i + 1] - ptr[i] <= 2));
+        for backend in backends() {
+            agrees(160, &edges, backend.as_ref());
+        }
+    }
+
+    #[test]
+    fn a_hub_tied_to_the_ground_pins_every_vertex() {
+        let mut edges: Vec<(usize, Option<usize>)> = vec![(0, None)];
+        edges.extend((1..=40).map(|v| (v, Some(0))));
+        edges.push((5, None)); // dependent: 5 is pinned through the hub
+        let plan = Plan::new(b_of(50, &edges).as_ref()).unwrap();
+        assert_eq!(plan.skipped, vec![41]);
+        assert!(matches!(plan.rhs[0], Rhs::Pin(_)));
+        assert_eq!(plan.rows.symbolic().col_idx().len(), 41, "one entry a row");
+        for backend in backends() {
+            agrees(50, &edges, backend.as_ref());
+        }
+    }
+
+    #[test]
+    fn other_rows_are_left_alone() {
+        // No hub: a chain.
+        let edges: Vec<(usize, Option<usize>)> = (0..50).map(|v| (v, Some(v + 1))).collect();
+        assert!(Plan::new(b_of(60, &edges).as_ref()).is_none());
+        // A hub, but one row is not ±1.
+        let mut t: Vec<Triplet<usize, usize, f64>> = Vec::new();
+        for v in 1..=40 {
+            t.push(Triplet::new(v - 1, 0, 1.0));
+            t.push(Triplet::new(v - 1, v, -1.0));
+        }
+        t.push(Triplet::new(40, 3, 0.5));
+        let b = SparseRowMat::try_new_from_triplets(41, 50, &t).unwrap();
+        assert!(Plan::new(b.as_ref()).is_none());
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Random graph rows around a hub (cycles, repeats up to sign,
+        /// pins): every back end agrees with the plain QR.
+        #[test]
+        fn random_hub_graphs_agree_with_the_plain_qr(
+            raw in proptest::collection::vec((0usize..4, 0usize..40, 0usize..40), 40..120)
+        ) {
+            let edges: Vec<(usize, Option<usize>)> = raw
+                .iter()
+                .map(|&(kind, u, v)| match kind {
+                    0 => (u, None),
+                    1 | 2 if u != 0 => (0, Some(u)), // hub 0
+                    1 | 2 => (0, None),
+                    _ if u != v => (u, Some(v)),
+                    _ => (u, None),
+                })
+                .collect();
+            for backend in backends() {
+                agrees(40, &edges, backend.as_ref());
+            }
+        }
+    }
+}
