@@ -15,7 +15,8 @@
 //! [`laplacian`] → [`constraints`] → [`problem`] (assembly of `A, C, B, D`)
 //! → [`formulation`] (the paper's method and its alternatives) over
 //! [`backend`] (QR and SPD traits) → [`deform`] (the three-phase API) and
-//! [`report`]; [`condition`] (condition-number estimates of the factored
+//! [`report`], and [`arap`] (as-rigid-as-possible iterations on the same
+//! formulations); [`condition`] (condition-number estimates of the factored
 //! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
 //! [`interop`] (conversions to `sprs` and `nalgebra-sparse`).
 #![deny(missing_docs)]
@@ -23,6 +24,7 @@
 // chains would obscure the mathematics.
 #![allow(clippy::needless_range_loop)]
 
+pub mod arap;
 pub mod backend;
 pub mod condition;
 pub mod constraints;
