@@ -20,6 +20,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 type M3 = Matrix3<f64>;
+/// A hard constraint row: its `(vertex, coefficient)` pairs and target.
+type HardRow = (Vec<(usize, f64)>, [f64; 3]);
 
 fn v3(p: [f64; 3]) -> nalgebra::Vector3<f64> {
     nalgebra::Vector3::new(p[0], p[1], p[2])
@@ -58,7 +60,7 @@ struct DenseArap {
     /// (i, j, c, owners): the edge from i to j with weight c.
     edges: Vec<(usize, usize, f64, Vec<usize>)>,
     rest: Vec<[f64; 3]>,
-    hard: Vec<(Vec<(usize, f64)>, [f64; 3])>,
+    hard: Vec<HardRow>,
 }
 
 impl DenseArap {
@@ -312,8 +314,8 @@ proptest! {
         let p = mesh.positions().to_vec();
         let n = p.len();
         let mut cs = ConstraintSet::new();
-        for i in 0..=nx {
-            cs.push(Constraint::hard(ConstraintKind::Position { vertex: i, target: p[i] })).unwrap();
+        for (i, &q) in p.iter().enumerate().take(nx + 1) {
+            cs.push(Constraint::hard(ConstraintKind::Position { vertex: i, target: q })).unwrap();
         }
         let top = ny * (nx + 1) + nx / 2;
         let handle = jitter(&mut rng, p[top], 0.6);
