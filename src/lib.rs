@@ -17,7 +17,8 @@
 //! [`backend`] (QR and SPD traits) → [`solver`] (precompute and solve of
 //! any problem, including general ones from their matrices) → [`deform`]
 //! (the three-phase mesh API) and
-//! [`report`]; [`condition`] (condition-number estimates of the factored
+//! [`report`], and [`arap`] (as-rigid-as-possible iterations on the same
+//! formulations); [`condition`] (condition-number estimates of the factored
 //! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
 //! [`interop`] (conversions to `sprs` and `nalgebra-sparse`).
 #![deny(missing_docs)]
@@ -25,6 +26,7 @@
 // chains would obscure the mathematics.
 #![allow(clippy::needless_range_loop)]
 
+pub mod arap;
 pub mod backend;
 pub mod condition;
 pub mod constraints;

@@ -10,6 +10,7 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::constraints::{ConstraintSet, read_constraints_file};
 use lse_deform::export::{META_FILE, export_meta, export_problem, read_meta};
 use lse_deform::mesh::{self, Quality, Topology, generate};
@@ -201,6 +202,34 @@ struct DeformArgs {
     /// (exit 3) and a constraints file made for another mesh (exit 2).
     #[arg(long)]
     strict: bool,
+    #[command(flatten)]
+    energy: EnergyArgs,
+}
+
+/// The deformation energy of `deform`.
+#[derive(Args)]
+struct EnergyArgs {
+    /// Deformation energy: the linear Laplacian (the paper; --laplacian
+    /// chooses its weights) or as-rigid-as-possible (cotangent weights).
+    #[arg(long, default_value = "laplacian", value_parser = ["laplacian", "arap"])]
+    energy: String,
+    /// ARAP energy: spokes (Sorkine & Alexa 2007) or spokes-and-rims (Chao
+    /// et al. 2010, libigl's default).
+    #[arg(long, default_value = "spokes-and-rims")]
+    arap_energy: ArapEnergy,
+    /// ARAP: the most iterations to run.
+    #[arg(long, default_value_t = 10)]
+    iterations: usize,
+    /// ARAP: stop when the relative energy decrease of an iteration is at
+    /// most this (0 runs all --iterations).
+    #[arg(long, default_value_t = 0.0)]
+    tolerance: f64,
+    /// ARAP initial guess: linear (the linear gradient-domain solution;
+    /// lower energy than rest at every iteration count measured on the
+    /// Bunny, results/arap/README.md) or rest (rest pose, constrained
+    /// vertices at their targets, as libigl's tutorials).
+    #[arg(long, default_value = "linear")]
+    arap_init: ArapInit,
 }
 
 #[derive(Args)]
@@ -409,6 +438,9 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
     let constraints = constraints_for(&a.constraints, &mesh, a.strict)?;
     let m = &a.method;
     let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
+    if a.energy.energy == "arap" {
+        return deform_arap(&a, mesh, constraints, formulation.as_ref());
+    }
     let bar = phase("set-up");
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
     deformer.set_refine(m.refine);
@@ -432,6 +464,60 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
         "vertices",
         "constraints",
     )
+}
+
+fn deform_arap(
+    a: &DeformArgs,
+    mesh: mesh::Mesh,
+    constraints: lse_deform::ConstraintSet,
+    formulation: &dyn formulation::Formulation,
+) -> Result<(), Error> {
+    let e = &a.energy;
+    let bar = phase("set-up");
+    let mut arap = ArapDeformer::new(mesh, constraints, e.arap_energy)?;
+    bar.set_message(format!("precompute ({})", formulation.name()));
+    arap.precompute(formulation)?;
+    bar.set_message("ARAP iterations");
+    arap.initialize(e.arap_init)?;
+    let history = arap.run(e.iterations, e.tolerance)?;
+    bar.finish_and_clear();
+    let report = arap.report().clone();
+    for c in &report.conflicting {
+        eprintln!(
+            "warning: constraint {} conflicts with earlier constraints and was dropped (residual {:.3e})",
+            c.index, c.residual
+        );
+    }
+    let out = arap.mesh().with_positions(arap.positions())?;
+    mesh::write_mesh(&out, &a.output)?;
+    if let Some(path) = &a.report {
+        let json = serde_json::to_string_pretty(&report).map_err(|e| Error::io(path, e.into()))?;
+        std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
+    }
+    eprintln!(
+        "{} + ARAP ({}, init {}): {} vertices, {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; {} iterations ({}), energy {:.6e} -> {:.6e}; precompute {:.3} s, {:.4} s per iteration (local {:.3} s, global {:.3} s in all)",
+        report.method,
+        history.energy,
+        history.init,
+        report.vertices,
+        report.hard_constraints,
+        report.redundant.len(),
+        report.conflicting.len(),
+        report.max_constraint_residual,
+        history.iterations,
+        history.stop_reason,
+        history.initial_energy,
+        history
+            .energies
+            .last()
+            .copied()
+            .unwrap_or(history.initial_energy),
+        report.timings_s.precompute(),
+        history.time_per_iteration_s,
+        history.local_time_s,
+        history.global_time_s,
+    );
+    Ok(())
 }
 
 fn export_system(a: ExportArgs) -> Result<(), Error> {

@@ -313,6 +313,36 @@ impl LseProblem {
         Ok(())
     }
 
+    /// Replaces the energy rows' right-hand side (the top
+    /// [`LseProblem::n_laplacian_rows`] rows of `C`, e.g. the rotated rest
+    /// gradients of an ARAP global step). The matrices are untouched, so a
+    /// prepared system re-solves without refactoring. `rhs` must be
+    /// `n_laplacian_rows × 3` and finite.
+    pub fn set_energy_rhs(&mut self, rhs: faer::MatRef<'_, f64>) -> Result<(), Error> {
+        if rhs.nrows() != self.n_laplacian_rows || rhs.ncols() != 3 {
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "energy right-hand side is {} × {}, expected {} × 3",
+                    rhs.nrows(),
+                    rhs.ncols(),
+                    self.n_laplacian_rows
+                ),
+            }
+            .into());
+        }
+        if let Some(row) = (0..rhs.nrows()).find(|&i| (0..3).any(|c| !rhs[(i, c)].is_finite())) {
+            return Err(ProblemError::BadUpdate {
+                message: format!("energy right-hand side row {row} is not finite"),
+            }
+            .into());
+        }
+        self.c
+            .as_mut()
+            .submatrix_mut(0, 0, self.n_laplacian_rows, 3)
+            .copy_from(rhs);
+        Ok(())
+    }
+
     /// Swaps `C` and `D` with the given matrices (for solving a block of
     /// columns at a time; the caller swaps back).
     pub(crate) fn swap_rhs(&mut self, c: &mut Mat<f64>, d: &mut Mat<f64>) {

@@ -218,6 +218,44 @@ pub struct Report {
     /// The power-of-two scale `s` of the multiplier rows and columns of the
     /// KKT matrix `[AᵀA sBᵀ; sB 0]` (KKT formulation only).
     pub kkt_multiplier_scale: Option<f64>,
+    /// The as-rigid-as-possible iterations (`deform --energy arap` only).
+    pub arap: Option<ArapReport>,
+}
+
+/// What the ARAP iterations did ([`crate::arap::ArapDeformer`]).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct ArapReport {
+    /// `spokes` or `spokes-and-rims`.
+    pub energy: String,
+    /// The initial guess: `rest` or `linear`.
+    pub init: String,
+    /// The objective (ARAP energy plus the soft constraints' `w²‖b·X − d‖²`)
+    /// of the initial guess, with its optimal rotations.
+    pub initial_energy: f64,
+    /// The objective after each iteration, with the rotations fitted to
+    /// that iteration's positions.
+    pub energies: Vec<f64>,
+    /// `max ‖b_k·X − d_k‖₂` over the kept hard constraints after each
+    /// iteration.
+    pub constraint_residuals: Vec<f64>,
+    /// Iterations run.
+    pub iterations: usize,
+    /// `iterations` (the cap), `tolerance` (relative decrease below it) or
+    /// `stationary` (zero objective: nothing left to decrease).
+    pub stop_reason: String,
+    /// Median wall-clock seconds of one iteration (local + global step).
+    pub time_per_iteration_s: f64,
+    /// Wall-clock seconds of each iteration.
+    pub iteration_times_s: Vec<f64>,
+    /// Seconds in local steps (rotation fits and the objective), all
+    /// iterations.
+    pub local_time_s: f64,
+    /// Seconds in global steps (right-hand side and solve), all iterations.
+    pub global_time_s: f64,
+    /// Rotation fits that kept the previous rotation because the
+    /// covariance was zero, non-finite or rank ≤ 1 with the previous
+    /// rotation still optimal (summed over iterations).
+    pub kept_rotations: usize,
 }
 
 /// Relative tolerance for classifying a skipped hard constraint as

@@ -1,0 +1,340 @@
+//! The ARAP energies as per-triangle sums of squares of gradients.
+//!
+//! Notation: triangle `t` with corners `f[0], f[1], f[2]`, area `A_t`; edge
+//! `k` is opposite corner `k` and runs from `f[k+1]` to `f[k+2]`; `p_k` is
+//! its rest vector and `x_k` its deformed vector; `c_k = ½ cot θ_k` with
+//! `θ_k` the rest angle at corner `k` (libigl's `cotmatrix_entries`).
+//! The energy, for per-vertex rotations `R_i`, is
+//!
+//! ```text
+//! E(X, R) = Σ_t Σ_k c_k Σ_{o ∈ own(k)} ‖x_k − R_o p_k‖²
+//! ```
+//!
+//! with `own(k)` the *rotation owners* of edge `k` in `t`:
+//! - spokes-and-rims (Chao et al. 2010, libigl's default for triangles): all
+//!   three corners of `t` (`K = 3` owners per edge);
+//! - spokes (Sorkine & Alexa 2007): the edge's two endpoints (`K = 2`).
+//!
+//! **Global step as rows.** For a function linear on `t`,
+//! `Σ_k c_k (f_{k+2} − f_{k+1})(g_{k+2} − g_{k+1}) = A_t ∇f·∇g` (the
+//! cotangent formula), and `x_k = (∇X)ᵀ p_k` for the linear interpolant. So
+//! for fixed rotations `E = ‖A_E X − C_E‖²_F + const(R)` with three rows per
+//! triangle
+//!
+//! ```text
+//! A_E[t] = √(K A_t) G_t                      (3 × n: G_t X = ∇X on t)
+//! C_E[t] = Σ_k c_k p_k (Σ_{o∈own(k)} R_o p_k)ᵀ / √(K A_t)        (3 × 3)
+//! ```
+//!
+//! since `A_E[t]ᵀ C_E[t]` has vertex `j` entry `Σ_k c_k (∇φ_j·p_k) v_kᵀ` and
+//! `∇φ_j·p_k` is the incidence of `j` on edge `k`. `A_Eᵀ A_E = K · S` with `S`
+//! the cotangent stiffness matrix, positive semidefinite whatever the signs
+//! of the `c_k`: **negative cotangent weights are kept as they are** (no
+//! clamping), and no square root of a weight is ever taken, for both
+//! energies. (Spokes is not a sum of squares edge by edge when an angle is
+//! obtuse; only its right-hand side needs the form above.) A triangle whose
+//! doubled area underflows to zero gets zero rows (it carries no energy).
+//!
+//! For spokes-and-rims `Σ_o R_o = 3 R̄_t` and `C_E[t] = √(3 A_t) G_t P R̄_tᵀ`:
+//! the averaged rotation of the three corners, as libigl's `arap_rhs`.
+
+use faer::Mat;
+use faer::sparse::{SparseColMat, Triplet};
+use rayon::prelude::*;
+
+use crate::mesh::Mesh;
+
+/// Which ARAP energy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ArapEnergy {
+    /// Sorkine & Alexa 2007: each vertex's rotation applies to its spokes.
+    Spokes,
+    /// Chao et al. 2010: each vertex's rotation applies to every edge of
+    /// its incident triangles (libigl's default for triangle meshes).
+    SpokesAndRims,
+}
+
+impl ArapEnergy {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            ArapEnergy::Spokes => "spokes",
+            ArapEnergy::SpokesAndRims => "spokes-and-rims",
+        }
+    }
+
+    /// Whether corner `corner` owns edge `edge` (opposite corner `edge`).
+    fn owns(self, corner: usize, edge: usize) -> bool {
+        match self {
+            ArapEnergy::SpokesAndRims => true,
+            ArapEnergy::Spokes => corner != edge,
+        }
+    }
+
+    /// Rotation owners per edge, `K`.
+    fn owners_per_edge(self) -> f64 {
+        match self {
+            ArapEnergy::SpokesAndRims => 3.0,
+            ArapEnergy::Spokes => 2.0,
+        }
+    }
+}
+
+impl std::str::FromStr for ArapEnergy {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "spokes" => Ok(ArapEnergy::Spokes),
+            "spokes-and-rims" => Ok(ArapEnergy::SpokesAndRims),
+            other => Err(format!(
+                "unknown ARAP energy '{other}' (expected spokes or spokes-and-rims)"
+            )),
+        }
+    }
+}
+
+/// A 3 × 3 matrix, row-major.
+pub type Mat3 = [[f64; 3]; 3];
+
+/// The identity rotation.
+pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
+}
+
+fn dot(u: [f64; 3], v: [f64; 3]) -> f64 {
+    u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+}
+
+/// `R v`.
+pub fn mat_vec(r: &Mat3, v: [f64; 3]) -> [f64; 3] {
+    [dot(r[0], v), dot(r[1], v), dot(r[2], v)]
+}
+
+/// The rest geometry of every triangle and the vertex → corner incidence.
+#[derive(Debug, Clone)]
+pub struct ArapTriangles {
+    energy: ArapEnergy,
+    faces: Vec<[usize; 3]>,
+    /// `c_k = ½ cot θ_k`.
+    half_cot: Vec<[f64; 3]>,
+    /// `p_k = P[f[k+2]] − P[f[k+1]]`.
+    rest_edge: Vec<Mat3>,
+    /// `∇φ_k`, the gradient of corner `k`'s hat function.
+    gradient: Vec<Mat3>,
+    /// `√(K A_t)`, zero for a triangle of zero area.
+    row_scale: Vec<f64>,
+    /// CSR: the `(triangle, corner)` pairs of each vertex.
+    corner_ptr: Vec<usize>,
+    corners: Vec<(usize, usize)>,
+}
+
+impl ArapTriangles {
+    /// Rest geometry of `mesh` for `energy`.
+    pub fn new(mesh: &Mesh, energy: ArapEnergy) -> ArapTriangles {
+        let p = mesh.positions();
+        let faces = mesh.faces().to_vec();
+        let owners = energy.owners_per_edge();
+        let mut half_cot = Vec::with_capacity(faces.len());
+        let mut rest_edge = Vec::with_capacity(faces.len());
+        let mut gradient = Vec::with_capacity(faces.len());
+        let mut row_scale = Vec::with_capacity(faces.len());
+        for f in &faces {
+            let x = [p[f[0]], p[f[1]], p[f[2]]];
+            let e: Mat3 = std::array::from_fn(|k| sub(x[(k + 2) % 3], x[(k + 1) % 3]));
+            let normal = cross(sub(x[1], x[0]), sub(x[2], x[0]));
+            let double_area = dot(normal, normal).sqrt();
+            if double_area > 0.0 && double_area.is_finite() {
+                let n = normal.map(|v| v / double_area);
+                // Angle at corner k between the edges to k+1 and k+2:
+                // cot = (u·v)/|u×v| with u = −e[k+2], v = e[k+1].
+                let c = std::array::from_fn(|k| {
+                    let (u, v) = (e[(k + 2) % 3].map(|a| -a), e[(k + 1) % 3]);
+                    0.5 * dot(u, v) / double_area
+                });
+                half_cot.push(c);
+                gradient.push(std::array::from_fn(|k| {
+                    cross(n, e[k]).map(|a| a / double_area)
+                }));
+                row_scale.push((owners * double_area / 2.0).sqrt());
+            } else {
+                half_cot.push([0.0; 3]);
+                gradient.push([[0.0; 3]; 3]);
+                row_scale.push(0.0);
+            }
+            rest_edge.push(e);
+        }
+        let n = mesh.n_vertices();
+        let mut corner_ptr = vec![0usize; n + 1];
+        for f in &faces {
+            for &v in f {
+                corner_ptr[v + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            corner_ptr[v + 1] += corner_ptr[v];
+        }
+        let mut fill = corner_ptr.clone();
+        let mut corners = vec![(0, 0); corner_ptr[n]];
+        for (t, f) in faces.iter().enumerate() {
+            for (k, &v) in f.iter().enumerate() {
+                corners[fill[v]] = (t, k);
+                fill[v] += 1;
+            }
+        }
+        ArapTriangles {
+            energy,
+            faces,
+            half_cot,
+            rest_edge,
+            gradient,
+            row_scale,
+            corner_ptr,
+            corners,
+        }
+    }
+
+    /// The energy these triangles evaluate.
+    pub fn energy(&self) -> ArapEnergy {
+        self.energy
+    }
+
+    /// Number of vertices.
+    pub fn n_vertices(&self) -> usize {
+        self.corner_ptr.len() - 1
+    }
+
+    /// Number of energy rows, three per triangle.
+    pub fn n_rows(&self) -> usize {
+        3 * self.faces.len()
+    }
+
+    /// `A_E` (3 × #triangles rows, n columns): rows `3t..3t+3` are
+    /// `√(K A_t) G_t`.
+    pub fn rows(&self) -> SparseColMat<usize, f64> {
+        let mut triplets = Vec::with_capacity(9 * self.faces.len());
+        for (t, f) in self.faces.iter().enumerate() {
+            let s = self.row_scale[t];
+            if s == 0.0 {
+                continue;
+            }
+            for (k, &v) in f.iter().enumerate() {
+                for a in 0..3 {
+                    triplets.push(Triplet::new(3 * t + a, v, s * self.gradient[t][k][a]));
+                }
+            }
+        }
+        SparseColMat::try_new_from_triplets(self.n_rows(), self.n_vertices(), &triplets)
+            .expect("triangle rows are in range and unique per (row, vertex)")
+    }
+
+    /// `C_E` for the rotations `r` (one per vertex), written into `c`
+    /// (`n_rows × 3`).
+    pub fn rhs_into(&self, r: &[Mat3], c: &mut Mat<f64>) {
+        let blocks: Vec<Mat3> = (0..self.faces.len())
+            .into_par_iter()
+            .map(|t| self.rhs_block(t, r))
+            .collect();
+        for (t, block) in blocks.iter().enumerate() {
+            for a in 0..3 {
+                for col in 0..3 {
+                    c[(3 * t + a, col)] = block[a][col];
+                }
+            }
+        }
+    }
+
+    fn rhs_block(&self, t: usize, r: &[Mat3]) -> Mat3 {
+        let s = self.row_scale[t];
+        let mut block = [[0.0; 3]; 3];
+        if s == 0.0 {
+            return block;
+        }
+        let f = self.faces[t];
+        for k in 0..3 {
+            let p = self.rest_edge[t][k];
+            let mut v = [0.0; 3];
+            for corner in 0..3 {
+                if self.energy.owns(corner, k) {
+                    let rp = mat_vec(&r[f[corner]], p);
+                    for c in 0..3 {
+                        v[c] += rp[c];
+                    }
+                }
+            }
+            let w = self.half_cot[t][k] / s;
+            for a in 0..3 {
+                for c in 0..3 {
+                    block[a][c] += w * p[a] * v[c];
+                }
+            }
+        }
+        block
+    }
+
+    /// The rest rows' right-hand side `A_E P` (the rotations all identity,
+    /// up to rounding).
+    pub fn rest_rhs(&self) -> Mat<f64> {
+        let n = self.n_vertices();
+        let mut c = Mat::<f64>::zeros(self.n_rows(), 3);
+        self.rhs_into(&vec![IDENTITY; n], &mut c);
+        c
+    }
+
+    /// Deformed edge `k` of triangle `t`.
+    fn edge(&self, t: usize, k: usize, x: &Mat<f64>) -> [f64; 3] {
+        let f = self.faces[t];
+        let (a, b) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+        [
+            x[(b, 0)] - x[(a, 0)],
+            x[(b, 1)] - x[(a, 1)],
+            x[(b, 2)] - x[(a, 2)],
+        ]
+    }
+
+    /// `M_i = Σ c_k x_k p_kᵀ` over the edges vertex `i` owns: the rotation
+    /// that minimises vertex `i`'s part of `E` maximises `tr(Rᵀ M_i)`.
+    pub fn covariance(&self, i: usize, x: &Mat<f64>) -> Mat3 {
+        let mut m = [[0.0; 3]; 3];
+        for &(t, corner) in &self.corners[self.corner_ptr[i]..self.corner_ptr[i + 1]] {
+            for k in 0..3 {
+                if !self.energy.owns(corner, k) {
+                    continue;
+                }
+                let xe = self.edge(t, k, x);
+                let p = self.rest_edge[t][k];
+                let w = self.half_cot[t][k];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        m[a][b] += w * xe[a] * p[b];
+                    }
+                }
+            }
+        }
+        m
+    }
+
+    /// Vertex `i`'s part of `E`: `Σ c_k ‖x_k − R p_k‖²` over its edges.
+    pub fn vertex_energy(&self, i: usize, x: &Mat<f64>, r: &Mat3) -> f64 {
+        let mut e = 0.0;
+        for &(t, corner) in &self.corners[self.corner_ptr[i]..self.corner_ptr[i + 1]] {
+            for k in 0..3 {
+                if !self.energy.owns(corner, k) {
+                    continue;
+                }
+                let d = sub(self.edge(t, k, x), mat_vec(r, self.rest_edge[t][k]));
+                e += self.half_cot[t][k] * dot(d, d);
+            }
+        }
+        e
+    }
+}

@@ -1,0 +1,438 @@
+//! As-rigid-as-possible deformation (Sorkine & Alexa 2007; Chao et al.
+//! 2010) with every constraint kind of the paper, hard or soft, through the
+//! same formulations as the Laplacian deformer.
+//!
+//! The energy is written as rows (see [`energy`]): for fixed rotations,
+//! `E(X, R) = ‖A_E X − C_E(R)‖² + const`, three rows per triangle, so the
+//! global step is the problem `min ‖A X − C‖ s.t. B X = D` with
+//! `A = [A_E; w B_soft]` — one [`crate::formulation::Prepared`] factor for
+//! all iterations, only `C_E` changes ([`LseProblem::set_energy_rhs`]).
+//! Hard constraints therefore hold to rounding after every iteration, and
+//! every iteration decreases the objective `E + Σ_soft w²‖b·X − d‖²`
+//! (local step: optimal rotations for fixed `X`; global step: optimal `X`
+//! for fixed rotations), up to rounding.
+//!
+//! The local step fits one rotation per vertex ([`rotations`]), in
+//! parallel (rayon). The step-wise API ([`ArapDeformer::iterate`]) is the
+//! hook for interactive use: move targets with
+//! [`ArapDeformer::set_target`], then run a few iterations per frame,
+//! warm-started from the last positions and rotations.
+//!
+//! ```
+//! use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
+//! use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
+//! use lse_deform::{NullSpaceQr, mesh::generate};
+//!
+//! let mesh = generate::grid(6, 6).unwrap();
+//! let mut constraints = ConstraintSet::new();
+//! for v in 0..7 {
+//!     let p = mesh.positions()[v];
+//!     constraints.push(Constraint::hard(ConstraintKind::Position { vertex: v, target: p })).unwrap();
+//!     let q = mesh.positions()[42 + v];
+//!     constraints.push(Constraint::hard(ConstraintKind::Position { vertex: 42 + v, target: [q[0], q[1], 0.5] })).unwrap();
+//! }
+//! let mut arap = ArapDeformer::new(mesh, constraints, ArapEnergy::SpokesAndRims).unwrap();
+//! arap.precompute(&NullSpaceQr::default()).unwrap();
+//! arap.initialize(ArapInit::Rest).unwrap();
+//! let report = arap.run(20, 0.0).unwrap();
+//! assert_eq!(report.iterations, 20);
+//! assert!(report.energies.windows(2).all(|e| e[1] <= e[0] * (1.0 + 1e-12)));
+//! assert!(arap.positions()[45][2] == 0.5);
+//! ```
+
+use std::time::Instant;
+
+use faer::Mat;
+use rayon::prelude::*;
+
+use crate::constraints::{ConstraintKind, ConstraintSet};
+use crate::error::{Error, NumericalError, ProblemError};
+use crate::formulation::{Formulation, Prepared};
+use crate::mesh::{Mesh, topology};
+use crate::problem::{LseProblem, check_pinned};
+use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_finite};
+
+pub mod energy;
+pub mod rotations;
+
+use energy::IDENTITY;
+pub use energy::{ArapEnergy, ArapTriangles, Mat3};
+use rotations::{Fit, fit_rotation};
+
+/// The initial guess of the iterations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ArapInit {
+    /// The rest pose with every hard position constraint's vertex moved to
+    /// its target (libigl's tutorials; the other constraint kinds hold from
+    /// the first global step on).
+    Rest,
+    /// One global step with every rotation the identity: the linear
+    /// (gradient-domain) deformation, which is Laplacian editing with the
+    /// symmetric cotangent Laplacian `½(cot α + cot β)` and `δ = L P`.
+    Linear,
+}
+
+impl ArapInit {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            ArapInit::Rest => "rest",
+            ArapInit::Linear => "linear",
+        }
+    }
+}
+
+impl std::str::FromStr for ArapInit {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "rest" => Ok(ArapInit::Rest),
+            "linear" => Ok(ArapInit::Linear),
+            other => Err(format!(
+                "unknown ARAP initial guess '{other}' (expected rest or linear)"
+            )),
+        }
+    }
+}
+
+/// What one call of [`ArapDeformer::iterate`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Step {
+    /// The objective after the step, with rotations fitted to its positions.
+    pub energy: f64,
+    /// `max ‖b_k·X − d_k‖₂` over the kept hard constraints.
+    pub max_constraint_residual: f64,
+    /// Seconds of the local step (rotation fits and objective).
+    pub local_s: f64,
+    /// Seconds of the global step (right-hand side and solve).
+    pub global_s: f64,
+}
+
+/// ARAP on a mesh with constraints: set-up ([`ArapDeformer::new`]),
+/// precompute ([`ArapDeformer::precompute`]), initial guess
+/// ([`ArapDeformer::initialize`]), iterations ([`ArapDeformer::iterate`] or
+/// [`ArapDeformer::run`]).
+pub struct ArapDeformer {
+    mesh: Mesh,
+    constraints: ConstraintSet,
+    triangles: ArapTriangles,
+    problem: LseProblem,
+    system: Option<Box<dyn Prepared>>,
+    report: Report,
+    /// Current positions (n × 3).
+    x: Mat<f64>,
+    /// Rotations fitted to `x`, and the objective with them.
+    rotations: Vec<Mat3>,
+    energy: f64,
+    /// Scratch: the energy rows' right-hand side.
+    rhs: Mat<f64>,
+    arap: ArapReport,
+    init: ArapInit,
+}
+
+impl ArapDeformer {
+    /// Set-up: checks the constraints (vertex range, every component
+    /// pinned), builds the energy rows and the problem. The positions start
+    /// at the rest pose.
+    pub fn new(
+        mesh: Mesh,
+        constraints: ConstraintSet,
+        energy: ArapEnergy,
+    ) -> Result<ArapDeformer, Error> {
+        let t = Instant::now();
+        let n = mesh.n_vertices();
+        constraints.check_vertices(n)?;
+        let (component_of, n_components) = topology::vertex_components(n, mesh.faces());
+        check_pinned(&component_of, n_components, &constraints)?;
+        let triangles = ArapTriangles::new(&mesh, energy);
+        let rows = triangles.rows();
+        let rhs = triangles.rest_rhs();
+        let problem = LseProblem::new(&rows, &rhs, &constraints, mesh.bbox_diagonal())?;
+        let x = Mat::from_fn(n, 3, |i, c| mesh.positions()[i][c]);
+        let mut report = Report {
+            laplacian: Some(format!("arap-{}", energy.name())),
+            warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
+            ..Report::default()
+        };
+        report.timings_s.setup = t.elapsed().as_secs_f64();
+        Ok(ArapDeformer {
+            mesh,
+            constraints,
+            triangles,
+            problem,
+            system: None,
+            report,
+            x,
+            rotations: vec![IDENTITY; n],
+            energy: f64::NAN,
+            rhs,
+            arap: ArapReport {
+                energy: energy.name().into(),
+                ..ArapReport::default()
+            },
+            init: ArapInit::Rest,
+        })
+    }
+
+    /// Precompute: factors the global step's system with `formulation`,
+    /// once for all iterations.
+    pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
+        self.system = None;
+        let mut report = Report {
+            laplacian: self.report.laplacian.clone(),
+            warnings: self.report.warnings.clone(),
+            ..Report::default()
+        };
+        report.timings_s.setup = self.report.timings_s.setup;
+        self.system = Some(formulation.precompute(&self.problem, &mut report)?);
+        self.report = report;
+        Ok(())
+    }
+
+    /// Sets the initial guess (see [`ArapInit`]), fits its rotations and
+    /// clears the iteration history. [`ArapInit::Linear`] needs
+    /// [`ArapDeformer::precompute`] first.
+    pub fn initialize(&mut self, init: ArapInit) -> Result<(), Error> {
+        let n = self.mesh.n_vertices();
+        self.rotations = vec![IDENTITY; n];
+        self.x = Mat::from_fn(n, 3, |i, c| self.mesh.positions()[i][c]);
+        match init {
+            ArapInit::Rest => {
+                for c in self.constraints.as_slice() {
+                    if let (None, ConstraintKind::Position { vertex, target }) = (c.weight, &c.kind)
+                    {
+                        for k in 0..3 {
+                            self.x[(*vertex, k)] = target[k];
+                        }
+                    }
+                }
+            }
+            ArapInit::Linear => {
+                self.global_step()?;
+            }
+        }
+        self.local_step();
+        self.init = init;
+        self.arap = ArapReport {
+            energy: self.triangles.energy().name().into(),
+            init: init.name().into(),
+            initial_energy: self.energy,
+            ..ArapReport::default()
+        };
+        Ok(())
+    }
+
+    /// Runs `n` iterations (global step with the current rotations, then
+    /// the local step on the new positions), warm-started from the current
+    /// positions and rotations — after [`ArapDeformer::set_target`] too,
+    /// which is how an editor runs a few iterations per frame. Appends to
+    /// the report's history and returns the last step (`None` for `n = 0`).
+    pub fn iterate(&mut self, n: usize) -> Result<Option<Step>, Error> {
+        let mut last = None;
+        for _ in 0..n {
+            let t = Instant::now();
+            self.global_step()?;
+            let global_s = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let kept = self.local_step();
+            let local_s = t.elapsed().as_secs_f64();
+            let residual = self.max_constraint_residual();
+            let a = &mut self.arap;
+            a.energies.push(self.energy);
+            a.constraint_residuals.push(residual);
+            a.iterations += 1;
+            a.local_time_s += local_s;
+            a.global_time_s += global_s;
+            a.kept_rotations += kept;
+            a.iteration_times_s.push(local_s + global_s);
+            last = Some(Step {
+                energy: self.energy,
+                max_constraint_residual: residual,
+                local_s,
+                global_s,
+            });
+        }
+        Ok(last)
+    }
+
+    /// Iterates until `max_iterations` or until the relative decrease of
+    /// the objective `(E_{k−1} − E_k)/E_{k−1}` is `≤ tolerance` (checked
+    /// from the second iteration on, the first starting from a guess that
+    /// may violate the constraints; `tolerance = 0` runs all iterations
+    /// unless the objective reaches zero). Fills the solution diagnostics
+    /// and returns the ARAP report.
+    pub fn run(&mut self, max_iterations: usize, tolerance: f64) -> Result<ArapReport, Error> {
+        if !(tolerance.is_finite() && tolerance >= 0.0) {
+            return Err(ProblemError::InvalidArgument {
+                message: format!("ARAP tolerance {tolerance} must be finite and ≥ 0"),
+            }
+            .into());
+        }
+        let mut stop = "iterations";
+        for k in 0..max_iterations {
+            let before = self.energy;
+            self.iterate(1)?;
+            if self.energy == 0.0 {
+                stop = "stationary";
+                break;
+            }
+            if k > 0 && tolerance > 0.0 && (before - self.energy) <= tolerance * before.abs() {
+                stop = "tolerance";
+                break;
+            }
+        }
+        self.arap.stop_reason = stop.into();
+        self.finish()?;
+        Ok(self.arap.clone())
+    }
+
+    /// Fills the report's solution diagnostics for the current positions.
+    pub fn finish(&mut self) -> Result<&Report, Error> {
+        let prepared = self.prepared()?;
+        let (skipped, exact) = (prepared.skipped().to_vec(), prepared.exact());
+        fill_solution_diagnostics(&mut self.report, &self.problem, &self.x, &skipped, exact);
+        let mut times = self.arap.iteration_times_s.clone();
+        times.sort_by(f64::total_cmp);
+        self.arap.time_per_iteration_s = times.get(times.len() / 2).copied().unwrap_or(0.0);
+        self.report.arap = Some(self.arap.clone());
+        Ok(&self.report)
+    }
+
+    /// Moves the target of constraint `index`; the next
+    /// [`ArapDeformer::iterate`] reuses the factor and starts from the
+    /// current positions.
+    pub fn set_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
+        self.problem.set_rhs(index, target)?;
+        self.constraints.set_rhs(index, target)?;
+        Ok(())
+    }
+
+    fn prepared(&mut self) -> Result<&mut Box<dyn Prepared>, Error> {
+        self.system.as_mut().ok_or_else(|| {
+            ProblemError::BadUpdate {
+                message: "ARAP iterations need precompute first".into(),
+            }
+            .into()
+        })
+    }
+
+    /// Global step: `C_E` from the current rotations, then the solve.
+    fn global_step(&mut self) -> Result<(), Error> {
+        self.triangles.rhs_into(&self.rotations, &mut self.rhs);
+        self.problem.set_energy_rhs(self.rhs.as_ref())?;
+        let problem = &self.problem;
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "ARAP iterations need precompute first".into(),
+            })?;
+        let x = system.solve(problem)?;
+        if let Some(vertex) = first_non_finite(&x) {
+            return Err(NumericalError::NonFiniteSolution { vertex }.into());
+        }
+        self.x = x;
+        Ok(())
+    }
+
+    /// Local step: one rotation per vertex fitted to the current positions
+    /// (in parallel), and the objective with them. Returns how many
+    /// rotations were kept from before.
+    fn local_step(&mut self) -> usize {
+        let (triangles, x, previous) = (&self.triangles, &self.x, &self.rotations);
+        let fits: Vec<(Mat3, Fit, f64)> = (0..previous.len())
+            .into_par_iter()
+            .map(|i| {
+                let (r, how) = fit_rotation(&triangles.covariance(i, x), &previous[i]);
+                (r, how, triangles.vertex_energy(i, x, &r))
+            })
+            .collect();
+        let mut kept = 0;
+        let mut energy = 0.0;
+        for (i, (r, how, e)) in fits.into_iter().enumerate() {
+            self.rotations[i] = r;
+            kept += usize::from(how == Fit::Kept);
+            energy += e;
+        }
+        self.energy = energy + self.soft_energy();
+        kept
+    }
+
+    /// `Σ_soft w² ‖b·X − d‖²`.
+    fn soft_energy(&self) -> f64 {
+        let positions = self.positions();
+        self.problem
+            .soft_constraints()
+            .iter()
+            .map(|&(i, w)| {
+                let kind = &self.constraints[i].kind;
+                let (value, target) = (kind.row().apply(&positions), kind.rhs());
+                (0..3)
+                    .map(|c| (w * (value[c] - target[c])).powi(2))
+                    .sum::<f64>()
+            })
+            .sum()
+    }
+
+    fn max_constraint_residual(&self) -> f64 {
+        let skipped = self.system.as_ref().map(|s| s.skipped()).unwrap_or(&[]);
+        (0..self.problem.hard_constraints().len())
+            .filter(|k| skipped.binary_search(k).is_err())
+            .map(|k| self.problem.hard_residual(k, &self.x))
+            .fold(0.0, f64::max)
+    }
+
+    /// Current positions, in the mesh's vertex order.
+    pub fn positions(&self) -> Vec<[f64; 3]> {
+        (0..self.x.nrows())
+            .map(|i| [self.x[(i, 0)], self.x[(i, 1)], self.x[(i, 2)]])
+            .collect()
+    }
+
+    /// Current positions as an n × 3 matrix.
+    pub fn positions_matrix(&self) -> &Mat<f64> {
+        &self.x
+    }
+
+    /// The objective at the current positions (with their fitted
+    /// rotations); NaN before [`ArapDeformer::initialize`].
+    pub fn energy(&self) -> f64 {
+        self.energy
+    }
+
+    /// The rotations fitted to the current positions.
+    pub fn rotations(&self) -> &[Mat3] {
+        &self.rotations
+    }
+
+    /// The initial guess of the last [`ArapDeformer::initialize`].
+    pub fn init(&self) -> ArapInit {
+        self.init
+    }
+
+    /// The report (precompute, and after [`ArapDeformer::finish`] or
+    /// [`ArapDeformer::run`] the solution diagnostics and the ARAP history).
+    pub fn report(&self) -> &Report {
+        &self.report
+    }
+
+    /// The mesh (rest pose).
+    pub fn mesh(&self) -> &Mesh {
+        &self.mesh
+    }
+
+    /// The constraints with their current targets.
+    pub fn constraints(&self) -> &ConstraintSet {
+        &self.constraints
+    }
+
+    /// The assembled global-step problem.
+    pub fn problem(&self) -> &LseProblem {
+        &self.problem
+    }
+
+    /// The energy rows and rest geometry.
+    pub fn triangles(&self) -> &ArapTriangles {
+        &self.triangles
+    }
+}
