@@ -52,10 +52,16 @@ struct Cli {
     /// Which experiment(s) to run.
     #[arg(value_enum)]
     experiment: Experiment,
-    /// Directory of the real meshes (e.g. ../shared/meshes); without it the
+    /// A directory of meshes (e.g. ../shared/meshes): every .obj, .ply and
+    /// .off file in it (optionally .gz) is used, named by its file stem; a
+    /// directory without any is an error. Without --mesh-dir and --mesh the
     /// experiments use generated meshes. Also read from LSE_MESH_DIR.
     #[arg(long, env = "LSE_MESH_DIR")]
     mesh_dir: Option<PathBuf>,
+    /// A mesh file to run on (repeatable; with --mesh-dir, in addition to
+    /// its meshes and first).
+    #[arg(long = "mesh", value_name = "PATH")]
+    meshes: Vec<PathBuf>,
     /// Output directory.
     #[arg(long, default_value = "results")]
     out: PathBuf,
@@ -150,7 +156,19 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     }
-    let ctx = Context::new(cli.out.clone(), cli.mesh_dir.clone(), cli.quick, cli.seed);
+    let ctx = match Context::new(
+        cli.out.clone(),
+        cli.meshes.clone(),
+        cli.mesh_dir.clone(),
+        cli.quick,
+        cli.seed,
+    ) {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
     if let Err(e) = std::fs::create_dir_all(&ctx.out) {
         eprintln!("error: cannot create {}: {e}", ctx.out.display());
         return ExitCode::from(2);
