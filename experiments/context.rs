@@ -483,6 +483,10 @@ pub const SECTIONS: &[(&str, &str)] = &[
     ),
     ("weight-sweep", "Penalty weight sweep"),
     (
+        "accuracy",
+        "Accuracy — digits lost without and with refinement",
+    ),
+    (
         "precompute-breakdown",
         "Precompute breakdown (paper Fig. 7 and 8)",
     ),

@@ -10,6 +10,7 @@
 //! cargo run --release --bin experiments -- table1 --mesh-dir ../shared/meshes
 //! ```
 
+mod accuracy;
 mod breakdown;
 mod conflicts;
 mod context;
@@ -88,8 +89,11 @@ enum Experiment {
     All,
     /// The paper's Table 1.
     Table1,
-    /// Penalty weight 10⁰ … 10¹⁶ against the null-space method.
+    /// Penalty relative weight 10⁻⁴ … 10¹² against the null-space method.
     WeightSweep,
+    /// Digits lost without and with refinement against the condition
+    /// number; penalty with and without multiplier updates.
+    Accuracy,
     /// The paper's Fig. 7 and 8: precompute time by phase.
     PrecomputeBreakdown,
     /// The paper's Fig. 9 and 11: many relative constraints.
@@ -113,6 +117,7 @@ type Runner = fn(&Context) -> Result<Summary, AnyError>;
 const ORDER: &[(Experiment, &str, Runner)] = &[
     (Experiment::Table1, "table1", table1::run),
     (Experiment::WeightSweep, "weight-sweep", weight_sweep::run),
+    (Experiment::Accuracy, "accuracy", accuracy::run),
     (
         Experiment::PrecomputeBreakdown,
         "precompute-breakdown",
