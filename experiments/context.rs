@@ -504,6 +504,14 @@ pub const SECTIONS: &[(&str, &str)] = &[
     ),
 ];
 
+/// The git revision in a section's machine line (`… (git REV, …`), if any.
+fn section_revision(section: &str) -> Option<String> {
+    let start = section.find("(git ")? + 5;
+    let rest = &section[start..];
+    let end = rest.find([',', ')'])?;
+    Some(rest[..end].to_string())
+}
+
 /// Joins the sections present under `out` into `out/README.md`.
 pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
     let mut s = String::from("# Results\n\n");
@@ -514,12 +522,20 @@ pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
          (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out). \
          Each section names the command that regenerates it alone. CSV files start with a `#` line describing the machine and build.\n"
     );
-    let _ = writeln!(s, "Last full run: {}\n", machine.one_line());
     let mut toc = String::new();
     let mut body = String::new();
+    // The git revision each section was written at (from its machine
+    // line), so that the header states the sections' revisions, not this
+    // run's.
+    let mut revisions: Vec<(String, Vec<&str>)> = Vec::new();
     for (name, title) in SECTIONS {
         let path = out.join(name).join("section.md");
         if let Ok(section) = std::fs::read_to_string(&path) {
+            let rev = section_revision(&section).unwrap_or_else(|| "not recorded".into());
+            match revisions.iter_mut().find(|(r, _)| *r == rev) {
+                Some((_, names)) => names.push(name),
+                None => revisions.push((rev, vec![name])),
+            }
             let anchor: String = title
                 .to_lowercase()
                 .chars()
@@ -528,6 +544,27 @@ pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
                 .replace(' ', "-");
             let _ = writeln!(toc, "- [{title}](#{anchor})");
             let _ = writeln!(body, "## {title}\n\n{}\n", section.trim_end());
+        }
+    }
+    match revisions.as_slice() {
+        [(rev, _)] => {
+            let _ = writeln!(
+                s,
+                "Every section below was written at git {rev}; this assembly: {}\n",
+                machine.one_line()
+            );
+        }
+        _ => {
+            let list: Vec<String> = revisions
+                .iter()
+                .map(|(rev, names)| format!("git {rev}: {}", names.join(", ")))
+                .collect();
+            let _ = writeln!(
+                s,
+                "The sections were written at different git revisions ({}); this assembly: {}\n",
+                list.join("; "),
+                machine.one_line()
+            );
         }
     }
     s.push_str(&toc);
