@@ -445,7 +445,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     // Section.
     let command = format!(
         "cargo run --release --features suitesparse --bin experiments -- {NAME}{}",
-        if ctx.mesh_dir.is_some() {
+        if ctx.has_user_meshes() {
             " --mesh-dir ../shared/meshes"
         } else {
             ""

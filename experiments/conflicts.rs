@@ -188,7 +188,7 @@ pub fn solve_all(mesh: &Mesh, sc: &Scene) -> Result<Vec<Solved>, AnyError> {
 /// The mesh of the experiment: the 3.5k-vertex bunny with a mesh directory,
 /// else a generated bumpy sphere.
 pub fn conflict_mesh(ctx: &Context) -> Result<(String, Mesh), AnyError> {
-    if let Some(case) = ctx.real_mesh("bunny-3k.obj")? {
+    if let Some(case) = ctx.main_mesh("bunny-3k.obj")? {
         return Ok((case.name, case.mesh));
     }
     let size = if ctx.quick { 1_500 } else { 4_000 };

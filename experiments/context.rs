@@ -43,7 +43,7 @@ pub struct Machine {
 }
 
 impl Machine {
-    fn detect(seed: u64, mesh_dir: Option<&Path>) -> Machine {
+    fn detect(seed: u64, meshes: Option<&str>) -> Machine {
         let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
         let cpu = cpuinfo
             .lines()
@@ -98,8 +98,8 @@ impl Machine {
             .into(),
             command: std::env::args().collect::<Vec<_>>().join(" "),
             seed,
-            meshes: mesh_dir
-                .map(|d| d.display().to_string())
+            meshes: meshes
+                .map(str::to_string)
                 .unwrap_or_else(|| "generated meshes".into()),
         }
     }
@@ -143,6 +143,11 @@ pub struct Context {
     pub out: PathBuf,
     /// The real meshes' directory, if given.
     pub mesh_dir: Option<PathBuf>,
+    /// The meshes named one by one (`--mesh`).
+    pub mesh_paths: Vec<PathBuf>,
+    /// Every user mesh file: the `--mesh` paths, then the mesh files of
+    /// `--mesh-dir` sorted by name (see [`mesh_files_in`]).
+    pub mesh_files: Vec<PathBuf>,
     /// Smaller sizes and fewer repetitions (for smoke tests).
     pub quick: bool,
     /// Seed of every random choice.
@@ -154,17 +159,57 @@ pub struct Context {
 }
 
 impl Context {
-    /// A context writing to `out`.
-    pub fn new(out: PathBuf, mesh_dir: Option<PathBuf>, quick: bool, seed: u64) -> Context {
-        let machine = Machine::detect(seed, mesh_dir.as_deref());
-        Context {
+    /// A context writing to `out`, on the meshes `mesh_paths` and every
+    /// mesh file of `mesh_dir`. An error when a path is not a mesh file or
+    /// the directory holds none.
+    pub fn new(
+        out: PathBuf,
+        mesh_paths: Vec<PathBuf>,
+        mesh_dir: Option<PathBuf>,
+        quick: bool,
+        seed: u64,
+    ) -> Result<Context, AnyError> {
+        let mut mesh_files = Vec::new();
+        for p in &mesh_paths {
+            if !p.is_file() {
+                return Err(format!("--mesh {}: no such file", p.display()).into());
+            }
+            if !is_mesh_file(p) {
+                return Err(format!(
+                    "--mesh {}: not a mesh file (.obj, .ply or .off, optionally .gz)",
+                    p.display()
+                )
+                .into());
+            }
+            mesh_files.push(p.clone());
+        }
+        if let Some(dir) = &mesh_dir {
+            let found = mesh_files_in(dir)?;
+            if found.is_empty() {
+                return Err(format!(
+                    "--mesh-dir {}: no mesh files in it (.obj, .ply or .off, optionally .gz)",
+                    dir.display()
+                )
+                .into());
+            }
+            for f in found {
+                if !mesh_files.contains(&f) {
+                    mesh_files.push(f);
+                }
+            }
+        }
+        let description = mesh_description(&mesh_paths, mesh_dir.as_deref());
+        let machine = Machine::detect(seed, description.as_deref());
+        Ok(Context {
             out,
             mesh_dir,
+            mesh_paths,
+            mesh_files,
             quick,
             seed,
             machine,
             progress: MultiProgress::new(),
-        }
+        })
     }
 
     /// `results/<name>/`, created if missing.
@@ -187,50 +232,69 @@ impl Context {
         bar
     }
 
-    /// Loads a mesh of the mesh directory by file name (e.g.
-    /// `"bunny-35k-stanford.obj"`); `None` without a mesh directory or if
-    /// the file is missing.
-    pub fn real_mesh(&self, file: &str) -> Result<Option<MeshCase>, AnyError> {
-        let Some(dir) = &self.mesh_dir else {
-            return Ok(None);
-        };
-        let path = dir.join(file);
-        if !path.exists() {
-            return Ok(None);
-        }
-        let mesh = read_mesh(&path)?.mesh;
-        let name = file
-            .trim_end_matches(".gz")
-            .trim_end_matches(".obj")
-            .to_string();
-        Ok(Some(MeshCase {
-            name,
-            mesh,
-            source: path.display().to_string(),
-        }))
+    /// `true` when the user named meshes (`--mesh`, `--mesh-dir`): the
+    /// experiments then run on those instead of generated ones.
+    pub fn has_user_meshes(&self) -> bool {
+        !self.mesh_files.is_empty()
     }
 
-    /// The meshes of the paper's evaluation: with a mesh directory the
-    /// Stanford models (Bunny, Armadillo, Dragon) and two sliver-heavy scans;
-    /// without, generated stand-ins (a bumpy sphere, the paper's Fig. 1
-    /// unsymmetric grid and its Fig. 2 sliver mesh).
+    /// The command-line arguments that select this run's meshes, for the
+    /// "regenerate" lines of the sections (empty for generated meshes).
+    pub fn mesh_args(&self) -> String {
+        let mut s = String::new();
+        for m in &self.mesh_paths {
+            let _ = write!(s, " --mesh {}", m.display());
+        }
+        if let Some(d) = &self.mesh_dir {
+            let _ = write!(s, " --mesh-dir {}", d.display());
+        }
+        s
+    }
+
+    /// The user's mesh file whose name (see [`mesh_stem`]) is that of
+    /// `file` (e.g. `"bunny-35k-stanford.obj"`), if any.
+    pub fn mesh_file(&self, file: &str) -> Option<&Path> {
+        let wanted = mesh_stem(Path::new(file));
+        self.mesh_files
+            .iter()
+            .find(|p| mesh_stem(p) == wanted)
+            .map(PathBuf::as_path)
+    }
+
+    /// Loads the user's mesh named like `file` (see [`Context::mesh_file`]);
+    /// `None` without user meshes or if there is no such mesh.
+    pub fn real_mesh(&self, file: &str) -> Result<Option<MeshCase>, AnyError> {
+        match self.mesh_file(file) {
+            Some(path) => load_case(path).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// The mesh of a single-mesh experiment: the user's mesh named like
+    /// `preferred` if there is one, else the user's first mesh (in the
+    /// order of [`Context::mesh_files`]); `None` without user meshes.
+    pub fn main_mesh(&self, preferred: &str) -> Result<Option<MeshCase>, AnyError> {
+        if let Some(case) = self.real_mesh(preferred)? {
+            return Ok(Some(case));
+        }
+        match self.mesh_files.first() {
+            Some(path) => load_case(path).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// Every user mesh, loaded, in the order of [`Context::mesh_files`].
+    pub fn user_meshes(&self) -> Result<Vec<MeshCase>, AnyError> {
+        self.mesh_files.iter().map(|p| load_case(p)).collect()
+    }
+
+    /// The meshes of the evaluation: every user mesh (`--mesh`, every mesh
+    /// file of `--mesh-dir`); without, generated stand-ins (a bumpy
+    /// sphere, the paper's Fig. 1 unsymmetric grid and its Fig. 2 sliver
+    /// mesh).
     pub fn evaluation_meshes(&self) -> Result<Vec<MeshCase>, AnyError> {
-        if self.mesh_dir.is_some() {
-            let mut cases = Vec::new();
-            for file in [
-                "bunny-35k-stanford.obj",
-                "armadillo-43k.obj",
-                "dragon-50k.obj",
-                "bunny-35k-watertight.obj",
-                "nefertiti-50k.obj",
-            ] {
-                if let Some(case) = self.real_mesh(file)? {
-                    cases.push(case);
-                }
-            }
-            if !cases.is_empty() {
-                return Ok(cases);
-            }
+        if self.has_user_meshes() {
+            return self.user_meshes();
         }
         self.generated_evaluation_meshes()
     }
@@ -303,6 +367,78 @@ impl Context {
     }
 }
 
+/// The mesh file extensions the experiments read (each also with `.gz`).
+pub const MESH_EXTENSIONS: [&str; 3] = ["obj", "ply", "off"];
+
+/// `true` if the file name ends in a mesh extension, optionally `.gz`
+/// (case-insensitive).
+pub fn is_mesh_file(path: &Path) -> bool {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let name = name.strip_suffix(".gz").unwrap_or(&name);
+    MESH_EXTENSIONS
+        .iter()
+        .any(|ext| name.len() > ext.len() + 1 && name.ends_with(&format!(".{ext}")))
+}
+
+/// The name the experiments give a mesh file: its file name without `.gz`
+/// and without the mesh extension (`igea-537k-subdiv.obj.gz` →
+/// `igea-537k-subdiv`).
+pub fn mesh_stem(path: &Path) -> String {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let name = name
+        .strip_suffix(".gz")
+        .or_else(|| name.strip_suffix(".GZ"))
+        .unwrap_or(&name);
+    match name.rsplit_once('.') {
+        Some((stem, _)) if !stem.is_empty() => stem.to_string(),
+        _ => name.to_string(),
+    }
+}
+
+/// The mesh files directly inside `dir`, sorted by file name.
+pub fn mesh_files_in(dir: &Path) -> Result<Vec<PathBuf>, AnyError> {
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| format!("--mesh-dir {}: cannot list it: {e}", dir.display()))?;
+    let mut files = Vec::new();
+    for entry in entries {
+        let path = entry
+            .map_err(|e| format!("--mesh-dir {}: cannot list it: {e}", dir.display()))?
+            .path();
+        if path.is_file() && is_mesh_file(&path) {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
+/// Loads a mesh file as a case named by its [`mesh_stem`].
+fn load_case(path: &Path) -> Result<MeshCase, AnyError> {
+    let mesh = read_mesh(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .mesh;
+    Ok(MeshCase {
+        name: mesh_stem(path),
+        mesh,
+        source: path.display().to_string(),
+    })
+}
+
+/// The machine line's description of the user's meshes.
+fn mesh_description(paths: &[PathBuf], dir: Option<&Path>) -> Option<String> {
+    let mut parts: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    if let Some(d) = dir {
+        parts.push(d.display().to_string());
+    }
+    (!parts.is_empty()).then(|| parts.join(", "))
+}
+
 /// Formats seconds for tables: ms below one second.
 pub fn fmt_time(seconds: f64) -> String {
     if seconds < 1.0 {
@@ -347,6 +483,10 @@ pub const SECTIONS: &[(&str, &str)] = &[
     ),
     ("weight-sweep", "Penalty weight sweep"),
     (
+        "accuracy",
+        "Accuracy — digits lost without and with refinement",
+    ),
+    (
         "precompute-breakdown",
         "Precompute breakdown (paper Fig. 7 and 8)",
     ),
@@ -364,6 +504,14 @@ pub const SECTIONS: &[(&str, &str)] = &[
     ),
 ];
 
+/// The git revision in a section's machine line (`… (git REV, …`), if any.
+fn section_revision(section: &str) -> Option<String> {
+    let start = section.find("(git ")? + 5;
+    let rest = &section[start..];
+    let end = rest.find([',', ')'])?;
+    Some(rest[..end].to_string())
+}
+
 /// Joins the sections present under `out` into `out/README.md`.
 pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
     let mut s = String::from("# Results\n\n");
@@ -374,12 +522,20 @@ pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
          (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out). \
          Each section names the command that regenerates it alone. CSV files start with a `#` line describing the machine and build.\n"
     );
-    let _ = writeln!(s, "Last full run: {}\n", machine.one_line());
     let mut toc = String::new();
     let mut body = String::new();
+    // The git revision each section was written at (from its machine
+    // line), so that the header states the sections' revisions, not this
+    // run's.
+    let mut revisions: Vec<(String, Vec<&str>)> = Vec::new();
     for (name, title) in SECTIONS {
         let path = out.join(name).join("section.md");
         if let Ok(section) = std::fs::read_to_string(&path) {
+            let rev = section_revision(&section).unwrap_or_else(|| "not recorded".into());
+            match revisions.iter_mut().find(|(r, _)| *r == rev) {
+                Some((_, names)) => names.push(name),
+                None => revisions.push((rev, vec![name])),
+            }
             let anchor: String = title
                 .to_lowercase()
                 .chars()
@@ -388,6 +544,27 @@ pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
                 .replace(' ', "-");
             let _ = writeln!(toc, "- [{title}](#{anchor})");
             let _ = writeln!(body, "## {title}\n\n{}\n", section.trim_end());
+        }
+    }
+    match revisions.as_slice() {
+        [(rev, _)] => {
+            let _ = writeln!(
+                s,
+                "Every section below was written at git {rev}; this assembly: {}\n",
+                machine.one_line()
+            );
+        }
+        _ => {
+            let list: Vec<String> = revisions
+                .iter()
+                .map(|(rev, names)| format!("git {rev}: {}", names.join(", ")))
+                .collect();
+            let _ = writeln!(
+                s,
+                "The sections were written at different git revisions ({}); this assembly: {}\n",
+                list.join("; "),
+                machine.one_line()
+            );
         }
     }
     s.push_str(&toc);

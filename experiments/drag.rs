@@ -166,7 +166,7 @@ struct Frames {
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let dir = ctx.dir(NAME)?;
-    let case = match ctx.real_mesh("bunny-35k-stanford.obj")? {
+    let case = match ctx.main_mesh("bunny-35k-stanford.obj")? {
         Some(c) => c,
         None => {
             let target = if ctx.quick { 10_000 } else { 35_000 };
@@ -194,7 +194,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let probe = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone())?;
     let weight = PENALTY_RELATIVE_WEIGHT;
     drop(probe);
-    let configs = configs(weight, ctx.mesh_dir.is_some())?;
+    let configs = configs(weight, ctx.has_user_meshes())?;
 
     // One deformer per configuration, all precomputed first; then the
     // frames run round-robin over the configurations (frame f of every
@@ -554,7 +554,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     // Section.
     let command = format!(
         "cargo run --release --features suitesparse --bin experiments -- {NAME}{}",
-        if ctx.mesh_dir.is_some() {
+        if ctx.has_user_meshes() {
             " --mesh-dir ../shared/meshes"
         } else {
             ""
@@ -580,7 +580,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         fixed.len(),
         handle.len(),
         15.0,
-        if ctx.mesh_dir.is_some() {
+        if ctx.has_user_meshes() {
             ""
         } else {
             "; faer-simplicial and nalgebra, 2–4× slower per solve, only in the run with --mesh-dir"

@@ -10,6 +10,7 @@
 //! cargo run --release --bin experiments -- table1 --mesh-dir ../shared/meshes
 //! ```
 
+mod accuracy;
 mod breakdown;
 mod conflicts;
 mod context;
@@ -52,10 +53,16 @@ struct Cli {
     /// Which experiment(s) to run.
     #[arg(value_enum)]
     experiment: Experiment,
-    /// Directory of the real meshes (e.g. ../shared/meshes); without it the
+    /// A directory of meshes (e.g. ../shared/meshes): every .obj, .ply and
+    /// .off file in it (optionally .gz) is used, named by its file stem; a
+    /// directory without any is an error. Without --mesh-dir and --mesh the
     /// experiments use generated meshes. Also read from LSE_MESH_DIR.
     #[arg(long, env = "LSE_MESH_DIR")]
     mesh_dir: Option<PathBuf>,
+    /// A mesh file to run on (repeatable; with --mesh-dir, in addition to
+    /// its meshes and first).
+    #[arg(long = "mesh", value_name = "PATH")]
+    meshes: Vec<PathBuf>,
     /// Output directory.
     #[arg(long, default_value = "results")]
     out: PathBuf,
@@ -82,8 +89,11 @@ enum Experiment {
     All,
     /// The paper's Table 1.
     Table1,
-    /// Penalty weight 10⁰ … 10¹⁶ against the null-space method.
+    /// Penalty relative weight 10⁻⁴ … 10¹² against the null-space method.
     WeightSweep,
+    /// Digits lost without and with refinement against the condition
+    /// number; penalty with and without multiplier updates.
+    Accuracy,
     /// The paper's Fig. 7 and 8: precompute time by phase.
     PrecomputeBreakdown,
     /// The paper's Fig. 9 and 11: many relative constraints.
@@ -107,6 +117,7 @@ type Runner = fn(&Context) -> Result<Summary, AnyError>;
 const ORDER: &[(Experiment, &str, Runner)] = &[
     (Experiment::Table1, "table1", table1::run),
     (Experiment::WeightSweep, "weight-sweep", weight_sweep::run),
+    (Experiment::Accuracy, "accuracy", accuracy::run),
     (
         Experiment::PrecomputeBreakdown,
         "precompute-breakdown",
@@ -150,7 +161,19 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     }
-    let ctx = Context::new(cli.out.clone(), cli.mesh_dir.clone(), cli.quick, cli.seed);
+    let ctx = match Context::new(
+        cli.out.clone(),
+        cli.meshes.clone(),
+        cli.mesh_dir.clone(),
+        cli.quick,
+        cli.seed,
+    ) {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
     if let Err(e) = std::fs::create_dir_all(&ctx.out) {
         eprintln!("error: cannot create {}: {e}", ctx.out.display());
         return ExitCode::from(2);

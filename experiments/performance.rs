@@ -431,7 +431,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
 
     // The main case: Bunny, or a generated bumpy sphere of the same size.
     bar.set_message("performance: precompute and solve, side by side");
-    let (main_name, main_mesh) = match ctx.real_mesh("bunny-35k-stanford.obj")? {
+    let (main_name, main_mesh) = match ctx.main_mesh("bunny-35k-stanford.obj")? {
         Some(case) => (case.name, case.mesh),
         None => {
             let n = if quick { 5_000 } else { 35_000 };
@@ -477,11 +477,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     // The large mesh.
     bar.set_message("performance: large mesh");
     let large_file = "igea-537k-subdiv.obj.gz";
-    let large_path = ctx
-        .mesh_dir
-        .as_ref()
-        .map(|d| d.join(large_file))
-        .filter(|p| p.exists());
+    let large_path = ctx.mesh_file(large_file).map(Path::to_path_buf);
     let (large_name, large_mesh, large_setup_s) = match &large_path {
         Some(path) => {
             let mut times = Vec::new();
@@ -533,7 +529,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     bar.set_message("performance: scaling");
     let sizes: &[usize] = if quick {
         &[1_000, 4_000, 16_000]
-    } else if ctx.mesh_dir.is_some() {
+    } else if ctx.has_user_meshes() {
         &[1_000, 4_000, 16_000, 64_000, 256_000, 1_000_000]
     } else {
         &[1_000, 4_000, 16_000, 64_000, 256_000]

@@ -53,13 +53,9 @@ pub const PALETTE: [RGBColor; 8] = [
     RGBColor(240, 228, 66),  // yellow
 ];
 
-/// Colours of reference lines (dark, dashed), in order.
-const REFERENCE_COLOURS: [RGBColor; 4] = [
-    RGBColor(40, 40, 40),
-    RGBColor(120, 120, 120),
-    RGBColor(140, 80, 40),
-    RGBColor(90, 60, 140),
-];
+// Reference lines take the palette's colours in order (dashed), so that
+// the reference line of series `i` (the same mesh) has that series' colour
+// and no two of up to eight reference lines share one.
 
 /// Font sizes (pixels) of the figures.
 const TITLE_SIZE: f64 = 24.0;
@@ -622,7 +618,7 @@ pub fn line_chart(spec: &LineChart, out: &Output) -> Result<Drawn, PlotError> {
     for (i, r) in spec.reference_lines.iter().enumerate() {
         check_finite(fig, || format!("reference line '{}'", r.label), r.y)?;
         match spec.y.scale.forward(r.y) {
-            Some(y) => references.push((y, r.label.clone(), REFERENCE_COLOURS[i % 4])),
+            Some(y) => references.push((y, r.label.clone(), PALETTE[i % PALETTE.len()])),
             None => notes.push(format!(
                 "reference line '{}' at y = {} skipped (≤ 0 on a log axis)",
                 r.label, r.y

@@ -129,7 +129,7 @@ struct Row {
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let dir = ctx.dir(NAME)?;
-    let case = match ctx.real_mesh("bunny-35k-stanford.obj")? {
+    let case = match ctx.main_mesh("bunny-35k-stanford.obj")? {
         Some(c) => c,
         None => {
             let target = if ctx.quick { 10_000 } else { 35_000 };
@@ -155,7 +155,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     // longer is skipped.
     let budget = if ctx.quick {
         5.0
-    } else if ctx.mesh_dir.is_some() {
+    } else if ctx.has_user_meshes() {
         60.0
     } else {
         20.0
@@ -567,7 +567,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     // Section.
     let command = format!(
         "cargo run --release --features suitesparse --bin experiments -- {NAME}{}",
-        if ctx.mesh_dir.is_some() {
+        if ctx.has_user_meshes() {
             " --mesh-dir ../shared/meshes"
         } else {
             ""

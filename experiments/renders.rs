@@ -271,7 +271,7 @@ fn write_section(ctx: &Context, images: &[(String, String)], seconds: f64) -> Re
     let _ = writeln!(
         s,
         "Regenerate: `cargo run --release --bin experiments -- renders{}` ({} on {}).",
-        if ctx.mesh_dir.is_some() {
+        if ctx.has_user_meshes() {
             " --mesh-dir ../shared/meshes"
         } else {
             " [--mesh-dir ../shared/meshes]"

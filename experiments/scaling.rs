@@ -27,20 +27,6 @@ use crate::{AnyError, Summary};
 
 const NAME: &str = "scaling";
 
-/// The real models of the scaling run (those present are used), small to
-/// large.
-const REAL_MESHES: &[&str] = &[
-    "bunny-3k.obj",
-    "fandisk-6k.obj",
-    "dragon-10k.obj",
-    "armadillo-21k.obj",
-    "bunny-35k-stanford.obj",
-    "armadillo-43k.obj",
-    "dragon-50k.obj",
-    "igea-134k.obj",
-    "igea-537k-subdiv.obj.gz",
-];
-
 /// Assumed growth exponent of the precompute for the budget prediction
 /// (nested-dissection Cholesky of a surface mesh is `O(n^1.5)` at worst).
 const PREDICTION_EXPONENT: f64 = 1.5;
@@ -91,7 +77,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let default_spd = NullSpaceQr::default().spd.name().to_string();
     let budget_for = |spd_name: &str| -> f64 {
         let main = spd_name == default_spd || spd_name == "cholmod";
-        match (ctx.quick, ctx.mesh_dir.is_some(), main) {
+        match (ctx.quick, ctx.has_user_meshes(), main) {
             (true, _, _) => 5.0,
             (false, false, true) => 40.0,
             (false, false, false) => 8.0,
@@ -132,21 +118,14 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if ctx.mesh_dir.is_some() {
-        let files: Vec<&str> = if ctx.quick {
-            REAL_MESHES[..3].to_vec()
-        } else {
-            REAL_MESHES.to_vec()
-        };
-        let bar = ctx.bar(files.len(), &format!("{NAME}: reading meshes"));
-        for file in files {
-            bar.set_message(format!("{NAME}: reading {file}"));
-            if let Some(case) = ctx.real_mesh(file)? {
-                cases.push((case, "real"));
-            }
-            bar.inc(1);
+    if ctx.has_user_meshes() {
+        // Every user mesh, small to large (the first three with --quick).
+        let mut real = ctx.user_meshes()?;
+        real.sort_by_key(|c| c.mesh.n_vertices());
+        if ctx.quick {
+            real.truncate(3);
         }
-        bar.finish_and_clear();
+        cases.extend(real.into_iter().map(|c| (c, "real")));
     }
 
     let mut rows: Vec<Row> = Vec::new();
@@ -194,12 +173,22 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             } else {
                 &history[bi][kind_index]
             };
-            if let Some(&(n_prev, t_prev)) = h.last() {
+            // The reference point: the largest measured mesh not larger
+            // than this one, else the smallest larger one — so that the
+            // prediction shrinks with the mesh (a 3k-vertex real mesh after
+            // a 164k-vertex generated one is predicted from the smallest
+            // generated one, scaled down).
+            let reference = h
+                .iter()
+                .filter(|(m, _)| *m <= n)
+                .max_by_key(|(m, _)| *m)
+                .or_else(|| h.iter().min_by_key(|(m, _)| *m));
+            if let Some(&(n_prev, t_prev)) = reference {
                 let exponent = match h.len() {
                     0 | 1 => PREDICTION_EXPONENT,
                     l => {
-                        let (n0, t0) = h[l - 2];
-                        let slope = (t_prev / t0).ln() / (n_prev as f64 / n0 as f64).ln();
+                        let ((n0, t0), (n1, t1)) = (h[l - 2], h[l - 1]);
+                        let slope = (t1 / t0).ln() / (n1 as f64 / n0 as f64).ln();
                         if slope.is_finite() {
                             slope.clamp(PREDICTION_EXPONENT, 3.0)
                         } else {
@@ -207,7 +196,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                         }
                     }
                 };
-                let predicted = t_prev * (n as f64 / n_prev as f64).max(1.0).powf(exponent);
+                let predicted = t_prev * (n as f64 / n_prev as f64).powf(exponent);
                 let budget = budget_for(spd_name);
                 if predicted > budget {
                     row.status = format!(
@@ -531,7 +520,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     // Section.
     let command = format!(
         "cargo run --release --features suitesparse --bin experiments -- {NAME}{}",
-        if ctx.mesh_dir.is_some() {
+        if ctx.has_user_meshes() {
             " --mesh-dir ../shared/meshes"
         } else {
             ""
