@@ -44,6 +44,8 @@ pub mod problem;
 pub mod report;
 pub mod scene;
 pub mod solver;
+#[cfg(feature = "proptest")]
+pub mod testing;
 
 pub use constraints::{Constraint, ConstraintKind, ConstraintSet};
 pub use deform::{Deformer, Solution};

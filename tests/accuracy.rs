@@ -3,13 +3,11 @@
 //! invariances of the problem (rigid motions, units), the priority order,
 //! the rank tolerance, and the refinement phase.
 
-mod common;
-
-use common::random_surface;
 use faer::Mat;
 use faer::prelude::Solve;
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::formulation::{Refine, RefineStop};
+use lse_deform::testing::random_surface;
 use lse_deform::{
     Deformer, Elimination, Formulation, Kkt, LaplacianKind, Mesh, NullSpaceQr, Penalty,
 };

@@ -4,14 +4,12 @@
 //! iteration over random meshes and constraint mixes, and no NaN on
 //! sliver meshes.
 
-mod common;
-
-use common::random_surface;
 use faer::Mat;
 use faer::prelude::Solve;
 use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::mesh::generate;
+use lse_deform::testing::random_surface;
 use lse_deform::{Mesh, NullSpaceQr};
 use nalgebra::{Matrix3, Matrix4};
 use proptest::prelude::*;

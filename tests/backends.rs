@@ -4,18 +4,16 @@
 //! gives the same solution over every QR × SPD pair, and every SPD back end
 //! solves, refactors, and names its failing pivot in the original ordering.
 
-mod common;
-
 use std::sync::Arc;
 use std::time::Instant;
 
-use common::{dense_reference, random_surface, relative_difference};
 use faer::Mat;
 use faer::sparse::{SparseColMat, SparseRowMat, Triplet};
 use lse_deform::backend::qr::{self, ConstraintQr, QrBackend, RankTolerance};
 use lse_deform::backend::spd::{self, SpdBackend};
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::error::{NumericalError, ProblemError};
+use lse_deform::testing::{dense_reference, random_surface, relative_difference};
 use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 use proptest::prelude::*;
 use rand::seq::SliceRandom;

@@ -3,12 +3,9 @@
 //! condition estimates against dense eigenvalues; Matrix Market export read
 //! back.
 
-mod common;
-
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use common::{dense_reference, random_surface, relative_difference};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Mat, MatMut, Side};
 use lse_deform::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic};
@@ -16,120 +13,16 @@ use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::error::{Error, NumericalError, ProblemError};
 use lse_deform::formulation::{Formulation, Prepared};
 use lse_deform::problem::LseProblem;
+use lse_deform::testing::{
+    dense_reference, independent_constraints as independent, laplacian_kinds as kinds,
+    random_surface, relative_difference, with_soft,
+};
 use lse_deform::{
     Deformer, Elimination, Kkt, LaplacianKind, Mesh, NullSpaceQr, Penalty, PenaltySweep, Report,
 };
 use proptest::prelude::*;
-use rand::seq::SliceRandom;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-
-const T_VALUES: [f64; 5] = [0.2, 0.35, 0.5, 0.65, 0.8];
-
-fn kinds() -> impl Strategy<Value = LaplacianKind> {
-    prop::sample::select(LaplacianKind::ALL.to_vec())
-}
-
-fn jitter(rng: &mut ChaCha8Rng, p: [f64; 3], amount: f64) -> [f64; 3] {
-    [
-        p[0] + rng.random_range(-amount..amount),
-        p[1] + rng.random_range(-amount..amount),
-        p[2] + rng.random_range(-amount..amount),
-    ]
-}
-
-/// `count` independent hard constraints of all four kinds (each on a vertex
-/// no earlier one uses, so the rows are triangular after a permutation);
-/// the first three are positions. With `positions_only`, all are.
-fn independent(
-    mesh: &Mesh,
-    rng: &mut ChaCha8Rng,
-    count: usize,
-    positions_only: bool,
-) -> Vec<Constraint> {
-    let n = mesh.n_vertices();
-    let mut order: Vec<usize> = (0..n).collect();
-    order.shuffle(rng);
-    let p = mesh.positions();
-    // Each constraint has a nonzero coefficient at a vertex no earlier one
-    // touches, so the rows are triangular after a column permutation.
-    let mut touched: Vec<usize> = Vec::new();
-    let mut fresh = order.into_iter();
-    let mut out = Vec::new();
-    for k in 0..count {
-        let Some(v) = fresh.by_ref().find(|v| !touched.contains(v)) else {
-            break;
-        };
-        let other = |rng: &mut ChaCha8Rng, not: &[usize]| loop {
-            let u = rng.random_range(0..n);
-            if !not.contains(&u) {
-                break u;
-            }
-        };
-        let kind = if k < 3 || positions_only {
-            0
-        } else {
-            rng.random_range(0..4)
-        };
-        let c = match kind {
-            0 => ConstraintKind::Position {
-                vertex: v,
-                target: jitter(rng, p[v], 0.2),
-            },
-            1 => {
-                let u = other(rng, &[v]);
-                ConstraintKind::Edge {
-                    vertices: [v, u],
-                    t: T_VALUES[rng.random_range(0..5)],
-                    target: jitter(rng, p[v], 0.2),
-                }
-            }
-            2 => {
-                let u = other(rng, &[v]);
-                let w = other(rng, &[v, u]);
-                ConstraintKind::Face {
-                    vertices: [u, v, w],
-                    barycentric: [T_VALUES[rng.random_range(0..5)], 0.25],
-                    target: jitter(rng, p[v], 0.2),
-                }
-            }
-            _ => {
-                let u = other(rng, &[v]);
-                ConstraintKind::Relative {
-                    vertices: [v, u],
-                    vector: jitter(
-                        rng,
-                        [p[v][0] - p[u][0], p[v][1] - p[u][1], p[v][2] - p[u][2]],
-                        0.1,
-                    ),
-                }
-            }
-        };
-        touched.extend_from_slice(c.vertices());
-        out.push(Constraint::hard(c));
-    }
-    out
-}
-
-fn with_soft(
-    mesh: &Mesh,
-    rng: &mut ChaCha8Rng,
-    mut cs: Vec<Constraint>,
-    n_soft: usize,
-) -> Vec<Constraint> {
-    let p = mesh.positions();
-    for _ in 0..n_soft {
-        let v = rng.random_range(0..mesh.n_vertices());
-        cs.push(Constraint::soft(
-            ConstraintKind::Position {
-                vertex: v,
-                target: jitter(rng, p[v], 0.2),
-            },
-            rng.random_range(0.5..5.0),
-        ));
-    }
-    cs
-}
 
 fn deformer(mesh: &Mesh, kind: LaplacianKind, cs: Vec<Constraint>) -> Deformer {
     Deformer::new(mesh.clone(), kind, ConstraintSet::from_vec(cs).unwrap()).unwrap()

@@ -4,119 +4,14 @@
 
 #![allow(clippy::needless_range_loop)]
 
-mod common;
-
-use common::{dense_reference, relative_difference};
 use faer::Mat;
 use faer::sparse::{SparseColMat, Triplet};
 use lse_deform::backend::{qr, spd};
 use lse_deform::error::{Error, NumericalError, ProblemError};
 use lse_deform::formulation::{self, Formulation};
 use lse_deform::problem::LseProblem;
+use lse_deform::testing::{dense_reference, random_lse, relative_difference};
 use lse_deform::{Constraint, ConstraintSet, Deformer, Kkt, LaplacianKind, LseSolver, NullSpaceQr};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-
-/// A random sparse LSE: `A` (l × n) with a nonzero diagonal on top (full
-/// column rank), `B` with `independent` random rows followed by rows that
-/// are combinations of two earlier rows — consistent ones at the indices
-/// returned as `redundant`, inconsistent ones (D perturbed by 1) at
-/// `conflicting`.
-struct RandomLse {
-    problem: LseProblem,
-    independent_rows: Vec<usize>,
-    redundant: Vec<usize>,
-    conflicting: Vec<usize>,
-}
-
-fn random_lse(n: usize, independent: usize, extra: usize, k: usize, seed: u64) -> RandomLse {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let l = n + n / 2;
-    let mut a = Vec::new();
-    for j in 0..n {
-        a.push(Triplet::new(j, j, rng.random_range(1.0..2.0)));
-    }
-    for _ in 0..3 * n {
-        a.push(Triplet::new(
-            rng.random_range(0..l),
-            rng.random_range(0..n),
-            rng.random_range(-1.0..1.0),
-        ));
-    }
-    let a = SparseColMat::<usize, f64>::try_new_from_triplets(l, n, &a).unwrap();
-    let c = Mat::from_fn(l, k, |_, _| rng.random_range(-1.0..1.0));
-    let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
-    let mut d_rows: Vec<Vec<f64>> = Vec::new();
-    for _ in 0..independent {
-        let mut row: Vec<(usize, f64)> = Vec::new();
-        while row.len() < 3 {
-            let j = rng.random_range(0..n);
-            if row.iter().all(|e| e.0 != j) {
-                row.push((j, rng.random_range(0.5..1.5)));
-            }
-        }
-        rows.push(row);
-        d_rows.push((0..k).map(|_| rng.random_range(-1.0..1.0)).collect());
-    }
-    let (mut redundant, mut conflicting, mut independent_rows) =
-        (Vec::new(), Vec::new(), (0..independent).collect::<Vec<_>>());
-    for e in 0..extra {
-        // Combinations of kept rows only (a combination involving a
-        // conflicting row would be inconsistent with the kept ones).
-        let pick =
-            |rng: &mut ChaCha8Rng| independent_rows[rng.random_range(0..independent_rows.len())];
-        let (p, q) = (pick(&mut rng), pick(&mut rng));
-        let (s, t) = (rng.random_range(0.5..2.0), rng.random_range(-2.0..-0.5));
-        let mut dense = vec![0.0; n];
-        for &(j, v) in &rows[p] {
-            dense[j] += s * v;
-        }
-        for &(j, v) in &rows[q] {
-            dense[j] += t * v;
-        }
-        let row: Vec<(usize, f64)> = dense
-            .iter()
-            .enumerate()
-            .filter(|e| *e.1 != 0.0)
-            .map(|(j, &v)| (j, v))
-            .collect();
-        if row.is_empty() {
-            continue;
-        }
-        let mut d: Vec<f64> = (0..k)
-            .map(|c| s * d_rows[p][c] + t * d_rows[q][c])
-            .collect();
-        if e % 2 == 1 {
-            d[0] += 1.0;
-            conflicting.push(rows.len());
-        } else {
-            redundant.push(rows.len());
-        }
-        rows.push(row);
-        d_rows.push(d);
-        // One more independent row after each dependent one, so that
-        // dependent rows sit between independent ones.
-        let j = rng.random_range(0..n);
-        independent_rows.push(rows.len());
-        rows.push(vec![(j, 1.0), ((j + 1) % n, rng.random_range(0.1..0.9))]);
-        d_rows.push((0..k).map(|_| rng.random_range(-1.0..1.0)).collect());
-    }
-    let m = rows.len();
-    let b: Vec<Triplet<usize, usize, f64>> = rows
-        .iter()
-        .enumerate()
-        .flat_map(|(i, r)| r.iter().map(move |&(j, v)| Triplet::new(i, j, v)))
-        .collect();
-    let b = SparseColMat::<usize, f64>::try_new_from_triplets(m, n, &b).unwrap();
-    let d = Mat::from_fn(m, k, |i, c| d_rows[i][c]);
-    let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref()).unwrap();
-    RandomLse {
-        problem,
-        independent_rows,
-        redundant,
-        conflicting,
-    }
-}
 
 fn available(names: &[&'static str], ok: impl Fn(&str) -> bool) -> Vec<&'static str> {
     names.iter().copied().filter(|n| ok(n)).collect()
@@ -477,4 +372,43 @@ fn groups_round_trip_through_json() {
     )
     .unwrap_err();
     assert!(err.to_string().contains("'group'"), "{err}");
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+
+    /// Random general problems: the rank, the redundant and the conflicting
+    /// rows are the constructed ones, and X equals the dense oracle's.
+    #[test]
+    fn random_general_problems_match_the_oracle(lse in lse_deform::testing::random_lses()) {
+        let mut solver = LseSolver::new(lse.problem.clone());
+        solver.precompute(&NullSpaceQr::default()).unwrap();
+        let x = solver.solve().unwrap();
+        let report = solver.report();
+        proptest::prop_assert_eq!(report.rank, Some(lse.independent_rows.len()));
+        proptest::prop_assert_eq!(&report.redundant, &lse.redundant);
+        let conflicting: Vec<usize> = report.conflicting.iter().map(|c| c.index).collect();
+        proptest::prop_assert_eq!(conflicting, lse.conflicting.clone());
+        let reference = dense_reference(&lse.problem, &lse.independent_rows);
+        proptest::prop_assert!(relative_difference(&x, &reference) < 1e-9);
+    }
+
+    /// Scaled meshes: the constructed rank and dependent constraints are
+    /// found whatever the units.
+    #[test]
+    fn constraint_mixes_on_scaled_meshes(
+        mesh in lse_deform::testing::scaled_meshes(),
+        seed in proptest::prelude::any::<u64>(),
+    ) {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let base = lse_deform::testing::independent_constraints(&mesh, &mut rng, 6, false);
+        let added = lse_deform::testing::dependent_constraints(&base, &mut rng, 3);
+        let all: Vec<Constraint> = base.iter().chain(&added).cloned().collect();
+        let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, ConstraintSet::from_vec(all).unwrap()).unwrap();
+        d.precompute(&NullSpaceQr::default()).unwrap();
+        d.solve_matrix().unwrap();
+        proptest::prop_assert_eq!(d.report().rank, Some(base.len()));
+        proptest::prop_assert_eq!(d.report().redundant.clone(), (6..9).collect::<Vec<_>>());
+    }
 }

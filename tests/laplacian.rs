@@ -1,7 +1,5 @@
 //! Laplacian values checked against hand computations.
 
-mod common;
-
 use faer::sparse::SparseColMat;
 use lse_deform::Mesh;
 use lse_deform::laplacian::{self, LaplacianKind, mixed_voronoi_areas};
@@ -119,7 +117,7 @@ fn regular_grid_has_the_five_point_stencil() {
 #[test]
 fn rows_sum_to_zero_and_flat_interior_delta_vanishes() {
     for seed in 0..5 {
-        let mut mesh = common::random_surface(7, 5, seed);
+        let mut mesh = lse_deform::testing::random_surface(7, 5, seed);
         for kind in LaplacianKind::ALL {
             let l = dense(&laplacian::laplacian(&mesh, kind).unwrap());
             let scale = (0..l.nrows()).map(|i| l[(i, i)].abs()).fold(0.0, f64::max);
@@ -207,7 +205,7 @@ fn intrinsic_delaunay_flips_the_skinny_pair() {
 #[test]
 fn intrinsic_delaunay_weights_are_nonnegative_on_curved_meshes() {
     for seed in 0..4 {
-        let mesh = common::random_surface(9, 7, seed);
+        let mesh = lse_deform::testing::random_surface(9, 7, seed);
         let tri = laplacian::IntrinsicTriangulation::new(&mesh)
             .unwrap()
             .flip_to_delaunay()

@@ -2,145 +2,17 @@
 //! priority order, conflict classification and agreement with an
 //! independently computed dense solution.
 
-mod common;
-
-use common::{dense_reference, random_surface, relative_difference};
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::error::{Error, ProblemError};
+use lse_deform::testing::{
+    T_VALUES, dense_reference, dependent_constraints as dependent, independent_constraints, jitter,
+    laplacian_kinds as kinds, random_surface, relative_difference,
+};
 use lse_deform::{Deformer, LaplacianKind, Mesh, NullSpaceQr};
 use proptest::prelude::*;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-
-const T_VALUES: [f64; 5] = [0.2, 0.35, 0.5, 0.65, 0.8];
-
-fn kinds() -> impl Strategy<Value = LaplacianKind> {
-    prop::sample::select(LaplacianKind::ALL.to_vec())
-}
-
-fn jitter(rng: &mut ChaCha8Rng, p: [f64; 3], amount: f64) -> [f64; 3] {
-    [
-        p[0] + rng.random_range(-amount..amount),
-        p[1] + rng.random_range(-amount..amount),
-        p[2] + rng.random_range(-amount..amount),
-    ]
-}
-
-/// `count` independent hard constraints: each has a nonzero coefficient at a
-/// vertex that no earlier constraint touches, so the rows are triangular
-/// after a column permutation. The first three are positions.
-fn independent(mesh: &Mesh, rng: &mut ChaCha8Rng, count: usize) -> Vec<Constraint> {
-    let n = mesh.n_vertices();
-    let mut order: Vec<usize> = (0..n).collect();
-    order.shuffle(rng);
-    let mut fresh = order.into_iter();
-    let p = mesh.positions();
-    let mut used: Vec<usize> = Vec::new();
-    let mut out = Vec::new();
-    for k in 0..count {
-        let Some(v) = fresh.by_ref().find(|v| !used.contains(v)) else {
-            break;
-        };
-        // Another vertex, distinct from v (may be touched already).
-        let other = |rng: &mut ChaCha8Rng, not: &[usize]| loop {
-            let u = rng.random_range(0..n);
-            if !not.contains(&u) {
-                break u;
-            }
-        };
-        let kind = if k < 3 { 0 } else { rng.random_range(0..4) };
-        let c = match kind {
-            0 => ConstraintKind::Position {
-                vertex: v,
-                target: jitter(rng, p[v], 0.2),
-            },
-            1 => {
-                let u = other(rng, &[v]);
-                ConstraintKind::Edge {
-                    vertices: [v, u],
-                    t: T_VALUES[rng.random_range(0..5)],
-                    target: jitter(rng, p[v], 0.2),
-                }
-            }
-            2 => {
-                let u = other(rng, &[v]);
-                let w = other(rng, &[v, u]);
-                ConstraintKind::Face {
-                    vertices: [u, v, w],
-                    barycentric: [T_VALUES[rng.random_range(0..5)], 0.25],
-                    target: jitter(rng, p[v], 0.2),
-                }
-            }
-            _ => {
-                let u = other(rng, &[v]);
-                ConstraintKind::Relative {
-                    vertices: [v, u],
-                    vector: jitter(
-                        rng,
-                        [p[v][0] - p[u][0], p[v][1] - p[u][1], p[v][2] - p[u][2]],
-                        0.1,
-                    ),
-                }
-            }
-        };
-        used.extend_from_slice(c.vertices());
-        out.push(Constraint::hard(c));
-    }
-    out
-}
-
-/// Constraints that are linear combinations of `base` rows, with consistent
-/// right-hand sides: duplicates, and edges, relatives and faces built from
-/// base positions.
-fn dependent(base: &[Constraint], rng: &mut ChaCha8Rng, count: usize) -> Vec<Constraint> {
-    let positions: Vec<(usize, [f64; 3])> = base
-        .iter()
-        .filter_map(|c| match c.kind {
-            ConstraintKind::Position { vertex, target } => Some((vertex, target)),
-            _ => None,
-        })
-        .collect();
-    let lerp = |a: [f64; 3], b: [f64; 3], t: f64| {
-        [
-            t * a[0] + (1.0 - t) * b[0],
-            t * a[1] + (1.0 - t) * b[1],
-            t * a[2] + (1.0 - t) * b[2],
-        ]
-    };
-    let mut out = Vec::new();
-    for _ in 0..count {
-        let mut pick: Vec<(usize, [f64; 3])> = positions.clone();
-        pick.shuffle(rng);
-        let kind = match rng.random_range(0..4) {
-            0 => base[rng.random_range(0..base.len())].kind.clone(),
-            1 => {
-                let t = T_VALUES[rng.random_range(0..5)];
-                ConstraintKind::Edge {
-                    vertices: [pick[0].0, pick[1].0],
-                    t,
-                    target: lerp(pick[0].1, pick[1].1, t),
-                }
-            }
-            2 => ConstraintKind::Relative {
-                vertices: [pick[0].0, pick[1].0],
-                vector: [0, 1, 2].map(|c| pick[0].1[c] - pick[1].1[c]),
-            },
-            _ => {
-                let (s, t) = (0.2, 0.3);
-                let target = [0, 1, 2]
-                    .map(|c| s * pick[0].1[c] + t * pick[1].1[c] + (1.0 - s - t) * pick[2].1[c]);
-                ConstraintKind::Face {
-                    vertices: [pick[0].0, pick[1].0, pick[2].0],
-                    barycentric: [s, t],
-                    target,
-                }
-            }
-        };
-        out.push(Constraint::hard(kind));
-    }
-    out
-}
 
 fn solve(
     mesh: &Mesh,
@@ -223,7 +95,7 @@ proptest! {
     ) {
         let mesh = random_surface(nx, ny, seed);
         let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(7));
-        let base = independent(&mesh, &mut rng, n_base);
+        let base = independent_constraints(&mesh, &mut rng, n_base, false);
         let added = dependent(&base, &mut rng, n_added);
         let added_indices: Vec<usize> = (base.len()..base.len() + added.len()).collect();
 
@@ -265,7 +137,7 @@ proptest! {
     ) {
         let mesh = random_surface(nx, ny, seed);
         let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(3));
-        let mut cs = independent(&mesh, &mut rng, n_hard);
+        let mut cs = independent_constraints(&mesh, &mut rng, n_hard, false);
         let p = mesh.positions();
         for _ in 0..n_soft {
             let v = rng.random_range(0..mesh.n_vertices());
