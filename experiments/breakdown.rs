@@ -64,20 +64,12 @@ pub(crate) fn precompute_phase_values(t: &Timings) -> Vec<f64> {
 /// The SPD back ends of this build (CHOLMOD only with `--features
 /// suitesparse`), in the library's order.
 pub(crate) fn spd_backends() -> Vec<&'static str> {
-    spd::NAMES
-        .iter()
-        .copied()
-        .filter(|n| spd::by_name(n).is_ok())
-        .collect()
+    spd::NAMES.to_vec()
 }
 
 /// The QR back ends of this build (SPQR only with `--features suitesparse`).
 pub(crate) fn qr_backends() -> Vec<&'static str> {
-    qr::NAMES
-        .iter()
-        .copied()
-        .filter(|n| qr::by_name(n).is_ok())
-        .collect()
+    qr::NAMES.to_vec()
 }
 
 /// The null-space method with the library's default QR back end and the

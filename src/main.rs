@@ -748,13 +748,9 @@ fn compare_configs(a: &CompareArgs) -> Result<Vec<Config>, Error> {
     let invalid = |message: String| -> Error {
         lse_deform::error::ProblemError::InvalidArgument { message }.into()
     };
-    let available = |names: &[&'static str]| -> Vec<String> {
-        names
-            .iter()
-            .filter(|n| cfg!(feature = "suitesparse") || !matches!(**n, "spqr" | "cholmod"))
-            .map(|n| n.to_string())
-            .collect()
-    };
+    // NAMES lists the back ends of this build only.
+    let available =
+        |names: &[&'static str]| -> Vec<String> { names.iter().map(|n| n.to_string()).collect() };
     let qrs = if a.qr.is_empty() {
         available(backend::qr::NAMES)
     } else {

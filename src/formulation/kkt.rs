@@ -72,6 +72,7 @@ use super::util::{
 use super::{Formulation, Prepared};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
+use crate::mesh::topology::UnionFind;
 use crate::problem::LseProblem;
 use crate::report::{Report, first_non_finite};
 
@@ -267,14 +268,7 @@ fn laplacian_components(problem: &LseProblem) -> (Vec<usize>, usize) {
     let n_lap = problem.n_laplacian_rows();
     let a = problem.a();
     let (ptr, rows) = (a.symbolic().col_ptr(), a.symbolic().row_idx());
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn find(parent: &mut [usize], mut x: usize) -> usize {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    }
+    let mut sets = UnionFind::new(n);
     let mut anchor = vec![usize::MAX; n_lap];
     for j in 0..n {
         for &r in &rows[ptr[j]..ptr[j + 1]] {
@@ -282,26 +276,12 @@ fn laplacian_components(problem: &LseProblem) -> (Vec<usize>, usize) {
                 if anchor[r] == usize::MAX {
                     anchor[r] = j;
                 } else {
-                    let (x, y) = (find(&mut parent, anchor[r]), find(&mut parent, j));
-                    if x != y {
-                        parent[x.max(y)] = x.min(y);
-                    }
+                    sets.union(anchor[r], j);
                 }
             }
         }
     }
-    let mut id = vec![usize::MAX; n];
-    let mut component_of = vec![0usize; n];
-    let mut count = 0;
-    for (v, component) in component_of.iter_mut().enumerate() {
-        let r = find(&mut parent, v);
-        if id[r] == usize::MAX {
-            id[r] = count;
-            count += 1;
-        }
-        *component = id[r];
-    }
-    (component_of, count)
+    sets.components()
 }
 
 /// For each component, whether its translation is left free by the soft

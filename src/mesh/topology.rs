@@ -128,25 +128,49 @@ fn edge_groups(h: &[HalfEdge]) -> impl Iterator<Item = std::ops::Range<usize>> +
     })
 }
 
-/// Union–find with path halving; `union` keeps the smaller root.
-struct Dsu(Vec<usize>);
+/// Union–find with path halving; `union` keeps the smaller root, so every
+/// root is the smallest element of its set.
+pub(crate) struct UnionFind(Vec<usize>);
 
-impl Dsu {
-    fn new(n: usize) -> Dsu {
-        Dsu((0..n).collect())
+impl UnionFind {
+    /// `n` singletons.
+    pub(crate) fn new(n: usize) -> UnionFind {
+        UnionFind((0..n).collect())
     }
-    fn find(&mut self, mut x: usize) -> usize {
+
+    /// The root (smallest element) of `x`'s set.
+    pub(crate) fn find(&mut self, mut x: usize) -> usize {
         while self.0[x] != x {
             self.0[x] = self.0[self.0[x]];
             x = self.0[x];
         }
         x
     }
-    fn union(&mut self, a: usize, b: usize) {
+
+    /// Merges the sets of `a` and `b`.
+    pub(crate) fn union(&mut self, a: usize, b: usize) {
         let (a, b) = (self.find(a), self.find(b));
         if a != b {
             self.0[a.max(b)] = a.min(b);
         }
+    }
+
+    /// `(set of each element, number of sets)`, sets numbered in order of
+    /// their smallest element.
+    pub(crate) fn components(&mut self) -> (Vec<usize>, usize) {
+        let n = self.0.len();
+        let mut id = vec![usize::MAX; n];
+        let mut comp = vec![0; n];
+        let mut count = 0;
+        for (v, c) in comp.iter_mut().enumerate() {
+            let r = self.find(v);
+            if id[r] == usize::MAX {
+                id[r] = count;
+                count += 1;
+            }
+            *c = id[r];
+        }
+        (comp, count)
     }
 }
 
@@ -169,7 +193,7 @@ impl Topology {
 
         // Fans: corners (3f + k) at the same vertex joined across manifold
         // edges.
-        let mut fans = Dsu::new(3 * faces.len());
+        let mut fans = UnionFind::new(3 * faces.len());
         let mut n_edges = 0;
         let mut n_boundary_edges = 0;
         let mut n_non_manifold_edges = 0;
@@ -213,7 +237,7 @@ impl Topology {
 
         // Boundary loops: boundary edges linked at a vertex when they lie in
         // the same fan there.
-        let mut loops = Dsu::new(boundary.len());
+        let mut loops = UnionFind::new(boundary.len());
         let mut slot = vec![usize::MAX; 3 * faces.len()];
         for (i, e) in boundary.iter().enumerate() {
             for at_lo in [true, false] {
@@ -354,32 +378,11 @@ pub(crate) fn non_manifold_warning(mesh: &Mesh) -> Option<MeshWarning> {
 /// number of components)`, components numbered in order of their smallest
 /// vertex.
 pub fn vertex_components(n_vertices: usize, faces: &[[usize; 3]]) -> (Vec<usize>, usize) {
-    let mut parent: Vec<usize> = (0..n_vertices).collect();
-    fn find(parent: &mut [usize], mut x: usize) -> usize {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    }
+    let mut sets = UnionFind::new(n_vertices);
     for f in faces {
         for k in 0..3 {
-            let (a, b) = (find(&mut parent, f[k]), find(&mut parent, f[(k + 1) % 3]));
-            if a != b {
-                parent[a.max(b)] = a.min(b);
-            }
+            sets.union(f[k], f[(k + 1) % 3]);
         }
     }
-    let mut id = vec![usize::MAX; n_vertices];
-    let mut comp = vec![0; n_vertices];
-    let mut count = 0;
-    for (v, c) in comp.iter_mut().enumerate() {
-        let r = find(&mut parent, v);
-        if id[r] == usize::MAX {
-            id[r] = count;
-            count += 1;
-        }
-        *c = id[r];
-    }
-    (comp, count)
+    sets.components()
 }

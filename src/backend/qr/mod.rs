@@ -50,9 +50,20 @@ pub use sparse_givens::{GivensQr, GivensRowOrder, SparseGivens};
 #[cfg(feature = "suitesparse")]
 pub use spqr::{Spqr, SpqrQr};
 
-/// Names accepted by [`by_name`], in the order they are listed to users.
-/// `spqr` needs the cargo feature `suitesparse`.
+/// The QR back ends of this build, in the order they are listed to users
+/// (what [`by_name`] accepts): `spqr` only with the cargo feature
+/// `suitesparse`.
+#[cfg(feature = "suitesparse")]
 pub const NAMES: &[&str] = &["dense-householder", "sparse-givens", "spqr"];
+/// The QR back ends of this build, in the order they are listed to users
+/// (what [`by_name`] accepts): `spqr` only with the cargo feature
+/// `suitesparse`.
+#[cfg(not(feature = "suitesparse"))]
+pub const NAMES: &[&str] = &["dense-householder", "sparse-givens"];
+
+/// Back ends that exist with the cargo feature `suitesparse` only; in a
+/// build without it [`by_name`] says how to get them.
+pub const SUITESPARSE_NAMES: &[&str] = &["spqr"];
 
 /// The QR back end called `name` (one of [`NAMES`]).
 ///

@@ -30,8 +30,10 @@ pub use cholmod::Cholmod;
 pub use faer_llt::FaerLlt;
 pub use nalgebra::NalgebraCsc;
 
-/// Names accepted by [`by_name`], in the order they are listed to users.
-/// `cholmod` needs the cargo feature `suitesparse`.
+/// The SPD back ends of this build, in the order they are listed to users
+/// (what [`by_name`] accepts): `cholmod` only with the cargo feature
+/// `suitesparse`.
+#[cfg(feature = "suitesparse")]
 pub const NAMES: &[&str] = &[
     "faer-supernodal",
     "faer-simplicial",
@@ -39,6 +41,20 @@ pub const NAMES: &[&str] = &[
     "nalgebra",
     "cholmod",
 ];
+/// The SPD back ends of this build, in the order they are listed to users
+/// (what [`by_name`] accepts): `cholmod` only with the cargo feature
+/// `suitesparse`.
+#[cfg(not(feature = "suitesparse"))]
+pub const NAMES: &[&str] = &[
+    "faer-supernodal",
+    "faer-simplicial",
+    "faer-auto",
+    "nalgebra",
+];
+
+/// Back ends that exist with the cargo feature `suitesparse` only; in a
+/// build without it [`by_name`] says how to get them.
+pub const SUITESPARSE_NAMES: &[&str] = &["cholmod"];
 
 /// The SPD back end called `name` (one of [`NAMES`]).
 ///
