@@ -180,7 +180,8 @@ impl Deformer {
         self.solver.solve()
     }
 
-    /// Solve phase into `x` (n × 3, one row per vertex) without the solution
+    /// Solve phase into `x` (n × 3, one row per vertex, in the problem's
+    /// units: positions over [`Deformer::length_unit`]) without the solution
     /// diagnostics ([`Deformer::diagnose`] computes them when wanted): the
     /// call of an interactive loop. With the null-space formulation on the
     /// faer back ends it allocates nothing. See [`LseSolver::solve_into`].
