@@ -36,8 +36,8 @@ use lse_deform::backend::spd::{FaerLlt, SpdBackend};
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::formulation::{NullSpaceQr, PenaltySweep};
 use lse_deform::mesh::{Mesh, generate, read_mesh, write_mesh};
-use lse_deform::normal::NormalPattern;
 use lse_deform::scene::{CrowdedScene, FixedAndHandle, MixedScene};
+use lse_deform::sparse::NormalPattern;
 use lse_deform::{Deformer, LaplacianKind};
 
 fn ours() -> NullSpaceQr {

@@ -31,9 +31,9 @@ use lse_deform::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::formulation::{NullSpaceQr, Penalty, PenaltySweep};
 use lse_deform::mesh::{Mesh, generate, read_mesh};
-use lse_deform::normal::NormalPattern;
 use lse_deform::report::Timings;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
+use lse_deform::sparse::NormalPattern;
 use lse_deform::{Deformer, LaplacianKind};
 use serde::Serialize;
 

@@ -36,7 +36,7 @@
 //!
 //! **Cost.** Up to `2 × 200` products/solves and `O(n k²)` flops and
 //! `n k × 8` bytes for the Krylov basis (`k ≤ 200`): on demand only
-//! ([`crate::formulation::Prepared::estimate_condition`]).
+//! (`Prepared::estimate_condition` of the formulations).
 
 use faer::{Mat, MatMut, MatRef, Side};
 use rand::{Rng, SeedableRng};
@@ -295,7 +295,7 @@ impl SymmetricOperator for LowerSymmetricOperator<'_> {
     }
 
     fn apply(&mut self, x: MatRef<'_, f64>, y: MatMut<'_, f64>) -> Result<(), Error> {
-        crate::formulation::lower_sym_mul(self.lower, x, y);
+        crate::sparse::lower_sym_mul(self.lower, x, y);
         Ok(())
     }
 }

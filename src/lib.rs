@@ -39,11 +39,12 @@ pub mod laplacian;
 pub mod limits;
 pub mod mesh;
 pub mod mtx;
-pub mod normal;
+
 pub mod problem;
 pub mod report;
 pub mod scene;
 pub mod solver;
+pub mod sparse;
 #[cfg(feature = "proptest")]
 pub mod testing;
 

@@ -624,6 +624,38 @@ fn csc_to_csr(m: SparseColMatRef<'_, usize, f64>) -> SparseRowMat<usize, f64> {
     )
 }
 
+/// Which columns of the small dense matrix `rows` (row-major, `ncols`
+/// columns: coefficient sums of constraint rows per mesh component) get a
+/// pivot in Gaussian elimination with partial pivoting. The pivot columns
+/// are linearly independent and every other column is a combination of
+/// them, so fixing the translations of the pivot-less components pins all
+/// the others. An entry counts as zero at `≤ 1e-12` in absolute value (the
+/// callers scale rows so that their coefficient norm is about 1 or drop sums
+/// below `1e-12 ×` that norm first). `rows` is overwritten.
+pub(crate) fn pivot_columns(rows: &mut [Vec<f64>], ncols: usize) -> Vec<bool> {
+    let mut has_pivot = vec![false; ncols];
+    let mut next = 0;
+    for col in 0..ncols {
+        let pivot = (next..rows.len())
+            .max_by(|&a, &b| rows[a][col].abs().total_cmp(&rows[b][col].abs()))
+            .filter(|&p| rows[p][col].abs() > 1e-12);
+        let Some(p) = pivot else { continue };
+        rows.swap(next, p);
+        let pivot_row = rows[next].clone();
+        for r in rows.iter_mut().skip(next + 1) {
+            let f = r[col] / pivot_row[col];
+            if f != 0.0 {
+                for (x, &y) in r.iter_mut().zip(&pivot_row).skip(col) {
+                    *x -= f * y;
+                }
+            }
+        }
+        has_pivot[col] = true;
+        next += 1;
+    }
+    has_pivot
+}
+
 /// Checks that no connected component of the mesh is free to translate.
 ///
 /// `L` annihilates every vector that is constant on a component, so a
@@ -685,31 +717,18 @@ pub fn check_pinned(
         })
         .filter(|r| r.iter().any(|&v| v != 0.0))
         .collect();
-    // Column `col` is eliminated with the pivot moved to row `col`.
-    for (col, &comp) in unpinned.iter().enumerate() {
-        let next = col;
-        let pivot = (next..rows.len())
-            .max_by(|&a, &b| rows[a][col].abs().total_cmp(&rows[b][col].abs()))
-            .filter(|&p| rows[p][col].abs() > 1e-12);
-        let Some(p) = pivot else {
-            let vertices = component_of.iter().filter(|&&c| c == comp).count();
-            let example_vertex = component_of.iter().position(|&c| c == comp).unwrap_or(0);
-            return Err(ProblemError::UnpinnedComponent {
-                component: comp,
-                vertices,
-                example_vertex,
-            });
-        };
-        rows.swap(next, p);
-        let pivot_row = rows[next].clone();
-        for r in rows.iter_mut().skip(next + 1) {
-            let f = r[col] / pivot_row[col];
-            if f != 0.0 {
-                for (x, &y) in r.iter_mut().zip(&pivot_row).skip(col) {
-                    *x -= f * y;
-                }
-            }
-        }
+    if let Some(col) = pivot_columns(&mut rows, unpinned.len())
+        .iter()
+        .position(|&has_pivot| !has_pivot)
+    {
+        let comp = unpinned[col];
+        let vertices = component_of.iter().filter(|&&c| c == comp).count();
+        let example_vertex = component_of.iter().position(|&c| c == comp).unwrap_or(0);
+        return Err(ProblemError::UnpinnedComponent {
+            component: comp,
+            vertices,
+            example_vertex,
+        });
     }
     Ok(())
 }

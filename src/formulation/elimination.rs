@@ -22,15 +22,14 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::SparseColMat;
 
-use super::null_space::{nothing_factored, with_context};
-use super::util::{at_residual, at_times, gather_columns, lower_to_full, row_entries, row_kind};
+use super::util::{factor_normal_matrix, nothing_factored, row_kind};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, check_factor_size};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, ProblemError};
-use crate::normal::NormalPattern;
 use crate::problem::LseProblem;
 use crate::report::Report;
+use crate::sparse::{at_residual, at_times, gather_columns, lower_to_full, row_entries};
 
 /// Elimination of position-constrained vertices over an SPD back end.
 #[derive(Clone)]
@@ -116,30 +115,13 @@ impl Formulation for Elimination {
             report.nnz.factor = Some(0);
             (None, None)
         } else {
-            let t = Instant::now();
-            let pattern = NormalPattern::new(a_u.as_ref());
-            let lower = pattern.numeric(a_u.as_ref());
-            report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
-            report.nnz.normal = Some(pattern.full_nnz());
-
-            let t = Instant::now();
-            let symbolic = self.spd.analyze(lower.symbolic())?;
-            report.timings_s.symbolic = t.elapsed().as_secs_f64();
-            check_factor_size(
-                symbolic.factor_nnz(),
-                lower.ncols(),
+            let (lower, factor) = factor_normal_matrix(
+                a_u.as_ref(),
+                self.spd.as_ref(),
                 "the eliminated normal matrix A_UᵀA_U",
+                |k| unknown.get(k).copied(),
+                report,
             )?;
-
-            let t = Instant::now();
-            let factor = symbolic.factorize(lower.as_ref()).map_err(|e| {
-                with_context(e, "the eliminated normal matrix A_UᵀA_U", |k| {
-                    unknown.get(k).copied()
-                })
-            })?;
-            report.timings_s.numeric = t.elapsed().as_secs_f64();
-            report.nnz.factor = Some(factor.nnz());
-            report.nnz.factor_bytes = Some(factor.bytes());
             (Some(lower), Some(factor))
         };
         Ok(Box::new(PreparedElimination {

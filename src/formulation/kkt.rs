@@ -65,16 +65,17 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, Mat, Par, Side};
 
-use super::util::{
-    add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_mul,
-    lower_sym_norm_inf, lower_to_full, row_entries, row_kind, split_normal,
-};
+use super::util::{row_kind, split_normal};
 use super::{Formulation, Prepared};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
 use crate::mesh::topology::UnionFind;
-use crate::problem::LseProblem;
+use crate::problem::{LseProblem, pivot_columns};
 use crate::report::{Report, first_non_finite};
+use crate::sparse::{
+    add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_mul,
+    lower_sym_norm_inf, lower_to_full, row_entries,
+};
 
 /// Singularity tolerance `τ` of a KKT pivot relative to the magnitude it
 /// was computed from: `|d_j| ≤ τ (|K_jj| + Σ_k L_jk² |d_k|)` declares `d_j`
@@ -341,24 +342,10 @@ fn soft_free_components(
             d
         })
         .collect();
-    let mut next = 0;
-    for col in 0..cols {
-        let pivot = (next..dense.len())
-            .max_by(|&x, &y| dense[x][col].abs().total_cmp(&dense[y][col].abs()))
-            .filter(|&p| dense[p][col].abs() > 1e-12);
-        let Some(p) = pivot else { continue };
-        dense.swap(next, p);
-        let pivot_row = dense[next].clone();
-        for r in dense.iter_mut().skip(next + 1) {
-            let f = r[col] / pivot_row[col];
-            if f != 0.0 {
-                for (x, &y) in r.iter_mut().zip(&pivot_row).skip(col) {
-                    *x -= f * y;
-                }
-            }
+    for (col, has_pivot) in pivot_columns(&mut dense, cols).into_iter().enumerate() {
+        if has_pivot {
+            free[touched[col]] = false;
         }
-        free[touched[col]] = false;
-        next += 1;
     }
     free
 }

@@ -33,7 +33,6 @@ pub use penalty::{
 pub use refine::{
     AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, Refine, RefineStop, Refinement, refine,
 };
-pub(crate) use util::lower_sym_mul;
 
 /// A way to solve `min ‖AX − C‖ s.t. BX = D`.
 pub trait Formulation: Send + Sync {

@@ -16,15 +16,16 @@ use std::time::Instant;
 use faer::sparse::SparseColMat;
 use faer::{Mat, MatMut};
 
-use super::util::{at_residual, gather_columns, lower_to_full};
+use super::util::{factor_normal_matrix, nothing_factored};
 use super::{Formulation, Prepared};
 use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, check_factor_size};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
-use crate::error::{Error, NumericalError, ProblemError};
-use crate::normal::NormalPattern;
+use crate::error::{Error, ProblemError};
 use crate::problem::LseProblem;
 use crate::report::Report;
+use crate::sparse::NormalPattern;
+use crate::sparse::{at_residual, gather_columns, lower_to_full};
 
 /// The null-space QR method over a QR back end and an SPD back end.
 #[derive(Clone)]
@@ -63,37 +64,6 @@ impl NullSpaceQr {
     }
 }
 
-/// Fills in the matrix name and the vertex of a back end's numerical error.
-pub(crate) fn with_context(
-    e: NumericalError,
-    matrix: &str,
-    vertex_of: impl Fn(usize) -> Option<usize>,
-) -> NumericalError {
-    match e {
-        NumericalError::NotPositiveDefinite { unknown, pivot, .. } => {
-            NumericalError::NotPositiveDefinite {
-                matrix: matrix.to_string(),
-                unknown,
-                vertex: vertex_of(unknown),
-                pivot,
-            }
-        }
-        NumericalError::Breakdown {
-            unknown,
-            ratio,
-            threshold,
-            ..
-        } => NumericalError::Breakdown {
-            matrix: matrix.to_string(),
-            unknown,
-            vertex: vertex_of(unknown),
-            ratio,
-            threshold,
-        },
-        other => other,
-    }
-}
-
 impl Formulation for NullSpaceQr {
     fn name(&self) -> String {
         "nullspace-qr".into()
@@ -128,30 +98,13 @@ impl Formulation for NullSpaceQr {
             report.nnz.factor = Some(0);
             None
         } else {
-            let t = Instant::now();
-            let pattern = NormalPattern::new(aq2.as_ref());
-            let normal = pattern.numeric(aq2.as_ref());
-            report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
-            report.nnz.normal = Some(pattern.full_nnz());
-
-            let t = Instant::now();
-            let symbolic = self.spd.analyze(normal.symbolic())?;
-            report.timings_s.symbolic = t.elapsed().as_secs_f64();
-            check_factor_size(
-                symbolic.factor_nnz(),
-                normal.ncols(),
+            let (_, factor) = factor_normal_matrix(
+                aq2.as_ref(),
+                self.spd.as_ref(),
                 "the reduced normal matrix (AQ2)ᵀ(AQ2)",
+                |k| Some(qr.free_unknown(k)),
+                report,
             )?;
-
-            let t = Instant::now();
-            let factor = symbolic.factorize(normal.as_ref()).map_err(|e| {
-                with_context(e, "the reduced normal matrix (AQ2)ᵀ(AQ2)", |k| {
-                    Some(qr.free_unknown(k))
-                })
-            })?;
-            report.timings_s.numeric = t.elapsed().as_secs_f64();
-            report.nnz.factor = Some(factor.nnz());
-            report.nnz.factor_bytes = Some(factor.bytes());
             Some(factor)
         };
         let workspace = SolveWorkspace::new(qr.n(), qr.rank(), problem.a().nrows());
@@ -353,12 +306,4 @@ impl Prepared for PreparedNullSpace {
 /// `tril((AQ2)ᵀ(AQ2))`.
 fn reduced_normal(aq2: &SparseColMat<usize, f64>) -> SparseColMat<usize, f64> {
     NormalPattern::new(aq2.as_ref()).numeric(aq2.as_ref())
-}
-
-/// The error of a condition estimate when every unknown is fixed.
-pub(crate) fn nothing_factored() -> Error {
-    ProblemError::InvalidArgument {
-        message: "no matrix was factored (every unknown is fixed by the hard constraints), so it has no condition number".into(),
-    }
-    .into()
 }

@@ -32,18 +32,18 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
-use super::null_space::with_context;
 use super::refine::{Refine, Refinement, refine};
-use super::util::{
-    add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_abs_mul,
-    lower_sym_max_row_nnz, lower_sym_mul, lower_sym_norm_inf, lower_to_full, split_normal,
-};
+use super::util::{split_normal, with_context};
 use super::{Formulation, Prepared};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::problem::LseProblem;
 use crate::report::{Report, first_non_finite};
+use crate::sparse::{
+    add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_abs_mul,
+    lower_sym_max_row_nnz, lower_sym_mul, lower_sym_norm_inf, lower_to_full,
+};
 
 /// The penalty formulation with weight `w` on every hard row, over an SPD
 /// back end.
