@@ -116,7 +116,8 @@ def test_export_system_round_trip(tmp_path):
     mesh, scene = tmp_path / "grid.obj", tmp_path / "scene.json"
     write_obj(mesh, V, F)
     items = [{"type": "position", "vertex": int(v), "target": t.tolist()} for v, t in zip(b, bc)]
-    # a relative and a redundant constraint, to have more than positions
+    # a relative constraint between two handle vertices (implied by their
+    # positions) and a repeated position: both redundant
     items.append({"type": "relative", "vertices": [int(b[-1]), int(b[-2])], "vector": (bc[-1] - bc[-2]).tolist()})
     items.append(dict(items[0]))
     scene.write_text(json.dumps({"constraints": items}))
@@ -128,7 +129,7 @@ def test_export_system_round_trip(tmp_path):
     unit = json.loads((out / "meta.json").read_text())["length_unit"]
     U, deform_report = lse_deform.deform(V, F, str(scene))
     assert np.abs(X * unit - U).max() <= 1e-12 * np.abs(U).max()
-    assert report["redundant"] == deform_report["redundant"] == [len(items) - 1]
+    assert report["redundant"] == deform_report["redundant"] == [len(items) - 2, len(items) - 1]
     # and the CLI's own solve of the same files
     subprocess.run([exe, "solve", str(out), "-o", str(tmp_path / "X.mtx")], check=True, capture_output=True)
     assert np.abs(scipy.io.mmread(str(tmp_path / "X.mtx")) - X).max() <= 1e-12 * np.abs(X).max()
