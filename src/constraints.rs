@@ -319,6 +319,41 @@ impl ConstraintSet {
         })
     }
 
+    /// Hard position constraints `p_{vertices[i]} = targets[i]`, constraint
+    /// `i` for pair `i`: libigl's position-only form of
+    /// `min_quad_with_fixed` (known indices `b`, their values `bc`). The
+    /// lengths must agree; values are checked as by [`ConstraintSet::push`],
+    /// vertex ranges later by [`ConstraintSet::check_vertices`].
+    ///
+    /// ```
+    /// use lse_deform::ConstraintSet;
+    /// let set = ConstraintSet::positions(&[3, 7], &[[0.0; 3], [1.0, 2.0, 3.0]]).unwrap();
+    /// assert_eq!((set.len(), set.n_hard()), (2, 2));
+    /// assert_eq!(set[1].kind.vertices(), &[7]);
+    /// assert!(ConstraintSet::positions(&[3], &[]).is_err());
+    /// ```
+    pub fn positions(
+        vertices: &[usize],
+        targets: &[[f64; 3]],
+    ) -> Result<ConstraintSet, ConstraintError> {
+        if vertices.len() != targets.len() {
+            return Err(ConstraintError::Shape {
+                message: format!(
+                    "{} vertices but {} targets: position constraints need one target per vertex",
+                    vertices.len(),
+                    targets.len()
+                ),
+            });
+        }
+        ConstraintSet::from_vec(
+            vertices
+                .iter()
+                .zip(targets)
+                .map(|(&v, &p)| Constraint::position(v, p))
+                .collect(),
+        )
+    }
+
     /// The mesh the constraints were made for (the file's `"mesh"` object),
     /// if recorded.
     pub fn mesh(&self) -> Option<&MeshSignature> {

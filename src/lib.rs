@@ -20,7 +20,8 @@
 //! [`report`], and [`arap`] (as-rigid-as-possible iterations on the same
 //! formulations); [`condition`] (condition-number estimates of the factored
 //! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
-//! [`interop`] (conversions to `sprs` and `nalgebra-sparse`).
+//! [`interop`] (conversions to `sprs` and `nalgebra-sparse`); with the
+//! feature `python`, `python` (the Python module, a front door).
 #![deny(missing_docs)]
 // Numerical kernels index several arrays with one loop variable; iterator
 // chains would obscure the mathematics.
@@ -41,6 +42,8 @@ pub mod mesh;
 pub mod mtx;
 
 pub mod problem;
+#[cfg(feature = "python")]
+pub mod python;
 pub mod report;
 pub mod scene;
 pub mod solver;

@@ -1,0 +1,546 @@
+//! numpy / scipy.sparse / Python objects → the library's types and back.
+//!
+//! Arrays are read through `numpy.asarray` and the numpy crate's strided
+//! views (`as_array`), element by element, so C-ordered, Fortran-ordered,
+//! non-contiguous and negatively strided arrays all read the same; nothing
+//! here assumes a memory order. Dtypes: real arrays accept float, int and
+//! uint kinds (converted to float64), index arrays int and uint kinds;
+//! anything else is a `TypeError` naming the argument and its dtype.
+
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, MatRef};
+use numpy::ndarray::Array2;
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use serde_json::Value;
+
+use super::errors::{input, type_error};
+use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
+use crate::error::{MeshError, ProblemError};
+use crate::report::Report;
+
+/// Which dtypes an array may have.
+#[derive(Clone, Copy, PartialEq)]
+enum Kind {
+    /// float, int or uint; read as float64.
+    Real,
+    /// int or uint; read as int64 / uint64.
+    Index,
+}
+
+/// `numpy.asarray(obj)` with its dtype checked against `kind` and converted
+/// to float64 (real), int64 or uint64 (indices).
+fn numeric_array<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    kind: Kind,
+) -> PyResult<Bound<'py, PyUntypedArray>> {
+    let py = obj.py();
+    let np = py.import("numpy")?;
+    let array = np
+        .call_method1("asarray", (obj,))
+        .map_err(|e| type_error(format!("{name} is not an array: {e}")))?;
+    let array = array
+        .cast_into::<PyUntypedArray>()
+        .map_err(|_| type_error(format!("{name} is not an array")))?;
+    let dtype = array.dtype();
+    let target = match (dtype.kind(), kind) {
+        (b'f', Kind::Real) | (b'i', Kind::Real) | (b'u', Kind::Real) => "float64",
+        (b'i', Kind::Index) => "int64",
+        (b'u', Kind::Index) => "uint64",
+        _ => {
+            let wanted = match kind {
+                Kind::Real => "real numbers (float64; float, int and uint dtypes are converted)",
+                Kind::Index => "integer indices (int64; other integer dtypes are converted)",
+            };
+            return Err(type_error(format!(
+                "{name} must hold {wanted}, got dtype {}",
+                dtype.str()?
+            )));
+        }
+    };
+    let kwargs = PyDict::new(py);
+    kwargs.set_item("copy", false)?;
+    array
+        .call_method("astype", (target,), Some(&kwargs))?
+        .cast_into::<PyUntypedArray>()
+        .map_err(|_| type_error(format!("{name}: astype did not return an array")))
+}
+
+/// The shape of `array` as (rows, columns): 2-D as it is, 1-D as one
+/// column when `column_ok`; `columns` (if given) must match.
+fn shape_2d(
+    array: &Bound<'_, PyUntypedArray>,
+    name: &str,
+    columns: Option<usize>,
+    column_ok: bool,
+) -> PyResult<(usize, usize)> {
+    let shape = array.shape();
+    let (rows, cols) = match shape {
+        [r, c] => (*r, *c),
+        [r] if column_ok => (*r, 1),
+        _ => {
+            let expected = match columns {
+                Some(c) => format!("an n × {c} array"),
+                None => "a 2-D array".to_string(),
+            };
+            return Err(input(format!(
+                "{name} must be {expected}, got shape {shape:?}"
+            )));
+        }
+    };
+    if let Some(c) = columns {
+        if cols != c {
+            return Err(input(format!(
+                "{name} must be an n × {c} array, got shape {shape:?}"
+            )));
+        }
+    }
+    Ok((rows, cols))
+}
+
+/// A real array as an owned matrix (1-D arrays as one column when
+/// `column_ok`); the flag says whether it was 1-D.
+pub(crate) fn dense(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    columns: Option<usize>,
+    column_ok: bool,
+) -> PyResult<(Mat<f64>, bool)> {
+    let array = numeric_array(obj, name, Kind::Real)?;
+    let (rows, cols) = shape_2d(&array, name, columns, column_ok)?;
+    let one_d = array.ndim() == 1;
+    if one_d {
+        let typed = array.cast::<PyArray1<f64>>()?.readonly();
+        let view = typed.as_array();
+        Ok((Mat::from_fn(rows, 1, |i, _| view[i]), true))
+    } else {
+        let typed = array.cast::<PyArray2<f64>>()?.readonly();
+        let view = typed.as_array();
+        Ok((Mat::from_fn(rows, cols, |i, j| view[[i, j]]), false))
+    }
+}
+
+/// An n × 3 real array as rows.
+pub(crate) fn rows3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<[f64; 3]>> {
+    let (m, _) = dense(obj, name, Some(3), false)?;
+    Ok((0..m.nrows())
+        .map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]])
+        .collect())
+}
+
+/// An integer array's entries in row-major order with its (rows, columns)
+/// shape, widened to `i128` so that int64 and uint64 read alike.
+fn index_entries(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    columns: Option<usize>,
+    column_ok: bool,
+) -> PyResult<((usize, usize), Vec<i128>)> {
+    let array = numeric_array(obj, name, Kind::Index)?;
+    let shape = shape_2d(&array, name, columns, column_ok)?;
+    let unsigned = array.dtype().kind() == b'u';
+    macro_rules! read {
+        ($t:ty) => {{
+            if array.ndim() == 1 {
+                let typed = array.cast::<PyArray1<$t>>()?.readonly();
+                typed.as_array().iter().map(|&v| v as i128).collect()
+            } else {
+                let typed = array.cast::<PyArray2<$t>>()?.readonly();
+                // `iter` walks in logical (row-major) order whatever the
+                // memory order.
+                typed.as_array().iter().map(|&v| v as i128).collect()
+            }
+        }};
+    }
+    let values: Vec<i128> = if unsigned { read!(u64) } else { read!(i64) };
+    Ok((shape, values))
+}
+
+/// A non-negative index as `usize`, or `None`.
+fn as_index(v: i128) -> Option<usize> {
+    usize::try_from(v).ok()
+}
+
+/// `F` (m × 3 vertex indices) as faces; a negative index is the mesh
+/// layer's [`MeshError::IndexOutOfRange`], ranges are checked by
+/// [`crate::Mesh::new`].
+pub(crate) fn faces(obj: &Bound<'_, PyAny>, n_vertices: usize) -> PyResult<Vec<[usize; 3]>> {
+    let ((rows, _), values) = index_entries(obj, "F", Some(3), false)?;
+    let mut faces = Vec::with_capacity(rows);
+    for (face, chunk) in values.chunks_exact(3).enumerate() {
+        let mut f = [0usize; 3];
+        for (slot, &v) in f.iter_mut().zip(chunk) {
+            *slot = as_index(v).ok_or_else(|| {
+                super::errors::to_py(
+                    MeshError::IndexOutOfRange {
+                        face,
+                        index: i64::try_from(v).unwrap_or(i64::MIN),
+                        vertex_count: n_vertices,
+                        line: None,
+                    }
+                    .into(),
+                )
+            })?;
+        }
+        faces.push(f);
+    }
+    Ok(faces)
+}
+
+/// A 1-D (or k × 1) array of non-negative indices.
+pub(crate) fn indices(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<usize>> {
+    let ((_, cols), values) = index_entries(obj, name, None, true)?;
+    if cols != 1 {
+        return Err(input(format!(
+            "{name} must be a 1-D array of indices (or k × 1), got {cols} columns"
+        )));
+    }
+    values
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            as_index(v).ok_or_else(|| {
+                input(format!(
+                    "{name}[{i}] = {v} is not an index (indices are 0-based and ≥ 0)"
+                ))
+            })
+        })
+        .collect()
+}
+
+/// The constraints argument: a list of dicts in the JSON format (or a
+/// dict with a `"constraints"` list), a path (`str` or `os.PathLike`) to
+/// a constraints file, or libigl's position-only pair `(b, bc)`.
+/// Returns the set and, for a file, the file's `"mesh"` record check is
+/// left to the caller.
+pub(crate) fn constraints(obj: &Bound<'_, PyAny>) -> PyResult<ConstraintSet> {
+    let py = obj.py();
+    if obj.is_instance_of::<PyString>() || obj.hasattr("__fspath__")? {
+        let path: String = py
+            .import("os")?
+            .call_method1("fspath", (obj,))?
+            .extract()
+            .map_err(|_| type_error("a constraints path must be a str or an os.PathLike of str"))?;
+        return read_constraints_file(path.as_ref()).map_err(super::errors::to_py);
+    }
+    if let Some((b, bc)) = libigl_pair(obj)? {
+        let vertices = indices(&b, "b")?;
+        let targets = rows3(&bc, "bc")?;
+        return ConstraintSet::positions(&vertices, &targets)
+            .map_err(|e| super::errors::to_py(e.into()));
+    }
+    let root = if obj.is_instance_of::<PyDict>() {
+        to_json(obj, "constraints", 0)?
+    } else if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
+        let list = to_json(obj, "constraints", 0)?;
+        Value::Object([("constraints".to_string(), list)].into_iter().collect())
+    } else {
+        return Err(type_error(format!(
+            "constraints must be a list of dicts (the JSON format), a path to a constraints file, or a pair (b, bc) of vertex indices and n × 3 targets; got {}",
+            obj.get_type().name()?
+        )));
+    };
+    parse_constraints(&root.to_string()).map_err(|e| super::errors::to_py(e.into()))
+}
+
+/// `Some((b, bc))` when `obj` is a 2-tuple or 2-list whose items are not
+/// dicts: libigl's form.
+fn libigl_pair<'py>(
+    obj: &Bound<'py, PyAny>,
+) -> PyResult<Option<(Bound<'py, PyAny>, Bound<'py, PyAny>)>> {
+    if !(obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>()) || obj.len()? != 2 {
+        return Ok(None);
+    }
+    let (first, second) = (obj.get_item(0)?, obj.get_item(1)?);
+    if first.is_instance_of::<PyDict>() || second.is_instance_of::<PyDict>() {
+        return Ok(None);
+    }
+    Ok(Some((first, second)))
+}
+
+/// Deepest nesting of a constraints object (the format needs 3; a
+/// self-containing list must not overflow the stack).
+const MAX_JSON_DEPTH: usize = 32;
+
+/// A Python object as JSON: dicts with string keys, lists, tuples, numpy
+/// arrays and scalars (through `tolist`), str, bool, int and finite floats.
+/// `path` names the place in errors (`constraints[3]['target'][1]`).
+fn to_json(obj: &Bound<'_, PyAny>, path: &str, depth: usize) -> PyResult<Value> {
+    if depth > MAX_JSON_DEPTH {
+        return Err(input(format!(
+            "{path}: nested deeper than {MAX_JSON_DEPTH} levels"
+        )));
+    }
+    if let Ok(b) = obj.cast::<PyBool>() {
+        return Ok(Value::Bool(b.is_true()));
+    }
+    if obj.is_instance_of::<PyInt>() {
+        if let Ok(v) = obj.extract::<i64>() {
+            return Ok(Value::from(v));
+        }
+        if let Ok(v) = obj.extract::<u64>() {
+            return Ok(Value::from(v));
+        }
+        return Err(input(format!("{path}: the integer {obj} is out of range")));
+    }
+    if obj.is_instance_of::<PyFloat>() {
+        let v: f64 = obj.extract()?;
+        return serde_json::Number::from_f64(v)
+            .map(Value::Number)
+            .ok_or_else(|| input(format!("{path} = {v} is not finite")));
+    }
+    if obj.is_instance_of::<PyString>() {
+        return Ok(Value::String(obj.extract()?));
+    }
+    if let Ok(d) = obj.cast::<PyDict>() {
+        let mut map = serde_json::Map::new();
+        for (k, v) in d.iter() {
+            let key: String = k
+                .extract()
+                .map_err(|_| type_error(format!("{path}: keys must be strings, got {k}")))?;
+            let value = to_json(&v, &format!("{path}['{key}']"), depth + 1)?;
+            map.insert(key, value);
+        }
+        return Ok(Value::Object(map));
+    }
+    if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
+        let mut items = Vec::new();
+        for (i, item) in obj.try_iter()?.enumerate() {
+            items.push(to_json(&item?, &format!("{path}[{i}]"), depth + 1)?);
+        }
+        return Ok(Value::Array(items));
+    }
+    if obj.hasattr("tolist")? {
+        // numpy arrays and scalars: their Python equivalents.
+        let plain = obj.call_method0("tolist")?;
+        if !plain.is(obj) {
+            return to_json(&plain, path, depth + 1);
+        }
+    }
+    Err(type_error(format!(
+        "{path}: a {} cannot be part of a constraint (expected dict, list, str, number or bool)",
+        obj.get_type().name()?
+    )))
+}
+
+/// Refuses a matrix whose index arrays alone would exceed the memory
+/// budget ([`crate::limits`]) — a shape of 10¹⁸ columns must be an error,
+/// not an allocation failure.
+fn check_size(name: &str, rows: usize, cols: usize, entries: usize) -> PyResult<()> {
+    let bytes = (rows as u64)
+        .saturating_add(cols as u64)
+        .saturating_add(1)
+        .saturating_mul(8)
+        .saturating_add((entries as u64).saturating_mul(24));
+    crate::limits::check(bytes, || {
+        format!("the {rows} × {cols} matrix {name} would need")
+    })
+    .map_err(|detail| super::errors::to_py(ProblemError::TooLarge { detail }.into()))
+}
+
+/// A sparse matrix from `scipy.sparse` (CSC and CSR read directly, COO
+/// directly, other formats through `tocoo()`) or a dense 2-D array, as a
+/// faer CSC matrix (duplicates summed). Index arrays are checked (pointer
+/// monotonicity and range, row and column ranges) before use.
+pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMat<usize, f64>> {
+    let py = obj.py();
+    let scipy_sparse = py.import("scipy.sparse")?;
+    if !scipy_sparse.call_method1("issparse", (obj,))?.is_truthy()? {
+        let (m, _) = dense(obj, name, None, false)?;
+        let mut triplets = Vec::new();
+        for j in 0..m.ncols() {
+            for i in 0..m.nrows() {
+                if m[(i, j)] != 0.0 {
+                    triplets.push(Triplet::new(i, j, m[(i, j)]));
+                }
+            }
+        }
+        return from_triplets(name, m.nrows(), m.ncols(), &triplets);
+    }
+    let (rows, cols): (usize, usize) = obj.getattr("shape")?.extract().map_err(|_| {
+        input(format!(
+            "{name}.shape is not a pair of non-negative integers"
+        ))
+    })?;
+    let format: String = obj.getattr("format")?.extract()?;
+    let coo;
+    let (obj, format) = match format.as_str() {
+        "csc" | "csr" | "coo" => (obj, format),
+        _ => {
+            coo = obj.call_method0("tocoo")?;
+            (&coo, "coo".to_string())
+        }
+    };
+    let data = dense(&obj.getattr("data")?, &format!("{name}.data"), None, true)?.0;
+    let values: Vec<f64> = (0..data.nrows()).map(|i| data[(i, 0)]).collect();
+    check_size(name, rows, cols, values.len())?;
+    let triplets = match format.as_str() {
+        "coo" => {
+            let r = indices(&obj.getattr("row")?, &format!("{name}.row"))?;
+            let c = indices(&obj.getattr("col")?, &format!("{name}.col"))?;
+            if r.len() != values.len() || c.len() != values.len() {
+                return Err(input(format!(
+                    "{name}: row, col and data of a COO matrix must have one length, got {}, {} and {}",
+                    r.len(),
+                    c.len(),
+                    values.len()
+                )));
+            }
+            check_range(name, "row", &r, rows)?;
+            check_range(name, "column", &c, cols)?;
+            (0..values.len())
+                .map(|k| Triplet::new(r[k], c[k], values[k]))
+                .collect()
+        }
+        by_rows => {
+            let by_rows = by_rows == "csr";
+            let (major, minor) = if by_rows { (rows, cols) } else { (cols, rows) };
+            let ptr = indices(&obj.getattr("indptr")?, &format!("{name}.indptr"))?;
+            let idx = indices(&obj.getattr("indices")?, &format!("{name}.indices"))?;
+            compressed_triplets(name, major, minor, &ptr, &idx, &values, by_rows)?
+        }
+    };
+    from_triplets(name, rows, cols, &triplets)
+}
+
+/// Every index `< bound`, or an error naming the first that is not.
+fn check_range(name: &str, what: &str, idx: &[usize], bound: usize) -> PyResult<()> {
+    match idx.iter().position(|&i| i >= bound) {
+        Some(k) => Err(input(format!(
+            "{name}: entry {k} has {what} index {} but the matrix has {bound} {what}s",
+            idx[k]
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The triplets of compressed arrays (CSC, or CSR when `by_rows`), checked.
+fn compressed_triplets(
+    name: &str,
+    major: usize,
+    minor: usize,
+    ptr: &[usize],
+    idx: &[usize],
+    values: &[f64],
+    by_rows: bool,
+) -> PyResult<Vec<Triplet<usize, usize, f64>>> {
+    let (major_name, minor_name) = if by_rows {
+        ("row", "column")
+    } else {
+        ("column", "row")
+    };
+    if ptr.len() != major + 1 || idx.len() != values.len() {
+        return Err(input(format!(
+            "{name}: indptr must have {} entries ({major} {major_name}s + 1) and indices as many as data, got {}, {} and {}",
+            major + 1,
+            ptr.len(),
+            idx.len(),
+            values.len()
+        )));
+    }
+    if let Some(k) = (0..major).find(|&k| ptr[k] > ptr[k + 1]) {
+        return Err(input(format!(
+            "{name}: indptr decreases at {major_name} {k} ({} > {})",
+            ptr[k],
+            ptr[k + 1]
+        )));
+    }
+    if ptr[0] != 0 || ptr[major] > idx.len() {
+        return Err(input(format!(
+            "{name}: indptr must start at 0 and end at most at the {} stored entries, got {} .. {}",
+            idx.len(),
+            ptr[0],
+            ptr[major]
+        )));
+    }
+    check_range(name, minor_name, &idx[..ptr[major]], minor)?;
+    let mut triplets = Vec::with_capacity(ptr[major]);
+    for k in 0..major {
+        for p in ptr[k]..ptr[k + 1] {
+            let (i, j) = if by_rows { (k, idx[p]) } else { (idx[p], k) };
+            triplets.push(Triplet::new(i, j, values[p]));
+        }
+    }
+    Ok(triplets)
+}
+
+fn from_triplets(
+    name: &str,
+    rows: usize,
+    cols: usize,
+    triplets: &[Triplet<usize, usize, f64>],
+) -> PyResult<SparseColMat<usize, f64>> {
+    check_size(name, rows, cols, triplets.len())?;
+    SparseColMat::try_new_from_triplets(rows, cols, triplets)
+        .map_err(|e| input(format!("{name}: not a valid sparse matrix ({e:?})")))
+}
+
+/// Positions as an n × 3 float64 array (C order).
+pub(crate) fn positions_to_numpy<'py>(
+    py: Python<'py>,
+    positions: &[[f64; 3]],
+) -> Bound<'py, PyArray2<f64>> {
+    let flat: Vec<f64> = positions.iter().flatten().copied().collect();
+    Array2::from_shape_vec((positions.len(), 3), flat)
+        .unwrap_or_else(|_| Array2::zeros((0, 3)))
+        .into_pyarray(py)
+}
+
+/// A matrix as a float64 array (C order); one column as a 1-D array when
+/// `one_d`.
+pub(crate) fn matrix_to_numpy<'py>(
+    py: Python<'py>,
+    m: MatRef<'_, f64>,
+    one_d: bool,
+) -> Bound<'py, PyAny> {
+    if one_d {
+        let column: Vec<f64> = (0..m.nrows()).map(|i| m[(i, 0)]).collect();
+        return column.into_pyarray(py).into_any();
+    }
+    Array2::from_shape_fn((m.nrows(), m.ncols()), |(i, j)| m[(i, j)])
+        .into_pyarray(py)
+        .into_any()
+}
+
+/// A faer CSC matrix as `scipy.sparse.csc_matrix` (sorted row indices).
+pub(crate) fn csc_to_scipy<'py>(
+    py: Python<'py>,
+    m: &SparseColMat<usize, f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (mut ptr, mut idx, mut val) = (vec![0i64], Vec::new(), Vec::new());
+    for j in 0..m.ncols() {
+        let range = m.symbolic().col_range(j);
+        let mut column: Vec<(usize, f64)> = m.symbolic().row_idx()[range.clone()]
+            .iter()
+            .copied()
+            .zip(m.val()[range].iter().copied())
+            .collect();
+        column.sort_by_key(|e| e.0);
+        for (i, v) in column {
+            idx.push(i as i64);
+            val.push(v);
+        }
+        ptr.push(idx.len() as i64);
+    }
+    let arrays = (
+        val.into_pyarray(py),
+        idx.into_pyarray(py),
+        ptr.into_pyarray(py),
+    );
+    let kwargs = PyDict::new(py);
+    kwargs.set_item("shape", (m.nrows(), m.ncols()))?;
+    py.import("scipy.sparse")?
+        .call_method("csc_matrix", (arrays,), Some(&kwargs))
+}
+
+/// The report as a plain dict with the keys of the CLI's JSON report.
+pub(crate) fn report_dict<'py>(py: Python<'py>, report: &Report) -> PyResult<Bound<'py, PyAny>> {
+    let json = serde_json::to_string(report)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+    py.import("json")?.call_method1("loads", (json,))
+}

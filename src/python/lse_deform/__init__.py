@@ -1,0 +1,38 @@
+"""Laplacian mesh deformation with exact (hard) and soft constraints, and
+sparse least squares with equality constraints, by the constrained
+least-squares method of Masuda et al. (SMI 2006) -- the Rust crate
+``lse-deform`` from Python.
+
+Conventions are libigl's: ``V`` float64 n x 3, ``F`` int64 m x 3, sparse
+matrices from ``scipy.sparse``; C- and Fortran-ordered arrays alike.
+
+- ``deform(V, F, constraints, ...) -> (U, report)``
+- ``Deformer(V, F, constraints, ...)``: ``precompute()``, then
+  ``set_targets``/``transform_group`` and ``solve()`` per frame
+- ``laplacian(V, F, kind) -> scipy.sparse.csc_matrix``
+- ``solve_lse(A, C, B, D, ...) -> (X, report)``: min ||AX - C|| s.t. BX = D
+
+Errors: ``InputError`` (a ``ValueError``) for bad input,
+``NumericalError`` (an ``ArithmeticError``) for numerical failure, with the
+command-line tool's one-line messages.
+"""
+
+from ._native import (
+    Deformer,
+    InputError,
+    NumericalError,
+    __version__,
+    deform,
+    laplacian,
+    solve_lse,
+)
+
+__all__ = [
+    "Deformer",
+    "InputError",
+    "NumericalError",
+    "__version__",
+    "deform",
+    "laplacian",
+    "solve_lse",
+]

@@ -1,0 +1,103 @@
+"""Type stubs of the native module (src/python/*.rs)."""
+
+import os
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse
+
+__version__: str
+
+class InputError(ValueError):
+    """Bad input (the CLI's exit code 2); the message says what and where."""
+
+class NumericalError(ArithmeticError):
+    """A numerical failure (the CLI's exit code 3)."""
+
+Report = Dict[str, Any]
+"""The CLI's JSON report as a dict: method, rank, redundant, conflicting,
+max_constraint_residual, forward_error_estimate, timings_s, warnings, ..."""
+
+Constraints = Union[
+    Sequence[Mapping[str, Any]],  # JSON format: [{"type": "position", "vertex": 3, "target": [x, y, z]}, ...]
+    Mapping[str, Any],  # {"constraints": [...]}, a whole constraints file
+    str,
+    "os.PathLike[str]",  # a constraints file
+    Tuple[npt.ArrayLike, npt.ArrayLike],  # libigl's (b, bc): vertex indices, k x 3 targets
+]
+Refine = Union[None, str, int]
+"""None (the method's default: 'auto' for exact methods, 'off' for
+penalty), 'auto', 'off' or a number of steps."""
+Matrix = Union[scipy.sparse.spmatrix, scipy.sparse.sparray, npt.ArrayLike]
+
+def deform(
+    V: npt.ArrayLike,
+    F: npt.ArrayLike,
+    constraints: Constraints,
+    laplacian: str = "cotan",
+    method: str = "nullspace-qr",
+    qr: Optional[str] = None,
+    spd: Optional[str] = None,
+    weight: Optional[float] = None,
+    refine: Refine = None,
+) -> Tuple[npt.NDArray[np.float64], Report]:
+    """Deforms (V, F) under the constraints; returns (U, report).
+
+    laplacian: 'uniform', 'cotan', 'cotan-symmetric', 'intrinsic-delaunay'.
+    method: 'nullspace-qr' (the paper), 'penalty' (needs weight), 'kkt',
+    'eliminate'. qr: 'sparse-givens' (default), 'dense-householder'.
+    spd: 'faer-auto' (default), 'faer-supernodal', 'faer-simplicial',
+    'nalgebra'.
+    """
+
+def laplacian(
+    V: npt.ArrayLike, F: npt.ArrayLike, kind: str = "cotan"
+) -> scipy.sparse.csc_matrix:
+    """The n x n Laplacian (L_ii = sum_j w_ij, L_ij = -w_ij, delta = L V)."""
+
+def solve_lse(
+    A: Matrix,
+    C: npt.ArrayLike,
+    B: Matrix,
+    D: npt.ArrayLike,
+    method: str = "nullspace-qr",
+    qr: Optional[str] = None,
+    spd: Optional[str] = None,
+    weight: Optional[float] = None,
+    refine: Refine = None,
+) -> Tuple[npt.NDArray[np.float64], Report]:
+    """min ||A X - C|| subject to B X = D; returns (X, report).
+
+    Row i of B is hard constraint i (earlier rows win); report['redundant']
+    and report['conflicting'] name the dependent rows. X is 1-D when C is.
+    """
+
+class Deformer:
+    """A mesh with constraints, deformed again and again."""
+
+    def __init__(
+        self,
+        V: npt.ArrayLike,
+        F: npt.ArrayLike,
+        constraints: Constraints,
+        laplacian: str = "cotan",
+        method: str = "nullspace-qr",
+        qr: Optional[str] = None,
+        spd: Optional[str] = None,
+        weight: Optional[float] = None,
+        refine: Refine = None,
+    ) -> None: ...
+    def precompute(self) -> None:
+        """Factors the system (GIL released)."""
+    def set_targets(self, indices: npt.ArrayLike, targets: npt.ArrayLike) -> None:
+        """New targets (k x 3) for constraints `indices` (also the rest targets)."""
+    def transform_group(self, name: str, M: npt.ArrayLike) -> None:
+        """Applies M (3 x 4 [R | t] or 4 x 4) to the rest targets of group `name`."""
+    def group(self, name: str) -> List[int]:
+        """The constraint indices of group `name`."""
+    def solve(self) -> npt.NDArray[np.float64]:
+        """The deformed positions (n x 3) for the current targets."""
+    @property
+    def report(self) -> Report:
+        """The report of the last precompute and solve."""

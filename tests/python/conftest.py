@@ -1,0 +1,84 @@
+"""Shared helpers of the Python tests: generated meshes (no file needed),
+the CLI's fixed-and-handle scene, the shared meshes when they are there,
+and the `lse-deform` binary for the export-system round trip."""
+
+import os
+import pathlib
+import shutil
+
+import numpy as np
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def bumpy_grid(n=24, seed=1):
+    """An open (n x n)-vertex height field with smooth bumps: V float64,
+    F int64, consistently oriented, no degenerate triangle."""
+    rng = np.random.default_rng(seed)
+    x, y = np.meshgrid(np.linspace(0.0, 1.0, n), np.linspace(0.0, 1.5, n))
+    z = 0.08 * np.sin(5.0 * x) * np.cos(4.0 * y) + 0.01 * rng.standard_normal(x.shape)
+    V = np.c_[x.ravel(), y.ravel(), z.ravel()]
+    faces = []
+    for i in range(n - 1):
+        for j in range(n - 1):
+            a = i * n + j
+            faces += [[a, a + 1, a + n], [a + 1, a + n + 1, a + n]]
+    return V, np.array(faces, dtype=np.int64)
+
+
+def fixed_and_handle(V, fixed=0.2, handle=0.02):
+    """The CLI's `scene --fixed F --handle H` (src/scene.rs): the lowest
+    `fixed` fraction of vertices along the longest axis stays, the `handle`
+    fraction nearest the top vertex moves by 15 % of the diagonal along the
+    next axis. Returns libigl's (b, bc)."""
+    n = len(V)
+    extent = V.max(axis=0) - V.min(axis=0)
+    axis = int(np.argmax(extent))
+    order = np.lexsort((np.arange(n), V[:, axis]))
+    fixed_v = np.sort(order[: int(round(fixed * n))])
+    is_fixed = np.zeros(n, dtype=bool)
+    is_fixed[fixed_v] = True
+    top = V[order[-1]]
+    free = np.flatnonzero(~is_fixed)
+    d2 = ((V[free] - top) ** 2).sum(axis=1)
+    near = free[np.lexsort((free, d2))]
+    handle_v = np.sort(near[: int(round(handle * n))])
+    offset = np.zeros(3)
+    offset[(axis + 1) % 3] = 0.15 * np.linalg.norm(extent)
+    b = np.r_[fixed_v, handle_v].astype(np.int64)
+    bc = V[b].copy()
+    bc[len(fixed_v):] += offset
+    return b, bc
+
+
+def shared_mesh(name):
+    """A mesh of ../shared/meshes (or /work/shared/meshes), or None."""
+    for base in (ROOT.parent / "shared" / "meshes", pathlib.Path("/work/shared/meshes")):
+        if (base / name).exists():
+            return base / name
+    return None
+
+
+def cli_binary():
+    """The `lse-deform` binary: $LSE_DEFORM_BIN, target/{release,debug}, or PATH."""
+    candidates = [os.environ.get("LSE_DEFORM_BIN")]
+    candidates += [str(ROOT / "target" / p / "lse-deform") for p in ("release", "debug")]
+    candidates += [shutil.which("lse-deform")]
+    for c in candidates:
+        if c and os.access(c, os.X_OK):
+            return c
+    return None
+
+
+def write_obj(path, V, F):
+    with open(path, "w") as f:
+        for v in V:
+            f.write("v %.17g %.17g %.17g\n" % tuple(v))
+        for t in F:
+            f.write("f %d %d %d\n" % tuple(t + 1))
+
+
+@pytest.fixture
+def grid():
+    return bumpy_grid()
