@@ -55,9 +55,10 @@ use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_fin
 pub mod energy;
 pub mod rotations;
 
+use energy::CovarianceBlock;
 use energy::IDENTITY;
 pub use energy::{ArapEnergy, ArapTriangles, Mat3};
-use rotations::{Fit, fit_rotation};
+use rotations::{Fit, fit_rotation_fast};
 
 /// The initial guess of the iterations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -124,8 +125,11 @@ pub struct ArapDeformer {
     /// Rotations fitted to `x`, and the objective with them.
     rotations: Vec<Mat3>,
     energy: f64,
-    /// Scratch: the energy rows' right-hand side.
-    rhs: Mat<f64>,
+    /// Scratch: the global step's solution, swapped with `x` when finite.
+    x_next: Mat<f64>,
+    /// Scratch of the local step: covariance blocks, per-vertex energies.
+    blocks: Vec<CovarianceBlock>,
+    vertex_energies: Vec<f64>,
     arap: ArapReport,
     init: ArapInit,
 }
@@ -162,10 +166,12 @@ impl ArapDeformer {
             problem,
             system: None,
             report,
+            x_next: x.clone(),
             x,
             rotations: vec![IDENTITY; n],
             energy: f64::NAN,
-            rhs,
+            blocks: Vec::new(),
+            vertex_energies: Vec::new(),
             arap: ArapReport {
                 energy: energy.name().into(),
                 ..ArapReport::default()
@@ -317,9 +323,18 @@ impl ArapDeformer {
     }
 
     /// Global step: `C_E` from the current rotations, then the solve.
+    /// `C_E` is written in place into the problem's right-hand side and
+    /// the solution into the current positions: no allocation.
     fn global_step(&mut self) -> Result<(), Error> {
-        self.triangles.rhs_into(&self.rotations, &mut self.rhs);
-        self.problem.set_energy_rhs(self.rhs.as_ref())?;
+        let finite = self
+            .triangles
+            .rhs_into(&self.rotations, self.problem.energy_rhs_mut());
+        if !finite {
+            return Err(ProblemError::BadUpdate {
+                message: "ARAP right-hand side is not finite (degenerate rest triangles?)".into(),
+            }
+            .into());
+        }
         let problem = &self.problem;
         let system = self
             .system
@@ -327,39 +342,50 @@ impl ArapDeformer {
             .ok_or_else(|| ProblemError::BadUpdate {
                 message: "ARAP iterations need precompute first".into(),
             })?;
-        let x = system.solve(problem)?;
-        if let Some(vertex) = first_non_finite(&x) {
+        system.solve_into(problem, self.x_next.as_mut())?;
+        if let Some(vertex) = first_non_finite(&self.x_next) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
-        self.x = x;
+        std::mem::swap(&mut self.x, &mut self.x_next);
         Ok(())
     }
 
     /// Local step: one rotation per vertex fitted to the current positions
     /// (in parallel), and the objective with them. Returns how many
     /// rotations were kept from before.
+    ///
+    /// One parallel pass over the triangles forms the covariance blocks,
+    /// one parallel pass over the vertices sums them, fits the rotation
+    /// and evaluates the vertex's energy from its covariance; the energy
+    /// is then summed in vertex order (reproducible whatever the thread
+    /// count). No allocation after the first call.
     fn local_step(&mut self) -> usize {
-        let (triangles, x, previous) = (&self.triangles, &self.x, &self.rotations);
-        let fits: Vec<(Mat3, Fit, f64)> = (0..previous.len())
-            .into_par_iter()
-            .map(|i| {
-                let (r, how) = fit_rotation(&triangles.covariance(i, x), &previous[i]);
-                (r, how, triangles.vertex_energy(i, x, &r))
+        let triangles = &self.triangles;
+        triangles.covariance_blocks_into(&self.x, &mut self.blocks);
+        let blocks = &self.blocks;
+        self.vertex_energies.resize(self.rotations.len(), 0.0);
+        let kept: usize = self
+            .rotations
+            .par_iter_mut()
+            .zip(self.vertex_energies.par_iter_mut())
+            .enumerate()
+            .map(|(i, (r, e))| {
+                let m = triangles.vertex_covariance(i, blocks);
+                let (fit, how) = fit_rotation_fast(&m.cross, r);
+                *r = fit;
+                *e = triangles.vertex_energy_from(i, &m, &fit);
+                usize::from(how == Fit::Kept)
             })
-            .collect();
-        let mut kept = 0;
-        let mut energy = 0.0;
-        for (i, (r, how, e)) in fits.into_iter().enumerate() {
-            self.rotations[i] = r;
-            kept += usize::from(how == Fit::Kept);
-            energy += e;
-        }
-        self.energy = energy + self.soft_energy();
+            .sum();
+        self.energy = self.vertex_energies.iter().sum::<f64>() + self.soft_energy();
         kept
     }
 
     /// `Σ_soft w² ‖b·X − d‖²`.
     fn soft_energy(&self) -> f64 {
+        if self.problem.soft_constraints().is_empty() {
+            return 0.0;
+        }
         let positions = self.positions();
         self.problem
             .soft_constraints()
