@@ -308,6 +308,21 @@ impl ArapTriangles {
         sum
     }
 
+    /// `E` at the positions `x` (n × 3) with the optimal rotation of every
+    /// vertex (fitted from the identity): the ARAP energy of any
+    /// deformation, e.g. another program's result or a linear solution.
+    pub fn energy_at(&self, x: &Mat<f64>) -> f64 {
+        let mut blocks = Vec::new();
+        self.covariance_blocks_into(x, &mut blocks);
+        (0..self.n_vertices())
+            .map(|i| {
+                let m = self.vertex_covariance(i, &blocks);
+                let (r, _) = super::rotations::fit_rotation_fast(&m.cross, &IDENTITY);
+                self.vertex_energy_from(i, &m, &r)
+            })
+            .sum()
+    }
+
     /// Vertex `i`'s part of `E` from its covariance (orthogonal `R`):
     /// `Σ c_k ‖x_k − R p_k‖² = Σ c_k ‖x_k‖² − 2 tr(Rᵀ M_i) + Σ c_k ‖p_k‖²`.
     /// Rounding: `~ε (Σ |c_k| (‖x_k‖² + ‖p_k‖²))`, absolute; the tests
