@@ -47,7 +47,7 @@ use rayon::prelude::*;
 
 use crate::constraints::{ConstraintKind, ConstraintSet};
 use crate::error::{Error, NumericalError, ProblemError};
-use crate::formulation::{Formulation, Prepared};
+use crate::formulation::{Formulation, Prepared, Refine, refine};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, check_pinned};
 use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_finite};
@@ -132,6 +132,7 @@ pub struct ArapDeformer {
     vertex_energies: Vec<f64>,
     arap: ArapReport,
     init: ArapInit,
+    refine: Option<Refine>,
 }
 
 impl ArapDeformer {
@@ -177,6 +178,7 @@ impl ArapDeformer {
                 ..ArapReport::default()
             },
             init: ArapInit::Rest,
+            refine: None,
         })
     }
 
@@ -292,8 +294,17 @@ impl ArapDeformer {
         Ok(self.arap.clone())
     }
 
-    /// Fills the report's solution diagnostics for the current positions.
+    /// Refines the current positions — the last global step's solution —
+    /// with the same factor as [`ArapDeformer::set_refine`] says (see
+    /// [`crate::formulation::refine`]; with [`Refine::Off`] one correction
+    /// is computed for the forward-error estimate and not applied), refits
+    /// the rotations and the objective if they moved, and fills the
+    /// report's solution diagnostics, refinement and forward-error
+    /// estimate. The iterations before the last are not refined: each
+    /// global step solves afresh from the fitted rotations, so the error of
+    /// one solve does not carry over, and the next local step absorbs it.
     pub fn finish(&mut self) -> Result<&Report, Error> {
+        self.refine_last()?;
         let prepared = self.prepared()?;
         let (skipped, exact) = (prepared.skipped().to_vec(), prepared.exact());
         fill_solution_diagnostics(&mut self.report, &self.problem, &self.x, &skipped, exact);
@@ -302,6 +313,42 @@ impl ArapDeformer {
         self.arap.time_per_iteration_s = times.get(times.len() / 2).copied().unwrap_or(0.0);
         self.report.arap = Some(self.arap.clone());
         Ok(&self.report)
+    }
+
+    /// Sets the refinement [`ArapDeformer::finish`] applies; `None` (the
+    /// default) is the formulation's default, as for the Laplacian deformer:
+    /// [`Refine::Auto`] for the exact formulations, [`Refine::Off`] for
+    /// penalty.
+    pub fn set_refine(&mut self, refine: Option<Refine>) {
+        self.refine = refine;
+    }
+
+    fn refine_last(&mut self) -> Result<(), Error> {
+        if self.arap.iterations == 0 && self.init != ArapInit::Linear {
+            return Ok(());
+        }
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "ARAP iterations need precompute first".into(),
+            })?;
+        let mode = match self.refine {
+            Some(mode) => mode,
+            None if system.exact() => Refine::Auto,
+            None => Refine::Off,
+        };
+        let t = Instant::now();
+        let mut x = self.x.clone();
+        let refinement = refine(system.as_mut(), &self.problem, &mut x, mode)?;
+        if first_non_finite(&x).is_none() && refinement.steps > 0 {
+            self.x = x;
+            self.local_step();
+        }
+        self.report.timings_s.refine = t.elapsed().as_secs_f64();
+        self.report.forward_error_estimate = Some(refinement.forward_error_estimate);
+        self.report.refinement = Some(refinement);
+        Ok(())
     }
 
     /// Moves the target of constraint `index`; the next
