@@ -219,4 +219,43 @@ mod tests {
         assert_eq!(how, Fit::Svd);
         assert!((fit[0][0] - 1.0).abs() < 1e-14);
     }
+
+    #[test]
+    fn newton_polar_matches_the_svd_on_random_covariances() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut newton = 0;
+        for _ in 0..2000 {
+            // R · S with S symmetric, eigenvalues spread over 1e-4 .. 1, and
+            // a random sign: both paths (Newton and the SVD fallback).
+            let m: Mat3 =
+                std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
+            let scale = 10f64.powi(rng.random_range(-4..2));
+            let m = m.map(|row| row.map(|v| v * scale));
+            let (fast, how) = fit_rotation_fast(&m, &super::super::energy::IDENTITY);
+            let (svd, _) = fit_rotation(&m, &super::super::energy::IDENTITY);
+            newton += usize::from(how == Fit::Newton);
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!(
+                        (fast[i][j] - svd[i][j]).abs() < 1e-9,
+                        "{m:?}: {fast:?} vs {svd:?}"
+                    );
+                }
+            }
+            assert!(det3(&fast) > 0.999_999_999_999);
+        }
+        assert!(newton > 500, "only {newton} Newton fits");
+    }
+
+    #[test]
+    fn newton_polar_declines_reflections_and_near_singular_matrices() {
+        let reflection = [[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, -3.0]];
+        assert_eq!(polar_newton(&reflection.map(|r| r.map(|v| v / 3.0))), None);
+        let flat = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1e-7]];
+        assert_eq!(polar_newton(&flat), None);
+        let (r, how) = fit_rotation_fast(&flat, &super::super::energy::IDENTITY);
+        assert_eq!(how, Fit::Svd);
+        assert!((r[2][2] - 1.0).abs() < 1e-14);
+    }
 }
