@@ -26,6 +26,15 @@ import igl
 import numpy as np
 
 
+def libigl_version():
+    try:
+        from importlib.metadata import version
+
+        return version("libigl")
+    except Exception:  # noqa: BLE001 - any failure: the version is unknown
+        return getattr(igl, "__version__", "unknown")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("out_dir")
@@ -55,7 +64,7 @@ def main():
         return u
 
     out = {
-        "libigl_version": getattr(igl, "__version__", "unknown"),
+        "libigl_version": libigl_version(),
         "vertices": int(v.shape[0]),
         "faces": int(f.shape[0]),
         "runs": [],

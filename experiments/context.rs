@@ -502,6 +502,7 @@ pub const SECTIONS: &[(&str, &str)] = &[
         "performance",
         "Performance against CHOLMOD and the bandwidth floor",
     ),
+    ("arap", "As-rigid-as-possible deformation (ARAP)"),
 ];
 
 /// The git revision in a section's machine line (`… (git REV, …`), if any.

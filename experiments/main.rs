@@ -11,6 +11,7 @@
 //! ```
 
 mod accuracy;
+mod arap;
 mod breakdown;
 mod conflicts;
 mod context;
@@ -108,6 +109,8 @@ enum Experiment {
     Renders,
     /// Ours against CHOLMOD and the memory-bandwidth floor.
     Performance,
+    /// ARAP: bend and twist, ours against libigl, exact general constraints.
+    Arap,
     /// Development aid: one plot of each kind and a render.
     VizDemo,
 }
@@ -133,6 +136,7 @@ const ORDER: &[(Experiment, &str, Runner)] = &[
     (Experiment::Drag, "drag", drag::run),
     (Experiment::Renders, "renders", renders::run),
     (Experiment::Performance, "performance", performance::run),
+    (Experiment::Arap, "arap", arap::run),
 ];
 
 fn main() -> ExitCode {

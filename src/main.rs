@@ -475,6 +475,7 @@ fn deform_arap(
     let e = &a.energy;
     let bar = phase("set-up");
     let mut arap = ArapDeformer::new(mesh, constraints, e.arap_energy)?;
+    arap.set_refine(a.method.refine);
     bar.set_message(format!("precompute ({})", formulation.name()));
     arap.precompute(formulation)?;
     bar.set_message("ARAP iterations");

@@ -343,6 +343,16 @@ impl LseProblem {
         Ok(())
     }
 
+    /// The first [`LseProblem::n_laplacian_rows`] rows of `C`, to be
+    /// overwritten in place by an iterative method that changes only them
+    /// (the ARAP global step); unlike [`LseProblem::set_energy_rhs`] nothing
+    /// is checked: the caller writes finite values.
+    pub(crate) fn energy_rhs_mut(&mut self) -> faer::MatMut<'_, f64> {
+        self.c
+            .as_mut()
+            .submatrix_mut(0, 0, self.n_laplacian_rows, 3)
+    }
+
     /// Swaps `C` and `D` with the given matrices (for solving a block of
     /// columns at a time; the caller swaps back).
     pub(crate) fn swap_rhs(&mut self, c: &mut Mat<f64>, d: &mut Mat<f64>) {

@@ -38,8 +38,8 @@
 //! For spokes-and-rims `Σ_o R_o = 3 R̄_t` and `C_E[t] = √(3 A_t) G_t P R̄_tᵀ`:
 //! the averaged rotation of the three corners, as libigl's `arap_rhs`.
 
-use faer::Mat;
 use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, MatMut};
 use rayon::prelude::*;
 
 use crate::mesh::Mesh;
@@ -136,13 +136,31 @@ pub struct ArapTriangles {
     /// CSR: the `(triangle, corner)` pairs of each vertex.
     corner_ptr: Vec<usize>,
     corners: Vec<(usize, usize)>,
+    /// `Σ c_k ‖p_k‖²` over the edges each vertex owns.
+    rest_square: Vec<f64>,
+}
+
+/// One triangle's (or, for spokes, one corner's) share of a vertex's
+/// covariance: `Σ c_k x_k p_kᵀ` and `Σ c_k ‖x_k‖²` over the edges a rotation
+/// owner of the triangle owns.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CovarianceBlock {
+    /// `Σ c_k x_k p_kᵀ`.
+    pub cross: Mat3,
+    /// `Σ c_k ‖x_k‖²`.
+    pub square: f64,
 }
 
 impl ArapTriangles {
     /// Rest geometry of `mesh` for `energy`.
     pub fn new(mesh: &Mesh, energy: ArapEnergy) -> ArapTriangles {
         let p = mesh.positions();
-        let faces = mesh.faces().to_vec();
+        // Rows in the order of the triangles' smallest vertex (stable): the
+        // triangles around a vertex then lie close together in memory, which
+        // the local step's gather over them needs (the row order changes
+        // nothing else).
+        let mut faces = mesh.faces().to_vec();
+        faces.sort_by_key(|f| f[0].min(f[1]).min(f[2]));
         let owners = energy.owners_per_edge();
         let mut half_cot = Vec::with_capacity(faces.len());
         let mut rest_edge = Vec::with_capacity(faces.len());
@@ -191,7 +209,7 @@ impl ArapTriangles {
                 fill[v] += 1;
             }
         }
-        ArapTriangles {
+        let mut triangles = ArapTriangles {
             energy,
             faces,
             half_cot,
@@ -200,7 +218,120 @@ impl ArapTriangles {
             row_scale,
             corner_ptr,
             corners,
+            rest_square: Vec::new(),
+        };
+        triangles.rest_square = (0..n).map(|i| triangles.rest_square_of(i)).collect();
+        triangles
+    }
+
+    fn rest_square_of(&self, i: usize) -> f64 {
+        let mut s = 0.0;
+        for &(t, corner) in &self.corners[self.corner_ptr[i]..self.corner_ptr[i + 1]] {
+            for k in 0..3 {
+                if self.energy.owns(corner, k) {
+                    let p = self.rest_edge[t][k];
+                    s += self.half_cot[t][k] * dot(p, p);
+                }
+            }
         }
+        s
+    }
+
+    /// Covariance blocks per triangle: one (spokes-and-rims: every corner
+    /// owns every edge) or three (spokes: one per corner).
+    pub fn blocks_per_triangle(&self) -> usize {
+        match self.energy {
+            ArapEnergy::SpokesAndRims => 1,
+            ArapEnergy::Spokes => 3,
+        }
+    }
+
+    /// One pass over the triangles (in parallel): every
+    /// [`CovarianceBlock`] of the positions `x` (n × 3) into `blocks`
+    /// (resized to `#triangles × blocks_per_triangle`, reused between
+    /// calls). Each edge vector is formed once per triangle.
+    pub fn covariance_blocks_into(&self, x: &Mat<f64>, blocks: &mut Vec<CovarianceBlock>) {
+        let per = self.blocks_per_triangle();
+        blocks.resize(per * self.faces.len(), CovarianceBlock::default());
+        let cols = [x.col_as_slice(0), x.col_as_slice(1), x.col_as_slice(2)];
+        blocks
+            .par_chunks_mut(per)
+            .enumerate()
+            .for_each(|(t, out)| self.triangle_blocks(t, &cols, out));
+    }
+
+    fn triangle_blocks(&self, t: usize, x: &[&[f64]; 3], out: &mut [CovarianceBlock]) {
+        let f = self.faces[t];
+        let edge = |k: usize| {
+            let (a, b) = (f[(k + 1) % 3], f[(k + 2) % 3]);
+            [x[0][b] - x[0][a], x[1][b] - x[1][a], x[2][b] - x[2][a]]
+        };
+        let terms: [CovarianceBlock; 3] = std::array::from_fn(|k| {
+            let (xe, p, w) = (edge(k), self.rest_edge[t][k], self.half_cot[t][k]);
+            let wx = xe.map(|v| w * v);
+            CovarianceBlock {
+                cross: std::array::from_fn(|a| std::array::from_fn(|b| wx[a] * p[b])),
+                square: dot(wx, xe),
+            }
+        });
+        let all = out.len() == 1;
+        for (corner, block) in out.iter_mut().enumerate() {
+            *block = CovarianceBlock::default();
+            for (k, term) in terms.iter().enumerate() {
+                if all || self.energy.owns(corner, k) {
+                    block.square += term.square;
+                    for a in 0..3 {
+                        for b in 0..3 {
+                            block.cross[a][b] += term.cross[a][b];
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Vertex `i`'s covariance `M_i` (see [`ArapTriangles::covariance`])
+    /// and `Σ c_k ‖x_k‖²` over its edges, summed from `blocks`
+    /// ([`ArapTriangles::covariance_blocks_into`]).
+    pub fn vertex_covariance(&self, i: usize, blocks: &[CovarianceBlock]) -> CovarianceBlock {
+        let per = self.blocks_per_triangle();
+        let mut sum = CovarianceBlock::default();
+        for &(t, corner) in &self.corners[self.corner_ptr[i]..self.corner_ptr[i + 1]] {
+            let block = &blocks[per * t + if per == 1 { 0 } else { corner }];
+            sum.square += block.square;
+            for a in 0..3 {
+                for b in 0..3 {
+                    sum.cross[a][b] += block.cross[a][b];
+                }
+            }
+        }
+        sum
+    }
+
+    /// `E` at the positions `x` (n × 3) with the optimal rotation of every
+    /// vertex (fitted from the identity): the ARAP energy of any
+    /// deformation, e.g. another program's result or a linear solution.
+    pub fn energy_at(&self, x: &Mat<f64>) -> f64 {
+        let mut blocks = Vec::new();
+        self.covariance_blocks_into(x, &mut blocks);
+        (0..self.n_vertices())
+            .map(|i| {
+                let m = self.vertex_covariance(i, &blocks);
+                let (r, _) = super::rotations::fit_rotation_fast(&m.cross, &IDENTITY);
+                self.vertex_energy_from(i, &m, &r)
+            })
+            .sum()
+    }
+
+    /// Vertex `i`'s part of `E` from its covariance (orthogonal `R`):
+    /// `Σ c_k ‖x_k − R p_k‖² = Σ c_k ‖x_k‖² − 2 tr(Rᵀ M_i) + Σ c_k ‖p_k‖²`.
+    /// Rounding: `~ε (Σ |c_k| (‖x_k‖² + ‖p_k‖²))`, absolute; the tests
+    /// compare it with [`ArapTriangles::vertex_energy`] (the direct sum).
+    pub fn vertex_energy_from(&self, i: usize, m: &CovarianceBlock, r: &Mat3) -> f64 {
+        let trace: f64 = (0..3)
+            .map(|a| (0..3).map(|b| r[a][b] * m.cross[a][b]).sum::<f64>())
+            .sum();
+        m.square - 2.0 * trace + self.rest_square[i]
     }
 
     /// The energy these triangles evaluate.
@@ -238,19 +369,35 @@ impl ArapTriangles {
     }
 
     /// `C_E` for the rotations `r` (one per vertex), written into `c`
-    /// (`n_rows × 3`).
-    pub fn rhs_into(&self, r: &[Mat3], c: &mut Mat<f64>) {
-        let blocks: Vec<Mat3> = (0..self.faces.len())
-            .into_par_iter()
-            .map(|t| self.rhs_block(t, r))
-            .collect();
-        for (t, block) in blocks.iter().enumerate() {
-            for a in 0..3 {
-                for col in 0..3 {
-                    c[(3 * t + a, col)] = block[a][col];
-                }
-            }
+    /// (`n_rows × 3`, each column contiguous), in parallel over the
+    /// triangles. Returns `false` if an entry is not finite.
+    pub fn rhs_into(&self, r: &[Mat3], c: MatMut<'_, f64>) -> bool {
+        let (c0, rest) = c.split_at_col_mut(1);
+        let (c1, c2) = rest.split_at_col_mut(1);
+        fn column(m: MatMut<'_, f64>) -> &mut [f64] {
+            m.col_mut(0)
+                .try_as_col_major_mut()
+                .expect("the right-hand side's columns are contiguous")
+                .as_slice_mut()
         }
+        let (c0, c1, c2) = (column(c0), column(c1), column(c2));
+        (
+            c0.par_chunks_mut(3),
+            c1.par_chunks_mut(3),
+            c2.par_chunks_mut(3),
+        )
+            .into_par_iter()
+            .enumerate()
+            .map(|(t, (a, b, c))| {
+                let block = self.rhs_block(t, r);
+                for row in 0..3 {
+                    a[row] = block[row][0];
+                    b[row] = block[row][1];
+                    c[row] = block[row][2];
+                }
+                block.iter().flatten().all(|v| v.is_finite())
+            })
+            .reduce(|| true, |x, y| x && y)
     }
 
     fn rhs_block(&self, t: usize, r: &[Mat3]) -> Mat3 {
@@ -286,7 +433,7 @@ impl ArapTriangles {
     pub fn rest_rhs(&self) -> Mat<f64> {
         let n = self.n_vertices();
         let mut c = Mat::<f64>::zeros(self.n_rows(), 3);
-        self.rhs_into(&vec![IDENTITY; n], &mut c);
+        self.rhs_into(&vec![IDENTITY; n], c.as_mut());
         c
     }
 

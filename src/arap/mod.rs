@@ -47,7 +47,7 @@ use rayon::prelude::*;
 
 use crate::constraints::{ConstraintKind, ConstraintSet};
 use crate::error::{Error, NumericalError, ProblemError};
-use crate::formulation::{Formulation, Prepared};
+use crate::formulation::{Formulation, Prepared, Refine, refine};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, check_pinned};
 use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_finite};
@@ -55,9 +55,10 @@ use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_fin
 pub mod energy;
 pub mod rotations;
 
+use energy::CovarianceBlock;
 use energy::IDENTITY;
 pub use energy::{ArapEnergy, ArapTriangles, Mat3};
-use rotations::{Fit, fit_rotation};
+use rotations::{Fit, fit_rotation_fast};
 
 /// The initial guess of the iterations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -124,10 +125,14 @@ pub struct ArapDeformer {
     /// Rotations fitted to `x`, and the objective with them.
     rotations: Vec<Mat3>,
     energy: f64,
-    /// Scratch: the energy rows' right-hand side.
-    rhs: Mat<f64>,
+    /// Scratch: the global step's solution, swapped with `x` when finite.
+    x_next: Mat<f64>,
+    /// Scratch of the local step: covariance blocks, per-vertex energies.
+    blocks: Vec<CovarianceBlock>,
+    vertex_energies: Vec<f64>,
     arap: ArapReport,
     init: ArapInit,
+    refine: Option<Refine>,
 }
 
 impl ArapDeformer {
@@ -162,15 +167,18 @@ impl ArapDeformer {
             problem,
             system: None,
             report,
+            x_next: x.clone(),
             x,
             rotations: vec![IDENTITY; n],
             energy: f64::NAN,
-            rhs,
+            blocks: Vec::new(),
+            vertex_energies: Vec::new(),
             arap: ArapReport {
                 energy: energy.name().into(),
                 ..ArapReport::default()
             },
             init: ArapInit::Rest,
+            refine: None,
         })
     }
 
@@ -286,8 +294,17 @@ impl ArapDeformer {
         Ok(self.arap.clone())
     }
 
-    /// Fills the report's solution diagnostics for the current positions.
+    /// Refines the current positions — the last global step's solution —
+    /// with the same factor as [`ArapDeformer::set_refine`] says (see
+    /// [`crate::formulation::refine`]; with [`Refine::Off`] one correction
+    /// is computed for the forward-error estimate and not applied), refits
+    /// the rotations and the objective if they moved, and fills the
+    /// report's solution diagnostics, refinement and forward-error
+    /// estimate. The iterations before the last are not refined: each
+    /// global step solves afresh from the fitted rotations, so the error of
+    /// one solve does not carry over, and the next local step absorbs it.
     pub fn finish(&mut self) -> Result<&Report, Error> {
+        self.refine_last()?;
         let prepared = self.prepared()?;
         let (skipped, exact) = (prepared.skipped().to_vec(), prepared.exact());
         fill_solution_diagnostics(&mut self.report, &self.problem, &self.x, &skipped, exact);
@@ -296,6 +313,42 @@ impl ArapDeformer {
         self.arap.time_per_iteration_s = times.get(times.len() / 2).copied().unwrap_or(0.0);
         self.report.arap = Some(self.arap.clone());
         Ok(&self.report)
+    }
+
+    /// Sets the refinement [`ArapDeformer::finish`] applies; `None` (the
+    /// default) is the formulation's default, as for the Laplacian deformer:
+    /// [`Refine::Auto`] for the exact formulations, [`Refine::Off`] for
+    /// penalty.
+    pub fn set_refine(&mut self, refine: Option<Refine>) {
+        self.refine = refine;
+    }
+
+    fn refine_last(&mut self) -> Result<(), Error> {
+        if self.arap.iterations == 0 && self.init != ArapInit::Linear {
+            return Ok(());
+        }
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "ARAP iterations need precompute first".into(),
+            })?;
+        let mode = match self.refine {
+            Some(mode) => mode,
+            None if system.exact() => Refine::Auto,
+            None => Refine::Off,
+        };
+        let t = Instant::now();
+        let mut x = self.x.clone();
+        let refinement = refine(system.as_mut(), &self.problem, &mut x, mode)?;
+        if first_non_finite(&x).is_none() && refinement.steps > 0 {
+            self.x = x;
+            self.local_step();
+        }
+        self.report.timings_s.refine = t.elapsed().as_secs_f64();
+        self.report.forward_error_estimate = Some(refinement.forward_error_estimate);
+        self.report.refinement = Some(refinement);
+        Ok(())
     }
 
     /// Moves the target of constraint `index`; the next
@@ -317,9 +370,18 @@ impl ArapDeformer {
     }
 
     /// Global step: `C_E` from the current rotations, then the solve.
+    /// `C_E` is written in place into the problem's right-hand side and
+    /// the solution into the current positions: no allocation.
     fn global_step(&mut self) -> Result<(), Error> {
-        self.triangles.rhs_into(&self.rotations, &mut self.rhs);
-        self.problem.set_energy_rhs(self.rhs.as_ref())?;
+        let finite = self
+            .triangles
+            .rhs_into(&self.rotations, self.problem.energy_rhs_mut());
+        if !finite {
+            return Err(ProblemError::BadUpdate {
+                message: "ARAP right-hand side is not finite (degenerate rest triangles?)".into(),
+            }
+            .into());
+        }
         let problem = &self.problem;
         let system = self
             .system
@@ -327,39 +389,50 @@ impl ArapDeformer {
             .ok_or_else(|| ProblemError::BadUpdate {
                 message: "ARAP iterations need precompute first".into(),
             })?;
-        let x = system.solve(problem)?;
-        if let Some(vertex) = first_non_finite(&x) {
+        system.solve_into(problem, self.x_next.as_mut())?;
+        if let Some(vertex) = first_non_finite(&self.x_next) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
-        self.x = x;
+        std::mem::swap(&mut self.x, &mut self.x_next);
         Ok(())
     }
 
     /// Local step: one rotation per vertex fitted to the current positions
     /// (in parallel), and the objective with them. Returns how many
     /// rotations were kept from before.
+    ///
+    /// One parallel pass over the triangles forms the covariance blocks,
+    /// one parallel pass over the vertices sums them, fits the rotation
+    /// and evaluates the vertex's energy from its covariance; the energy
+    /// is then summed in vertex order (reproducible whatever the thread
+    /// count). No allocation after the first call.
     fn local_step(&mut self) -> usize {
-        let (triangles, x, previous) = (&self.triangles, &self.x, &self.rotations);
-        let fits: Vec<(Mat3, Fit, f64)> = (0..previous.len())
-            .into_par_iter()
-            .map(|i| {
-                let (r, how) = fit_rotation(&triangles.covariance(i, x), &previous[i]);
-                (r, how, triangles.vertex_energy(i, x, &r))
+        let triangles = &self.triangles;
+        triangles.covariance_blocks_into(&self.x, &mut self.blocks);
+        let blocks = &self.blocks;
+        self.vertex_energies.resize(self.rotations.len(), 0.0);
+        let kept: usize = self
+            .rotations
+            .par_iter_mut()
+            .zip(self.vertex_energies.par_iter_mut())
+            .enumerate()
+            .map(|(i, (r, e))| {
+                let m = triangles.vertex_covariance(i, blocks);
+                let (fit, how) = fit_rotation_fast(&m.cross, r);
+                *r = fit;
+                *e = triangles.vertex_energy_from(i, &m, &fit);
+                usize::from(how == Fit::Kept)
             })
-            .collect();
-        let mut kept = 0;
-        let mut energy = 0.0;
-        for (i, (r, how, e)) in fits.into_iter().enumerate() {
-            self.rotations[i] = r;
-            kept += usize::from(how == Fit::Kept);
-            energy += e;
-        }
-        self.energy = energy + self.soft_energy();
+            .sum();
+        self.energy = self.vertex_energies.iter().sum::<f64>() + self.soft_energy();
         kept
     }
 
     /// `Σ_soft w² ‖b·X − d‖²`.
     fn soft_energy(&self) -> f64 {
+        if self.problem.soft_constraints().is_empty() {
+            return 0.0;
+        }
         let positions = self.positions();
         self.problem
             .soft_constraints()
