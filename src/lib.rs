@@ -41,6 +41,8 @@ pub mod mesh;
 pub mod mtx;
 pub mod normal;
 pub mod problem;
+#[cfg(feature = "render")]
+pub mod render;
 pub mod report;
 pub mod scene;
 pub mod solver;
