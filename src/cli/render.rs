@@ -248,8 +248,8 @@ fn colour_values(
 ) -> Result<Option<(ColourScale, Vec<f64>, String)>, RenderCommandError> {
     let (reference, what) = match (a.color, against) {
         (ColourMode::Shaded, _) => return Ok(None),
-        (ColourMode::Displacement, _) => (original, "displacement |deformed − original|"),
-        (ColourMode::Difference, Some(other)) => (other, "difference |deformed − against|"),
+        (ColourMode::Displacement, _) => (original, "displacement"),
+        (ColourMode::Difference, Some(other)) => (other, "difference from --against"),
         (ColourMode::Difference, None) => return Ok(None),
     };
     let values = distances(reference.positions(), shown.positions(), "deformed mesh")?;
@@ -257,7 +257,7 @@ fn colour_values(
     let diagonal = original.bbox_diagonal();
     let label = if diagonal > 0.0 {
         format!(
-            "{what}, max {:.2} % of the bounding-box diagonal",
+            "{what} (max {:.2} % of the bbox diagonal)",
             100.0 * scale.max / diagonal
         )
     } else {

@@ -134,7 +134,7 @@ impl Legend {
 
     /// Draws the legend into the bottom [`LEGEND_HEIGHT`] rows of `image`
     /// (which must be at least that tall and 200 pixels wide): the colour
-    /// bar over the left half with the label above it and the range ends
+    /// bar over the left half with the label above it (left-aligned) and the range ends
     /// below, the swatches in a row to the right of it.
     pub fn draw(&self, image: &mut Image) -> Result<(), RenderError> {
         if image.width < 200 || image.height < LEGEND_HEIGHT {
@@ -149,12 +149,14 @@ impl Legend {
         let mut x = 0.04 * w;
         if let Some((scale, label)) = &self.scale {
             let (x0, x1) = (x, 0.5 * w);
+            // Shrunk to fit the width left of the image's right margin.
+            let fits = (0.92 * w / text_width(label, LEGEND_TEXT)?).min(1.0);
             draw_text(
                 image,
                 label,
-                LEGEND_TEXT,
-                (0.5 * (x0 + x1), top + 12.0),
-                HAlign::Centre,
+                LEGEND_TEXT * fits,
+                (x0, top + 12.0),
+                HAlign::Left,
                 [0; 3],
             )?;
             fill(image, (x0, top + 22.0), (x1, top + 38.0), |fx| {
