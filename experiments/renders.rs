@@ -15,7 +15,7 @@ use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 
 use crate::context::{Context, fmt_time};
 use crate::render::{
-    self, ColourScale, Ghost, Image, LEGEND_HEIGHT, Legend, RenderMesh, Style, View,
+    self, Camera, ColourScale, Ghost, Image, LEGEND_HEIGHT, Legend, RenderMesh, Style, View,
 };
 use crate::{AnyError, Summary, conflicts};
 
@@ -245,6 +245,24 @@ fn conflicts_figure(ctx: &Context, dir: &Path) -> Result<Figure, AnyError> {
     Ok((file, caption))
 }
 
+/// A camera with the up axis of `camera` looking at `patch` from the
+/// direction of its centroid seen from the mesh centre, slightly from
+/// above (`camera` itself if that direction is degenerate).
+fn toward_patch(mesh: &Mesh, patch: &[usize], camera: Camera) -> Camera {
+    let (lo, hi) = mesh.bounding_box();
+    let p = mesh.positions();
+    let up = camera.up_axis;
+    let mut toward = [0.0; 3];
+    for k in 0..3 {
+        let c = patch.iter().map(|&v| p[v][k]).sum::<f64>() / patch.len().max(1) as f64;
+        toward[k] = c - 0.5 * (lo[k] + hi[k]);
+    }
+    toward[up] = 0.0;
+    let len = toward.iter().map(|v| v * v).sum::<f64>().sqrt();
+    toward[up] = 0.35 * len;
+    Camera::from_direction(toward, up).unwrap_or(camera)
+}
+
 /// Relative constraints (Fig. 9/11): with and without a feature patch,
 /// both over the ghost, and what the relative constraints change.
 fn relative_figure(ctx: &Context, dir: &Path) -> Result<Figure, AnyError> {
@@ -278,7 +296,8 @@ fn relative_figure(ctx: &Context, dir: &Path) -> Result<Figure, AnyError> {
     let without = deform(&cmesh, LaplacianKind::Cotangent, base.constraints(&cmesh)?)?;
     let with = deform(&cmesh, LaplacianKind::Cotangent, constraints)?;
     let p = cmesh.positions();
-    let view = shared_view(p, &without, &[p, &without, &with])?;
+    let camera = toward_patch(&cmesh, &patch, render::auto_camera(p, &without, None)?);
+    let view = View::fit(&camera, &[p, &without, &with], SIDE, SIDE, 0.06)?;
     let legend = swatches(&[("fixed and handle", RED), ("relative patch", BLUE)]);
     let diff = render::distances(&without, &with, "with relative constraints")?;
     let scale = ColourScale::from_zero(&diff)?;
