@@ -40,10 +40,11 @@ pub mod laplacian;
 pub mod limits;
 pub mod mesh;
 pub mod mtx;
-
 pub mod problem;
 #[cfg(feature = "python")]
 pub mod python;
+#[cfg(feature = "render")]
+pub mod render;
 pub mod report;
 pub mod scene;
 pub mod solver;

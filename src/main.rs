@@ -18,6 +18,8 @@ use lse_deform::problem::LseProblem;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
 use lse_deform::{Deformer, Error, LaplacianKind, LseSolver, Report, backend, formulation, mtx};
 
+mod cli;
+
 #[derive(Parser)]
 #[command(
     name = "lse-deform",
@@ -51,6 +53,9 @@ enum Command {
     /// Run every formulation on every back end on one problem and print a
     /// table (precompute, solve, constraint residual, condition).
     Compare(CompareArgs),
+    /// Render a mesh, or a deformation of it over the original as a ghost,
+    /// to PNG (displacement or difference colour maps, constraint groups).
+    Render(cli::render::RenderArgs),
 }
 
 /// How to solve: the formulation and its back ends.
@@ -342,6 +347,7 @@ fn main() -> ExitCode {
         Command::ExportSystem(a) => export_system(a),
         Command::Solve(a) => solve(a),
         Command::Compare(a) => compare(a),
+        Command::Render(a) => return cli::render::main(a, cli.verbose),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,3 @@
+//! Commands of the `lse-deform` tool that live in their own files.
+
+pub mod render;
