@@ -447,3 +447,36 @@ fn a_client_that_disconnects_mid_request_does_not_stop_the_server() {
     );
     assert_eq!(status, 200);
 }
+
+#[test]
+fn moving_the_fixed_group_falls_back_to_solves_until_it_is_back_at_rest() {
+    let server = start(1 << 20);
+    let path = |group: &str, m| {
+        json(
+            &request(
+                &server.addr,
+                "POST",
+                "/api/transform",
+                &transform_body(group, m),
+            )
+            .1,
+        )["path"]
+            .clone()
+    };
+    let id = rotation_x(0.0, [0.0; 3]);
+    let lift = rotation_x(0.0, [0.0, 0.0, 0.1]);
+    assert_eq!(path("fixed", id), "basis");
+    assert_eq!(path("handle", lift), "basis");
+    assert_eq!(path("fixed", lift), "full-solve");
+    assert_eq!(path("handle", id), "full-solve");
+    // Both lifted by the same translation: the whole grid moves rigidly.
+    let p = positions_f64(&server.addr);
+    let rest = server.mesh.positions();
+    assert_eq!(path("handle", lift), "full-solve");
+    let p2 = positions_f64(&server.addr);
+    for (q, r) in p2.iter().zip(rest) {
+        assert!((q[2] - r[2] - 0.1).abs() < 1e-9, "{q:?}");
+    }
+    assert!(p.len() == p2.len());
+    assert_eq!(path("fixed", id), "basis");
+}

@@ -296,12 +296,20 @@ impl Session {
                 basis_stale,
             } => {
                 deformer.transform_group(name, m)?;
-                let in_basis = basis
-                    .as_ref()
-                    .is_some_and(|b| b.groups().iter().any(|g| g == name));
-                if !in_basis {
-                    *basis_stale = true;
-                }
+                // X₀ holds the other groups at rest: the basis is valid
+                // while every group outside it is at the identity.
+                let in_basis = |g: &str| {
+                    basis
+                        .as_ref()
+                        .is_some_and(|b| b.groups().iter().any(|h| h == g))
+                };
+                *basis_stale = self
+                    .transforms
+                    .iter()
+                    .filter(|(g, _)| g.as_str() != name)
+                    .map(|(g, t)| (g.as_str(), t))
+                    .chain(std::iter::once((name, m)))
+                    .any(|(g, t)| !in_basis(g) && *t != IDENTITY);
                 match basis {
                     Some(b) if !*basis_stale => {
                         let ms: Vec<Affine> = b

@@ -124,7 +124,7 @@ function setReport(report) {
   renderReport();
 }
 
-function fmt(x, d = 3) { return x === null || x === undefined ? '–' : (typeof x === 'number' ? x.toPrecision(d) : String(x)); }
+function fmt(x, d = 3) { return x === null || x === undefined ? "–" : (typeof x === "number" && !Number.isInteger(x) ? x.toPrecision(d) : String(x)); }
 
 function renderReport() {
   const r = state.report || {};
