@@ -189,6 +189,18 @@ impl Deformer {
         self.solver.solve_into(x)
     }
 
+    /// Solves for right-hand sides `c` (l × k) and `d` (m × k) of the
+    /// problem's shape in place of its own, in the problem's units, refined
+    /// as [`Deformer::solve`] refines; the problem's targets and the report
+    /// stay. See [`LseSolver::solve_columns`].
+    pub fn solve_columns(
+        &mut self,
+        c: MatRef<'_, f64>,
+        d: MatRef<'_, f64>,
+    ) -> Result<Mat<f64>, Error> {
+        self.solver.solve_columns(c, d)
+    }
+
     /// Fills the report's solution diagnostics (residuals, redundant and
     /// conflicting constraints) for `x`, the result of the last solve.
     pub fn diagnose(&mut self, x: MatRef<'_, f64>) -> &Report {

@@ -16,7 +16,8 @@
 //! → [`formulation`] (the paper's method and its alternatives) over
 //! [`backend`] (QR and SPD traits) → [`solver`] (precompute and solve of
 //! any problem, including general ones from their matrices) → [`deform`]
-//! (the three-phase mesh API) and
+//! (the three-phase mesh API), [`handle`] (affine handles: per-frame
+//! positions from a precomputed response basis) and
 //! [`report`], and [`arap`] (as-rigid-as-possible iterations on the same
 //! formulations); [`condition`] (condition-number estimates of the factored
 //! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
@@ -32,9 +33,12 @@ pub mod backend;
 pub mod condition;
 pub mod constraints;
 pub mod deform;
+#[cfg(feature = "editor")]
+pub mod editor;
 pub mod error;
 pub mod export;
 pub mod formulation;
+pub mod handle;
 pub mod interop;
 pub mod laplacian;
 pub mod limits;

@@ -56,6 +56,31 @@ enum Command {
     /// Render a mesh, or a deformation of it over the original as a ghost,
     /// to PNG (displacement or difference colour maps, constraint groups).
     Render(cli::render::RenderArgs),
+    /// Interactive editor in the browser: serves a local page to select
+    /// fixed and handle regions and drag them (see README, "Interactive
+    /// editing").
+    #[cfg(feature = "editor")]
+    Edit(EditArgs),
+}
+
+#[cfg(feature = "editor")]
+#[derive(Args)]
+struct EditArgs {
+    /// Input mesh.
+    mesh: PathBuf,
+    /// Constraints file (JSON) to start with.
+    #[arg(long, short = 'c')]
+    constraints: Option<PathBuf>,
+    /// Address to bind (anything but 127.0.0.1 prints a warning: the
+    /// editor has no authentication).
+    #[arg(long, default_value = "127.0.0.1")]
+    host: String,
+    /// Port (0: any free port; the first line on stdout says which).
+    #[arg(long, default_value_t = 0)]
+    port: u16,
+    /// Cap on request bodies in bytes (413 beyond).
+    #[arg(long, default_value_t = lse_deform::editor::DEFAULT_MAX_BODY_BYTES)]
+    max_body_bytes: usize,
 }
 
 /// How to solve: the formulation and its back ends.
@@ -348,6 +373,14 @@ fn main() -> ExitCode {
         Command::Solve(a) => solve(a),
         Command::Compare(a) => compare(a),
         Command::Render(a) => return cli::render::main(a, cli.verbose),
+        #[cfg(feature = "editor")]
+        Command::Edit(a) => lse_deform::editor::run(lse_deform::editor::EditOptions {
+            mesh: a.mesh,
+            constraints: a.constraints,
+            host: a.host,
+            port: a.port,
+            max_body_bytes: a.max_body_bytes,
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -202,6 +202,53 @@ impl LseSolver {
         check_finite(x.as_ref())
     }
 
+    /// Solves for right-hand sides `c` (l × k) and `d` (m × k) in place of
+    /// the problem's, any `k`, three columns at a time with the current
+    /// refinement mode (each block refined as [`LseSolver::solve`] refines):
+    /// the columns of an affine response basis ([`crate::handle`]). The
+    /// problem's own `C` and `D` and the report are left as they were.
+    pub fn solve_columns(
+        &mut self,
+        c: MatRef<'_, f64>,
+        d: MatRef<'_, f64>,
+    ) -> Result<Mat<f64>, Error> {
+        let (l, m, n) = (
+            self.problem.a().nrows(),
+            self.problem.b().nrows(),
+            self.problem.n(),
+        );
+        if c.nrows() != l || d.nrows() != m || c.ncols() != d.ncols() {
+            return Err(ProblemError::Dimensions {
+                message: format!(
+                    "C is {} × {} and D {} × {}, expected {l} and {m} rows and as many columns",
+                    c.nrows(),
+                    c.ncols(),
+                    d.nrows(),
+                    d.ncols()
+                ),
+            }
+            .into());
+        }
+        let mode = self.refine_mode();
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "solve called before precompute".into(),
+            })?;
+        let mut x = Mat::zeros(n, c.ncols());
+        solve_blocks_of(
+            system.as_mut(),
+            &mut self.problem,
+            c,
+            d,
+            x.as_mut(),
+            Some(mode),
+        )?;
+        check_finite(x.as_ref())?;
+        Ok(x)
+    }
+
     /// Fills the report's solution diagnostics for `x` (the result of the
     /// last solve): residual of every kept hard row, the skipped rows split
     /// into redundant and conflicting (or "not detected" for penalty),
@@ -296,16 +343,29 @@ fn check_finite(x: MatRef<'_, f64>) -> Result<(), Error> {
 fn solve_in_blocks(
     system: &mut dyn Prepared,
     problem: &mut LseProblem,
+    x: MatMut<'_, f64>,
+    refine_mode: Option<Refine>,
+) -> Result<Vec<Refinement>, Error> {
+    let (c, d) = (problem.c().clone(), problem.d().clone());
+    solve_blocks_of(system, problem, c.as_ref(), d.as_ref(), x, refine_mode)
+}
+
+/// [`solve_in_blocks`] for the right-hand sides `c`, `d` (any width) in
+/// place of the problem's.
+fn solve_blocks_of(
+    system: &mut dyn Prepared,
+    problem: &mut LseProblem,
+    c: MatRef<'_, f64>,
+    d: MatRef<'_, f64>,
     mut x: MatMut<'_, f64>,
     refine_mode: Option<Refine>,
 ) -> Result<Vec<Refinement>, Error> {
-    let k = problem.n_rhs();
+    let k = c.ncols();
     let (l, m, n) = (problem.a().nrows(), problem.b().nrows(), problem.n());
     let mut x_block = Mat::<f64>::zeros(n, RHS_BLOCK);
     let mut refinements = Vec::new();
     for start in (0..k).step_by(RHS_BLOCK) {
         let width = RHS_BLOCK.min(k - start);
-        let (c, d) = (problem.c(), problem.d());
         let mut c_block = Mat::from_fn(l, RHS_BLOCK, |i, j| {
             if j < width { c[(i, start + j)] } else { 0.0 }
         });

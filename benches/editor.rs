@@ -1,0 +1,161 @@
+//! The editor's per-frame path against the full solve, side by side in one
+//! run: on the paper's scene (20 % fixed, a 2 % handle, grouped "fixed" and
+//! "handle"), per frame
+//!
+//! - `basis`: `X = X₀ + R Mᵀ` ([`HandleBasis::evaluate`]);
+//! - `memory-floor`: reading as many bytes as the basis holds (a parallel
+//!   sum over a buffer of [`HandleBasis::bytes`], in the chunks `basis`
+//!   reads): the bandwidth bound of `basis`;
+//! - `full-solve`: `transform_group` and a refined solve with the factor;
+//!
+//! and, once per selection, `new-selection` (set-up, precompute, response
+//! basis) against `deform-precompute` (set-up and precompute: what `deform`
+//! does before its solve) — on the Bunny only (igea's precompute is
+//! minutes of a criterion run).
+//!
+//! Meshes: `LSE_MESH_DIR/bunny-35k-stanford.obj` and
+//! `igea-537k-subdiv.obj.gz`, else generated bumpy spheres of 35k and 250k
+//! vertices. Run: `LSE_MESH_DIR=../shared/meshes cargo bench --bench editor`.
+
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use faer::Mat;
+use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
+use lse_deform::deform::Affine;
+use lse_deform::handle::HandleBasis;
+use lse_deform::mesh::{Mesh, generate, read_mesh};
+use lse_deform::scene::FixedAndHandle;
+use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
+use rayon::prelude::*;
+
+fn mesh(file: &str, generated: usize) -> (String, Mesh) {
+    if let Some(dir) = std::env::var_os("LSE_MESH_DIR").map(PathBuf::from) {
+        if let Ok(m) = read_mesh(&dir.join(file)) {
+            return (file.to_string(), m.mesh);
+        }
+    }
+    let m = generate::with_about_vertices(generate::GeneratedKind::BumpySphere, generated, 1)
+        .expect("generated mesh");
+    (format!("bumpy-sphere-{}k", generated / 1000), m)
+}
+
+/// The paper's scene with its regions as groups "fixed" and "handle" at
+/// rest (a drag moves the handle by a transform).
+fn grouped_scene(mesh: &Mesh) -> ConstraintSet {
+    let (fixed, handle) = FixedAndHandle::paper_default(mesh)
+        .regions(mesh)
+        .expect("scene");
+    let p = mesh.positions();
+    let mut list = Vec::new();
+    for (vs, group) in [(fixed, "fixed"), (handle, "handle")] {
+        for v in vs {
+            let mut c = Constraint::hard(ConstraintKind::Position {
+                vertex: v,
+                target: p[v],
+            });
+            c.group = Some(group.into());
+            list.push(c);
+        }
+    }
+    ConstraintSet::from_vec(list).expect("constraints")
+}
+
+fn frame(mesh: &Mesh, k: usize) -> Affine {
+    let a = 0.05 * k as f64;
+    let d = 0.15 * mesh.bbox_diagonal();
+    [
+        [1.0, 0.0, 0.0, d * a.sin()],
+        [0.0, 1.0, 0.0, d * (1.0 - a.cos())],
+        [0.0, 0.0, 1.0, 0.0],
+    ]
+}
+
+fn per_frame(c: &mut Criterion, file: &str, generated: usize) {
+    let (name, mesh) = mesh(file, generated);
+    let n = mesh.n_vertices();
+    let mut deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, grouped_scene(&mesh))
+        .expect("deformer");
+    deformer
+        .precompute(&NullSpaceQr::default())
+        .expect("precompute");
+    let basis = HandleBasis::new(&mut deformer, &["handle"]).expect("basis");
+    let mut out = vec![[0.0; 3]; n];
+    let floor_buffer = vec![1.0f64; basis.bytes() / 8];
+    let mut g = c.benchmark_group(format!("editor-frame/{name}"));
+    g.sample_size(20).measurement_time(Duration::from_secs(8));
+    let mut k = 0;
+    g.bench_function("basis", |b| {
+        b.iter(|| {
+            k += 1;
+            basis
+                .evaluate(&[frame(&mesh, k)], &mut out)
+                .expect("evaluate");
+            black_box(&out);
+        })
+    });
+    g.bench_function("memory-floor", |b| {
+        b.iter(|| {
+            black_box(
+                floor_buffer
+                    .par_chunks(8192 * 7)
+                    .map(|c| c.iter().sum::<f64>())
+                    .sum::<f64>(),
+            )
+        })
+    });
+    let mut x = Mat::<f64>::zeros(n, 3);
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    g.bench_function("full-solve", |b| {
+        b.iter(|| {
+            k += 1;
+            deformer
+                .transform_group("handle", &frame(&mesh, k))
+                .expect("transform");
+            deformer.solve_into(x.as_mut()).expect("solve");
+            black_box(&x);
+        })
+    });
+    g.finish();
+}
+
+fn new_selection(c: &mut Criterion) {
+    let (name, mesh) = mesh("bunny-35k-stanford.obj", 35_000);
+    let scene = grouped_scene(&mesh);
+    let mut g = c.benchmark_group(format!("editor-selection/{name}"));
+    g.sample_size(10).measurement_time(Duration::from_secs(15));
+    g.bench_function("deform-precompute", |b| {
+        b.iter(|| {
+            let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, scene.clone())
+                .expect("deformer");
+            d.precompute(&NullSpaceQr::default()).expect("precompute");
+            black_box(d.report().rank)
+        })
+    });
+    g.bench_function("new-selection", |b| {
+        b.iter(|| {
+            let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, scene.clone())
+                .expect("deformer");
+            d.precompute(&NullSpaceQr::default()).expect("precompute");
+            black_box(
+                HandleBasis::new(&mut d, &["handle"])
+                    .expect("basis")
+                    .bytes(),
+            )
+        })
+    });
+    g.finish();
+}
+
+fn bunny(c: &mut Criterion) {
+    per_frame(c, "bunny-35k-stanford.obj", 35_000);
+}
+
+fn igea(c: &mut Criterion) {
+    per_frame(c, "igea-537k-subdiv.obj.gz", 250_000);
+}
+
+criterion_group!(benches, bunny, new_selection, igea);
+criterion_main!(benches);

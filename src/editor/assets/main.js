@@ -1,0 +1,403 @@
+// The editor page: selection (brush, lasso) into named groups, dragging a
+// group (move, rotate), switches, report. Positions are computed by the
+// server (POST /api/transform, then GET /api/positions as f32).
+import { getJson, send, getF32, getU32 } from '/api.js';
+import { View } from '/view.js';
+
+const $ = (id) => document.getElementById(id);
+const view = new View($('canvas'));
+const COLORS = [[0.35, 0.55, 0.95], [0.95, 0.45, 0.25], [0.3, 0.8, 0.4], [0.85, 0.75, 0.2], [0.7, 0.4, 0.85], [0.3, 0.8, 0.8]];
+const BASE = [0.78, 0.78, 0.76];
+const CONFLICT = [1.0, 0.1, 0.1];
+
+const state = {
+  mesh: null, rest: null, faces: null,
+  groups: new Map(),   // name -> Set(vertex), position constraints at rest
+  extra: [],           // loaded constraints the page does not draw (other kinds)
+  tool: 'orbit', group: 'fixed',
+  transforms: new Map(), // name -> {t: [3], angle, axis, centre}
+  report: null, conflicting: new Set(),
+  frames: [], inflight: false, pending: null,
+};
+window.editor = { state, view, stats: { framesShown: 0, fps: 0, serverFrameMs: [] } };
+
+function showError(e) { $('error').textContent = e ? String(e.message || e) : ''; }
+
+function groupNames() {
+  const names = ['fixed', ...[...state.groups.keys()].filter((g) => g !== 'fixed')];
+  if (!names.includes(state.group)) names.push(state.group);
+  return names;
+}
+
+function refreshGroupSelect() {
+  const sel = $('group');
+  sel.innerHTML = '';
+  for (const g of groupNames()) {
+    const o = document.createElement('option');
+    o.textContent = g; o.value = g; o.selected = g === state.group;
+    sel.appendChild(o);
+  }
+}
+
+function recolor() {
+  const c = new Float32Array(state.mesh.vertices * 3);
+  for (let i = 0; i < state.mesh.vertices; i++) c.set(BASE, 3 * i);
+  groupNames().forEach((g, k) => {
+    const col = COLORS[k % COLORS.length];
+    for (const v of state.groups.get(g) || []) c.set(col, 3 * v);
+  });
+  for (const v of state.conflicting) c.set(CONFLICT, 3 * v);
+  view.setColors(c);
+}
+
+// The constraints file the page sends: position constraints of the groups
+// at their rest positions, then the loaded ones of other kinds.
+function constraintsJson() {
+  const out = [];
+  for (const [g, set] of state.groups) {
+    for (const v of [...set].sort((a, b) => a - b)) {
+      out.push({ type: 'position', vertex: v, target: [0, 1, 2].map((c) => state.restF64[3 * v + c]), group: g });
+    }
+  }
+  return JSON.stringify({ constraints: [...out, ...state.extra] });
+}
+
+function readConstraints(json) {
+  state.groups = new Map();
+  state.extra = [];
+  for (const c of json.constraints || []) {
+    if (c.type === 'position' && c.group && c.weight === undefined) {
+      if (!state.groups.has(c.group)) state.groups.set(c.group, new Set());
+      state.groups.get(c.group).add(c.vertex);
+    } else {
+      state.extra.push(c);
+    }
+  }
+  state.order = JSON.parse(JSON.stringify(json.constraints || []));
+}
+
+async function pollProgress() {
+  const box = $('progress');
+  for (;;) {
+    const p = await getJson('/api/progress');
+    if (!p.busy) { box.style.display = 'none'; return; }
+    box.style.display = 'block';
+    box.textContent = `${p.stage} … ${(p.elapsed_s || 0).toFixed(1)} s`;
+    await new Promise((r) => setTimeout(r, 200));
+  }
+}
+
+async function withProgress(promise) {
+  let done = false;
+  const poll = (async () => { await new Promise((r) => setTimeout(r, 150)); while (!done) { await pollProgress(); await new Promise((r) => setTimeout(r, 150)); } })();
+  try { return await promise; } finally { done = true; await poll; $('progress').style.display = 'none'; }
+}
+
+async function applyConstraints() {
+  showError(null);
+  try {
+    const body = constraintsJson();
+    const report = await withProgress(send('PUT', '/api/constraints', body));
+    state.transforms.clear();
+    const json = JSON.parse(body);
+    state.order = json.constraints;
+    setReport(report);
+    await loadPositions();
+  } catch (e) { showError(e); }
+}
+
+async function loadPositions() {
+  view.setPositions(await getF32('/api/positions?format=f32'));
+  view.render();
+}
+
+function setReport(report) {
+  state.report = report;
+  state.conflicting = new Set();
+  const conflicts = Array.isArray(report.conflicting) ? report.conflicting : [];
+  for (const c of conflicts) {
+    const k = state.order && state.order[c.index];
+    if (!k) continue;
+    for (const v of [k.vertex, ...(k.vertices || [])]) if (v !== undefined) state.conflicting.add(v);
+  }
+  recolor();
+  renderReport();
+}
+
+function fmt(x, d = 3) { return x === null || x === undefined ? "–" : (typeof x === "number" && !Number.isInteger(x) ? x.toPrecision(d) : String(x)); }
+
+function renderReport() {
+  const r = state.report || {};
+  const e = r.editor || {};
+  const t = (e.timings_s) || {};
+  const conflicts = Array.isArray(r.conflicting) ? r.conflicting : [];
+  const lines = [
+    `method      ${r.method || '–'}  laplacian ${r.laplacian || '–'}`,
+    `constraints ${r.constraints ?? '–'} (hard ${r.hard_constraints ?? '–'}, soft ${r.soft_constraints ?? '–'})`,
+    `rank        ${fmt(r.rank)}`,
+    `redundant   ${Array.isArray(r.redundant) ? r.redundant.length : fmt(r.redundant)}`,
+    `<span class="${conflicts.length ? 'bad' : ''}">conflicting ${Array.isArray(r.conflicting) ? conflicts.length : fmt(r.conflicting)}${conflicts.length ? ' (red on the mesh)' : ''}</span>`,
+    `max hard residual  ${fmt(r.max_constraint_residual_relative)} × diag`,
+    `least squares res. ${fmt(r.least_squares_residual_relative)} (relative)`,
+    `forward error est. ${fmt(r.forward_error_estimate)} × diag`,
+    `set-up      ${fmt(t.setup_s)} s`,
+    `precompute  ${fmt(t.precompute_s)} s`,
+    `basis       ${fmt(t.basis_s)} s`,
+    `frame (server, median) ${e.frame_median_s ? (1e3 * e.frame_median_s).toFixed(2) + ' ms' : '–'}`,
+    `frames shown/s ${window.editor.stats.fps.toFixed(1)}`,
+    ...(r.warnings || []).map((w) => `<span class="bad">warning: ${w.replace(/</g, '&lt;')}</span>`),
+  ];
+  if (r.arap) lines.push(`ARAP        ${r.arap.iterations} iterations, energy ${fmt(r.arap.energies?.at(-1))}`);
+  $('report').innerHTML = lines.join('\n');
+}
+
+// --- picking -------------------------------------------------------------
+
+function facingVertices() {
+  // Vertices whose screen position is in the region; among them those
+  // within a slab of the nearest depth (the visible side).
+  return view.projector();
+}
+
+function pickInside(test) {
+  const project = facingVertices();
+  const hits = [];
+  let nearest = Infinity;
+  for (let i = 0; i < state.mesh.vertices; i++) {
+    const [x, y, d] = project(i);
+    if (d > 0 && test(x, y)) { hits.push([i, d]); nearest = Math.min(nearest, d); }
+  }
+  const slab = 0.15 * view.radius;
+  return hits.filter(([, d]) => d <= nearest + slab).map(([i]) => i);
+}
+
+function paint(x, y, add) {
+  const r = Number($('radius').value);
+  const picked = pickInside((px, py) => (px - x) ** 2 + (py - y) ** 2 <= r * r);
+  changeGroup(picked, add);
+}
+
+function changeGroup(vertices, add) {
+  if (!state.groups.has(state.group)) state.groups.set(state.group, new Set());
+  const set = state.groups.get(state.group);
+  for (const v of vertices) {
+    if (add) {
+      for (const [g, other] of state.groups) if (g !== state.group) other.delete(v);
+      set.add(v);
+    } else set.delete(v);
+  }
+  recolor();
+  view.render();
+}
+
+function pointInPolygon(poly, x, y) {
+  let inside = false;
+  for (let i = 0, j = poly.length - 1; i < poly.length; j = i++) {
+    const [xi, yi] = poly[i], [xj, yj] = poly[j];
+    if ((yi > y) !== (yj > y) && x < ((xj - xi) * (y - yi)) / (yj - yi) + xi) inside = !inside;
+  }
+  return inside;
+}
+
+// --- dragging a group ------------------------------------------------------
+
+function groupCentre(name) {
+  const set = state.groups.get(name);
+  const c = [0, 0, 0];
+  if (!set || !set.size) return c;
+  for (const v of set) for (let k = 0; k < 3; k++) c[k] += state.restF64[3 * v + k];
+  return c.map((s) => s / set.size);
+}
+
+function transformOf(name) {
+  if (!state.transforms.has(name)) state.transforms.set(name, { t: [0, 0, 0], angle: 0, axis: [0, 0, 1], centre: groupCentre(name) });
+  return state.transforms.get(name);
+}
+
+// 3 × 4 row-major: rotation by `angle` about `axis` through `centre`, then `t`.
+function matrixOf(tr) {
+  const [x, y, z] = tr.axis, c = Math.cos(tr.angle), s = Math.sin(tr.angle), k = 1 - c;
+  const R = [[c + x * x * k, x * y * k - z * s, x * z * k + y * s], [y * x * k + z * s, c + y * y * k, y * z * k - x * s], [z * x * k - y * s, z * y * k + x * s, c + z * z * k]];
+  return R.map((row, i) => {
+    const rc = row[0] * tr.centre[0] + row[1] * tr.centre[1] + row[2] * tr.centre[2];
+    return [...row, tr.centre[i] - rc + tr.t[i]];
+  });
+}
+
+// Sends the group's transform; while a frame is in flight only the latest
+// request waits (frames are dropped, never queued).
+async function sendFrame(name) {
+  const matrix = matrixOf(transformOf(name));
+  if (state.inflight) { state.pending = name; return; }
+  state.inflight = true;
+  try {
+    const answer = await send('POST', '/api/transform', { group: name, matrix });
+    window.editor.stats.serverFrameMs.push(1e3 * answer.compute_s);
+    view.setPositions(await getF32('/api/positions?format=f32'));
+    view.render();
+    countFrame();
+  } catch (e) { showError(e); } finally {
+    state.inflight = false;
+    if (state.pending) { const p = state.pending; state.pending = null; sendFrame(p); }
+  }
+}
+
+function countFrame() {
+  const now = performance.now();
+  state.frames.push(now);
+  while (state.frames.length && state.frames[0] < now - 1000) state.frames.shift();
+  window.editor.stats.framesShown += 1;
+  window.editor.stats.fps = state.frames.length > 1 ? (1000 * (state.frames.length - 1)) / (now - state.frames[0]) : 0;
+  $('hud').textContent = `${window.editor.stats.fps.toFixed(1)} fps · server ${window.editor.stats.serverFrameMs.at(-1)?.toFixed(2)} ms`;
+}
+
+// A scripted drag of `frames` frames (tests, figures): translates `group`
+// along `turn` of a circle of radius `amplitude` × the bounding-box radius, each frame
+// waiting for the positions and a render. Returns the page's frame rate.
+window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1) => {
+  const tr = transformOf(group);
+  const t0 = performance.now();
+  const server = [];
+  for (let f = 1; f <= frames; f++) {
+    const a = (2 * Math.PI * turn * f) / frames;
+    tr.t = [amplitude * view.radius * Math.sin(a), amplitude * view.radius * (1 - Math.cos(a)), 0];
+    const answer = await send('POST', '/api/transform', { group, matrix: matrixOf(tr) });
+    server.push(1e3 * answer.compute_s);
+    view.setPositions(await getF32('/api/positions?format=f32'));
+    view.render();
+    view.gl.finish();
+    countFrame();
+  }
+  const seconds = (performance.now() - t0) / 1000;
+  server.sort((a, b) => a - b);
+  return { frames, seconds, fps: frames / seconds, serverFrameMedianMs: server[server.length >> 1] };
+};
+
+// --- events ----------------------------------------------------------------
+
+function setupEvents() {
+  const canvas = $('canvas');
+  const lasso = $('lasso');
+  let drag = null;
+  canvas.addEventListener('contextmenu', (e) => e.preventDefault());
+  canvas.addEventListener('pointerdown', (e) => {
+    canvas.setPointerCapture(e.pointerId);
+    const tool = e.button === 2 ? 'orbit' : state.tool;
+    drag = { tool, x: e.offsetX, y: e.offsetY, poly: [[e.offsetX, e.offsetY]], shift: e.shiftKey };
+    if (tool === 'brush' || tool === 'erase') paint(e.offsetX, e.offsetY, tool === 'brush');
+    if (tool === 'move' || tool === 'rotate') {
+      const tr = transformOf(state.group);
+      drag.start = { t: [...tr.t], angle: tr.angle };
+      const { f } = view.frame();
+      // Rotation about the view axis: a new axis starts from the current pose.
+      if (tool === 'rotate' && tr.angle === 0) tr.axis = f.map((v) => -v);
+    }
+  });
+  canvas.addEventListener('pointermove', (e) => {
+    if (!drag) return;
+    const dx = e.offsetX - drag.x, dy = e.offsetY - drag.y;
+    if (drag.tool === 'orbit') {
+      view.yaw -= 0.01 * (e.offsetX - (drag.lx ?? drag.x));
+      view.pitch = Math.max(-1.5, Math.min(1.5, view.pitch + 0.01 * (e.offsetY - (drag.ly ?? drag.y))));
+      drag.lx = e.offsetX; drag.ly = e.offsetY;
+      view.render();
+    } else if (drag.tool === 'brush' || drag.tool === 'erase') {
+      paint(e.offsetX, e.offsetY, drag.tool === 'brush');
+    } else if (drag.tool === 'lasso') {
+      drag.poly.push([e.offsetX, e.offsetY]);
+      const ctx = lasso.getContext('2d');
+      lasso.width = canvas.clientWidth; lasso.height = canvas.clientHeight;
+      ctx.strokeStyle = '#ff0'; ctx.beginPath();
+      drag.poly.forEach(([x, y], i) => (i ? ctx.lineTo(x, y) : ctx.moveTo(x, y)));
+      ctx.stroke();
+    } else if (drag.tool === 'move') {
+      const { r, u } = view.frame();
+      const scale = (2 * view.distance * Math.tan(0.4)) / canvas.clientHeight;
+      const tr = transformOf(state.group);
+      tr.t = [0, 1, 2].map((c) => drag.start.t[c] + scale * (dx * r[c] - dy * u[c]));
+      sendFrame(state.group);
+    } else if (drag.tool === 'rotate') {
+      const tr = transformOf(state.group);
+      tr.angle = drag.start.angle + 0.01 * dx;
+      sendFrame(state.group);
+    }
+  });
+  canvas.addEventListener('pointerup', () => {
+    if (!drag) return;
+    const d = drag;
+    drag = null;
+    if (d.tool === 'lasso') {
+      lasso.getContext('2d').clearRect(0, 0, lasso.width, lasso.height);
+      if (d.poly.length > 2) changeGroup(pickInside((x, y) => pointInPolygon(d.poly, x, y)), !d.shift);
+      applyConstraints();
+    } else if (d.tool === 'brush' || d.tool === 'erase') {
+      applyConstraints();
+    } else if (d.tool === 'move' || d.tool === 'rotate') {
+      refreshReport();
+    }
+  });
+  canvas.addEventListener('wheel', (e) => {
+    e.preventDefault();
+    view.distance *= Math.exp(0.001 * e.deltaY);
+    view.render();
+  }, { passive: false });
+  for (const b of document.querySelectorAll('#tools button')) {
+    b.addEventListener('click', () => {
+      state.tool = b.dataset.tool;
+      for (const o of document.querySelectorAll('#tools button')) o.classList.toggle('on', o === b);
+    });
+  }
+  $('group').addEventListener('change', (e) => { state.group = e.target.value; });
+  $('newgroup').addEventListener('click', () => {
+    let k = 1;
+    while (state.groups.has(`handle ${k}`)) k++;
+    state.group = `handle ${k}`;
+    state.groups.set(state.group, new Set());
+    refreshGroupSelect();
+  });
+  $('clear').addEventListener('click', () => { state.groups.delete(state.group); recolor(); applyConstraints(); });
+  $('reset').addEventListener('click', () => { state.transforms.clear(); applyConstraints(); });
+  const settings = async (change) => {
+    showError(null);
+    try { setReport(await withProgress(send('PUT', '/api/settings', change))); state.transforms.clear(); await loadPositions(); } catch (e) { showError(e); }
+  };
+  for (const id of ['energy', 'laplacian', 'method', 'refine']) {
+    $(id).addEventListener('change', (e) => settings({ [id]: e.target.value }));
+  }
+  $('weight').addEventListener('change', (e) => { $('wval').textContent = e.target.value; settings({ weight: 10 ** Number(e.target.value) }); });
+  $('arapiters').addEventListener('change', (e) => settings({ arap_iterations_per_frame: Number(e.target.value) }));
+  $('load').addEventListener('change', async (e) => {
+    const file = e.target.files[0];
+    if (!file) return;
+    showError(null);
+    try {
+      const text = await file.text();
+      setReport(await withProgress(send('PUT', '/api/constraints', text)));
+      readConstraints(await getJson('/api/constraints'));
+      refreshGroupSelect(); recolor(); await loadPositions();
+    } catch (err) { showError(err); }
+  });
+}
+
+async function refreshReport() {
+  try { setReport(await getJson('/api/report')); } catch (e) { showError(e); }
+}
+
+async function main() {
+  state.mesh = await getJson('/api/mesh');
+  $('meshinfo').textContent = `${state.mesh.name}: ${state.mesh.vertices} vertices, ${state.mesh.faces} triangles`;
+  const [rest, faces] = await Promise.all([getF32('/api/rest-positions'), getU32('/api/faces')]);
+  state.restF64 = new Float64Array(await (await fetch('/api/rest-positions?format=f64')).arrayBuffer());
+  view.setMesh(rest, faces, state.mesh.bbox);
+  readConstraints(await getJson('/api/constraints'));
+  refreshGroupSelect();
+  setupEvents();
+  await refreshReport();
+  await loadPositions();
+  const s = state.report?.editor?.settings;
+  if (s) for (const id of ['energy', 'laplacian', 'method', 'refine']) $(id).value = String(s[id]);
+  window.addEventListener('resize', () => view.render());
+  window.editor.ready = true;
+}
+
+main().catch(showError);

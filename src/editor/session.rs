@@ -1,0 +1,412 @@
+//! The editing state of `lse-deform edit`: the mesh, the constraints as
+//! uploaded, the settings, and the engine they were precomputed into. No
+//! numerics here: it calls [`Deformer`], [`HandleBasis`] and
+//! [`ArapDeformer`] and keeps their results.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+
+use crate::arap::{ArapDeformer, ArapEnergy, ArapInit};
+use crate::constraints::ConstraintSet;
+use crate::deform::{Affine, Deformer};
+use crate::error::{Error, ProblemError};
+use crate::formulation::{self, Refine};
+use crate::handle::HandleBasis;
+use crate::laplacian::LaplacianKind;
+use crate::mesh::Mesh;
+
+/// The group that never moves in a drag: left out of the response basis
+/// (moving it falls back to full solves).
+pub const FIXED_GROUP: &str = "fixed";
+
+/// The switches of the page (the CLI's words).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Settings {
+    /// uniform, cotan, cotan-symmetric or intrinsic-delaunay.
+    pub laplacian: String,
+    /// nullspace-qr, penalty, kkt or eliminate.
+    pub method: String,
+    /// The penalty weight.
+    pub weight: f64,
+    /// off, auto or a step count.
+    pub refine: String,
+    /// laplacian or arap.
+    pub energy: String,
+    /// ARAP iterations per frame during a drag.
+    pub arap_iterations_per_frame: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            laplacian: "cotan".into(),
+            method: "nullspace-qr".into(),
+            weight: 1e3,
+            refine: "auto".into(),
+            energy: "laplacian".into(),
+            arap_iterations_per_frame: 2,
+        }
+    }
+}
+
+fn invalid(message: String) -> Error {
+    ProblemError::InvalidArgument { message }.into()
+}
+
+impl Settings {
+    /// Checks every word and number (the CLI's messages).
+    pub fn check(&self) -> Result<(), Error> {
+        self.laplacian.parse::<LaplacianKind>().map_err(invalid)?;
+        Refine::parse(&self.refine)?;
+        formulation::build(
+            &self.method,
+            "sparse-givens",
+            "faer-auto",
+            Some(self.weight),
+        )?;
+        if self.energy != "laplacian" && self.energy != "arap" {
+            return Err(invalid(format!(
+                "unknown energy '{}' (expected laplacian or arap)",
+                self.energy
+            )));
+        }
+        if !(1..=100).contains(&self.arap_iterations_per_frame) {
+            return Err(invalid(format!(
+                "arap_iterations_per_frame {} must be in 1..=100",
+                self.arap_iterations_per_frame
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// What the constraints were precomputed into.
+pub enum Engine {
+    /// Laplacian editing: the deformer (targets, full solves) and the
+    /// response basis of the groups other than [`FIXED_GROUP`].
+    Linear {
+        /// The deformer.
+        deformer: Box<Deformer>,
+        /// `None` when there is no movable group.
+        basis: Option<HandleBasis>,
+        /// A group outside the basis moved: frames are full solves.
+        basis_stale: bool,
+    },
+    /// ARAP: the deformer only computes targets ([`Deformer::transform_group`]).
+    Arap {
+        /// Targets of the groups.
+        targets: Box<Deformer>,
+        /// The iterations.
+        arap: Box<ArapDeformer>,
+    },
+}
+
+/// A precomputed engine with its first positions and report.
+pub struct Built {
+    /// The engine.
+    pub engine: Engine,
+    /// Positions at rest targets.
+    pub positions: Vec<[f64; 3]>,
+    /// The report of the first solve.
+    pub report: Value,
+    /// Seconds of each phase.
+    pub timings: Value,
+}
+
+/// Set-up, precompute, response basis and a first solve of `constraints`
+/// on `mesh` with `settings`; `stage` is told each phase's name.
+pub fn build(
+    mesh: &Mesh,
+    constraints: &ConstraintSet,
+    settings: &Settings,
+    stage: &dyn Fn(&str),
+) -> Result<Built, Error> {
+    settings.check()?;
+    let t0 = Instant::now();
+    stage("set-up");
+    let laplacian: LaplacianKind = settings.laplacian.parse().map_err(invalid)?;
+    let mut deformer = Deformer::new(mesh.clone(), laplacian, constraints.clone())?;
+    let setup_s = t0.elapsed().as_secs_f64();
+    let formulation = formulation::build(
+        &settings.method,
+        "sparse-givens",
+        "faer-auto",
+        Some(settings.weight),
+    )?;
+    if settings.energy == "arap" {
+        stage("ARAP precompute");
+        let t = Instant::now();
+        let mut arap =
+            ArapDeformer::new(mesh.clone(), constraints.clone(), ArapEnergy::SpokesAndRims)?;
+        arap.precompute(formulation.as_ref())?;
+        arap.initialize(ArapInit::Linear)?;
+        arap.iterate(settings.arap_iterations_per_frame)?;
+        let report = serde_json::to_value(arap.finish()?).unwrap_or(Value::Null);
+        let positions = arap.positions();
+        return Ok(Built {
+            engine: Engine::Arap {
+                targets: Box::new(deformer),
+                arap: Box::new(arap),
+            },
+            positions,
+            report,
+            timings: json!({"setup_s": setup_s, "precompute_s": t.elapsed().as_secs_f64()}),
+        });
+    }
+    deformer.set_refine(Some(Refine::parse(&settings.refine)?));
+    stage("precompute (factorisation)");
+    let t = Instant::now();
+    deformer.precompute(formulation.as_ref())?;
+    let precompute_s = t.elapsed().as_secs_f64();
+    stage("response basis");
+    let t = Instant::now();
+    let groups = constraints.group_names();
+    let movable: Vec<&str> = groups.into_iter().filter(|g| *g != FIXED_GROUP).collect();
+    let basis = if movable.is_empty() {
+        None
+    } else {
+        Some(HandleBasis::new(&mut deformer, &movable)?)
+    };
+    let basis_s = t.elapsed().as_secs_f64();
+    stage("first solve");
+    let solution = deformer.solve()?;
+    Ok(Built {
+        engine: Engine::Linear {
+            deformer: Box::new(deformer),
+            basis,
+            basis_stale: false,
+        },
+        positions: solution.positions,
+        report: serde_json::to_value(&solution.report).unwrap_or(Value::Null),
+        timings: json!({
+            "setup_s": setup_s,
+            "precompute_s": precompute_s,
+            "basis_s": basis_s,
+            "ready_s": t0.elapsed().as_secs_f64(),
+        }),
+    })
+}
+
+/// How a frame was computed.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum FramePath {
+    /// `X₀ + Σ R_g M_gᵀ`.
+    Basis,
+    /// A solve with the existing factor.
+    FullSolve,
+    /// ARAP iterations warm-started from the last frame.
+    Arap,
+}
+
+/// The editing state.
+pub struct Session {
+    /// The mesh as loaded.
+    pub mesh: Mesh,
+    /// The constraints as uploaded (rest targets).
+    pub constraints: ConstraintSet,
+    /// The switches.
+    pub settings: Settings,
+    /// `None` until constraints pin every component.
+    pub engine: Option<Engine>,
+    /// The current positions.
+    pub positions: Vec<[f64; 3]>,
+    /// The current transform of each moved group.
+    pub transforms: BTreeMap<String, Affine>,
+    /// The report of the last precompute, with the editor's timings.
+    pub report: Value,
+    /// Seconds of the last frames' compute (most recent last, ≤ 1000).
+    pub frame_times_s: Vec<f64>,
+    /// Counts every change of constraints or settings.
+    pub generation: u64,
+}
+
+/// The identity transform.
+pub const IDENTITY: Affine = [
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 1.0, 0.0],
+];
+
+impl Session {
+    /// A session on `mesh` with no engine yet.
+    pub fn new(mesh: Mesh) -> Session {
+        let positions = mesh.positions().to_vec();
+        Session {
+            mesh,
+            constraints: ConstraintSet::new(),
+            settings: Settings::default(),
+            engine: None,
+            positions,
+            transforms: BTreeMap::new(),
+            report: Value::Null,
+            frame_times_s: Vec::new(),
+            generation: 0,
+        }
+    }
+
+    /// Installs a built engine for `constraints` and `settings`.
+    pub fn install(&mut self, constraints: ConstraintSet, settings: Settings, built: Built) {
+        self.constraints = constraints;
+        self.settings = settings;
+        self.engine = Some(built.engine);
+        self.positions = built.positions;
+        self.transforms.clear();
+        self.frame_times_s.clear();
+        let mut report = built.report;
+        if let Value::Object(map) = &mut report {
+            map.insert("editor".into(), json!({"timings_s": built.timings}));
+        }
+        self.report = report;
+        self.generation += 1;
+    }
+
+    /// Back to no constraints: the mesh at rest.
+    pub fn clear(&mut self) {
+        self.constraints = ConstraintSet::new();
+        self.engine = None;
+        self.positions = self.mesh.positions().to_vec();
+        self.transforms.clear();
+        self.frame_times_s.clear();
+        self.report = Value::Null;
+        self.generation += 1;
+    }
+
+    /// Moves group `name` by `m` (applied to its rest targets) and
+    /// recomputes the positions: by the response basis when it covers the
+    /// group, else a full solve, or ARAP iterations. Returns the path taken
+    /// and its seconds.
+    pub fn transform(&mut self, name: &str, m: &Affine) -> Result<(FramePath, f64), Error> {
+        let iterations = self.settings.arap_iterations_per_frame;
+        let engine = self
+            .engine
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "no constraints yet: PUT /api/constraints first".into(),
+            })?;
+        let t = Instant::now();
+        let path = match engine {
+            Engine::Linear {
+                deformer,
+                basis,
+                basis_stale,
+            } => {
+                deformer.transform_group(name, m)?;
+                // X₀ holds the other groups at rest: the basis is valid
+                // while every group outside it is at the identity.
+                let in_basis = |g: &str| {
+                    basis
+                        .as_ref()
+                        .is_some_and(|b| b.groups().iter().any(|h| h == g))
+                };
+                *basis_stale = self
+                    .transforms
+                    .iter()
+                    .filter(|(g, _)| g.as_str() != name)
+                    .map(|(g, t)| (g.as_str(), t))
+                    .chain(std::iter::once((name, m)))
+                    .any(|(g, t)| !in_basis(g) && *t != IDENTITY);
+                match basis {
+                    Some(b) if !*basis_stale => {
+                        let ms: Vec<Affine> = b
+                            .groups()
+                            .iter()
+                            .map(|g| {
+                                if g == name {
+                                    *m
+                                } else {
+                                    self.transforms.get(g).copied().unwrap_or(IDENTITY)
+                                }
+                            })
+                            .collect();
+                        b.evaluate(&ms, &mut self.positions)?;
+                        FramePath::Basis
+                    }
+                    _ => {
+                        self.positions = deformer.solve()?.positions;
+                        FramePath::FullSolve
+                    }
+                }
+            }
+            Engine::Arap { targets, arap } => {
+                targets.transform_group(name, m)?;
+                for i in targets.group_members(name)? {
+                    arap.set_target(i, targets.constraints()[i].kind.rhs())?;
+                }
+                arap.iterate(iterations)?;
+                self.positions = arap.positions();
+                FramePath::Arap
+            }
+        };
+        let seconds = t.elapsed().as_secs_f64();
+        self.transforms.insert(name.to_string(), *m);
+        if self.frame_times_s.len() >= 1000 {
+            self.frame_times_s.remove(0);
+        }
+        self.frame_times_s.push(seconds);
+        Ok((path, seconds))
+    }
+
+    /// More ARAP iterations at the current targets (converging after a
+    /// drag stops); nothing for the Laplacian energy.
+    pub fn iterate(&mut self, n: usize) -> Result<usize, Error> {
+        if let Some(Engine::Arap { arap, .. }) = &mut self.engine {
+            arap.iterate(n)?;
+            self.positions = arap.positions();
+            return Ok(n);
+        }
+        Ok(0)
+    }
+
+    /// The report with the current residuals (Laplacian: diagnosed at the
+    /// current targets) and the editor's frame statistics.
+    pub fn report(&mut self) -> Value {
+        let mut report = self.report.clone();
+        let fresh = match &mut self.engine {
+            Some(Engine::Linear { deformer, .. }) => {
+                let u = deformer.length_unit();
+                let x =
+                    faer::Mat::from_fn(self.positions.len(), 3, |i, c| self.positions[i][c] / u);
+                serde_json::to_value(deformer.diagnose(x.as_ref())).ok()
+            }
+            Some(Engine::Arap { arap, .. }) => arap
+                .finish()
+                .ok()
+                .and_then(|r| serde_json::to_value(r).ok()),
+            None => None,
+        };
+        let editor = report.get("editor").cloned();
+        if let Some(fresh) = fresh {
+            report = fresh;
+        }
+        let mut times = self.frame_times_s.clone();
+        times.sort_by(f64::total_cmp);
+        let median = times.get(times.len() / 2).copied();
+        let basis = match &self.engine {
+            Some(Engine::Linear {
+                basis: Some(b),
+                basis_stale,
+                ..
+            }) => {
+                json!({"groups": b.groups(), "bytes": b.bytes(), "build_s": b.build_time_s(), "stale": basis_stale})
+            }
+            _ => Value::Null,
+        };
+        if let Value::Object(map) = &mut report {
+            let mut e = editor.filter(Value::is_object).unwrap_or_else(|| json!({}));
+            e["frames"] = json!(self.frame_times_s.len());
+            e["frame_median_s"] = json!(median);
+            e["basis"] = basis;
+            e["settings"] = serde_json::to_value(&self.settings).unwrap_or(Value::Null);
+            e["generation"] = json!(self.generation);
+            map.insert("editor".into(), e);
+        } else {
+            report = json!({"editor": {"settings": self.settings, "generation": self.generation}, "note": "no constraints yet"});
+        }
+        report
+    }
+}

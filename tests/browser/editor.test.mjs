@@ -1,0 +1,131 @@
+// End-to-end test of `lse-deform edit` in Debian's headless Chromium
+// (playwright-core, executablePath /usr/bin/chromium): load the page, brush
+// a fixed region and a handle with the mouse, drag the handle with the move
+// tool, and check through GET /api/positions that the handle moved and the
+// fixed region did not; saves a screenshot.
+//
+// Environment: LSE_DEFORM_BIN (default ../../target/release/lse-deform),
+// EDITOR_MESH (default: a generated 4k-vertex grid), SCREENSHOT (default
+// ../../results/editor/e2e.png), DRAG_FRAMES (default 0: when > 0, a
+// scripted drag of that many frames is timed afterwards and printed as
+// JSON — the figure of results/editor/README.md).
+import { spawn, execFileSync } from 'node:child_process';
+import { createInterface } from 'node:readline';
+import { mkdtempSync, mkdirSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { dirname, join, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import assert from 'node:assert/strict';
+import { chromium } from 'playwright-core';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const bin = resolve(process.env.LSE_DEFORM_BIN || join(here, '../../target/release/lse-deform'));
+const screenshot = resolve(process.env.SCREENSHOT || join(here, '../../results/editor/e2e.png'));
+const dragFrames = Number(process.env.DRAG_FRAMES || 0);
+
+let mesh = process.env.EDITOR_MESH;
+if (!mesh) {
+  mesh = join(mkdtempSync(join(tmpdir(), 'lse-editor-')), 'grid.obj');
+  execFileSync(bin, ['generate', 'grid', '--vertices', '4000', '-o', mesh]);
+}
+
+const server = spawn(bin, ['edit', mesh, '--port', '0'], { stdio: ['ignore', 'pipe', 'inherit'] });
+const url = await new Promise((ok, fail) => {
+  const lines = createInterface({ input: server.stdout });
+  lines.once('line', (line) => {
+    const m = /^listening on (http:\/\/\S+\/)$/.exec(line);
+    m ? ok(m[1]) : fail(new Error(`first line: ${line}`));
+  });
+  server.once('exit', (code) => fail(new Error(`server exited with ${code}`)));
+});
+
+async function positions() {
+  const b = await (await fetch(`${url}api/positions?format=f64`)).arrayBuffer();
+  return new Float64Array(b);
+}
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
+    '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+});
+let failed = false;
+try {
+  const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
+  page.on('pageerror', (e) => { console.error('page error:', e.message); failed = true; });
+  await page.goto(url);
+  await page.waitForFunction(() => window.editor && window.editor.ready, null, { timeout: 120000 });
+  const n = await page.evaluate(() => window.editor.state.mesh.vertices);
+
+  // The screen position of the vertex extreme along the longest axis (min or max).
+  const extreme = (which) => page.evaluate((which) => {
+    const s = window.editor.state, p = s.restF64, n = s.mesh.vertices;
+    const ext = [0, 1, 2].map((c) => s.mesh.bbox.max[c] - s.mesh.bbox.min[c]);
+    const axis = ext.indexOf(Math.max(...ext));
+    let best = 0;
+    for (let i = 1; i < n; i++) if (which === 'min' ? p[3 * i + axis] < p[3 * best + axis] : p[3 * i + axis] > p[3 * best + axis]) best = i;
+    const canvas = document.getElementById('canvas').getBoundingClientRect();
+    const project = window.editor.view.projector();
+    const [x, y] = project(best);
+    return { vertex: best, x: x + canvas.left, y: y + canvas.top };
+  }, which);
+
+  const stroke = async (from) => {
+    await page.mouse.move(from.x, from.y);
+    await page.mouse.down();
+    for (let k = 1; k <= 5; k++) await page.mouse.move(from.x + 4 * k, from.y + 2 * k);
+    await page.mouse.up();
+    await page.waitForFunction(() => document.getElementById('progress').style.display === 'none');
+  };
+  const applied = (count) => page.waitForFunction((count) => (window.editor.state.report?.constraints || 0) >= count && window.editor.state.report?.rank != null, count, { timeout: 120000 });
+
+  await page.click('button[data-tool=brush]');
+  const low = await extreme('min');
+  await stroke(low);
+  // Brushing only the fixed group pins the mesh: the report arrives.
+  await applied(1);
+  await page.click('#newgroup');
+  const high = await extreme('max');
+  await stroke(high);
+  const groups = await page.evaluate(() => Object.fromEntries([...window.editor.state.groups].map(([g, s]) => [g, [...s]])));
+  assert.ok(groups.fixed?.length > 0, 'the brush put vertices in "fixed"');
+  assert.ok(groups['handle 1']?.length > 0, 'the brush put vertices in "handle 1"');
+  await applied(groups.fixed.length + groups['handle 1'].length);
+  const before = await positions();
+
+  await page.click('button[data-tool=move]');
+  await page.mouse.move(high.x, high.y);
+  await page.mouse.down();
+  for (let k = 1; k <= 20; k++) await page.mouse.move(high.x + 3 * k, high.y - 6 * k);
+  await page.mouse.up();
+  await page.waitForFunction(() => !window.editor.state.inflight);
+  await page.waitForTimeout(300);
+  const after = await positions();
+
+  const moved = (v) => Math.hypot(...[0, 1, 2].map((c) => after[3 * v + c] - before[3 * v + c]));
+  const diag = (await (await fetch(`${url}api/mesh`)).json()).diagonal;
+  const handleMove = Math.min(...groups['handle 1'].map(moved));
+  const fixedMove = Math.max(...groups.fixed.map(moved));
+  let surfaceMove = 0;
+  for (let v = 0; v < n; v++) surfaceMove = Math.max(surfaceMove, moved(v));
+  console.log(JSON.stringify({ vertices: n, fixed: groups.fixed.length, handle: groups['handle 1'].length, handleMove: handleMove / diag, fixedMove: fixedMove / diag }));
+  assert.ok(handleMove > 0.05 * diag, `the handle moved by ${handleMove / diag} of the diagonal`);
+  assert.ok(surfaceMove >= handleMove, 'the surface moved');
+  assert.ok(fixedMove <= 1e-9 * diag, `the fixed region moved by ${fixedMove / diag} of the diagonal`);
+  mkdirSync(dirname(screenshot), { recursive: true });
+  await page.screenshot({ path: screenshot });
+
+  if (dragFrames > 0) {
+    const figure = await page.evaluate((f) => window.editor.scriptedDrag('handle 1', f), dragFrames);
+    console.log(JSON.stringify({ scriptedDrag: figure }));
+    await page.screenshot({ path: screenshot.replace(/\.png$/, '-drag.png') });
+  }
+} catch (e) {
+  console.error(e);
+  failed = true;
+} finally {
+  await browser.close();
+  server.kill();
+}
+console.log(failed ? '0 passed, 1 failed' : '1 passed, 0 failed');
+process.exit(failed ? 1 : 0);
