@@ -115,7 +115,8 @@ fn frobenius(a: &Mat3) -> f64 {
 /// iteration converges: the factor then has `det = +1`, i.e. it is the
 /// rotation maximising `tr(Rᵀ a)`.
 pub fn polar_newton(a: &Mat3) -> Option<Mat3> {
-    if !(det3(a) > NEWTON_MIN_DET) {
+    let det = det3(a);
+    if det.is_nan() || det <= NEWTON_MIN_DET {
         return None;
     }
     let mut x = *a;
