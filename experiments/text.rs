@@ -15,6 +15,7 @@
 use std::sync::OnceLock;
 
 use ab_glyph::{Font, FontRef, PxScale, ScaleFont, point};
+use lse_deform::render::text::advance;
 use plotters_backend::text_anchor::{HPos, VPos};
 use plotters_backend::{
     BackendColor, BackendCoord, BackendStyle, BackendTextStyle, DrawingBackend, DrawingErrorKind,
@@ -115,22 +116,6 @@ fn layout<S: BackendTextStyle>(text: &str, style: &S) -> Result<Line, TextError>
 pub fn text_width(text: &str, size: f64) -> Result<f64, TextError> {
     let faces = faces()?;
     Ok(advance(&faces.regular, PxScale::from(size.max(1.0) as f32), text) as f64)
-}
-
-/// Total advance of `text` (advances plus kerning), pixels.
-fn advance(font: &FontRef<'static>, scale: PxScale, text: &str) -> f32 {
-    let scaled = font.as_scaled(scale);
-    let mut width = 0.0;
-    let mut previous = None;
-    for c in text.chars() {
-        let id = scaled.glyph_id(c);
-        if let Some(p) = previous {
-            width += scaled.kern(p, id);
-        }
-        width += scaled.h_advance(id);
-        previous = Some(id);
-    }
-    width
 }
 
 impl<B: DrawingBackend> DrawingBackend for GoodText<B> {
