@@ -61,9 +61,14 @@ def shared_mesh(name):
 
 
 def cli_binary():
-    """The `lse-deform` binary: $LSE_DEFORM_BIN, target/{release,debug}, or PATH."""
-    candidates = [os.environ.get("LSE_DEFORM_BIN")]
-    candidates += [str(ROOT / "target" / p / "lse-deform") for p in ("release", "debug")]
+    """The `lse-deform` binary: $LSE_DEFORM_BIN, target/{release,debug}, or PATH.
+
+    When $LSE_DEFORM_BIN is set (as `.ci/run` does) it is returned as it is,
+    so that a missing binary fails the tests that need it instead of
+    skipping them."""
+    if os.environ.get("LSE_DEFORM_BIN"):
+        return os.environ["LSE_DEFORM_BIN"]
+    candidates = [str(ROOT / "target" / p / "lse-deform") for p in ("release", "debug")]
     candidates += [shutil.which("lse-deform")]
     for c in candidates:
         if c and os.access(c, os.X_OK):
