@@ -257,20 +257,39 @@ function countFrame() {
 window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1) => {
   const tr = transformOf(group);
   const t0 = performance.now();
-  const server = [];
+  // Per frame: the server's compute (its own clock), the POST round trip,
+  // the positions' download, and the upload + draw until the GPU (or
+  // SwiftShader) is done.
+  const phases = { server: [], post: [], download: [], render: [] };
   for (let f = 1; f <= frames; f++) {
     const a = (2 * Math.PI * turn * f) / frames;
     tr.t = [amplitude * view.radius * Math.sin(a), amplitude * view.radius * (1 - Math.cos(a)), 0];
+    const t1 = performance.now();
     const answer = await send('POST', '/api/transform', { group, matrix: matrixOf(tr) });
-    server.push(1e3 * answer.compute_s);
-    view.setPositions(await getF32('/api/positions?format=f32'));
+    const t2 = performance.now();
+    const positions = await getF32('/api/positions?format=f32');
+    const t3 = performance.now();
+    view.setPositions(positions);
     view.render();
     view.gl.finish();
+    const t4 = performance.now();
+    phases.server.push(1e3 * answer.compute_s);
+    phases.post.push(t2 - t1);
+    phases.download.push(t3 - t2);
+    phases.render.push(t4 - t3);
     countFrame();
   }
   const seconds = (performance.now() - t0) / 1000;
-  server.sort((a, b) => a - b);
-  return { frames, seconds, fps: frames / seconds, serverFrameMedianMs: server[server.length >> 1] };
+  const median = (xs) => [...xs].sort((a, b) => a - b)[xs.length >> 1];
+  return {
+    frames,
+    seconds,
+    fps: frames / seconds,
+    serverFrameMedianMs: median(phases.server),
+    postMedianMs: median(phases.post),
+    downloadMedianMs: median(phases.download),
+    renderMedianMs: median(phases.render),
+  };
 };
 
 // --- events ----------------------------------------------------------------
