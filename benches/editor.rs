@@ -3,6 +3,8 @@
 //! "handle"), per frame
 //!
 //! - `basis`: `X = X₀ + R Mᵀ` ([`HandleBasis::evaluate`]);
+//! - `basis-f32`: the same written as `f32` ([`HandleBasis::evaluate_f32`],
+//!   what a renderer uploads);
 //! - `memory-floor`: reading as many bytes as the basis holds (a parallel
 //!   sum over a buffer of [`HandleBasis::bytes`], in the chunks `basis`
 //!   reads): the bandwidth bound of `basis`;
@@ -94,6 +96,16 @@ fn per_frame(c: &mut Criterion, file: &str, generated: usize) {
                 .evaluate(&[frame(&mesh, k)], &mut out)
                 .expect("evaluate");
             black_box(&out);
+        })
+    });
+    let mut out_f32 = vec![[0.0f32; 3]; n];
+    g.bench_function("basis-f32", |b| {
+        b.iter(|| {
+            k += 1;
+            basis
+                .evaluate_f32(&[frame(&mesh, k)], &mut out_f32)
+                .expect("evaluate");
+            black_box(&out_f32);
         })
     });
     g.bench_function("memory-floor", |b| {

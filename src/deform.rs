@@ -191,14 +191,16 @@ impl Deformer {
 
     /// Solves for right-hand sides `c` (l × k) and `d` (m × k) of the
     /// problem's shape in place of its own, in the problem's units, refined
-    /// as [`Deformer::solve`] refines; the problem's targets and the report
-    /// stay. See [`LseSolver::solve_columns`].
+    /// as `mode` says; returns `X` and its forward-error estimate. The
+    /// problem's targets and the report stay. See
+    /// [`LseSolver::solve_columns`].
     pub fn solve_columns(
         &mut self,
         c: MatRef<'_, f64>,
         d: MatRef<'_, f64>,
-    ) -> Result<Mat<f64>, Error> {
-        self.solver.solve_columns(c, d)
+        mode: Refine,
+    ) -> Result<(Mat<f64>, f64), Error> {
+        self.solver.solve_columns(c, d, mode)
     }
 
     /// Fills the report's solution diagnostics (residuals, redundant and

@@ -18,9 +18,10 @@
 //! Laplacian coordinates and the other constraints' current targets kept)
 //! and `R_g` (n × 4) the solutions for `C = 0`, every other target 0, and
 //! group `g`'s targets the four columns of `[P_g t_g]`. The `3 + 4G`
-//! columns are solved with the existing factor, three at a time, each
-//! refined as [`Deformer::solve`] refines
-//! ([`Deformer::solve_columns`]). Per frame: `n × (3 + 12G)` multiply-adds
+//! columns are solved with the existing factor in one pass when the
+//! formulation allows (the null-space method; else three at a time) and
+//! refined ([`solve_basis`]: [`BASIS_REFINE_STEPS`] steps when they bring
+//! the estimate below [`BASIS_FORWARD_ERROR`]). Per frame: `n × (3 + 12G)` multiply-adds
 //! over `n × (3 + 4G)` stored numbers, read once — the memory floor is
 //! reading them ([`HandleBasis::bytes`]).
 //!
@@ -35,27 +36,37 @@
 
 use std::time::Instant;
 
-use faer::Mat;
+use faer::{Mat, MatRef};
 use rayon::prelude::*;
 
 use crate::deform::{Affine, Deformer};
 use crate::error::{Error, ProblemError};
+use crate::formulation::Refine;
 use crate::problem::RowPlace;
 
 /// Vertices per parallel task of [`HandleBasis::evaluate`] (a few hundred
 /// KiB of basis each: large enough that scheduling is negligible).
 const EVALUATE_CHUNK: usize = 8192;
 
+/// Vertices per storage block: the basis holds, per block of `LANES`
+/// vertices, each of its `3 + 4G` columns as `LANES` consecutive numbers,
+/// so that the per-frame arithmetic runs across vertices in SIMD lanes (a
+/// row-per-vertex layout puts the 12 products of one vertex in one scalar
+/// chain). A multiple of every vector width up to 512 bits.
+const LANES: usize = 8;
+
 /// The affine response basis of some constraint groups of a [`Deformer`]:
-/// `X₀` and `R_g` in the mesh's units, one row per vertex.
+/// `X₀` and `R_g` in the mesh's units.
 #[derive(Debug, Clone)]
 pub struct HandleBasis {
     groups: Vec<String>,
     n: usize,
-    /// Per vertex `[X₀ (3), R_1 (4), …, R_G (4)]`, stride `3 + 4G`: one
-    /// stream read per frame.
-    rows: Vec<f64>,
+    /// Blocks of [`LANES`] vertices (the last padded with zeros), each
+    /// `[X₀ x, X₀ y, X₀ z, R_1 col 0..4, …, R_G col 0..4]` with `LANES`
+    /// numbers per column: one stream read per frame.
+    blocks: Vec<f64>,
     build_time_s: f64,
+    forward_error_estimate: f64,
 }
 
 impl HandleBasis {
@@ -77,13 +88,14 @@ impl HandleBasis {
             members.push(deformer.group_members(name)?);
         }
         let (c, d) = basis_right_hand_sides(deformer, &members);
-        let x = deformer.solve_columns(c.as_ref(), d.as_ref())?;
-        let rows = interleave(&x, deformer.length_unit(), names.len());
+        let (x, forward_error_estimate) = solve_basis(deformer, c.as_ref(), d.as_ref())?;
+        let blocks = into_blocks(&x, deformer.length_unit(), names.len());
         Ok(HandleBasis {
             groups: names.iter().map(|s| s.to_string()).collect(),
             n: x.nrows(),
-            rows,
+            blocks,
             build_time_s: t.elapsed().as_secs_f64(),
+            forward_error_estimate,
         })
     }
 
@@ -98,9 +110,10 @@ impl HandleBasis {
         self.n
     }
 
-    /// The bytes of `X₀` and the `R_g`: what one evaluation reads.
+    /// The bytes of `X₀` and the `R_g` (with the last block's padding):
+    /// what one evaluation reads.
     pub fn bytes(&self) -> usize {
-        self.rows.len() * std::mem::size_of::<f64>()
+        self.blocks.len() * std::mem::size_of::<f64>()
     }
 
     /// Seconds [`HandleBasis::new`] took (the solves of its `3 + 4G`
@@ -109,18 +122,59 @@ impl HandleBasis {
         self.build_time_s
     }
 
+    /// The forward-error estimate of the basis columns, relative to the
+    /// length scale (see [`BASIS_FORWARD_ERROR`]).
+    pub fn forward_error_estimate(&self) -> f64 {
+        self.forward_error_estimate
+    }
+
     /// `out = X₀ + Σ_g R_g M_gᵀ` (positions in the mesh's units) for the
     /// transforms `m[g]` of [`HandleBasis::groups`] (the identity leaves a
     /// group at its rest targets). Allocates nothing; parallel over
-    /// vertices (rayon), as memory-bound as a read of the basis. Errors: wrong count of
-    /// transforms or of output rows, a non-finite matrix entry.
+    /// vertices (rayon), as memory-bound as a read of the basis. Errors:
+    /// wrong count of transforms or of output rows, a non-finite matrix
+    /// entry.
     pub fn evaluate(&self, m: &[Affine], out: &mut [[f64; 3]]) -> Result<(), Error> {
-        if m.len() != self.groups.len() || out.len() != self.n {
+        self.evaluate_with(m, out, |x| x)
+    }
+
+    /// [`HandleBasis::evaluate`] rounded to `f32` as it is written: the
+    /// format a renderer uploads (the editor's `GET /api/positions`
+    /// default), without an `f64` copy of the positions in between. The
+    /// arithmetic is the same `f64` as `evaluate`'s; only the store rounds
+    /// (relative error ≤ 2⁻²⁴ of each coordinate).
+    pub fn evaluate_f32(&self, m: &[Affine], out: &mut [[f32; 3]]) -> Result<(), Error> {
+        self.evaluate_with(m, out, |x| x.map(|v| v as f32))
+    }
+
+    fn evaluate_with<T: Send>(
+        &self,
+        m: &[Affine],
+        out: &mut [T],
+        store: impl Fn([f64; 3]) -> T + Sync,
+    ) -> Result<(), Error> {
+        self.check_transforms(m, out.len())?;
+        let stride = (3 + 4 * m.len()) * LANES;
+        self.blocks
+            .par_chunks(stride * (EVALUATE_CHUNK / LANES))
+            .zip(out.par_chunks_mut(EVALUATE_CHUNK))
+            .for_each(|(blocks, out)| {
+                for (block, out) in blocks.chunks_exact(stride).zip(out.chunks_mut(LANES)) {
+                    let x = evaluate_block(block, m);
+                    for (lane, p) in out.iter_mut().enumerate() {
+                        *p = store([x[0][lane], x[1][lane], x[2][lane]]);
+                    }
+                }
+            });
+        Ok(())
+    }
+
+    fn check_transforms(&self, m: &[Affine], out_rows: usize) -> Result<(), Error> {
+        if m.len() != self.groups.len() || out_rows != self.n {
             return Err(ProblemError::Dimensions {
                 message: format!(
-                    "{} transforms and {} output rows given, the basis has {} groups and {} vertices",
+                    "{} transforms and {out_rows} output rows given, the basis has {} groups and {} vertices",
                     m.len(),
-                    out.len(),
                     self.groups.len(),
                     self.n
                 ),
@@ -139,27 +193,73 @@ impl HandleBasis {
             }
             .into());
         }
-        let stride = 3 + 4 * m.len();
-        self.rows
-            .par_chunks(stride * EVALUATE_CHUNK)
-            .zip(out.par_chunks_mut(EVALUATE_CHUNK))
-            .for_each(|(rows, out)| {
-                for (row, p) in rows.chunks_exact(stride).zip(out.iter_mut()) {
-                    let mut x = [row[0], row[1], row[2]];
-                    for (g, mg) in m.iter().enumerate() {
-                        let r = &row[3 + 4 * g..7 + 4 * g];
-                        for c in 0..3 {
-                            x[c] += r[0] * mg[c][0]
-                                + r[1] * mg[c][1]
-                                + r[2] * mg[c][2]
-                                + r[3] * mg[c][3];
-                        }
-                    }
-                    *p = x;
-                }
-            });
         Ok(())
     }
+}
+
+/// `X₀ + Σ_g R_g M_gᵀ` for the [`LANES`] vertices of one block, coordinate
+/// by coordinate across the lanes (the loops over lanes vectorise).
+#[inline]
+fn evaluate_block(block: &[f64], m: &[Affine]) -> [[f64; LANES]; 3] {
+    let column = |j: usize| -> &[f64; LANES] {
+        block[j * LANES..(j + 1) * LANES]
+            .try_into()
+            .expect("a block holds whole columns")
+    };
+    let mut x = [*column(0), *column(1), *column(2)];
+    for (g, mg) in m.iter().enumerate() {
+        let r = [
+            column(3 + 4 * g),
+            column(4 + 4 * g),
+            column(5 + 4 * g),
+            column(6 + 4 * g),
+        ];
+        for (xc, mc) in x.iter_mut().zip(mg) {
+            for lane in 0..LANES {
+                xc[lane] += r[0][lane] * mc[0]
+                    + r[1][lane] * mc[1]
+                    + r[2][lane] * mc[2]
+                    + r[3][lane] * mc[3];
+            }
+        }
+    }
+    x
+}
+
+/// With [`Refine::Auto`], basis columns whose forward-error estimate after
+/// [`BASIS_REFINE_STEPS`] refinement steps is at most this (relative to the
+/// length scale) are kept: a thousandth of the `1e-9` agreement with a
+/// full solve that [`HandleBasis::evaluate`] promises.
+pub const BASIS_FORWARD_ERROR: f64 = 1e-12;
+
+/// Refinement steps of the basis columns before their estimate is checked
+/// against [`BASIS_FORWARD_ERROR`]. The null-space method's solve is
+/// accurate to about `ε κ` and every step multiplies the error by about
+/// `ε κ`: two steps reach the rounding floor whenever `ε κ < 10⁻⁵`, and
+/// the size of the second is the estimate (the Stanford bunny's scene:
+/// `1.5e-10` before the first step, `9e-15` before the second).
+/// [`Refine::Auto`] would compute one more step only to see it no longer
+/// shrink.
+pub const BASIS_REFINE_STEPS: usize = 2;
+
+/// The `3 + 4G` columns in one solve. With the deformer's refinement mode
+/// [`Refine::Auto`]: [`BASIS_REFINE_STEPS`] steps, kept when the estimate
+/// is at most [`BASIS_FORWARD_ERROR`], else solved again and refined to
+/// convergence as a solve is. Other modes are used as they are.
+fn solve_basis(
+    deformer: &mut Deformer,
+    c: MatRef<'_, f64>,
+    d: MatRef<'_, f64>,
+) -> Result<(Mat<f64>, f64), Error> {
+    let mode = deformer.refine_mode();
+    if mode != Refine::Auto {
+        return deformer.solve_columns(c, d, mode);
+    }
+    let (x, estimate) = deformer.solve_columns(c, d, Refine::Steps(BASIS_REFINE_STEPS))?;
+    if estimate <= BASIS_FORWARD_ERROR {
+        return Ok((x, estimate));
+    }
+    deformer.solve_columns(c, d, Refine::Auto)
 }
 
 /// The `3 + 4G` right-hand-side columns of the basis, in the problem's
@@ -206,19 +306,25 @@ fn basis_right_hand_sides(deformer: &Deformer, members: &[Vec<usize>]) -> (Mat<f
     (c, d)
 }
 
-/// Per vertex `[X₀, R_1, …]` in the mesh's units from the solved columns
-/// (problem units): positions and the responses to the linear part scale
-/// by `unit`; the response to the translation column is already a length
-/// per length.
-fn interleave(x: &Mat<f64>, unit: f64, n_groups: usize) -> Vec<f64> {
-    let stride = 3 + 4 * n_groups;
-    let mut rows = vec![0.0; x.nrows() * stride];
-    for (v, row) in rows.chunks_exact_mut(stride).enumerate() {
-        for j in 0..stride {
+/// The blocks of [`HandleBasis`] in the mesh's units from the solved
+/// columns (problem units): positions and the responses to the linear part
+/// scale by `unit`; the response to the translation column is already a
+/// length per length.
+fn into_blocks(x: &Mat<f64>, unit: f64, n_groups: usize) -> Vec<f64> {
+    let columns = 3 + 4 * n_groups;
+    let n_blocks = x.nrows().div_ceil(LANES);
+    let mut blocks = vec![0.0; n_blocks * columns * LANES];
+    for (b, block) in blocks.chunks_exact_mut(columns * LANES).enumerate() {
+        for j in 0..columns {
             let translation_column = j >= 3 && (j - 3) % 4 == 3;
             let scale = if translation_column { 1.0 } else { unit };
-            row[j] = x[(v, j)] * scale;
+            for lane in 0..LANES {
+                let v = b * LANES + lane;
+                if v < x.nrows() {
+                    block[j * LANES + lane] = x[(v, j)] * scale;
+                }
+            }
         }
     }
-    rows
+    blocks
 }

@@ -31,8 +31,10 @@
 //!
 //! **Right-hand-side blocks.** Formulations solve [`RHS_BLOCK`] `= 3`
 //! columns at a time (their kernels interleave x, y, z). A problem with
-//! `k ≠ 3` columns is solved in `⌈k/3⌉` blocks of three, the last padded
-//! with zero columns; each block costs what a mesh solve costs.
+//! `k > 3` columns is solved in one pass when the formulation can
+//! ([`Prepared::solve_wide_into`]: the null-space method), else in
+//! `⌈k/3⌉` blocks of three, the last padded with zero columns, each costing
+//! what a mesh solve costs; `k < 3` is padded to one block.
 //!
 //! **Singular problems.** For a general problem a factorisation that meets
 //! a zero pivot is reported as [`NumericalError::FreeUnknown`] naming the
@@ -203,15 +205,18 @@ impl LseSolver {
     }
 
     /// Solves for right-hand sides `c` (l × k) and `d` (m × k) in place of
-    /// the problem's, any `k`, three columns at a time with the current
-    /// refinement mode (each block refined as [`LseSolver::solve`] refines):
-    /// the columns of an affine response basis ([`crate::handle`]). The
-    /// problem's own `C` and `D` and the report are left as they were.
+    /// the problem's, any `k` (in one pass when the formulation can, else
+    /// three columns at a time), refined as `mode` says: the columns of an
+    /// affine response basis ([`crate::handle`]). Returns `X` and the
+    /// largest forward-error estimate of its refinements (relative to the
+    /// length scale; see [`crate::formulation::refine`]). The problem's own
+    /// `C` and `D` and the report are left as they were.
     pub fn solve_columns(
         &mut self,
         c: MatRef<'_, f64>,
         d: MatRef<'_, f64>,
-    ) -> Result<Mat<f64>, Error> {
+        mode: Refine,
+    ) -> Result<(Mat<f64>, f64), Error> {
         let (l, m, n) = (
             self.problem.a().nrows(),
             self.problem.b().nrows(),
@@ -229,7 +234,6 @@ impl LseSolver {
             }
             .into());
         }
-        let mode = self.refine_mode();
         let system = self
             .system
             .as_mut()
@@ -237,7 +241,7 @@ impl LseSolver {
                 message: "solve called before precompute".into(),
             })?;
         let mut x = Mat::zeros(n, c.ncols());
-        solve_blocks_of(
+        let refinements = solve_blocks_of(
             system.as_mut(),
             &mut self.problem,
             c,
@@ -246,7 +250,11 @@ impl LseSolver {
             Some(mode),
         )?;
         check_finite(x.as_ref())?;
-        Ok(x)
+        let estimate = refinements
+            .iter()
+            .map(|r| r.forward_error_estimate)
+            .fold(0.0, f64::max);
+        Ok((x, estimate))
     }
 
     /// Fills the report's solution diagnostics for `x` (the result of the
@@ -361,6 +369,11 @@ fn solve_blocks_of(
     refine_mode: Option<Refine>,
 ) -> Result<Vec<Refinement>, Error> {
     let k = c.ncols();
+    if k > RHS_BLOCK {
+        if let Some(refinements) = solve_wide(system, problem, c, d, x.as_mut(), refine_mode)? {
+            return Ok(refinements);
+        }
+    }
     let (l, m, n) = (problem.a().nrows(), problem.b().nrows(), problem.n());
     let mut x_block = Mat::<f64>::zeros(n, RHS_BLOCK);
     let mut refinements = Vec::new();
@@ -386,6 +399,38 @@ fn solve_blocks_of(
             .copy_from(x_block.as_ref().submatrix(0, 0, n, width));
     }
     Ok(refinements)
+}
+
+/// All `k` columns in one pass ([`Prepared::solve_wide_into`]) and one
+/// refinement, or `None` when the formulation solves three columns at a
+/// time.
+fn solve_wide(
+    system: &mut dyn Prepared,
+    problem: &mut LseProblem,
+    c: MatRef<'_, f64>,
+    d: MatRef<'_, f64>,
+    mut x: MatMut<'_, f64>,
+    refine_mode: Option<Refine>,
+) -> Result<Option<Vec<Refinement>>, Error> {
+    let (mut c_wide, mut d_wide) = (c.to_owned(), d.to_owned());
+    let mut x_wide = Mat::<f64>::zeros(problem.n(), c.ncols());
+    problem.swap_rhs(&mut c_wide, &mut d_wide);
+    let mut result = system.solve_wide_into(problem, x_wide.as_mut());
+    let mut refinements = Vec::new();
+    if let (Ok(true), Some(mode)) = (&result, refine_mode) {
+        result = check_finite(x_wide.as_ref())
+            .and_then(|()| refine(system, problem, &mut x_wide, mode))
+            .map(|r| {
+                refinements.push(r);
+                true
+            });
+    }
+    problem.swap_rhs(&mut c_wide, &mut d_wide);
+    if !result? {
+        return Ok(None);
+    }
+    x.copy_from(&x_wide);
+    Ok(Some(refinements))
 }
 
 /// The warnings a refinement outcome calls for: an estimated forward error

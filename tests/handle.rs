@@ -66,9 +66,15 @@ fn basis_vs_full_solve(
     deformer.precompute(formulation)?;
     let basis = HandleBasis::new(&mut deformer, groups)?;
     let mut out = vec![[0.0; 3]; n];
+    let mut out_f32 = vec![[0.0f32; 3]; n];
     let mut worst = 0.0f64;
     for frame in frames {
         basis.evaluate(frame, &mut out)?;
+        // The f32 path is the same arithmetic, rounded only at the store.
+        basis.evaluate_f32(frame, &mut out_f32)?;
+        for (p, q) in out.iter().zip(&out_f32) {
+            assert_eq!(p.map(|v| v as f32), *q);
+        }
         for (name, m) in groups.iter().zip(frame) {
             deformer.transform_group(name, m)?;
         }

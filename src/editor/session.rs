@@ -392,7 +392,7 @@ impl Session {
                 basis_stale,
                 ..
             }) => {
-                json!({"groups": b.groups(), "bytes": b.bytes(), "build_s": b.build_time_s(), "stale": basis_stale})
+                json!({"groups": b.groups(), "bytes": b.bytes(), "build_s": b.build_time_s(), "forward_error_estimate": b.forward_error_estimate(), "stale": basis_stale})
             }
             _ => Value::Null,
         };

@@ -83,6 +83,21 @@ pub trait Prepared: Send {
         Ok(())
     }
 
+    /// Solves for the current `C` and `D` of `problem` with **any** number
+    /// `k` of columns in one pass (`out` n × k), when the formulation's
+    /// kernels allow it; `Ok(false)` (and `out` untouched) when it solves
+    /// [`RHS_BLOCK`](crate::problem::RHS_BLOCK) columns at a time only (the
+    /// default). One pass over the factor for all `k` columns costs far less
+    /// than `⌈k/3⌉` passes: what a response basis of `3 + 4G` columns
+    /// needs.
+    fn solve_wide_into(
+        &mut self,
+        _problem: &LseProblem,
+        _out: MatMut<'_, f64>,
+    ) -> Result<bool, Error> {
+        Ok(false)
+    }
+
     /// Rows of `B` that the method does not enforce because they depend on
     /// earlier ones (increasing). Empty for methods that enforce all rows
     /// or fail.

@@ -252,6 +252,29 @@ impl Prepared for PreparedNullSpace {
         Ok(())
     }
 
+    /// The same solution for any width `k`: `y = R1⁻ᵀ D`, `X_p = Q[y; 0]`
+    /// (so `B X_p = D` on the kept rows), then `X = X_p + ΔX` with the
+    /// correction below, which is `Q[0; z]` for `z = H⁻¹ (AQ2)ᵀ (C − A X_p)`
+    /// — what [`Prepared::solve_into`] computes with its 3-column kernels.
+    fn solve_wide_into(
+        &mut self,
+        problem: &LseProblem,
+        mut out: MatMut<'_, f64>,
+    ) -> Result<bool, Error> {
+        let qr = &*self.qr;
+        let k = out.ncols();
+        let mut y = Mat::<f64>::zeros(qr.rank(), k);
+        qr.solve_r1t(problem.d().as_ref(), y.as_mut());
+        let z = Mat::<f64>::zeros(qr.n() - qr.rank(), k);
+        let mut x = Mat::<f64>::zeros(qr.n(), k);
+        qr.apply_q(y.as_ref(), z.as_ref(), x.as_mut());
+        if let Some(dx) = self.correction(problem, &x)? {
+            x += dx;
+        }
+        out.copy_from(&x);
+        Ok(true)
+    }
+
     /// Corrected semi-normal equations (Björck 1987) on the reduced
     /// problem: `g = Q2ᵀ Aᵀ (C − A X)`, `Δz = H⁻¹ g`, `ΔX = Q [0; Δz]`. The
     /// correction lies in the null space of the kept rows of `B`, so the
