@@ -39,6 +39,7 @@ use std::time::Instant;
 use faer::{Mat, MatRef};
 use rayon::prelude::*;
 
+use crate::cpu::clear_upper_vector_state;
 use crate::deform::{Affine, Deformer};
 use crate::error::{Error, ProblemError};
 use crate::formulation::Refine;
@@ -158,7 +159,7 @@ impl HandleBasis {
         self.blocks
             .par_chunks(stride * (EVALUATE_CHUNK / LANES))
             .zip(out.par_chunks_mut(EVALUATE_CHUNK))
-            .for_each(|(blocks, out)| {
+            .for_each_init(clear_upper_vector_state, |(), (blocks, out)| {
                 for (block, out) in blocks.chunks_exact(stride).zip(out.chunks_mut(LANES)) {
                     let x = evaluate_block(block, m);
                     for (lane, p) in out.iter_mut().enumerate() {

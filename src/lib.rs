@@ -32,6 +32,7 @@ pub mod arap;
 pub mod backend;
 pub mod condition;
 pub mod constraints;
+pub(crate) mod cpu;
 pub mod deform;
 #[cfg(feature = "editor")]
 pub mod editor;

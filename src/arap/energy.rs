@@ -42,6 +42,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, MatMut};
 use rayon::prelude::*;
 
+use crate::cpu::clear_upper_vector_state;
 use crate::mesh::Mesh;
 
 /// Which ARAP energy.
@@ -257,7 +258,9 @@ impl ArapTriangles {
         blocks
             .par_chunks_mut(per)
             .enumerate()
-            .for_each(|(t, out)| self.triangle_blocks(t, &cols, out));
+            .for_each_init(clear_upper_vector_state, |(), (t, out)| {
+                self.triangle_blocks(t, &cols, out)
+            });
     }
 
     fn triangle_blocks(&self, t: usize, x: &[&[f64]; 3], out: &mut [CovarianceBlock]) {
@@ -388,7 +391,7 @@ impl ArapTriangles {
         )
             .into_par_iter()
             .enumerate()
-            .map(|(t, (a, b, c))| {
+            .map_init(clear_upper_vector_state, |(), (t, (a, b, c))| {
                 let block = self.rhs_block(t, r);
                 for row in 0..3 {
                     a[row] = block[row][0];

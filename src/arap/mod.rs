@@ -46,6 +46,7 @@ use faer::Mat;
 use rayon::prelude::*;
 
 use crate::constraints::{ConstraintKind, ConstraintSet};
+use crate::cpu::clear_upper_vector_state;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine, refine};
 use crate::mesh::{Mesh, topology};
@@ -416,7 +417,7 @@ impl ArapDeformer {
             .par_iter_mut()
             .zip(self.vertex_energies.par_iter_mut())
             .enumerate()
-            .map(|(i, (r, e))| {
+            .map_init(clear_upper_vector_state, |(), (i, (r, e))| {
                 let m = triangles.vertex_covariance(i, blocks);
                 let (fit, how) = fit_rotation_fast(&m.cross, r);
                 *r = fit;

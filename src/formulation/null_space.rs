@@ -21,6 +21,7 @@ use super::{Formulation, Prepared};
 use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
+use crate::cpu::clear_upper_vector_state;
 use crate::error::{Error, ProblemError};
 use crate::problem::LseProblem;
 use crate::report::Report;
@@ -188,6 +189,9 @@ impl Prepared for PreparedNullSpace {
     fn solve_into(&mut self, problem: &LseProblem, x: MatMut<'_, f64>) -> Result<(), Error> {
         let qr = &*self.qr;
         let ws = &mut self.workspace;
+        // The passes below are SSE loops on this thread, which may just
+        // have run faer's AVX kernels (crate::cpu).
+        clear_upper_vector_state();
         qr.solve_r1t(problem.d().as_ref(), ws.y.as_mut());
         if let Some(factor) = self.factor.as_mut() {
             // X_p = Q[y; 0], so that A Q1 y = A X_p.
@@ -247,6 +251,7 @@ impl Prepared for PreparedNullSpace {
                 }
             }
             factor.solve_in_place(ws.z.as_mut());
+            clear_upper_vector_state();
         }
         qr.apply_q(ws.y.as_ref(), ws.z.as_ref(), x);
         Ok(())

@@ -107,6 +107,7 @@ pub(crate) fn at_residual(
     c: MatRef<'_, f64>,
     x: MatRef<'_, f64>,
 ) -> Mat<f64> {
+    crate::cpu::clear_upper_vector_state();
     let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
     let k = c.ncols();
     let mut r = vec![0.0f64; a.nrows() * k];
