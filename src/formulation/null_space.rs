@@ -15,6 +15,7 @@ use std::time::Instant;
 
 use faer::sparse::SparseColMat;
 use faer::{Mat, MatMut};
+use rayon::prelude::*;
 
 use super::util::{factor_normal_matrix, nothing_factored};
 use super::{Formulation, Prepared};
@@ -154,6 +155,11 @@ impl ConstrainedColumns {
     }
 }
 
+/// Columns of `AQ2` per parallel task of the `(AQ2)ᵀ r` pass (a few tens
+/// of KiB of `AQ2` each: scheduling negligible, both cores busy from a few
+/// thousand unknowns on).
+const ZT_MIN_LEN: usize = 2048;
+
 /// Buffers of one solve, allocated once at precompute so that a drag loop
 /// only allocates its output.
 struct SolveWorkspace {
@@ -166,6 +172,8 @@ struct SolveWorkspace {
     /// `C − A X_p`, one `[x, y, z]` per row of A (the three coordinates of
     /// a row in one cache line for the two sparse passes).
     residual: Vec<[f64; 3]>,
+    /// `(AQ2)ᵀ (C − A X_p)` row by row, as the parallel pass writes it.
+    zt: Vec<[f64; 3]>,
 }
 
 impl SolveWorkspace {
@@ -175,6 +183,7 @@ impl SolveWorkspace {
             z: Mat::zeros(n - rank, 3),
             xp: Mat::zeros(n, 3),
             residual: vec![[0.0; 3]; a_rows],
+            zt: vec![[0.0; 3]; n - rank],
         }
     }
 }
@@ -234,20 +243,29 @@ impl Prepared for PreparedNullSpace {
                 self.aq2.symbolic().row_idx(),
                 self.aq2.val(),
             );
+            // Parallel over the columns of AQ2 (each a dot product with
+            // the residual), into `zt`, then copied into z's columns.
             let res = &ws.residual;
-            for j in 0..self.aq2.ncols() {
-                let mut s = [0.0; 3];
-                for (&i, &v) in rows[ptr[j]..ptr[j + 1]]
-                    .iter()
-                    .zip(&val[ptr[j]..ptr[j + 1]])
-                {
-                    let r = res[i];
-                    s[0] += v * r[0];
-                    s[1] += v * r[1];
-                    s[2] += v * r[2];
-                }
-                for (k, &sk) in s.iter().enumerate() {
-                    ws.z.col_as_slice_mut(k)[j] = sk;
+            ws.zt
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(ZT_MIN_LEN)
+                .for_each_init(clear_upper_vector_state, |(), (j, s)| {
+                    let mut acc = [0.0; 3];
+                    for (&i, &v) in rows[ptr[j]..ptr[j + 1]]
+                        .iter()
+                        .zip(&val[ptr[j]..ptr[j + 1]])
+                    {
+                        let r = res[i];
+                        acc[0] += v * r[0];
+                        acc[1] += v * r[1];
+                        acc[2] += v * r[2];
+                    }
+                    *s = acc;
+                });
+            for k in 0..3 {
+                for (z, s) in ws.z.col_as_slice_mut(k).iter_mut().zip(&ws.zt) {
+                    *z = s[k];
                 }
             }
             factor.solve_in_place(ws.z.as_mut());
