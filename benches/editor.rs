@@ -7,7 +7,11 @@
 //!   what a renderer uploads);
 //! - `memory-floor`: reading as many bytes as the basis holds (a parallel
 //!   sum with eight accumulators over a buffer of [`HandleBasis::bytes`],
-//!   in the chunks `basis` reads): the bandwidth bound of `basis`;
+//!   in the chunks `basis` reads): the bandwidth bound of `basis` (from
+//!   the cache when the basis fits in it, as the Bunny's does and about
+//!   all of igea's 30 MB on a 32 MiB last-level cache);
+//! - `read-256MiB`: the same read of 256 MiB, from DRAM: scaled by the
+//!   basis's bytes, the floor of a basis read from memory;
 //! - `full-solve`: `transform_group` and a refined solve with the factor;
 //!
 //! and, once per selection, `new-selection` (set-up, precompute, response
@@ -114,6 +118,13 @@ fn per_frame(c: &mut Criterion, file: &str, generated: usize) {
     g.bench_function("memory-floor", |b| {
         b.iter(|| black_box(read_all(&floor_buffer)))
     });
+    // The same read from DRAM: a buffer far beyond the last-level cache
+    // (tens of MiB on current CPUs), whose time scaled by
+    // `basis.bytes() / UNCACHED_BYTES` is the floor of a basis that does
+    // not stay in the cache between frames.
+    let uncached = vec![1.0f64; UNCACHED_BYTES / 8];
+    g.bench_function("read-256MiB", |b| b.iter(|| black_box(read_all(&uncached))));
+    drop(uncached);
     let mut x = Mat::<f64>::zeros(n, 3);
     g.sample_size(10).measurement_time(Duration::from_secs(10));
     g.bench_function("full-solve", |b| {
@@ -128,6 +139,9 @@ fn per_frame(c: &mut Criterion, file: &str, generated: usize) {
     });
     g.finish();
 }
+
+/// The buffer of `read-256MiB`.
+const UNCACHED_BYTES: usize = 256 << 20;
 
 /// A parallel sum over `buffer` in the chunks `basis` reads, with eight
 /// independent accumulators per task: one dependent add chain would be

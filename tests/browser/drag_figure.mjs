@@ -1,8 +1,9 @@
 // A scripted drag in headless Chromium against a running `lse-deform edit`
 // (the figure of results/editor/README.md): waits for the page, runs
 // window.editor.scriptedDrag('handle 1', FRAMES) — each frame POSTs the
-// transform, fetches the positions (f32) and renders — and prints the
-// page's frame rate and the server's median per-frame compute as JSON.
+// transform, fetches the positions (f32) and renders — once without
+// drawing and once with, and prints the page's frame rates and the medians
+// of each phase as JSON.
 // Usage: node drag_figure.mjs URL FRAMES SCREENSHOT_PREFIX
 import { chromium } from 'playwright-core';
 
@@ -18,12 +19,15 @@ try {
   await page.goto(url);
   await page.waitForFunction(() => window.editor && window.editor.ready, null, { timeout: 600000 });
   await page.screenshot({ path: `${prefix}-rest.png` });
+  // The same drag without drawing: what the server and the transfer allow.
+  const withoutRendering = await page.evaluate(
+    (f) => window.editor.scriptedDrag('handle 1', f, 0.25, 1, { render: false }), Number(frames));
   const result = await page.evaluate((f) => window.editor.scriptedDrag('handle 1', f, 0.25), Number(frames));
   // Stop at a quarter of the circle for the picture.
   await page.evaluate(() => window.editor.scriptedDrag('handle 1', 4, 0.25, 0.25));
   await page.screenshot({ path: `${prefix}-dragged.png` });
   const report = await (await fetch(`${url}api/report`)).json();
-  console.log(JSON.stringify({ url, ...result, serverReport: report.editor }, null, 1));
+  console.log(JSON.stringify({ url, ...result, withoutRendering, serverReport: report.editor }, null, 1));
 } finally {
   await browser.close();
 }

@@ -254,13 +254,15 @@ function countFrame() {
 // A scripted drag of `frames` frames (tests, figures): translates `group`
 // along `turn` of a circle of radius `amplitude` × the bounding-box radius, each frame
 // waiting for the positions and a render. Returns the page's frame rate.
-window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1) => {
+// With `render: false` the positions are fetched but not drawn: the frame
+// rate of the server and the transfer alone.
+window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1, { render = true } = {}) => {
   const tr = transformOf(group);
   const t0 = performance.now();
   // Per frame: the server's compute (its own clock), the POST round trip,
   // the positions' download, and the upload + draw until the GPU (or
   // SwiftShader) is done.
-  const phases = { server: [], post: [], download: [], render: [] };
+  const phases = { server: [], request: [], post: [], download: [], render: [] };
   for (let f = 1; f <= frames; f++) {
     const a = (2 * Math.PI * turn * f) / frames;
     tr.t = [amplitude * view.radius * Math.sin(a), amplitude * view.radius * (1 - Math.cos(a)), 0];
@@ -269,23 +271,30 @@ window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1) =>
     const t2 = performance.now();
     const positions = await getF32('/api/positions?format=f32');
     const t3 = performance.now();
-    view.setPositions(positions);
-    view.render();
-    view.gl.finish();
+    if (render) {
+      view.setPositions(positions);
+      view.render();
+      view.gl.finish();
+    }
     const t4 = performance.now();
     phases.server.push(1e3 * answer.compute_s);
+    phases.request.push(1e3 * answer.request_s);
+    window.editor.stats.serverFrameMs.push(1e3 * answer.compute_s);
     phases.post.push(t2 - t1);
     phases.download.push(t3 - t2);
     phases.render.push(t4 - t3);
     countFrame();
   }
   const seconds = (performance.now() - t0) / 1000;
+  await refreshReport();
   const median = (xs) => [...xs].sort((a, b) => a - b)[xs.length >> 1];
   return {
     frames,
     seconds,
     fps: frames / seconds,
+    rendered: render,
     serverFrameMedianMs: median(phases.server),
+    serverRequestMedianMs: median(phases.request),
     postMedianMs: median(phases.post),
     downloadMedianMs: median(phases.download),
     renderMedianMs: median(phases.render),
