@@ -145,7 +145,7 @@ fn bend_and_twist(ctx: &Context, dir: &Path) -> Result<Bend, AnyError> {
     } else {
         (32, 120, 0.1, 1.0)
     };
-    let iterations = if ctx.quick { 30 } else { 200 };
+    let iterations = if ctx.quick { 30 } else { 3000 };
     let mesh = tube(around, along, r, length)?;
     let cs = bend_constraints(&mesh, around, (along / 20).max(1), length)?;
     let mut arap = ArapDeformer::new(mesh.clone(), cs, ArapEnergy::SpokesAndRims)?;
