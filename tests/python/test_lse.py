@@ -133,3 +133,28 @@ def test_export_system_round_trip(tmp_path):
     # and the CLI's own solve of the same files
     subprocess.run([exe, "solve", str(out), "-o", str(tmp_path / "X.mtx")], check=True, capture_output=True)
     assert np.abs(scipy.io.mmread(str(tmp_path / "X.mtx")) - X).max() <= 1e-12 * np.abs(X).max()
+
+
+@pytest.mark.parametrize("seed,k", [(21, 3), (22, 4), (23, 2)])
+def test_cli_solve_names_exactly_the_dependent_rows(tmp_path, seed, k):
+    """`lse-deform solve` on Matrix Market files of a random sparse LSE with
+    constructed redundant and conflicting rows of B: the report names
+    exactly those rows and X is the dense KKT solution."""
+    exe = cli_binary()
+    if exe is None:
+        pytest.skip("the lse-deform binary is not built (cargo build)")
+    A, C, B, D, X_ref, redundant, conflicting = random_problem(seed, k=k)
+    for name, m in [("A", sp.coo_matrix(A)), ("B", sp.coo_matrix(B)), ("C", C), ("D", D)]:
+        scipy.io.mmwrite(tmp_path / f"{name}.mtx", m)
+    args = [exe, "solve"]
+    for name in "acbd":
+        args += [f"--{name}", str(tmp_path / f"{name.upper()}.mtx")]
+    args += ["-o", str(tmp_path / "X.mtx"), "--report", str(tmp_path / "r.json")]
+    done = subprocess.run(args, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["rank"] == 5
+    assert report["redundant"] == redundant
+    assert [c["index"] for c in report["conflicting"]] == conflicting
+    X = np.asarray(scipy.io.mmread(tmp_path / "X.mtx"))
+    assert np.abs(X - X_ref).max() <= 1e-10 * max(1.0, np.abs(X_ref).max())
