@@ -370,8 +370,19 @@ fn solve_blocks_of(
 ) -> Result<Vec<Refinement>, Error> {
     let k = c.ncols();
     if k > RHS_BLOCK {
-        if let Some(refinements) = solve_wide(system, problem, c, d, x.as_mut(), refine_mode)? {
-            return Ok(refinements);
+        let (mut c_wide, mut d_wide) = (c.to_owned(), d.to_owned());
+        let mut x_wide = Mat::<f64>::zeros(problem.n(), k);
+        let (solved, refinement) = solve_with_rhs(
+            system,
+            problem,
+            (&mut c_wide, &mut d_wide),
+            &mut x_wide,
+            refine_mode,
+            |s, p, out| s.solve_wide_into(p, out),
+        )?;
+        if solved {
+            x.copy_from(&x_wide);
+            return Ok(refinement.into_iter().collect());
         }
     }
     let (l, m, n) = (problem.a().nrows(), problem.b().nrows(), problem.n());
@@ -385,15 +396,15 @@ fn solve_blocks_of(
         let mut d_block = Mat::from_fn(m, RHS_BLOCK, |i, j| {
             if j < width { d[(i, start + j)] } else { 0.0 }
         });
-        problem.swap_rhs(&mut c_block, &mut d_block);
-        let mut result = system.solve_into(problem, x_block.as_mut());
-        if let (Ok(()), Some(mode)) = (&result, refine_mode) {
-            result = check_finite(x_block.as_ref())
-                .and_then(|()| refine(system, problem, &mut x_block, mode))
-                .map(|r| refinements.push(r));
-        }
-        problem.swap_rhs(&mut c_block, &mut d_block);
-        result?;
+        let (_, refinement) = solve_with_rhs(
+            system,
+            problem,
+            (&mut c_block, &mut d_block),
+            &mut x_block,
+            refine_mode,
+            |s, p, out| s.solve_into(p, out).map(|()| true),
+        )?;
+        refinements.extend(refinement);
         x.as_mut()
             .submatrix_mut(0, start, n, width)
             .copy_from(x_block.as_ref().submatrix(0, 0, n, width));
@@ -401,36 +412,32 @@ fn solve_blocks_of(
     Ok(refinements)
 }
 
-/// All `k` columns in one pass ([`Prepared::solve_wide_into`]) and one
-/// refinement, or `None` when the formulation solves three columns at a
-/// time.
-fn solve_wide(
+/// `solve` into `x` with `c`, `d` in place of the problem's right-hand
+/// sides (swapped back whatever happens), then, when it solved (`true`:
+/// [`Prepared::solve_wide_into`] may decline) and `refine_mode` says so,
+/// the finiteness check and the refinement. Returns `solve`'s flag and the
+/// refinement.
+fn solve_with_rhs(
     system: &mut dyn Prepared,
     problem: &mut LseProblem,
-    c: MatRef<'_, f64>,
-    d: MatRef<'_, f64>,
-    mut x: MatMut<'_, f64>,
+    (c, d): (&mut Mat<f64>, &mut Mat<f64>),
+    x: &mut Mat<f64>,
     refine_mode: Option<Refine>,
-) -> Result<Option<Vec<Refinement>>, Error> {
-    let (mut c_wide, mut d_wide) = (c.to_owned(), d.to_owned());
-    let mut x_wide = Mat::<f64>::zeros(problem.n(), c.ncols());
-    problem.swap_rhs(&mut c_wide, &mut d_wide);
-    let mut result = system.solve_wide_into(problem, x_wide.as_mut());
-    let mut refinements = Vec::new();
-    if let (Ok(true), Some(mode)) = (&result, refine_mode) {
-        result = check_finite(x_wide.as_ref())
-            .and_then(|()| refine(system, problem, &mut x_wide, mode))
-            .map(|r| {
-                refinements.push(r);
-                true
-            });
-    }
-    problem.swap_rhs(&mut c_wide, &mut d_wide);
-    if !result? {
-        return Ok(None);
-    }
-    x.copy_from(&x_wide);
-    Ok(Some(refinements))
+    solve: impl FnOnce(&mut dyn Prepared, &LseProblem, MatMut<'_, f64>) -> Result<bool, Error>,
+) -> Result<(bool, Option<Refinement>), Error> {
+    problem.swap_rhs(c, d);
+    let result = solve(&mut *system, problem, x.as_mut()).and_then(|solved| {
+        let refinement = match (solved, refine_mode) {
+            (true, Some(mode)) => {
+                check_finite(x.as_ref())?;
+                Some(refine(system, problem, x, mode)?)
+            }
+            _ => None,
+        };
+        Ok((solved, refinement))
+    });
+    problem.swap_rhs(c, d);
+    result
 }
 
 /// The warnings a refinement outcome calls for: an estimated forward error
