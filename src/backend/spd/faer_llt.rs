@@ -13,6 +13,8 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, Par, Side};
 
+use crate::cpu::clear_upper_vector_state;
+
 use super::triangular::{LANES, Lane, SupernodalRows, factor_diagonal, solve_lanes};
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
 use crate::error::NumericalError;
@@ -169,6 +171,7 @@ impl SpdSymbolic for FaerSymbolic {
             work: vec![[0.0; LANES]; n],
             inv_diag,
             scratch: Vec::new(),
+            second: None,
             fwd,
         }))
     }
@@ -227,6 +230,47 @@ struct FaerFactor {
     /// Scratch of the triangular solves (the backward accumulator of the
     /// widest supernode).
     scratch: Vec<Lane>,
+    /// The lanes and scratch of the second thread of a solve with more
+    /// than [`LANES`] columns (allocated by the first such solve).
+    second: Option<(Vec<Lane>, Vec<Lane>)>,
+}
+
+/// What the triangular solves of one factor read, shared by the threads
+/// of a wide solve.
+struct GroupSolver<'a> {
+    symbolic: &'a SymbolicCholesky<usize>,
+    values: &'a [f64],
+    inv_diag: &'a [f64],
+    fwd: &'a [usize],
+}
+
+impl GroupSolver<'_> {
+    /// Solves the columns of `rhs` in place, [`LANES`] at a time, through
+    /// `w` (a lane per unknown) and `scratch`.
+    fn solve_groups(&self, mut rhs: MatMut<'_, f64>, w: &mut [Lane], scratch: &mut Vec<Lane>) {
+        let k = rhs.ncols();
+        for g0 in (0..k).step_by(LANES) {
+            let width = LANES.min(k - g0);
+            if width < LANES {
+                for lane in w.iter_mut() {
+                    *lane = [0.0; LANES];
+                }
+            }
+            for c in 0..width {
+                let col = rhs.as_ref().col(g0 + c);
+                for (lane, &src) in w.iter_mut().zip(self.fwd) {
+                    lane[c] = col[src];
+                }
+            }
+            solve_lanes(self.symbolic, self.values, self.inv_diag, w, scratch);
+            for c in 0..width {
+                let mut col = rhs.as_mut().col_mut(g0 + c);
+                for (lane, &dst) in w.iter().zip(self.fwd) {
+                    col[dst] = lane[c];
+                }
+            }
+        }
+    }
 }
 
 impl SpdFactor for FaerFactor {
@@ -234,36 +278,40 @@ impl SpdFactor for FaerFactor {
         self.symbolic.nrows()
     }
 
-    fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
         let k = rhs.ncols();
-        // Groups of LANES columns (the three coordinates are one group).
-        for g0 in (0..k).step_by(LANES) {
-            let width = LANES.min(k - g0);
-            // `work` holds one lane per unknown (allocated at factorisation).
-            let w = &mut self.work;
-            for lane in w.iter_mut() {
-                *lane = [0.0; LANES];
-            }
-            for c in 0..width {
-                let col = rhs.as_ref().col(g0 + c);
-                for (lane, &src) in w.iter_mut().zip(&self.fwd) {
-                    lane[c] = col[src];
-                }
-            }
-            solve_lanes(
-                &self.symbolic,
-                &self.values,
-                &self.inv_diag,
-                w,
-                &mut self.scratch,
-            );
-            for c in 0..width {
-                let mut col = rhs.as_mut().col_mut(g0 + c);
-                for (lane, &dst) in w.iter().zip(&self.fwd) {
-                    col[dst] = lane[c];
-                }
-            }
+        let groups = k.div_ceil(LANES);
+        let solver = GroupSolver {
+            symbolic: &self.symbolic,
+            values: &self.values,
+            inv_diag: &self.inv_diag,
+            fwd: &self.fwd,
+        };
+        if groups < 2 {
+            solver.solve_groups(rhs, &mut self.work, &mut self.scratch);
+            return;
         }
+        // Two or more groups: the first half of them on this thread, the
+        // rest on another, each with its own lanes, reading the same factor
+        // (the Bunny's basis, seven columns, minimum of 40 solves: 13.1 ms
+        // for the two groups one after the other, 6.3 ms side by side).
+        let second = self
+            .second
+            .get_or_insert_with(|| (vec![[0.0; LANES]; self.work.len()], Vec::new()));
+        let (left, right) = rhs.split_at_col_mut(groups.div_ceil(2) * LANES);
+        let (work, scratch) = (&mut self.work, &mut self.scratch);
+        // The second half on a pool thread, the first on this one
+        // (`in_place_scope` rather than `join`, whose call from outside the
+        // pool hands both halves to the pool and, measured on the Bunny's
+        // basis, ran them one after the other in about half of 45 solves).
+        rayon::in_place_scope(|scope| {
+            scope.spawn(|_| {
+                clear_upper_vector_state();
+                solver.solve_groups(right, &mut second.0, &mut second.1);
+            });
+            clear_upper_vector_state();
+            solver.solve_groups(left, work, scratch);
+        });
     }
 
     fn nnz(&self) -> usize {
