@@ -192,8 +192,8 @@ impl Deformer {
     /// Solves for right-hand sides `c` (l × k) and `d` (m × k) of the
     /// problem's shape in place of its own, in the problem's units, refined
     /// as `mode` says; returns `X` and its forward-error estimate. The
-    /// problem's targets and the report stay. See
-    /// [`LseSolver::solve_columns`].
+    /// problem's targets stay; the refinement becomes the one
+    /// [`Deformer::diagnose`] reports. See [`LseSolver::solve_columns`].
     pub fn solve_columns(
         &mut self,
         c: MatRef<'_, f64>,

@@ -20,8 +20,8 @@
 //! group `g`'s targets the four columns of `[P_g t_g]`. The `3 + 4G`
 //! columns are solved with the existing factor in one pass when the
 //! formulation allows (the null-space method; else three at a time) and
-//! refined ([`solve_basis`]: [`BASIS_REFINE_STEPS`] steps when they bring
-//! the estimate below [`BASIS_FORWARD_ERROR`]). Per frame: `n × (3 + 12G)` multiply-adds
+//! refined ([`solve_basis`]: until a correction is at most
+//! [`BASIS_FORWARD_ERROR`]). Per frame: `n × (3 + 12G)` multiply-adds
 //! over `n × (3 + 4G)` stored numbers, read once — the memory floor is
 //! reading them ([`HandleBasis::bytes`]).
 //!
@@ -227,40 +227,35 @@ fn evaluate_block(block: &[f64], m: &[Affine]) -> [[f64; LANES]; 3] {
     x
 }
 
-/// With [`Refine::Auto`], basis columns whose forward-error estimate after
-/// [`BASIS_REFINE_STEPS`] refinement steps is at most this (relative to the
-/// length scale) are kept: a thousandth of the `1e-9` agreement with a
-/// full solve that [`HandleBasis::evaluate`] promises.
-pub const BASIS_FORWARD_ERROR: f64 = 1e-12;
-
-/// Refinement steps of the basis columns before their estimate is checked
-/// against [`BASIS_FORWARD_ERROR`]. The null-space method's solve is
-/// accurate to about `ε κ` and every step multiplies the error by about
-/// `ε κ`: two steps reach the rounding floor whenever `ε κ < 10⁻⁵`, and
-/// the size of the second is the estimate (the Stanford bunny's scene:
-/// `1.5e-10` before the first step, `9e-15` before the second).
-/// [`Refine::Auto`] would compute one more step only to see it no longer
-/// shrink.
-pub const BASIS_REFINE_STEPS: usize = 2;
+/// With [`Refine::Auto`], the basis columns are refined until a correction
+/// is at most this (relative to the length scale): the `1e-9` agreement
+/// with a full solve that [`HandleBasis::evaluate`] promises. The error
+/// left after that correction is at most `ρ/(1 − ρ)` of it when the
+/// refinement contracts the error by `ρ` per step
+/// ([`crate::formulation::refine`]): within the promise for any `ρ ≤ ½`,
+/// and under a ninth of it for `ρ ≤ 0.1` — while a first correction this
+/// small means the solve itself was accurate to about that, and `ρ`, the
+/// same solve's error applied to the residual, is of the same order. The
+/// reported estimate is that last correction (the error before it), not
+/// the smaller error after it.
+pub const BASIS_FORWARD_ERROR: f64 = 1e-9;
 
 /// The `3 + 4G` columns in one solve. With the deformer's refinement mode
-/// [`Refine::Auto`]: [`BASIS_REFINE_STEPS`] steps, kept when the estimate
-/// is at most [`BASIS_FORWARD_ERROR`], else solved again and refined to
-/// convergence as a solve is. Other modes are used as they are.
+/// [`Refine::Auto`]: refined until a correction is at most
+/// [`BASIS_FORWARD_ERROR`] ([`Refine::Until`]; on the Stanford bunny's
+/// scene one step, whose correction is `1.1e-10`, where `Auto` would take
+/// a second only to see it at the rounding floor). Other modes are used as
+/// they are.
 fn solve_basis(
     deformer: &mut Deformer,
     c: MatRef<'_, f64>,
     d: MatRef<'_, f64>,
 ) -> Result<(Mat<f64>, f64), Error> {
-    let mode = deformer.refine_mode();
-    if mode != Refine::Auto {
-        return deformer.solve_columns(c, d, mode);
-    }
-    let (x, estimate) = deformer.solve_columns(c, d, Refine::Steps(BASIS_REFINE_STEPS))?;
-    if estimate <= BASIS_FORWARD_ERROR {
-        return Ok((x, estimate));
-    }
-    deformer.solve_columns(c, d, Refine::Auto)
+    let mode = match deformer.refine_mode() {
+        Refine::Auto => Refine::Until(BASIS_FORWARD_ERROR),
+        mode => mode,
+    };
+    deformer.solve_columns(c, d, mode)
 }
 
 /// The `3 + 4G` right-hand-side columns of the basis, in the problem's

@@ -210,7 +210,9 @@ impl LseSolver {
     /// affine response basis ([`crate::handle`]). Returns `X` and the
     /// largest forward-error estimate of its refinements (relative to the
     /// length scale; see [`crate::formulation::refine`]). The problem's own
-    /// `C` and `D` and the report are left as they were.
+    /// `C` and `D` are left as they were; the refinement with that largest
+    /// estimate becomes the one [`LseSolver::diagnose`] reports (for
+    /// positions combined from these columns).
     pub fn solve_columns(
         &mut self,
         c: MatRef<'_, f64>,
@@ -250,10 +252,14 @@ impl LseSolver {
             Some(mode),
         )?;
         check_finite(x.as_ref())?;
-        let estimate = refinements
-            .iter()
-            .map(|r| r.forward_error_estimate)
-            .fold(0.0, f64::max);
+        self.last_refinement = refinements.into_iter().max_by(|a, b| {
+            a.forward_error_estimate
+                .total_cmp(&b.forward_error_estimate)
+        });
+        let estimate = self
+            .last_refinement
+            .as_ref()
+            .map_or(0.0, |r| r.forward_error_estimate);
         Ok((x, estimate))
     }
 

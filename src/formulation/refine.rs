@@ -30,7 +30,10 @@
 //! estimate is the size of the last correction computed, which is an upper
 //! bound of the remaining error while the iteration contracts (it is the
 //! error *before* that correction) and equals it once the corrections have
-//! reached the rounding floor. Above [`FORWARD_ERROR_WARNING`] a result is
+//! reached the rounding floor: with `e` the error before a correction `ΔX`
+//! and `ρ` the contraction per step, `‖e − ΔX‖ ≤ ρ‖e‖` and
+//! `‖ΔX‖ ≥ (1 − ρ)‖e‖`, so the error after it is at most `ρ/(1 − ρ)‖ΔX‖`,
+//! at most `‖ΔX‖` for `ρ ≤ ½`. Above [`FORWARD_ERROR_WARNING`] a result is
 //! returned with a warning.
 
 use faer::Mat;
@@ -42,8 +45,9 @@ use crate::problem::LseProblem;
 use super::Prepared;
 
 /// Whether and how far to refine a solution (the CLI's `--refine
-/// off|auto|N`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// off|auto|N`; [`Refine::Until`] is for callers with an accuracy target,
+/// such as the response basis of [`crate::handle`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Refine {
     /// No refinement; the forward error is still estimated (one correction
     /// computed and not applied).
@@ -55,6 +59,12 @@ pub enum Refine {
     /// Exactly this many steps unless a correction stops shrinking or
     /// reaches the rounding floor (then fewer).
     Steps(usize),
+    /// As [`Refine::Auto`], and stop after applying a correction of at
+    /// most this size (relative to the length scale, as the estimate).
+    /// The estimate is then that correction's size: the error before it,
+    /// and an upper bound of the error after it while the iteration
+    /// contracts by at most ½ per step (module documentation).
+    Until(f64),
 }
 
 impl Refine {
@@ -77,7 +87,7 @@ impl Refine {
     fn max_steps(self) -> usize {
         match self {
             Refine::Off => 0,
-            Refine::Auto => AUTO_MAX_STEPS,
+            Refine::Auto | Refine::Until(_) => AUTO_MAX_STEPS,
             Refine::Steps(n) => n,
         }
     }
@@ -89,6 +99,7 @@ impl std::fmt::Display for Refine {
             Refine::Off => write!(f, "off"),
             Refine::Auto => write!(f, "auto"),
             Refine::Steps(n) => write!(f, "{n}"),
+            Refine::Until(tolerance) => write!(f, "until {tolerance:e}"),
         }
     }
 }
@@ -127,6 +138,8 @@ pub enum RefineStop {
     Off,
     /// A correction fell below [`CONVERGED_ULPS`] ulps of the solution.
     Converged,
+    /// A correction was at most the tolerance of [`Refine::Until`].
+    Tolerance,
     /// A correction did not shrink: the rounding floor of this factor; it
     /// was not applied.
     Stagnated,
@@ -247,6 +260,12 @@ pub fn refine(
         }
         if size <= floor {
             out.stop_reason = RefineStop::Converged;
+            break;
+        }
+        if let Refine::Until(tolerance) = mode
+            && size <= tolerance
+        {
+            out.stop_reason = RefineStop::Tolerance;
             break;
         }
         if out.steps >= cap {
