@@ -111,14 +111,16 @@ pub struct Built {
     pub engine: Engine,
     /// Positions at rest targets.
     pub positions: Vec<[f64; 3]>,
-    /// The report of the first solve.
+    /// The report of the first positions (their diagnostics).
     pub report: Value,
     /// Seconds of each phase.
     pub timings: Value,
 }
 
-/// Set-up, precompute, response basis and a first solve of `constraints`
-/// on `mesh` with `settings`; `stage` is told each phase's name.
+/// Set-up, precompute, response basis and the first positions of
+/// `constraints` on `mesh` with `settings` (the basis at the identity, with
+/// their diagnostics; a solve when nothing but `fixed` is grouped); `stage`
+/// is told each phase's name.
 pub fn build(
     mesh: &Mesh,
     constraints: &ConstraintSet,
@@ -172,16 +174,31 @@ pub fn build(
         Some(HandleBasis::new(&mut deformer, &movable)?)
     };
     let basis_s = t.elapsed().as_secs_f64();
-    stage("first solve");
-    let solution = deformer.solve()?;
+    let (positions, report) = match &basis {
+        // Every group at rest: the basis at the identity is the solution
+        // (to its forward error, which the report then carries).
+        Some(b) => {
+            stage("diagnostics");
+            let mut positions = vec![[0.0; 3]; mesh.n_vertices()];
+            b.evaluate(&vec![IDENTITY; b.groups().len()], &mut positions)?;
+            let u = deformer.length_unit();
+            let x = faer::Mat::from_fn(positions.len(), 3, |i, c| positions[i][c] / u);
+            (positions, deformer.diagnose(x.as_ref()).clone())
+        }
+        None => {
+            stage("first solve");
+            let solution = deformer.solve()?;
+            (solution.positions, solution.report)
+        }
+    };
     Ok(Built {
         engine: Engine::Linear {
             deformer: Box::new(deformer),
             basis,
             basis_stale: false,
         },
-        positions: solution.positions,
-        report: serde_json::to_value(&solution.report).unwrap_or(Value::Null),
+        positions,
+        report: serde_json::to_value(&report).unwrap_or(Value::Null),
         timings: json!({
             "setup_s": setup_s,
             "precompute_s": precompute_s,
