@@ -17,7 +17,8 @@
 //! and, once per selection, `new-selection` (set-up, precompute, response
 //! basis) against `deform-precompute` (set-up and precompute: what `deform`
 //! does before its solve) — on the Bunny only (igea's precompute is
-//! minutes of a criterion run).
+//! minutes of a criterion run) — then both again alternated round by
+//! round, with the median ratio printed (`editor-selection alternated`).
 //!
 //! Meshes: `LSE_MESH_DIR/bunny-35k-stanford.obj` and
 //! `igea-537k-subdiv.obj.gz`, else generated bumpy spheres of 35k and 250k
@@ -188,6 +189,49 @@ fn new_selection(c: &mut Criterion) {
         })
     });
     g.finish();
+    alternated_selection(&mesh, &scene, SELECTION_ROUNDS);
+}
+
+/// Rounds of [`alternated_selection`].
+const SELECTION_ROUNDS: usize = 21;
+
+/// `deform-precompute` and `new-selection` again, one after the other in
+/// each of `rounds` rounds, so that a machine whose speed drifts (this one
+/// is shared and noisy) slows both alike: prints both medians and the
+/// median of the per-round ratios.
+fn alternated_selection(mesh: &Mesh, scene: &ConstraintSet, rounds: usize) {
+    let timed = |basis: bool| {
+        let t = std::time::Instant::now();
+        let mut d =
+            Deformer::new(mesh.clone(), LaplacianKind::Cotangent, scene.clone()).expect("deformer");
+        d.precompute(&NullSpaceQr::default()).expect("precompute");
+        if basis {
+            black_box(
+                HandleBasis::new(&mut d, &["handle"])
+                    .expect("basis")
+                    .bytes(),
+            );
+        }
+        t.elapsed().as_secs_f64()
+    };
+    let (mut precompute, mut selection, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..rounds {
+        let (p, s) = (timed(false), timed(true));
+        precompute.push(p);
+        selection.push(s);
+        ratio.push(s / p);
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    println!(
+        "editor-selection alternated ({rounds} rounds): deform-precompute median {:.1} ms, \
+         new-selection median {:.1} ms, median ratio {:.3}",
+        median(&mut precompute) * 1e3,
+        median(&mut selection) * 1e3,
+        median(&mut ratio)
+    );
 }
 
 fn bunny(c: &mut Criterion) {
