@@ -39,10 +39,10 @@ use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 use rayon::prelude::*;
 
 fn mesh(file: &str, generated: usize) -> (String, Mesh) {
-    if let Some(dir) = std::env::var_os("LSE_MESH_DIR").map(PathBuf::from) {
-        if let Ok(m) = read_mesh(&dir.join(file)) {
-            return (file.to_string(), m.mesh);
-        }
+    if let Some(dir) = std::env::var_os("LSE_MESH_DIR").map(PathBuf::from)
+        && let Ok(m) = read_mesh(&dir.join(file))
+    {
+        return (file.to_string(), m.mesh);
     }
     let m = generate::with_about_vertices(generate::GeneratedKind::BumpySphere, generated, 1)
         .expect("generated mesh");

@@ -53,10 +53,10 @@ fn mesh_dir() -> Option<PathBuf> {
 
 /// The Bunny with `LSE_MESH_DIR`, else a generated 35k-vertex bumpy sphere.
 fn main_mesh() -> Mesh {
-    if let Some(dir) = mesh_dir() {
-        if let Ok(m) = read_mesh(&dir.join("bunny-35k-stanford.obj")) {
-            return m.mesh;
-        }
+    if let Some(dir) = mesh_dir()
+        && let Ok(m) = read_mesh(&dir.join("bunny-35k-stanford.obj"))
+    {
+        return m.mesh;
     }
     generate::with_about_vertices(generate::GeneratedKind::BumpySphere, 35_000, 1)
         .expect("generated mesh")
@@ -64,10 +64,10 @@ fn main_mesh() -> Mesh {
 
 /// igea-537k with `LSE_MESH_DIR`, else a generated 250k-vertex bumpy sphere.
 fn large_mesh() -> Mesh {
-    if let Some(dir) = mesh_dir() {
-        if let Ok(m) = read_mesh(&dir.join("igea-537k-subdiv.obj.gz")) {
-            return m.mesh;
-        }
+    if let Some(dir) = mesh_dir()
+        && let Ok(m) = read_mesh(&dir.join("igea-537k-subdiv.obj.gz"))
+    {
+        return m.mesh;
     }
     generate::with_about_vertices(generate::GeneratedKind::BumpySphere, 250_000, 1)
         .expect("generated mesh")

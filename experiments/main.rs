@@ -159,11 +159,11 @@ fn main() -> ExitCode {
             }
         };
     }
-    if let Some(dir) = &cli.mesh_dir {
-        if !dir.is_dir() {
-            eprintln!("error: --mesh-dir {} is not a directory", dir.display());
-            return ExitCode::from(2);
-        }
+    if let Some(dir) = &cli.mesh_dir
+        && !dir.is_dir()
+    {
+        eprintln!("error: --mesh-dir {} is not a directory", dir.display());
+        return ExitCode::from(2);
     }
     let ctx = match Context::new(
         cli.out.clone(),

@@ -197,22 +197,22 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         let mut last: Option<(usize, f64)> = None;
         for (ki, &k) in ks.iter().enumerate() {
             bar.set_message(format!("{NAME}: {} k = {k}", m.key));
-            if let (Some(t0), Some((k_prev, t_prev))) = (t0, last) {
-                if k_prev > 0 {
-                    let predicted =
-                        t0 + (t_prev - t0).max(0.0) * (k as f64 / k_prev as f64).powf(m.growth);
-                    if predicted > budget {
-                        let msg = format!(
-                            "skipped: predicted {} > budget {} (k^{} growth from k = {k_prev})",
-                            fmt_time(predicted),
-                            fmt_time(budget),
-                            m.growth
-                        );
-                        notes.push(format!("{}, k = {k}: {msg}", m.label));
-                        status[mi][ki] = Some(msg);
-                        bar.inc(1);
-                        continue;
-                    }
+            if let (Some(t0), Some((k_prev, t_prev))) = (t0, last)
+                && k_prev > 0
+            {
+                let predicted =
+                    t0 + (t_prev - t0).max(0.0) * (k as f64 / k_prev as f64).powf(m.growth);
+                if predicted > budget {
+                    let msg = format!(
+                        "skipped: predicted {} > budget {} (k^{} growth from k = {k_prev})",
+                        fmt_time(predicted),
+                        fmt_time(budget),
+                        m.growth
+                    );
+                    notes.push(format!("{}, k = {k}: {msg}", m.label));
+                    status[mi][ki] = Some(msg);
+                    bar.inc(1);
+                    continue;
                 }
             }
             let d = &mut deformers[ki];

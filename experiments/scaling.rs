@@ -383,10 +383,10 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                     )
                 })
                 .unwrap_or_else(|| "—".into());
-            if kind == "generated" {
-                if let (Ok(fp), Ok(fs)) = (fit_power_law(&p), fit_power_law(&s)) {
-                    headline_slopes.push(format!("{spd_name} {:.2}/{:.2}", fp.slope, fs.slope));
-                }
+            if kind == "generated"
+                && let (Ok(fp), Ok(fs)) = (fit_power_law(&p), fit_power_law(&s))
+            {
+                headline_slopes.push(format!("{spd_name} {:.2}/{:.2}", fp.slope, fs.slope));
             }
             slope_rows.push(vec![
                 kind.to_string(),

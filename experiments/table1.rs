@@ -331,12 +331,11 @@ fn run_formulation(deformer: &mut Deformer, formulation: &dyn Formulation) -> Ou
 /// fails, the solution from [`PenaltySweep`] so that its accuracy is shown.
 fn run_penalty(deformer: &mut Deformer, weight: f64) -> Outcome {
     let mut out = run_formulation(deformer, &Penalty::new(weight));
-    if out.x.is_none() {
-        if let Ok(sweep) = PenaltySweep::new(deformer.problem(), &FaerLlt::auto()) {
-            if let Ok(s) = sweep.solve(deformer.problem(), weight) {
-                out.x = Some(s.x);
-            }
-        }
+    if out.x.is_none()
+        && let Ok(sweep) = PenaltySweep::new(deformer.problem(), &FaerLlt::auto())
+        && let Ok(s) = sweep.solve(deformer.problem(), weight)
+    {
+        out.x = Some(s.x);
     }
     out
 }

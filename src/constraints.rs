@@ -547,10 +547,10 @@ fn check_values(index: usize, c: &Constraint) -> Result<(), ConstraintError> {
         }
         _ => {}
     }
-    if let Some(w) = c.weight {
-        if !(w.is_finite() && w > 0.0) {
-            return Err(ConstraintError::InvalidWeight { index, weight: w });
-        }
+    if let Some(w) = c.weight
+        && !(w.is_finite() && w > 0.0)
+    {
+        return Err(ConstraintError::InvalidWeight { index, weight: w });
     }
     Ok(())
 }

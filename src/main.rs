@@ -417,11 +417,11 @@ fn show_after_a_second(bar: &ProgressBar) {
     let weak = bar.downgrade();
     std::thread::spawn(move || {
         std::thread::sleep(Duration::from_secs(1));
-        if let Some(bar) = weak.upgrade() {
-            if !bar.is_finished() {
-                bar.set_draw_target(ProgressDrawTarget::stderr());
-                bar.enable_steady_tick(Duration::from_millis(100));
-            }
+        if let Some(bar) = weak.upgrade()
+            && !bar.is_finished()
+        {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+            bar.enable_steady_tick(Duration::from_millis(100));
         }
     });
 }
@@ -964,10 +964,10 @@ fn compare(a: CompareArgs) -> Result<(), Error> {
                 "numerical"
             };
             row.status = format!("error ({class}): {e}");
-        } else if let Some(r) = &row.report {
-            if !r.warnings.is_empty() {
-                row.status = format!("ok, warning: {}", r.warnings.join("; "));
-            }
+        } else if let Some(r) = &row.report
+            && !r.warnings.is_empty()
+        {
+            row.status = format!("ok, warning: {}", r.warnings.join("; "));
         }
         rows.push(row);
         bar.inc(1);

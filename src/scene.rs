@@ -163,30 +163,30 @@ impl MixedScene {
         let mut list: Vec<Constraint> = base.as_slice().to_vec();
 
         // Relative: BFS spanning tree over free vertices.
-        if self.relative > 0 {
-            if let Some(seed) = seed_at(0.5, &used) {
-                let mut queue = std::collections::VecDeque::from([seed]);
-                used[seed] = true;
-                let mut added = 0;
-                while let Some(v) = queue.pop_front() {
-                    for &u in &neighbours[offsets[v]..offsets[v + 1]] {
-                        if added == self.relative {
-                            break;
-                        }
-                        if !used[u] {
-                            used[u] = true;
-                            queue.push_back(u);
-                            let vector = [0, 1, 2].map(|k| p[u][k] - p[v][k]);
-                            list.push(Constraint::hard(ConstraintKind::Relative {
-                                vertices: [u, v],
-                                vector,
-                            }));
-                            added += 1;
-                        }
-                    }
+        if self.relative > 0
+            && let Some(seed) = seed_at(0.5, &used)
+        {
+            let mut queue = std::collections::VecDeque::from([seed]);
+            used[seed] = true;
+            let mut added = 0;
+            while let Some(v) = queue.pop_front() {
+                for &u in &neighbours[offsets[v]..offsets[v + 1]] {
                     if added == self.relative {
                         break;
                     }
+                    if !used[u] {
+                        used[u] = true;
+                        queue.push_back(u);
+                        let vector = [0, 1, 2].map(|k| p[u][k] - p[v][k]);
+                        list.push(Constraint::hard(ConstraintKind::Relative {
+                            vertices: [u, v],
+                            vector,
+                        }));
+                        added += 1;
+                    }
+                }
+                if added == self.relative {
+                    break;
                 }
             }
         }
@@ -250,19 +250,19 @@ impl MixedScene {
                 faces_added += 1;
             }
         }
-        if self.duplicate {
-            if let Some(first) = base.as_slice().first() {
-                list.push(first.clone());
-            }
+        if self.duplicate
+            && let Some(first) = base.as_slice().first()
+        {
+            list.push(first.clone());
         }
-        if self.conflict {
-            if let Some(second) = base.as_slice().get(1) {
-                let mut c = second.clone();
-                let r = c.kind.rhs();
-                let d = 0.1 * mesh.bbox_diagonal();
-                c.kind.set_rhs([r[0] + d, r[1], r[2]]);
-                list.push(c);
-            }
+        if self.conflict
+            && let Some(second) = base.as_slice().get(1)
+        {
+            let mut c = second.clone();
+            let r = c.kind.rhs();
+            let d = 0.1 * mesh.bbox_diagonal();
+            c.kind.set_rhs([r[0] + d, r[1], r[2]]);
+            list.push(c);
         }
         let mut set = ConstraintSet::from_vec(list)?;
         set.set_mesh(Some(MeshSignature::of(mesh)));
@@ -303,7 +303,9 @@ pub struct CrowdedScene {
 
 impl CrowdedScene {
     fn copy_conflicts(&self, k: usize) -> bool {
-        self.conflict_every > 0 && k >= self.partners.max(1) && k % self.conflict_every == 0
+        self.conflict_every > 0
+            && k >= self.partners.max(1)
+            && k.is_multiple_of(self.conflict_every)
     }
 
     /// The constraints: the base scene's, then the crowded ones.

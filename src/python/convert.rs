@@ -93,12 +93,12 @@ fn shape_2d(
             )));
         }
     };
-    if let Some(c) = columns {
-        if cols != c {
-            return Err(input(format!(
-                "{name} must be an n × {c} array, got shape {shape:?}"
-            )));
-        }
+    if let Some(c) = columns
+        && cols != c
+    {
+        return Err(input(format!(
+            "{name} must be an n × {c} array, got shape {shape:?}"
+        )));
     }
     Ok((rows, cols))
 }

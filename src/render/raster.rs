@@ -719,11 +719,12 @@ fn resolve(layer: &Layer, ghost: Option<(&Layer, f32)>, view: &View, style: &Sty
         } else {
             bg
         };
-        if let Some((g, alpha)) = ghost {
-            if g.written[idx] && (!layer.written[idx] || g.depth[idx] > layer.depth[idx]) {
-                for k in 0..3 {
-                    c[k] += alpha * (g.colour[idx][k] - c[k]);
-                }
+        if let Some((g, alpha)) = ghost
+            && g.written[idx]
+            && (!layer.written[idx] || g.depth[idx] > layer.depth[idx])
+        {
+            for k in 0..3 {
+                c[k] += alpha * (g.colour[idx][k] - c[k]);
             }
         }
         c
