@@ -15,7 +15,11 @@ use faer::{MatMut, Par, Side};
 
 use crate::cpu::clear_upper_vector_state;
 
-use super::triangular::{LANES, Lane, SupernodalRows, factor_diagonal, solve_lanes};
+use super::tree_split::TreeSplit;
+use super::triangular::{
+    LANES, Lane, Passes, SupernodalRows, WIDE_LANES, factor_diagonal, passes, solve_lanes,
+    wide_lanes_native, wide_passes,
+};
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
 use crate::error::NumericalError;
 
@@ -172,6 +176,9 @@ impl SpdSymbolic for FaerSymbolic {
             inv_diag,
             scratch: Vec::new(),
             second: None,
+            split: TreeSplit::new(&self.symbolic),
+            split_lanes: None,
+            split_wide: None,
             fwd,
         }))
     }
@@ -233,6 +240,13 @@ struct FaerFactor {
     /// The lanes and scratch of the second thread of a solve with more
     /// than [`LANES`] columns (allocated by the first such solve).
     second: Option<(Vec<Lane>, Vec<Lane>)>,
+    /// How a one-group solve is split over two threads (`None`: small or
+    /// unbalanced tree, or simplicial).
+    split: Option<TreeSplit>,
+    /// The buffers of split solves of up to [`LANES`] and [`WIDE_LANES`]
+    /// columns (allocated by the first such solve).
+    split_lanes: Option<LaneBuffers<LANES>>,
+    split_wide: Option<LaneBuffers<WIDE_LANES>>,
 }
 
 /// What the triangular solves of one factor read, shared by the threads
@@ -246,14 +260,28 @@ struct GroupSolver<'a> {
 
 impl GroupSolver<'_> {
     /// Solves the columns of `rhs` in place, [`LANES`] at a time, through
-    /// `w` (a lane per unknown) and `scratch`.
-    fn solve_groups(&self, mut rhs: MatMut<'_, f64>, w: &mut [Lane], scratch: &mut Vec<Lane>) {
+    /// `w` (a lane per unknown) and `scratch`, on this thread.
+    fn solve_groups(&self, rhs: MatMut<'_, f64>, w: &mut [Lane], scratch: &mut Vec<Lane>) {
+        self.solve_groups_with(rhs, w, |w| {
+            solve_lanes(self.symbolic, self.values, self.inv_diag, w, scratch)
+        });
+    }
+
+    /// Solves the columns of `rhs` in place in groups of `W`, gathered
+    /// into `w` (a lane per unknown, in the factor's order) and solved
+    /// there by `solve`.
+    fn solve_groups_with<const W: usize>(
+        &self,
+        mut rhs: MatMut<'_, f64>,
+        w: &mut [[f64; W]],
+        mut solve: impl FnMut(&mut [[f64; W]]),
+    ) {
         let k = rhs.ncols();
-        for g0 in (0..k).step_by(LANES) {
-            let width = LANES.min(k - g0);
-            if width < LANES {
+        for g0 in (0..k).step_by(W) {
+            let width = W.min(k - g0);
+            if width < W {
                 for lane in w.iter_mut() {
-                    *lane = [0.0; LANES];
+                    *lane = [0.0; W];
                 }
             }
             for c in 0..width {
@@ -262,13 +290,59 @@ impl GroupSolver<'_> {
                     lane[c] = col[src];
                 }
             }
-            solve_lanes(self.symbolic, self.values, self.inv_diag, w, scratch);
+            solve(w);
             for c in 0..width {
                 let mut col = rhs.as_mut().col_mut(g0 + c);
                 for (lane, &dst) in w.iter().zip(self.fwd) {
                     col[dst] = lane[c];
                 }
             }
+        }
+    }
+
+    /// One group of up to `W` columns solved on two threads by `split`,
+    /// through `buffers` (`(w, scratch)` of each thread).
+    fn solve_split<const W: usize>(
+        &self,
+        rhs: MatMut<'_, f64>,
+        split: &TreeSplit,
+        passes: Passes<W>,
+        buffers: &mut LaneBuffers<W>,
+    ) {
+        let LaneBuffers {
+            w,
+            scratch,
+            w2,
+            scratch2,
+        } = buffers;
+        self.solve_groups_with(rhs, w, |w| {
+            split.solve(
+                passes,
+                self.symbolic,
+                self.values,
+                self.inv_diag,
+                (w, scratch),
+                (w2, scratch2),
+            )
+        });
+    }
+}
+
+/// The lanes and scratch of the two threads of a split solve.
+struct LaneBuffers<const W: usize> {
+    w: Vec<[f64; W]>,
+    scratch: Vec<[f64; W]>,
+    w2: Vec<[f64; W]>,
+    scratch2: Vec<[f64; W]>,
+}
+
+impl<const W: usize> LaneBuffers<W> {
+    fn new(n: usize) -> Self {
+        LaneBuffers {
+            w: vec![[0.0; W]; n],
+            scratch: Vec::new(),
+            w2: vec![[0.0; W]; n],
+            scratch2: Vec::new(),
         }
     }
 }
@@ -280,14 +354,28 @@ impl SpdFactor for FaerFactor {
 
     fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
         let k = rhs.ncols();
-        let groups = k.div_ceil(LANES);
         let solver = GroupSolver {
             symbolic: &self.symbolic,
             values: &self.values,
             inv_diag: &self.inv_diag,
             fwd: &self.fwd,
         };
-        if groups < 2 {
+        let n = self.work.len();
+        // One group: on two threads along the elimination tree when it
+        // splits ([`TreeSplit`]), else on this one.
+        if let Some(split) = &self.split {
+            if k <= LANES {
+                let buffers = self.split_lanes.get_or_insert_with(|| LaneBuffers::new(n));
+                solver.solve_split(rhs, split, passes(), buffers);
+                return;
+            }
+            if k <= WIDE_LANES && wide_lanes_native() {
+                let buffers = self.split_wide.get_or_insert_with(|| LaneBuffers::new(n));
+                solver.solve_split(rhs, split, wide_passes(), buffers);
+                return;
+            }
+        }
+        if k <= LANES {
             solver.solve_groups(rhs, &mut self.work, &mut self.scratch);
             return;
         }
@@ -295,9 +383,10 @@ impl SpdFactor for FaerFactor {
         // rest on another, each with its own lanes, reading the same factor
         // (the Bunny's basis, seven columns, minimum of 40 solves: 13.1 ms
         // for the two groups one after the other, 6.3 ms side by side).
+        let groups = k.div_ceil(LANES);
         let second = self
             .second
-            .get_or_insert_with(|| (vec![[0.0; LANES]; self.work.len()], Vec::new()));
+            .get_or_insert_with(|| (vec![[0.0; LANES]; n], Vec::new()));
         let (left, right) = rhs.split_at_col_mut(groups.div_ceil(2) * LANES);
         let (work, scratch) = (&mut self.work, &mut self.scratch);
         // The second half on a pool thread, the first on this one

@@ -23,6 +23,7 @@ use crate::error::{NumericalError, ProblemError};
 mod cholmod;
 mod faer_llt;
 mod nalgebra;
+mod tree_split;
 mod triangular;
 
 #[cfg(feature = "suitesparse")]

@@ -31,7 +31,9 @@
 //! arithmetic latency. A simplicial factor is solved column by column with
 //! the same lanes.
 
-use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
+use std::ops::Range;
+
+use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
 
 /// How far ahead (in values, 16 KiB) the backward solve requests the blocks
@@ -123,10 +125,10 @@ pub(super) fn factor_diagonal(symbolic: &SymbolicCholesky<usize>, values: &[f64]
 /// plain arrays elsewhere. (Written over plain `[f64; 4]` alone, LLVM
 /// re-vectorises the loops *across* unknowns, transposing lanes and
 /// spilling registers: half the speed.)
-trait LaneOps: Copy {
+trait LaneOps<const W: usize>: Copy {
     fn zero() -> Self;
-    fn load(lane: &Lane) -> Self;
-    fn store(self, lane: &mut Lane);
+    fn load(lane: &[f64; W]) -> Self;
+    fn store(self, lane: &mut [f64; W]);
     /// `self + v x`.
     fn add_mul(self, v: f64, x: Self) -> Self;
     /// `self − v x`.
@@ -139,17 +141,17 @@ trait LaneOps: Copy {
 }
 
 /// Portable lanes (separate multiply and add).
-impl LaneOps for Lane {
+impl<const W: usize> LaneOps<W> for [f64; W] {
     #[inline(always)]
     fn zero() -> Self {
-        [0.0; LANES]
+        [0.0; W]
     }
     #[inline(always)]
-    fn load(lane: &Lane) -> Self {
+    fn load(lane: &[f64; W]) -> Self {
         *lane
     }
     #[inline(always)]
-    fn store(self, lane: &mut Lane) {
+    fn store(self, lane: &mut [f64; W]) {
         *lane = self;
     }
     #[inline(always)]
@@ -185,7 +187,7 @@ impl LaneOps for Lane {
 struct Avx2(std::arch::x86_64::__m256d);
 
 #[cfg(target_arch = "x86_64")]
-impl LaneOps for Avx2 {
+impl LaneOps<LANES> for Avx2 {
     #[inline(always)]
     fn zero() -> Self {
         // SAFETY (every method): AVX2 and FMA are present (see the type).
@@ -231,6 +233,78 @@ impl LaneOps for Avx2 {
     }
 }
 
+/// Right-hand-side columns of a wide group ([`solve_lanes_wide`]).
+pub(super) const WIDE_LANES: usize = 8;
+
+/// The values of one unknown in a wide group.
+pub(super) type WideLane = [f64; WIDE_LANES];
+
+/// One 512-bit AVX-512 register per wide lane, fused multiply–adds.
+///
+/// Only constructed inside [`solve_lanes_avx512`], which runs only after
+/// the CPU was found to support AVX-512F; every method is inlined there.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct Avx512(std::arch::x86_64::__m512d);
+
+#[cfg(target_arch = "x86_64")]
+impl LaneOps<WIDE_LANES> for Avx512 {
+    #[inline(always)]
+    fn zero() -> Self {
+        // SAFETY (every method): AVX-512F is present (see the type).
+        unsafe { Avx512(std::arch::x86_64::_mm512_setzero_pd()) }
+    }
+    #[inline(always)]
+    fn load(lane: &WideLane) -> Self {
+        unsafe { Avx512(std::arch::x86_64::_mm512_loadu_pd(lane.as_ptr())) }
+    }
+    #[inline(always)]
+    fn store(self, lane: &mut WideLane) {
+        unsafe { std::arch::x86_64::_mm512_storeu_pd(lane.as_mut_ptr(), self.0) }
+    }
+    #[inline(always)]
+    fn add_mul(self, v: f64, x: Self) -> Self {
+        use std::arch::x86_64::{_mm512_fmadd_pd, _mm512_set1_pd};
+        unsafe { Avx512(_mm512_fmadd_pd(_mm512_set1_pd(v), x.0, self.0)) }
+    }
+    #[inline(always)]
+    fn sub_mul(self, v: f64, x: Self) -> Self {
+        use std::arch::x86_64::{_mm512_fnmadd_pd, _mm512_set1_pd};
+        unsafe { Avx512(_mm512_fnmadd_pd(_mm512_set1_pd(v), x.0, self.0)) }
+    }
+    #[inline(always)]
+    fn add(self, other: Self) -> Self {
+        unsafe { Avx512(std::arch::x86_64::_mm512_add_pd(self.0, other.0)) }
+    }
+    #[inline(always)]
+    fn sub(self, other: Self) -> Self {
+        unsafe { Avx512(std::arch::x86_64::_mm512_sub_pd(self.0, other.0)) }
+    }
+    #[inline(always)]
+    fn scale(self, s: f64) -> Self {
+        use std::arch::x86_64::{_mm512_mul_pd, _mm512_set1_pd};
+        unsafe { Avx512(_mm512_mul_pd(self.0, _mm512_set1_pd(s))) }
+    }
+    #[inline(always)]
+    fn prefetch(values: &[f64]) {
+        <Avx2 as LaneOps<LANES>>::prefetch(values);
+    }
+}
+
+/// Whether [`solve_lanes_wide`] runs on vector registers as wide as its
+/// lanes (AVX-512F). Elsewhere a wide group costs about twice a group of
+/// [`LANES`] and two such groups on two threads are faster.
+pub(super) fn wide_lanes_native() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// `L Lᵀ w = w` in place for one group of right-hand sides, `w[i]` the
 /// lane of unknown `i` in the factor's (permuted) ordering. Supernodal
 /// values must be in the [`SupernodalRows`] layout; `inv_diag[i] = 1 / L_ii`
@@ -249,7 +323,7 @@ pub(super) fn solve_lanes(
         unsafe { solve_lanes_avx2(symbolic, values, inv_diag, w, scratch) };
         return;
     }
-    solve_lanes_body::<Lane>(symbolic, values, inv_diag, w, scratch);
+    solve_lanes_body::<LANES, Lane>(symbolic, values, inv_diag, w, scratch);
 }
 
 /// [`solve_lanes`] with [`Avx2`] lanes, compiled for AVX2 + FMA.
@@ -262,51 +336,23 @@ unsafe fn solve_lanes_avx2(
     w: &mut [Lane],
     scratch: &mut Vec<Lane>,
 ) {
-    solve_lanes_body::<Avx2>(symbolic, values, inv_diag, w, scratch);
+    solve_lanes_body::<LANES, Avx2>(symbolic, values, inv_diag, w, scratch);
 }
 
 #[inline(always)]
-fn solve_lanes_body<V: LaneOps>(
+fn solve_lanes_body<const W: usize, V: LaneOps<W>>(
     symbolic: &SymbolicCholesky<usize>,
     values: &[f64],
     inv_diag: &[f64],
-    w: &mut [Lane],
-    scratch: &mut Vec<Lane>,
+    w: &mut [[f64; W]],
+    scratch: &mut Vec<[f64; W]>,
 ) {
     match symbolic.raw() {
         SymbolicCholeskyRaw::Supernodal(s) => {
-            let begin = s.supernode_begin();
-            let end = s.supernode_end();
-            let rows = s.row_idx();
-            let row_ptr = s.col_ptr_for_row_idx();
-            let val_ptr = s.col_ptr_for_val();
-            let n_super = s.n_supernodes();
-            let widest = (0..n_super).map(|k| end[k] - begin[k]).max().unwrap_or(0);
-            if scratch.len() < widest {
-                scratch.resize(widest, [0.0; LANES]);
-            }
-            for sn in 0..n_super {
-                let (f, c) = (begin[sn], end[sn] - begin[sn]);
-                let pattern = &rows[row_ptr[sn]..row_ptr[sn + 1]];
-                let l = &values[val_ptr[sn]..val_ptr[sn + 1]];
-                forward_supernode::<V>(l, f, c, pattern, inv_diag, w);
-            }
-            // Backward the blocks are visited from the last to the first:
-            // the hardware prefetcher follows ascending streams only, so the
-            // values ahead are requested explicitly, PREFETCH_AHEAD values
-            // below the current block.
-            let mut requested = values.len();
-            for sn in (0..n_super).rev() {
-                let (f, c) = (begin[sn], end[sn] - begin[sn]);
-                let pattern = &rows[row_ptr[sn]..row_ptr[sn + 1]];
-                let l = &values[val_ptr[sn]..val_ptr[sn + 1]];
-                let from = val_ptr[sn].saturating_sub(PREFETCH_AHEAD);
-                if from < requested {
-                    V::prefetch(&values[from..requested]);
-                    requested = from;
-                }
-                backward_supernode::<V>(l, f, c, pattern, inv_diag, w, scratch);
-            }
+            let every = 0..s.n_supernodes();
+            let all = std::slice::from_ref(&every);
+            forward_pass::<W, V>(s, values, inv_diag, all, w);
+            backward_pass::<W, V>(s, values, inv_diag, all, w, scratch);
         }
         SymbolicCholeskyRaw::Simplicial(s) => {
             let col_ptr = s.col_ptr();
@@ -333,10 +379,195 @@ fn solve_lanes_body<V: LaneOps>(
     }
 }
 
+/// The forward solve `w ← L⁻¹ w` restricted to the supernodes in `ranges`
+/// (ascending): each supernode's own rows are solved and its updates
+/// subtracted from its pattern rows.
+#[inline(always)]
+fn forward_pass<const W: usize, V: LaneOps<W>>(
+    s: &SymbolicSupernodalCholesky<usize>,
+    values: &[f64],
+    inv_diag: &[f64],
+    ranges: &[Range<usize>],
+    w: &mut [[f64; W]],
+) {
+    let (begin, end) = (s.supernode_begin(), s.supernode_end());
+    let (rows, row_ptr, val_ptr) = (s.row_idx(), s.col_ptr_for_row_idx(), s.col_ptr_for_val());
+    for sn in ranges.iter().flat_map(|r| r.clone()) {
+        let (f, c) = (begin[sn], end[sn] - begin[sn]);
+        let pattern = &rows[row_ptr[sn]..row_ptr[sn + 1]];
+        let l = &values[val_ptr[sn]..val_ptr[sn + 1]];
+        forward_supernode::<W, V>(l, f, c, pattern, inv_diag, w);
+    }
+}
+
+/// The backward solve `w ← L⁻ᵀ w` restricted to the supernodes in `ranges`
+/// (visited from the last to the first), reading the rows below them
+/// (their ancestors') as already solved.
+#[inline(always)]
+fn backward_pass<const W: usize, V: LaneOps<W>>(
+    s: &SymbolicSupernodalCholesky<usize>,
+    values: &[f64],
+    inv_diag: &[f64],
+    ranges: &[Range<usize>],
+    w: &mut [[f64; W]],
+    scratch: &mut Vec<[f64; W]>,
+) {
+    let (begin, end) = (s.supernode_begin(), s.supernode_end());
+    let (rows, row_ptr, val_ptr) = (s.row_idx(), s.col_ptr_for_row_idx(), s.col_ptr_for_val());
+    let widest = (0..s.n_supernodes())
+        .map(|k| end[k] - begin[k])
+        .max()
+        .unwrap_or(0);
+    if scratch.len() < widest {
+        scratch.resize(widest, [0.0; W]);
+    }
+    for range in ranges.iter().rev() {
+        // The blocks are visited from the last to the first: the hardware
+        // prefetcher follows ascending streams only, so the values ahead
+        // are requested explicitly, PREFETCH_AHEAD values below the
+        // current block (within the range: the values of a range of
+        // supernodes are contiguous).
+        let mut requested = val_ptr[range.end];
+        for sn in range.clone().rev() {
+            let (f, c) = (begin[sn], end[sn] - begin[sn]);
+            let pattern = &rows[row_ptr[sn]..row_ptr[sn + 1]];
+            let l = &values[val_ptr[sn]..val_ptr[sn + 1]];
+            let from = val_ptr[sn]
+                .saturating_sub(PREFETCH_AHEAD)
+                .max(val_ptr[range.start]);
+            if from < requested {
+                V::prefetch(&values[from..requested]);
+                requested = from;
+            }
+            backward_supernode::<W, V>(l, f, c, pattern, inv_diag, w, scratch);
+        }
+    }
+}
+
+/// A forward pass ([`Passes::forward`]).
+type ForwardPass<const W: usize> =
+    unsafe fn(&SymbolicSupernodalCholesky<usize>, &[f64], &[f64], &[Range<usize>], &mut [[f64; W]]);
+
+/// A backward pass ([`Passes::backward`]).
+type BackwardPass<const W: usize> = unsafe fn(
+    &SymbolicSupernodalCholesky<usize>,
+    &[f64],
+    &[f64],
+    &[Range<usize>],
+    &mut [[f64; W]],
+    &mut Vec<[f64; W]>,
+);
+
+/// The supernodal forward and backward passes for lanes of `W` columns,
+/// compiled for the vectors this CPU has ([`passes`], [`wide_passes`]):
+/// what a solve split over the elimination tree
+/// ([`super::tree_split::TreeSplit`]) runs on each part.
+#[derive(Clone, Copy)]
+pub(super) struct Passes<const W: usize> {
+    /// Invariant: only functions whose target features the CPU has.
+    forward: ForwardPass<W>,
+    backward: BackwardPass<W>,
+}
+
+impl<const W: usize> Passes<W> {
+    /// [`forward_pass`] over `ranges`.
+    pub(super) fn forward(
+        &self,
+        s: &SymbolicSupernodalCholesky<usize>,
+        values: &[f64],
+        inv_diag: &[f64],
+        ranges: &[Range<usize>],
+        w: &mut [[f64; W]],
+    ) {
+        // SAFETY: the CPU has the pass's target features (invariant).
+        unsafe { (self.forward)(s, values, inv_diag, ranges, w) }
+    }
+
+    /// [`backward_pass`] over `ranges`.
+    pub(super) fn backward(
+        &self,
+        s: &SymbolicSupernodalCholesky<usize>,
+        values: &[f64],
+        inv_diag: &[f64],
+        ranges: &[Range<usize>],
+        w: &mut [[f64; W]],
+        scratch: &mut Vec<[f64; W]>,
+    ) {
+        // SAFETY: the CPU has the pass's target features (invariant).
+        unsafe { (self.backward)(s, values, inv_diag, ranges, w, scratch) }
+    }
+}
+
+/// The passes for groups of [`LANES`] columns.
+pub(super) fn passes() -> Passes<LANES> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn forward(
+            s: &SymbolicSupernodalCholesky<usize>,
+            values: &[f64],
+            inv_diag: &[f64],
+            ranges: &[Range<usize>],
+            w: &mut [Lane],
+        ) {
+            forward_pass::<LANES, Avx2>(s, values, inv_diag, ranges, w);
+        }
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn backward(
+            s: &SymbolicSupernodalCholesky<usize>,
+            values: &[f64],
+            inv_diag: &[f64],
+            ranges: &[Range<usize>],
+            w: &mut [Lane],
+            scratch: &mut Vec<Lane>,
+        ) {
+            backward_pass::<LANES, Avx2>(s, values, inv_diag, ranges, w, scratch);
+        }
+        return Passes { forward, backward };
+    }
+    Passes {
+        forward: forward_pass::<LANES, Lane>,
+        backward: backward_pass::<LANES, Lane>,
+    }
+}
+
+/// The passes for groups of [`WIDE_LANES`] columns.
+pub(super) fn wide_passes() -> Passes<WIDE_LANES> {
+    #[cfg(target_arch = "x86_64")]
+    if wide_lanes_native() {
+        #[target_feature(enable = "avx512f")]
+        unsafe fn forward(
+            s: &SymbolicSupernodalCholesky<usize>,
+            values: &[f64],
+            inv_diag: &[f64],
+            ranges: &[Range<usize>],
+            w: &mut [WideLane],
+        ) {
+            forward_pass::<WIDE_LANES, Avx512>(s, values, inv_diag, ranges, w);
+        }
+        #[target_feature(enable = "avx512f")]
+        unsafe fn backward(
+            s: &SymbolicSupernodalCholesky<usize>,
+            values: &[f64],
+            inv_diag: &[f64],
+            ranges: &[Range<usize>],
+            w: &mut [WideLane],
+            scratch: &mut Vec<WideLane>,
+        ) {
+            backward_pass::<WIDE_LANES, Avx512>(s, values, inv_diag, ranges, w, scratch);
+        }
+        return Passes { forward, backward };
+    }
+    Passes {
+        forward: forward_pass::<WIDE_LANES, WideLane>,
+        backward: backward_pass::<WIDE_LANES, WideLane>,
+    }
+}
+
 /// `Σ_j row[j] x[j]` with four independent partial sums (so that the
 /// multiply–adds overlap instead of waiting on each other).
 #[inline(always)]
-fn dot_lanes<V: LaneOps>(row: &[f64], x: &[Lane]) -> V {
+fn dot_lanes<const W: usize, V: LaneOps<W>>(row: &[f64], x: &[[f64; W]]) -> V {
     let mut s = [V::zero(); 4];
     let mut rc = row.chunks_exact(4);
     let mut xc = x.chunks_exact(4);
@@ -353,26 +584,26 @@ fn dot_lanes<V: LaneOps>(row: &[f64], x: &[Lane]) -> V {
 
 /// One supernode of the forward solve (`l` row-major, `c` columns).
 #[inline(always)]
-fn forward_supernode<V: LaneOps>(
+fn forward_supernode<const W: usize, V: LaneOps<W>>(
     l: &[f64],
     f: usize,
     c: usize,
     pattern: &[usize],
     inv_diag: &[f64],
-    w: &mut [Lane],
+    w: &mut [[f64; W]],
 ) {
     // x_s ← L_ss⁻¹ w_s, row by row: x_i = (w_i − Σ_{j<i} L_ij x_j) / L_ii,
     // in place in w[f..f+c].
     for i in 0..c {
         let row = &l[i * c..i * c + i];
-        let s = dot_lanes::<V>(row, &w[f..f + i]);
+        let s = dot_lanes::<W, V>(row, &w[f..f + i]);
         V::load(&w[f + i])
             .sub(s)
             .scale(inv_diag[f + i])
             .store(&mut w[f + i]);
     }
     let (head, tail) = w.split_at_mut(f + c);
-    let xs: &[Lane] = &head[f..];
+    let xs: &[[f64; W]] = &head[f..];
     // Pattern rows lie after the supernode in the ordering: all in `tail`.
     let off = l.get(c * c..).unwrap_or(&[]);
     let mut rows4 = pattern.chunks_exact(4);
@@ -412,7 +643,7 @@ fn forward_supernode<V: LaneOps>(
         .zip(vals4.remainder().chunks_exact(c.max(1)))
     {
         let t = &mut tail[r - f - c];
-        V::load(t).sub(dot_lanes::<V>(v, xs)).store(t);
+        V::load(t).sub(dot_lanes::<W, V>(v, xs)).store(t);
     }
 }
 
@@ -420,11 +651,11 @@ fn forward_supernode<V: LaneOps>(
 /// columns of a row-major block (row stride `c`) against one lane per row,
 /// the `M` sums held in registers across all rows.
 #[inline(always)]
-fn column_sums<V: LaneOps, const M: usize>(
+fn column_sums<const W: usize, V: LaneOps<W>, const M: usize>(
     rows: &[f64],
     c: usize,
     j0: usize,
-    x: &[Lane],
+    x: &[[f64; W]],
 ) -> [V; M] {
     let mut acc = [V::zero(); M];
     for (t, xt) in x.iter().enumerate() {
@@ -442,16 +673,16 @@ fn column_sums<V: LaneOps, const M: usize>(
 /// block are solved: `v = w_B − L_{D,B}ᵀ x_D` (`D` the supernode's own rows
 /// after the block), then `x_B = L_BB⁻ᵀ v` by the small `M × M` triangle.
 #[inline(always)]
-fn backward_block<V: LaneOps, const M: usize>(
+fn backward_block<const W: usize, V: LaneOps<W>, const M: usize>(
     l: &[f64],
     f: usize,
     c: usize,
     j0: usize,
     inv_diag: &[f64],
-    w: &mut [Lane],
+    w: &mut [[f64; W]],
 ) {
     let j1 = j0 + M;
-    let below = column_sums::<V, M>(&l[j1 * c..c * c], c, j0, &w[f + j1..f + c]);
+    let below = column_sums::<W, V, M>(&l[j1 * c..c * c], c, j0, &w[f + j1..f + c]);
     let mut v = [V::zero(); M];
     for q in 0..M {
         v[q] = V::load(&w[f + j0 + q]).sub(below[q]);
@@ -477,18 +708,18 @@ fn backward_block<V: LaneOps, const M: usize>(
 /// the first block holding the `c mod 8` leftover columns.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn backward_supernode<V: LaneOps>(
+fn backward_supernode<const W: usize, V: LaneOps<W>>(
     l: &[f64],
     f: usize,
     c: usize,
     pattern: &[usize],
     inv_diag: &[f64],
-    w: &mut [Lane],
-    acc: &mut [Lane],
+    w: &mut [[f64; W]],
+    acc: &mut [[f64; W]],
 ) {
     if !pattern.is_empty() {
         let acc = &mut acc[..c];
-        acc.fill([0.0; LANES]);
+        acc.fill([0.0; W]);
         let off = &l[c * c..];
         let mut rows4 = pattern.chunks_exact(4);
         let mut vals4 = off.chunks_exact(4 * c);
@@ -518,16 +749,16 @@ fn backward_supernode<V: LaneOps>(
     let mut j0 = c;
     while j0 >= 8 {
         j0 -= 8;
-        backward_block::<V, 8>(l, f, c, j0, inv_diag, w);
+        backward_block::<W, V, 8>(l, f, c, j0, inv_diag, w);
     }
     match c % 8 {
-        1 => backward_block::<V, 1>(l, f, c, 0, inv_diag, w),
-        2 => backward_block::<V, 2>(l, f, c, 0, inv_diag, w),
-        3 => backward_block::<V, 3>(l, f, c, 0, inv_diag, w),
-        4 => backward_block::<V, 4>(l, f, c, 0, inv_diag, w),
-        5 => backward_block::<V, 5>(l, f, c, 0, inv_diag, w),
-        6 => backward_block::<V, 6>(l, f, c, 0, inv_diag, w),
-        7 => backward_block::<V, 7>(l, f, c, 0, inv_diag, w),
+        1 => backward_block::<W, V, 1>(l, f, c, 0, inv_diag, w),
+        2 => backward_block::<W, V, 2>(l, f, c, 0, inv_diag, w),
+        3 => backward_block::<W, V, 3>(l, f, c, 0, inv_diag, w),
+        4 => backward_block::<W, V, 4>(l, f, c, 0, inv_diag, w),
+        5 => backward_block::<W, V, 5>(l, f, c, 0, inv_diag, w),
+        6 => backward_block::<W, V, 6>(l, f, c, 0, inv_diag, w),
+        7 => backward_block::<W, V, 7>(l, f, c, 0, inv_diag, w),
         _ => {}
     }
 }
@@ -566,11 +797,19 @@ mod tests {
         SparseColMat::try_new_from_triplets(n, n, &t).unwrap()
     }
 
-    /// Solves with our lanes and with faer's own solve (on the untouched
-    /// column-major values) and compares, for several column counts.
-    fn check(threshold: SupernodalThreshold) {
-        let lower = spd_lower(23, 0.5);
-        let n = lower.ncols();
+    /// A factor of [`spd_lower`]`(k, 0.5)`: the symbolic factor, faer's
+    /// column-major values, the values in our row layout, `1 / L_ii`, and
+    /// the permutation.
+    struct Factor {
+        symbolic: faer::sparse::linalg::cholesky::SymbolicCholesky<usize>,
+        values: Vec<f64>,
+        rows_layout: Vec<f64>,
+        inv_diag: Vec<f64>,
+        perm: Option<Vec<usize>>,
+    }
+
+    fn factor(k: usize, threshold: SupernodalThreshold) -> Factor {
+        let lower = spd_lower(k, 0.5);
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: threshold,
             ..Default::default()
@@ -604,39 +843,123 @@ mod tests {
             .collect();
         let mut rows_layout = values.clone();
         SupernodalRows::transpose_in_place(&symbolic, &mut rows_layout);
+        Factor {
+            symbolic,
+            values,
+            rows_layout,
+            inv_diag,
+            perm,
+        }
+    }
+
+    /// faer's own solve of `L Lᵀ X = B` (on the column-major values).
+    fn faer_solve(f: &Factor, b: &Mat<f64>) -> Mat<f64> {
+        let mut expected = b.clone();
+        let llt = faer::sparse::linalg::cholesky::LltRef::new(&f.symbolic, &f.values);
+        let mut mem = MemBuffer::new(
+            f.symbolic
+                .solve_in_place_scratch::<f64>(b.ncols(), Par::Seq),
+        );
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            expected.as_mut(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+        );
+        expected
+    }
+
+    /// A right-hand side with `k` columns and `n` rows.
+    fn rhs(n: usize, k: usize) -> Mat<f64> {
+        Mat::<f64>::from_fn(n, k, |i, c| ((i * 7 + c * 13) % 17) as f64 - 8.0)
+    }
+
+    /// `b` gathered into lanes of `W` in the factor's order.
+    fn gather<const W: usize>(f: &Factor, b: &Mat<f64>) -> Vec<[f64; W]> {
+        let mut w = vec![[0.0; W]; b.nrows()];
+        for (i, lane) in w.iter_mut().enumerate() {
+            let src = f.perm.as_ref().map_or(i, |p| p[i]);
+            for c in 0..b.ncols() {
+                lane[c] = b[(src, c)];
+            }
+        }
+        w
+    }
+
+    /// Lanes `w` (in the factor's order) against `expected`, and unused
+    /// lanes still zero.
+    fn compare<const W: usize>(f: &Factor, w: &[[f64; W]], expected: &Mat<f64>) {
+        let k = expected.ncols();
+        for (i, lane) in w.iter().enumerate() {
+            let dst = f.perm.as_ref().map_or(i, |p| p[i]);
+            for c in 0..k {
+                let (got, want) = (lane[c], expected[(dst, c)]);
+                assert!(
+                    (got - want).abs() <= 1e-12 * want.abs().max(1.0),
+                    "k = {k}, unknown {dst}, column {c}: {got} vs {want}"
+                );
+            }
+            assert!(lane[k..].iter().all(|&v| v == 0.0));
+        }
+    }
+
+    /// Solves with our lanes and with faer's own solve and compares, for
+    /// several column counts.
+    fn check(threshold: SupernodalThreshold) {
+        let f = factor(23, threshold);
+        let n = f.symbolic.nrows();
         for k in [1, 3, 4] {
-            let b = Mat::<f64>::from_fn(n, k, |i, c| ((i * 7 + c * 13) % 17) as f64 - 8.0);
-            // faer's reference solve.
-            let mut expected = b.clone();
-            let llt = faer::sparse::linalg::cholesky::LltRef::new(&symbolic, &values);
-            let mut mem = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(k, Par::Seq));
-            llt.solve_in_place_with_conj(
-                Conj::No,
-                expected.as_mut(),
-                Par::Seq,
-                MemStack::new(&mut mem),
+            let b = rhs(n, k);
+            let mut w = gather::<LANES>(&f, &b);
+            solve_lanes(
+                &f.symbolic,
+                &f.rows_layout,
+                &f.inv_diag,
+                &mut w,
+                &mut Vec::new(),
             );
-            // Ours, in the permuted order.
-            let mut w = vec![[0.0; LANES]; n];
-            for (i, lane) in w.iter_mut().enumerate() {
-                let src = perm.as_ref().map_or(i, |p| p[i]);
-                for c in 0..k {
-                    lane[c] = b[(src, c)];
-                }
-            }
-            solve_lanes(&symbolic, &rows_layout, &inv_diag, &mut w, &mut Vec::new());
-            for (i, lane) in w.iter().enumerate() {
-                let dst = perm.as_ref().map_or(i, |p| p[i]);
-                for c in 0..k {
-                    let (got, want) = (lane[c], expected[(dst, c)]);
-                    assert!(
-                        (got - want).abs() <= 1e-12 * want.abs().max(1.0),
-                        "k = {k}, unknown {dst}, column {c}: {got} vs {want}"
-                    );
-                }
-                // Unused lanes stay zero.
-                assert!(lane[k..].iter().all(|&v| v == 0.0));
-            }
+            compare(&f, &w, &faer_solve(&f, &b));
+        }
+    }
+
+    /// The solve split over the elimination tree on two threads
+    /// ([`super::super::tree_split::TreeSplit`]) against faer's, with both
+    /// lane widths.
+    #[test]
+    fn split_solves_match_faers_solve() {
+        use super::super::tree_split::TreeSplit;
+        let f = factor(48, SupernodalThreshold::FORCE_SUPERNODAL);
+        let n = f.symbolic.nrows();
+        let split = TreeSplit::with_min_values(&f.symbolic, 0).expect("a grid's tree splits");
+        for k in [1, 3, 4] {
+            let b = rhs(n, k);
+            let mut w = gather::<LANES>(&f, &b);
+            let (mut w2, mut s, mut s2) = (vec![[0.0; LANES]; n], Vec::new(), Vec::new());
+            let parts = passes();
+            split.solve(
+                parts,
+                &f.symbolic,
+                &f.rows_layout,
+                &f.inv_diag,
+                (&mut w, &mut s),
+                (&mut w2, &mut s2),
+            );
+            compare(&f, &w, &faer_solve(&f, &b));
+        }
+        for k in [1, 5, 7, 8] {
+            let b = rhs(n, k);
+            let mut w = gather::<WIDE_LANES>(&f, &b);
+            let (mut w2, mut s, mut s2) = (vec![[0.0; WIDE_LANES]; n], Vec::new(), Vec::new());
+            let parts = wide_passes();
+            split.solve(
+                parts,
+                &f.symbolic,
+                &f.rows_layout,
+                &f.inv_diag,
+                (&mut w, &mut s),
+                (&mut w2, &mut s2),
+            );
+            compare(&f, &w, &faer_solve(&f, &b));
         }
     }
 
