@@ -27,7 +27,7 @@ use crate::error::{Error, ProblemError};
 use crate::problem::LseProblem;
 use crate::report::Report;
 use crate::sparse::NormalPattern;
-use crate::sparse::{at_residual, gather_columns, lower_to_full};
+use crate::sparse::{gather_columns, lower_to_full, mt_residual};
 
 /// The null-space QR method over a QR back end and an SPD back end.
 #[derive(Clone)]
@@ -275,31 +275,43 @@ impl Prepared for PreparedNullSpace {
         Ok(())
     }
 
-    /// The same solution for any width `k`: `y = R1⁻ᵀ D`, `X_p = Q[y; 0]`
-    /// (so `B X_p = D` on the kept rows), then `X = X_p + ΔX` with the
-    /// correction below, which is `Q[0; z]` for `z = H⁻¹ (AQ2)ᵀ (C − A X_p)`
-    /// — what [`Prepared::solve_into`] computes with its 3-column kernels.
+    /// The same solution for any width `k`, as [`Prepared::solve_into`]
+    /// computes it with its 3-column kernels: `y = R1⁻ᵀ D`,
+    /// `X_p = Q[y; 0]` (so `B X_p = D` on the kept rows),
+    /// `z = H⁻¹ (AQ2)ᵀ (C − A X_p)` with `A X_p` over the constrained
+    /// columns of `A` only, `X = Q[y; z]`.
     fn solve_wide_into(
         &mut self,
         problem: &LseProblem,
-        mut out: MatMut<'_, f64>,
+        out: MatMut<'_, f64>,
     ) -> Result<bool, Error> {
         let qr = &*self.qr;
         let k = out.ncols();
         let mut y = Mat::<f64>::zeros(qr.rank(), k);
         qr.solve_r1t(problem.d().as_ref(), y.as_mut());
-        let z = Mat::<f64>::zeros(qr.n() - qr.rank(), k);
-        let mut x = Mat::<f64>::zeros(qr.n(), k);
-        qr.apply_q(y.as_ref(), z.as_ref(), x.as_mut());
-        if let Some(dx) = self.correction(problem, &x)? {
-            x += dx;
+        let mut z = Mat::<f64>::zeros(qr.n() - qr.rank(), k);
+        if let Some(factor) = self.factor.as_mut() {
+            let mut xp = Mat::<f64>::zeros(qr.n(), k);
+            qr.apply_q(y.as_ref(), z.as_ref(), xp.as_mut());
+            let ac = &self.a_constrained;
+            z = mt_residual(
+                self.aq2.as_ref(),
+                ac.columns.as_ref(),
+                Some(&ac.unknowns),
+                problem.c().as_ref(),
+                xp.as_ref(),
+            );
+            factor.solve_in_place(z.as_mut());
+            clear_upper_vector_state();
         }
-        out.copy_from(&x);
+        qr.apply_q(y.as_ref(), z.as_ref(), out);
         Ok(true)
     }
 
     /// Corrected semi-normal equations (Björck 1987) on the reduced
-    /// problem: `g = Q2ᵀ Aᵀ (C − A X)`, `Δz = H⁻¹ g`, `ΔX = Q [0; Δz]`. The
+    /// problem: `g = (AQ2)ᵀ (C − A X)` (the residual of the original rows,
+    /// projected by the `AQ2` the factor was built from, as the solve
+    /// does), `Δz = H⁻¹ g`, `ΔX = Q [0; Δz]`. The
     /// correction lies in the null space of the kept rows of `B`, so the
     /// hard constraints stay exact.
     fn correction(
@@ -312,12 +324,17 @@ impl Prepared for PreparedNullSpace {
         };
         let qr = &*self.qr;
         let k = x.ncols();
-        let gradient = at_residual(problem.a().as_ref(), problem.c().as_ref(), x.as_ref());
-        let mut gy = Mat::<f64>::zeros(qr.rank(), k);
-        let mut gz = Mat::<f64>::zeros(qr.n() - qr.rank(), k);
-        qr.apply_qt(gradient.as_ref(), gy.as_mut(), gz.as_mut());
+        let a = problem.a();
+        let mut gz = mt_residual(
+            self.aq2.as_ref(),
+            a.as_ref(),
+            None,
+            problem.c().as_ref(),
+            x.as_ref(),
+        );
         factor.solve_in_place(gz.as_mut());
-        gy.fill(0.0);
+        clear_upper_vector_state();
+        let gy = Mat::<f64>::zeros(qr.rank(), k);
         let mut dx = Mat::<f64>::zeros(qr.n(), k);
         qr.apply_q(gy.as_ref(), gz.as_ref(), dx.as_mut());
         Ok(Some(dx))

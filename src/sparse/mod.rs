@@ -100,23 +100,38 @@ pub(crate) fn at_times(a: SparseColMatRef<'_, usize, f64>, c: MatRef<'_, f64>) -
 
 /// `Aᵀ (C − A X)` for a sparse `A` (l × n) and dense `C` (l × k), `X`
 /// (n × k): the gradient of `½‖A X − C‖²` (negated) computed from the
-/// residual of the original rows, never as `AᵀC − AᵀA X`. The columns are
-/// taken [`AT_RESIDUAL_WIDTH`] at a time, row-major (a row of `C − A X` is
-/// one 32-byte block, and a block's residual for a mesh of 35 k vertices
-/// stays in a core's L2 cache): per block a scatter pass for `C − A X` and
-/// a dot product per column of `A` for `Aᵀ r`. Several blocks run on
-/// separate threads; a single block (three coordinates) splits its `Aᵀ r`
-/// pass over columns of `A` instead.
+/// residual of the original rows, never as `AᵀC − AᵀA X`
+/// ([`mt_residual`] with `M = A`).
 pub(crate) fn at_residual(
     a: SparseColMatRef<'_, usize, f64>,
+    c: MatRef<'_, f64>,
+    x: MatRef<'_, f64>,
+) -> Mat<f64> {
+    mt_residual(a, a, None, c, x)
+}
+
+/// `Mᵀ (C − A X)` for sparse `M` (l × p) and `A`, dense `C` (l × k) and `X`
+/// (n × k), where `a` holds the columns of `A` at which `X` can be
+/// non-zero: column `t` of `a` is column `unknowns[t]` of `A` (all of `A`
+/// in order when `unknowns` is `None`). The columns are taken
+/// [`AT_RESIDUAL_WIDTH`] at a time, row-major (a row of `C − A X` is one
+/// 32-byte block, and a block's residual for a mesh of 35 k vertices stays
+/// in a core's L2 cache): per block a scatter pass over `a` for
+/// `C − A X` and a dot product per column of `M` for `Mᵀ r`. Several
+/// blocks run on separate threads; a single block (three coordinates)
+/// splits its `Mᵀ r` pass over columns of `M` instead.
+pub(crate) fn mt_residual(
+    m: SparseColMatRef<'_, usize, f64>,
+    a: SparseColMatRef<'_, usize, f64>,
+    unknowns: Option<&[usize]>,
     c: MatRef<'_, f64>,
     x: MatRef<'_, f64>,
 ) -> Mat<f64> {
     let k = c.ncols();
     let block = |c0: usize, split: bool| {
         let width = AT_RESIDUAL_WIDTH.min(k - c0);
-        let r = residual_rows(a, c.subcols(c0, width), x.subcols(c0, width));
-        at_rows(a, &r, split)
+        let r = residual_rows(a, unknowns, c.subcols(c0, width), x.subcols(c0, width));
+        at_rows(m, &r, split)
     };
     let starts: Vec<usize> = (0..k).step_by(AT_RESIDUAL_WIDTH).collect();
     let mut blocks: Vec<Vec<Row>> = vec![Vec::new(); starts.len()];
@@ -133,7 +148,7 @@ pub(crate) fn at_residual(
             first[0] = block(0, false);
         });
     }
-    let mut out = Mat::<f64>::zeros(a.ncols(), k);
+    let mut out = Mat::<f64>::zeros(m.ncols(), k);
     for (g, &c0) in blocks.iter().zip(&starts) {
         for col in 0..AT_RESIDUAL_WIDTH.min(k - c0) {
             for (o, row) in out.col_mut(c0 + col).iter_mut().zip(g) {
@@ -174,16 +189,20 @@ fn row_major(m: MatRef<'_, f64>) -> Vec<Row> {
     rows
 }
 
-/// `C − A X` row-major, for at most [`AT_RESIDUAL_WIDTH`] columns.
+/// `C − A X` row-major, for at most [`AT_RESIDUAL_WIDTH`] columns, over
+/// the columns `a` of `A` (see [`mt_residual`]).
 fn residual_rows(
     a: SparseColMatRef<'_, usize, f64>,
+    unknowns: Option<&[usize]>,
     c: MatRef<'_, f64>,
     x: MatRef<'_, f64>,
 ) -> Vec<Row> {
     crate::cpu::clear_upper_vector_state();
     let mut r = row_major(c);
     let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
-    for (j, xj) in row_major(x).iter().enumerate() {
+    let x_rows = row_major(x);
+    for j in 0..a.ncols() {
+        let xj = &x_rows[unknowns.map_or(j, |u| u[j])];
         for (&i, &v) in rows[ptr[j]..ptr[j + 1]]
             .iter()
             .zip(&val[ptr[j]..ptr[j + 1]])
