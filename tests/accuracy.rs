@@ -532,6 +532,37 @@ fn penalty_refinement_reaches_the_constrained_solution_and_stops_on_conflicts() 
     assert!(!r.redundant.is_detected());
 }
 
+/// `Refine::Until(tol)` stops after the first correction of at most `tol`
+/// (every earlier one larger), reports it as the estimate, and the result
+/// is within it of the exact solution: the method of multipliers with
+/// small weights, which needs several steps.
+#[test]
+fn refine_until_stops_at_the_first_correction_within_the_tolerance() {
+    let mesh = random_surface(7, 6, 5);
+    let cs = mixed_constraints(&mesh, true);
+    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs)).unwrap();
+    let exact = positions(&mut d, &NullSpaceQr::default(), None);
+    let diagonal = mesh.bbox_diagonal();
+    for (w, tol) in [(1.0, 1e-4), (1.0, 1e-9), (1e1, 1e-7)] {
+        let x = positions(&mut d, &Penalty::new(w), Some(Refine::Until(tol)));
+        let r = d.report().refinement.clone().unwrap();
+        assert_eq!(
+            r.stop_reason,
+            RefineStop::Tolerance,
+            "w = {w}, tol = {tol:e}: {r:?}"
+        );
+        let (last, earlier) = r.corrections.split_last().unwrap();
+        assert!(*last <= tol && earlier.iter().all(|&c| c > tol), "{r:?}");
+        assert!(r.steps >= 2, "a case that needs several steps: {r:?}");
+        assert_eq!(r.forward_error_estimate, *last);
+        let error = max_distance(&x, &exact) / diagonal;
+        assert!(
+            error <= *last,
+            "w = {w}, tol = {tol:e}: error {error:e}, {r:?}"
+        );
+    }
+}
+
 /// `‖[Aᵀ(C − A X)]_free‖∞` over the vertices without a hard position
 /// constraint: the residual of the reduced normal equations.
 fn normal_residual(d: &Deformer, x: &Mat<f64>, fixed: &[bool]) -> f64 {

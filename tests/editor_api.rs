@@ -153,6 +153,31 @@ fn rotation_x(angle: f64, t: [f64; 3]) -> [[f64; 4]; 3] {
 #[test]
 fn transform_matches_the_library_full_solve() {
     let server = start(1 << 20);
+    // Before any move: the positions are the basis at the identity, equal
+    // to a full solve, and the report carries the basis's refinement.
+    let at_rest = positions_f64(&server.addr);
+    let mut deformer = Deformer::new(
+        server.mesh.clone(),
+        LaplacianKind::Cotangent,
+        server.constraints.clone(),
+    )
+    .unwrap();
+    deformer.precompute(&NullSpaceQr::default()).unwrap();
+    let want = deformer.solve().unwrap().positions;
+    let diag = server.mesh.bbox_diagonal();
+    for (g, w) in at_rest.iter().zip(&want) {
+        for c in 0..3 {
+            assert!((g[c] - w[c]).abs() <= 1e-9 * diag, "{g:?} vs {w:?}");
+        }
+    }
+    let report = json(&request(&server.addr, "GET", "/api/report", b"").1);
+    assert_eq!(report["refinement"]["mode"], "until 1e-9");
+    let estimate = report["forward_error_estimate"].as_f64().unwrap();
+    assert!(estimate <= 1e-9, "{estimate:e}");
+    assert_eq!(
+        report["editor"]["basis"]["forward_error_estimate"],
+        estimate
+    );
     let m = rotation_x(0.7, [0.1, 0.2, 0.5]);
     let (status, body) = request(
         &server.addr,

@@ -30,6 +30,13 @@
 //! chains, so the solve is bound by reading `L` (twice) rather than by
 //! arithmetic latency. A simplicial factor is solved column by column with
 //! the same lanes.
+//!
+//! The same kernels are instantiated for wide groups of [`WIDE_LANES`] = 8
+//! columns on AVX-512 registers ([`wide_passes`]: the seven columns of a
+//! response basis read `L` once instead of twice), and the supernodal
+//! passes run over any ascending set of supernodes ([`Passes`]), which is
+//! what the solve on two threads along the elimination tree
+//! ([`super::tree_split`]) needs.
 
 use std::ops::Range;
 
