@@ -150,12 +150,9 @@ fn rotation_x(angle: f64, t: [f64; 3]) -> [[f64; 4]; 3] {
     [[1.0, 0.0, 0.0, t[0]], [0.0, c, -s, t[1]], [0.0, s, c, t[2]]]
 }
 
-#[test]
-fn transform_matches_the_library_full_solve() {
-    let server = start(1 << 20);
-    // Before any move: the positions are the basis at the identity, equal
-    // to a full solve, and the report carries the basis's refinement.
-    let at_rest = positions_f64(&server.addr);
+/// The server's scene solved by the library (the editor's defaults), with
+/// a group moved first if given.
+fn library_positions(server: &Server, moved: Option<(&str, [[f64; 4]; 3])>) -> Vec<[f64; 3]> {
     let mut deformer = Deformer::new(
         server.mesh.clone(),
         LaplacianKind::Cotangent,
@@ -163,7 +160,19 @@ fn transform_matches_the_library_full_solve() {
     )
     .unwrap();
     deformer.precompute(&NullSpaceQr::default()).unwrap();
-    let want = deformer.solve().unwrap().positions;
+    if let Some((group, m)) = moved {
+        deformer.transform_group(group, &m).unwrap();
+    }
+    deformer.solve().unwrap().positions
+}
+
+#[test]
+fn transform_matches_the_library_full_solve() {
+    let server = start(1 << 20);
+    // Before any move: the positions are the basis at the identity, equal
+    // to a full solve, and the report carries the basis's refinement.
+    let at_rest = positions_f64(&server.addr);
+    let want = library_positions(&server, None);
     let diag = server.mesh.bbox_diagonal();
     for (g, w) in at_rest.iter().zip(&want) {
         for c in 0..3 {
@@ -188,16 +197,7 @@ fn transform_matches_the_library_full_solve() {
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
     assert_eq!(json(&body)["path"], "basis");
     let got = positions_f64(&server.addr);
-    let mut deformer = Deformer::new(
-        server.mesh.clone(),
-        LaplacianKind::Cotangent,
-        server.constraints.clone(),
-    )
-    .unwrap();
-    deformer.precompute(&NullSpaceQr::default()).unwrap();
-    deformer.transform_group("handle", &m).unwrap();
-    let want = deformer.solve().unwrap().positions;
-    let diag = server.mesh.bbox_diagonal();
+    let want = library_positions(&server, Some(("handle", m)));
     for (g, w) in got.iter().zip(&want) {
         for c in 0..3 {
             assert!((g[c] - w[c]).abs() <= 1e-9 * diag, "{g:?} vs {w:?}");

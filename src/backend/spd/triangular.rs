@@ -187,60 +187,14 @@ impl<const W: usize> LaneOps<W> for [f64; W] {
 
 /// One 256-bit AVX register per lane, fused multiply–adds.
 ///
-/// Only constructed inside [`solve_lanes_avx2`], which runs only after the
-/// CPU was found to support AVX2 and FMA; every method is inlined there.
+/// Only constructed inside [`solve_lanes_avx2`] and the passes of
+/// [`passes`], which run only after the CPU was found to support AVX2 and
+/// FMA; every method is inlined there.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 struct Avx2(std::arch::x86_64::__m256d);
 
-#[cfg(target_arch = "x86_64")]
-impl LaneOps<LANES> for Avx2 {
-    #[inline(always)]
-    fn zero() -> Self {
-        // SAFETY (every method): AVX2 and FMA are present (see the type).
-        unsafe { Avx2(std::arch::x86_64::_mm256_setzero_pd()) }
-    }
-    #[inline(always)]
-    fn load(lane: &Lane) -> Self {
-        unsafe { Avx2(std::arch::x86_64::_mm256_loadu_pd(lane.as_ptr())) }
-    }
-    #[inline(always)]
-    fn store(self, lane: &mut Lane) {
-        unsafe { std::arch::x86_64::_mm256_storeu_pd(lane.as_mut_ptr(), self.0) }
-    }
-    #[inline(always)]
-    fn add_mul(self, v: f64, x: Self) -> Self {
-        use std::arch::x86_64::{_mm256_fmadd_pd, _mm256_set1_pd};
-        unsafe { Avx2(_mm256_fmadd_pd(_mm256_set1_pd(v), x.0, self.0)) }
-    }
-    #[inline(always)]
-    fn sub_mul(self, v: f64, x: Self) -> Self {
-        use std::arch::x86_64::{_mm256_fnmadd_pd, _mm256_set1_pd};
-        unsafe { Avx2(_mm256_fnmadd_pd(_mm256_set1_pd(v), x.0, self.0)) }
-    }
-    #[inline(always)]
-    fn add(self, other: Self) -> Self {
-        unsafe { Avx2(std::arch::x86_64::_mm256_add_pd(self.0, other.0)) }
-    }
-    #[inline(always)]
-    fn sub(self, other: Self) -> Self {
-        unsafe { Avx2(std::arch::x86_64::_mm256_sub_pd(self.0, other.0)) }
-    }
-    #[inline(always)]
-    fn scale(self, s: f64) -> Self {
-        use std::arch::x86_64::{_mm256_mul_pd, _mm256_set1_pd};
-        unsafe { Avx2(_mm256_mul_pd(self.0, _mm256_set1_pd(s))) }
-    }
-    #[inline(always)]
-    fn prefetch(values: &[f64]) {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        for line in values.chunks(8) {
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(line.as_ptr().cast()) };
-        }
-    }
-}
-
-/// Right-hand-side columns of a wide group ([`solve_lanes_wide`]).
+/// Right-hand-side columns of a wide group ([`wide_passes`]).
 pub(super) const WIDE_LANES: usize = 8;
 
 /// The values of one unknown in a wide group.
@@ -248,59 +202,102 @@ pub(super) type WideLane = [f64; WIDE_LANES];
 
 /// One 512-bit AVX-512 register per wide lane, fused multiply–adds.
 ///
-/// Only constructed inside [`solve_lanes_avx512`], which runs only after
-/// the CPU was found to support AVX-512F; every method is inlined there.
+/// Only constructed inside the passes of [`wide_passes`], which run only
+/// after the CPU was found to support AVX-512F; every method is inlined
+/// there.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 struct Avx512(std::arch::x86_64::__m512d);
 
+/// [`LaneOps`] for a vector type (a one-field tuple struct constructed only
+/// where its instructions are available) from its intrinsics: set-zero,
+/// load, store, broadcast, `a·b + c`, `−a·b + c`, add, subtract, multiply.
 #[cfg(target_arch = "x86_64")]
-impl LaneOps<WIDE_LANES> for Avx512 {
-    #[inline(always)]
-    fn zero() -> Self {
-        // SAFETY (every method): AVX-512F is present (see the type).
-        unsafe { Avx512(std::arch::x86_64::_mm512_setzero_pd()) }
-    }
-    #[inline(always)]
-    fn load(lane: &WideLane) -> Self {
-        unsafe { Avx512(std::arch::x86_64::_mm512_loadu_pd(lane.as_ptr())) }
-    }
-    #[inline(always)]
-    fn store(self, lane: &mut WideLane) {
-        unsafe { std::arch::x86_64::_mm512_storeu_pd(lane.as_mut_ptr(), self.0) }
-    }
-    #[inline(always)]
-    fn add_mul(self, v: f64, x: Self) -> Self {
-        use std::arch::x86_64::{_mm512_fmadd_pd, _mm512_set1_pd};
-        unsafe { Avx512(_mm512_fmadd_pd(_mm512_set1_pd(v), x.0, self.0)) }
-    }
-    #[inline(always)]
-    fn sub_mul(self, v: f64, x: Self) -> Self {
-        use std::arch::x86_64::{_mm512_fnmadd_pd, _mm512_set1_pd};
-        unsafe { Avx512(_mm512_fnmadd_pd(_mm512_set1_pd(v), x.0, self.0)) }
-    }
-    #[inline(always)]
-    fn add(self, other: Self) -> Self {
-        unsafe { Avx512(std::arch::x86_64::_mm512_add_pd(self.0, other.0)) }
-    }
-    #[inline(always)]
-    fn sub(self, other: Self) -> Self {
-        unsafe { Avx512(std::arch::x86_64::_mm512_sub_pd(self.0, other.0)) }
-    }
-    #[inline(always)]
-    fn scale(self, s: f64) -> Self {
-        use std::arch::x86_64::{_mm512_mul_pd, _mm512_set1_pd};
-        unsafe { Avx512(_mm512_mul_pd(self.0, _mm512_set1_pd(s))) }
-    }
-    #[inline(always)]
-    fn prefetch(values: &[f64]) {
-        <Avx2 as LaneOps<LANES>>::prefetch(values);
-    }
+macro_rules! vector_lanes {
+    ($ty:ident, $w:expr, $zero:ident, $load:ident, $store:ident, $set1:ident,
+     $fmadd:ident, $fnmadd:ident, $add:ident, $sub:ident, $mul:ident) => {
+        impl LaneOps<{ $w }> for $ty {
+            // SAFETY (every method): the type is only constructed where
+            // the CPU has its instructions (see the type).
+            #[inline(always)]
+            fn zero() -> Self {
+                unsafe { $ty(std::arch::x86_64::$zero()) }
+            }
+            #[inline(always)]
+            fn load(lane: &[f64; $w]) -> Self {
+                unsafe { $ty(std::arch::x86_64::$load(lane.as_ptr())) }
+            }
+            #[inline(always)]
+            fn store(self, lane: &mut [f64; $w]) {
+                unsafe { std::arch::x86_64::$store(lane.as_mut_ptr(), self.0) }
+            }
+            #[inline(always)]
+            fn add_mul(self, v: f64, x: Self) -> Self {
+                use std::arch::x86_64::{$fmadd, $set1};
+                unsafe { $ty($fmadd($set1(v), x.0, self.0)) }
+            }
+            #[inline(always)]
+            fn sub_mul(self, v: f64, x: Self) -> Self {
+                use std::arch::x86_64::{$fnmadd, $set1};
+                unsafe { $ty($fnmadd($set1(v), x.0, self.0)) }
+            }
+            #[inline(always)]
+            fn add(self, other: Self) -> Self {
+                unsafe { $ty(std::arch::x86_64::$add(self.0, other.0)) }
+            }
+            #[inline(always)]
+            fn sub(self, other: Self) -> Self {
+                unsafe { $ty(std::arch::x86_64::$sub(self.0, other.0)) }
+            }
+            #[inline(always)]
+            fn scale(self, s: f64) -> Self {
+                use std::arch::x86_64::{$mul, $set1};
+                unsafe { $ty($mul(self.0, $set1(s))) }
+            }
+            #[inline(always)]
+            fn prefetch(values: &[f64]) {
+                use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+                for line in values.chunks(8) {
+                    unsafe { _mm_prefetch::<_MM_HINT_T0>(line.as_ptr().cast()) };
+                }
+            }
+        }
+    };
 }
 
-/// Whether [`solve_lanes_wide`] runs on vector registers as wide as its
-/// lanes (AVX-512F). Elsewhere a wide group costs about twice a group of
-/// [`LANES`] and two such groups on two threads are faster.
+#[cfg(target_arch = "x86_64")]
+vector_lanes!(
+    Avx2,
+    LANES,
+    _mm256_setzero_pd,
+    _mm256_loadu_pd,
+    _mm256_storeu_pd,
+    _mm256_set1_pd,
+    _mm256_fmadd_pd,
+    _mm256_fnmadd_pd,
+    _mm256_add_pd,
+    _mm256_sub_pd,
+    _mm256_mul_pd
+);
+
+#[cfg(target_arch = "x86_64")]
+vector_lanes!(
+    Avx512,
+    WIDE_LANES,
+    _mm512_setzero_pd,
+    _mm512_loadu_pd,
+    _mm512_storeu_pd,
+    _mm512_set1_pd,
+    _mm512_fmadd_pd,
+    _mm512_fnmadd_pd,
+    _mm512_add_pd,
+    _mm512_sub_pd,
+    _mm512_mul_pd
+);
+
+/// Whether the wide passes ([`wide_passes`]) run on vector registers as
+/// wide as their lanes (AVX-512F). Elsewhere a wide group costs about twice
+/// a group of [`LANES`] and two such groups on two threads are faster.
 pub(super) fn wide_lanes_native() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -505,32 +502,42 @@ impl<const W: usize> Passes<W> {
     }
 }
 
-/// The passes for groups of [`LANES`] columns.
-pub(super) fn passes() -> Passes<LANES> {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        #[target_feature(enable = "avx2,fma")]
+/// [`Passes`] over lanes of `$w` columns with the vector type `$v`,
+/// compiled for the target features `$features` (which the caller has
+/// checked the CPU has).
+#[cfg(target_arch = "x86_64")]
+macro_rules! compiled_passes {
+    ($w:expr, $v:ty, $features:literal) => {{
+        #[target_feature(enable = $features)]
         unsafe fn forward(
             s: &SymbolicSupernodalCholesky<usize>,
             values: &[f64],
             inv_diag: &[f64],
             ranges: &[Range<usize>],
-            w: &mut [Lane],
+            w: &mut [[f64; $w]],
         ) {
-            forward_pass::<LANES, Avx2>(s, values, inv_diag, ranges, w);
+            forward_pass::<{ $w }, $v>(s, values, inv_diag, ranges, w);
         }
-        #[target_feature(enable = "avx2,fma")]
+        #[target_feature(enable = $features)]
         unsafe fn backward(
             s: &SymbolicSupernodalCholesky<usize>,
             values: &[f64],
             inv_diag: &[f64],
             ranges: &[Range<usize>],
-            w: &mut [Lane],
-            scratch: &mut Vec<Lane>,
+            w: &mut [[f64; $w]],
+            scratch: &mut Vec<[f64; $w]>,
         ) {
-            backward_pass::<LANES, Avx2>(s, values, inv_diag, ranges, w, scratch);
+            backward_pass::<{ $w }, $v>(s, values, inv_diag, ranges, w, scratch);
         }
-        return Passes { forward, backward };
+        Passes { forward, backward }
+    }};
+}
+
+/// The passes for groups of [`LANES`] columns.
+pub(super) fn passes() -> Passes<LANES> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        return compiled_passes!(LANES, Avx2, "avx2,fma");
     }
     Passes {
         forward: forward_pass::<LANES, Lane>,
@@ -542,28 +549,7 @@ pub(super) fn passes() -> Passes<LANES> {
 pub(super) fn wide_passes() -> Passes<WIDE_LANES> {
     #[cfg(target_arch = "x86_64")]
     if wide_lanes_native() {
-        #[target_feature(enable = "avx512f")]
-        unsafe fn forward(
-            s: &SymbolicSupernodalCholesky<usize>,
-            values: &[f64],
-            inv_diag: &[f64],
-            ranges: &[Range<usize>],
-            w: &mut [WideLane],
-        ) {
-            forward_pass::<WIDE_LANES, Avx512>(s, values, inv_diag, ranges, w);
-        }
-        #[target_feature(enable = "avx512f")]
-        unsafe fn backward(
-            s: &SymbolicSupernodalCholesky<usize>,
-            values: &[f64],
-            inv_diag: &[f64],
-            ranges: &[Range<usize>],
-            w: &mut [WideLane],
-            scratch: &mut Vec<WideLane>,
-        ) {
-            backward_pass::<WIDE_LANES, Avx512>(s, values, inv_diag, ranges, w, scratch);
-        }
-        return Passes { forward, backward };
+        return compiled_passes!(WIDE_LANES, Avx512, "avx512f");
     }
     Passes {
         forward: forward_pass::<WIDE_LANES, WideLane>,
@@ -936,38 +922,53 @@ mod tests {
     fn split_solves_match_faers_solve() {
         use super::super::tree_split::TreeSplit;
         let f = factor(48, SupernodalThreshold::FORCE_SUPERNODAL);
-        let n = f.symbolic.nrows();
         let split = TreeSplit::with_min_values(&f.symbolic, 0).expect("a grid's tree splits");
-        for k in [1, 3, 4] {
-            let b = rhs(n, k);
-            let mut w = gather::<LANES>(&f, &b);
-            let (mut w2, mut s, mut s2) = (vec![[0.0; LANES]; n], Vec::new(), Vec::new());
-            let parts = passes();
-            split.solve(
-                parts,
-                &f.symbolic,
-                &f.rows_layout,
-                &f.inv_diag,
-                (&mut w, &mut s),
-                (&mut w2, &mut s2),
+        let check = |k: usize, solve: &dyn Fn(&Mat<f64>) -> Mat<f64>| {
+            let b = rhs(f.symbolic.nrows(), k);
+            let got = solve(&b);
+            let want = faer_solve(&f, &b);
+            assert!(
+                (&got - &want).norm_max() <= 1e-12 * want.norm_max(),
+                "k = {k}"
             );
-            compare(&f, &w, &faer_solve(&f, &b));
+        };
+        for k in [1, 3, 4] {
+            check(k, &|b| split_solve(&f, &split, passes(), b));
         }
         for k in [1, 5, 7, 8] {
-            let b = rhs(n, k);
-            let mut w = gather::<WIDE_LANES>(&f, &b);
-            let (mut w2, mut s, mut s2) = (vec![[0.0; WIDE_LANES]; n], Vec::new(), Vec::new());
-            let parts = wide_passes();
-            split.solve(
-                parts,
-                &f.symbolic,
-                &f.rows_layout,
-                &f.inv_diag,
-                (&mut w, &mut s),
-                (&mut w2, &mut s2),
-            );
-            compare(&f, &w, &faer_solve(&f, &b));
+            check(k, &|b| split_solve(&f, &split, wide_passes(), b));
         }
+    }
+
+    /// `b` solved by `split` with `passes`, back in the original order
+    /// (unused lanes checked to stay zero).
+    fn split_solve<const W: usize>(
+        f: &Factor,
+        split: &super::super::tree_split::TreeSplit,
+        passes: Passes<W>,
+        b: &Mat<f64>,
+    ) -> Mat<f64> {
+        let n = b.nrows();
+        let mut w = gather::<W>(f, b);
+        let (mut w2, mut s, mut s2) = (vec![[0.0; W]; n], Vec::new(), Vec::new());
+        let buffers = ((&mut w[..], &mut s), (&mut w2[..], &mut s2));
+        split.solve(
+            passes,
+            &f.symbolic,
+            &f.rows_layout,
+            &f.inv_diag,
+            buffers.0,
+            buffers.1,
+        );
+        let mut x = Mat::zeros(n, b.ncols());
+        for (i, lane) in w.iter().enumerate() {
+            let dst = f.perm.as_ref().map_or(i, |p| p[i]);
+            for c in 0..b.ncols() {
+                x[(dst, c)] = lane[c];
+            }
+            assert!(lane[b.ncols()..].iter().all(|&v| v == 0.0));
+        }
+        x
     }
 
     #[test]
