@@ -184,7 +184,7 @@ impl Deformer {
     /// units: positions over [`Deformer::length_unit`]) without the solution
     /// diagnostics ([`Deformer::diagnose`] computes them when wanted): the
     /// call of an interactive loop. With the null-space formulation on the
-    /// faer back ends it allocates nothing. See [`LseSolver::solve_into`].
+    /// faer back ends it allocates no buffer. See [`LseSolver::solve_into`].
     pub fn solve_into(&mut self, x: MatMut<'_, f64>) -> Result<(), Error> {
         self.solver.solve_into(x)
     }

@@ -143,10 +143,11 @@ impl LseSolver {
     /// Solve phase into `x` (n × k), refined unless the mode is
     /// [`Refine::Off`], without diagnostics (call [`LseSolver::diagnose`]
     /// when they are wanted): what a drag loop calls every frame. Without
-    /// refinement, a 3-column problem allocates nothing with the null-space
-    /// formulation on the faer back ends (the buffers were sized at
-    /// precompute); refinement and other formulations allocate their
-    /// temporaries.
+    /// refinement, a 3-column problem allocates no buffer with the
+    /// null-space formulation on the faer back ends (they were sized at
+    /// precompute or by the first solve; a factor solved on two threads
+    /// hands rayon one small task per triangular solve); refinement and
+    /// other formulations allocate their temporaries.
     ///
     /// Errors: a shape mismatch of `x`, a solve before precompute, the
     /// formulation's numerical errors, and a non-finite result

@@ -372,7 +372,7 @@ impl ArapDeformer {
 
     /// Global step: `C_E` from the current rotations, then the solve.
     /// `C_E` is written in place into the problem's right-hand side and
-    /// the solution into the current positions: no allocation.
+    /// the solution into the current positions: no buffer allocated.
     fn global_step(&mut self) -> Result<(), Error> {
         let finite = self
             .triangles
