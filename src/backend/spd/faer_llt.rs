@@ -88,8 +88,10 @@ impl SpdBackend for FaerLlt {
             factorize_symbolic_cholesky(lower, Side::Lower, SymmetricOrdering::Amd, params)
                 .map_err(|e| backend_error(self.name, e))?;
         let (nnz, index_bytes) = factor_size(&symbolic);
+        let split = TreeSplit::new(&symbolic).map(Arc::new);
         Ok(Box::new(FaerSymbolic {
             symbolic: Arc::new(symbolic),
+            split,
             name: self.name,
             nnz,
             index_bytes,
@@ -118,6 +120,9 @@ fn factor_size(symbolic: &SymbolicCholesky<usize>) -> (usize, usize) {
 
 struct FaerSymbolic {
     symbolic: Arc<SymbolicCholesky<usize>>,
+    /// How its solves are split over two threads (computed once with the
+    /// symbolic factor, shared by every numeric one).
+    split: Option<Arc<TreeSplit>>,
     name: &'static str,
     nnz: usize,
     index_bytes: usize,
@@ -176,8 +181,7 @@ impl SpdSymbolic for FaerSymbolic {
             inv_diag,
             scratch: Vec::new(),
             second: None,
-            split: TreeSplit::new(&self.symbolic),
-            split_lanes: None,
+            split: self.split.clone(),
             split_wide: None,
             fwd,
         }))
@@ -237,15 +241,15 @@ struct FaerFactor {
     /// Scratch of the triangular solves (the backward accumulator of the
     /// widest supernode).
     scratch: Vec<Lane>,
-    /// The lanes and scratch of the second thread of a solve with more
-    /// than [`LANES`] columns (allocated by the first such solve).
+    /// The lanes and scratch of the second thread (of a split solve, or of
+    /// a solve with more than [`LANES`] columns), allocated by the first
+    /// such solve; the first thread uses `work` and `scratch`.
     second: Option<(Vec<Lane>, Vec<Lane>)>,
     /// How a one-group solve is split over two threads (`None`: small or
     /// unbalanced tree, or simplicial).
-    split: Option<TreeSplit>,
-    /// The buffers of split solves of up to [`LANES`] and [`WIDE_LANES`]
-    /// columns (allocated by the first such solve).
-    split_lanes: Option<LaneBuffers<LANES>>,
+    split: Option<Arc<TreeSplit>>,
+    /// Both threads' wide lanes and scratch of a split solve of up to
+    /// [`WIDE_LANES`] columns (allocated by the first such solve).
     split_wide: Option<LaneBuffers<WIDE_LANES>>,
 }
 
@@ -301,20 +305,16 @@ impl GroupSolver<'_> {
     }
 
     /// One group of up to `W` columns solved on two threads by `split`,
-    /// through `buffers` (`(w, scratch)` of each thread).
+    /// through `(w, scratch)` on this thread and `(w2, scratch2)` on the
+    /// other.
     fn solve_split<const W: usize>(
         &self,
         rhs: MatMut<'_, f64>,
         split: &TreeSplit,
         passes: Passes<W>,
-        buffers: &mut LaneBuffers<W>,
+        (w, scratch): (&mut [[f64; W]], &mut Vec<[f64; W]>),
+        (w2, scratch2): (&mut [[f64; W]], &mut Vec<[f64; W]>),
     ) {
-        let LaneBuffers {
-            w,
-            scratch,
-            w2,
-            scratch2,
-        } = buffers;
         self.solve_groups_with(rhs, w, |w| {
             split.solve(
                 passes,
@@ -365,13 +365,20 @@ impl SpdFactor for FaerFactor {
         // splits ([`TreeSplit`]), else on this one.
         if let Some(split) = &self.split {
             if k <= LANES {
-                let buffers = self.split_lanes.get_or_insert_with(|| LaneBuffers::new(n));
-                solver.solve_split(rhs, split, passes(), buffers);
+                let second = self
+                    .second
+                    .get_or_insert_with(|| (vec![[0.0; LANES]; n], Vec::new()));
+                let first = (&mut self.work[..], &mut self.scratch);
+                solver.solve_split(rhs, split, passes(), first, (&mut second.0, &mut second.1));
                 return;
             }
             if k <= WIDE_LANES && wide_lanes_native() {
-                let buffers = self.split_wide.get_or_insert_with(|| LaneBuffers::new(n));
-                solver.solve_split(rhs, split, wide_passes(), buffers);
+                let b = self.split_wide.get_or_insert_with(|| LaneBuffers::new(n));
+                let (first, second) = (
+                    (&mut b.w[..], &mut b.scratch),
+                    (&mut b.w2[..], &mut b.scratch2),
+                );
+                solver.solve_split(rhs, split, wide_passes(), first, second);
                 return;
             }
         }
