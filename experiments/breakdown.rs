@@ -15,7 +15,10 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use lse_deform::backend::{qr, spd};
+use std::sync::Arc;
+
+use lse_deform::backend::qr::{QrBackend, QrKind};
+use lse_deform::backend::spd::{SpdBackend, SpdKind};
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
 use lse_deform::scene::FixedAndHandle;
@@ -64,12 +67,25 @@ pub(crate) fn precompute_phase_values(t: &Timings) -> Vec<f64> {
 /// The SPD back ends of this build (CHOLMOD only with `--features
 /// suitesparse`), in the library's order.
 pub(crate) fn spd_backends() -> Vec<&'static str> {
-    spd::NAMES.to_vec()
+    SpdKind::available()
+        .into_iter()
+        .map(SpdKind::name)
+        .collect()
+}
+
+/// The SPD back end called `name` (one of [`spd_backends`]).
+pub(crate) fn spd_backend(name: &str) -> Result<Arc<dyn SpdBackend>, AnyError> {
+    Ok(name.parse::<SpdKind>()?.backend()?)
 }
 
 /// The QR back ends of this build (SPQR only with `--features suitesparse`).
 pub(crate) fn qr_backends() -> Vec<&'static str> {
-    qr::NAMES.to_vec()
+    QrKind::available().into_iter().map(QrKind::name).collect()
+}
+
+/// The QR back end called `name` (one of [`qr_backends`]).
+pub(crate) fn qr_backend(name: &str) -> Result<Arc<dyn QrBackend>, AnyError> {
+    Ok(name.parse::<QrKind>()?.backend()?)
 }
 
 /// The null-space method with the library's default QR back end and the
@@ -77,7 +93,7 @@ pub(crate) fn qr_backends() -> Vec<&'static str> {
 /// uses, so a change of the default is picked up).
 pub(crate) fn null_space_with_spd(spd_name: &str) -> Result<NullSpaceQr, AnyError> {
     Ok(NullSpaceQr {
-        spd: spd::by_name(spd_name)?,
+        spd: spd_backend(spd_name)?,
         ..NullSpaceQr::default()
     })
 }
@@ -202,7 +218,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             bar.set_message(format!("{NAME}: {name} / {spd_name}"));
             let hard: Box<dyn Formulation> = Box::new(null_space_with_spd(spd_name)?);
             let soft: Box<dyn Formulation> =
-                Box::new(Penalty::with_backend(weight, spd::by_name(spd_name)?));
+                Box::new(Penalty::with_backend(weight, spd_backend(spd_name)?));
             let methods = [(Method::HardSoft, hard), (Method::SoftOnly, soft)];
             let mut reports: Vec<Vec<Report>> = vec![Vec::new(); 2];
             let mut errors: Vec<Option<String>> = vec![None; 2];

@@ -10,13 +10,13 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use faer::Mat;
-use lse_deform::backend::{qr, spd};
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, Elimination, Formulation, Kkt, LaplacianKind, NullSpaceQr, Penalty};
 use serde::Serialize;
 
 use crate::breakdown::{
-    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
+    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backend, qr_backends, short_error, spd_backend,
+    spd_backends,
 };
 use crate::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
 use crate::plot::{
@@ -66,7 +66,7 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
             qr: Some(default_qr.clone()),
             spd: s.into(),
             formulation: Box::new(NullSpaceQr {
-                spd: spd::by_name(s)?,
+                spd: spd_backend(s)?,
                 ..default.clone()
             }),
         });
@@ -81,7 +81,7 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
             qr: Some(q.into()),
             spd: default_spd.clone(),
             formulation: Box::new(NullSpaceQr {
-                qr: qr::by_name(q)?,
+                qr: qr_backend(q)?,
                 ..default.clone()
             }),
         });
@@ -91,7 +91,7 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
         method: "penalty",
         qr: None,
         spd: default_spd.clone(),
-        formulation: Box::new(Penalty::with_backend(weight, spd::by_name(&default_spd)?)),
+        formulation: Box::new(Penalty::with_backend(weight, spd_backend(&default_spd)?)),
     });
     out.push(Config {
         label: "KKT LDLᵀ faer-auto".into(),
@@ -105,7 +105,7 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
         method: "eliminate",
         qr: None,
         spd: default_spd.clone(),
-        formulation: Box::new(Elimination::new(spd::by_name(&default_spd)?)),
+        formulation: Box::new(Elimination::new(spd_backend(&default_spd)?)),
     });
     Ok(out)
 }

@@ -14,7 +14,6 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use lse_deform::backend::qr;
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
@@ -22,7 +21,8 @@ use lse_deform::{Deformer, Formulation, Kkt, LaplacianKind, NullSpaceQr, Report}
 use serde::Serialize;
 
 use crate::breakdown::{
-    PHASES, link, median_index, note_drawn, precompute_phase_values, qr_backends, short_error,
+    PHASES, link, median_index, note_drawn, precompute_phase_values, qr_backend, qr_backends,
+    short_error,
 };
 use crate::context::{Context, MeshCase, fmt_time, markdown_table, median};
 use crate::plot::{
@@ -68,7 +68,7 @@ fn methods() -> Result<Vec<Method>, AnyError> {
             },
             key: format!("nullspace-qr/{name}"),
             formulation: Box::new(NullSpaceQr {
-                qr: qr::by_name(name)?,
+                qr: qr_backend(name)?,
                 ..default.clone()
             }),
             growth,

@@ -57,10 +57,13 @@ pub mod sparse;
 #[cfg(feature = "proptest")]
 pub mod testing;
 
+pub use backend::{qr::QrKind, spd::SpdKind};
 pub use constraints::{Constraint, ConstraintKind, ConstraintSet};
 pub use deform::{Deformer, Solution};
 pub use error::{Error, Result};
-pub use formulation::{Elimination, Formulation, Kkt, NullSpaceQr, Penalty, PenaltySweep};
+pub use formulation::{
+    Elimination, Formulation, FormulationChoice, Kkt, Method, NullSpaceQr, Penalty, PenaltySweep,
+};
 pub use laplacian::LaplacianKind;
 pub use mesh::Mesh;
 pub use report::Report;

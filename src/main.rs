@@ -12,11 +12,15 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::constraints::{ConstraintSet, read_constraints_file};
+use lse_deform::error::ProblemError;
 use lse_deform::export::{META_FILE, export_meta, export_problem, read_meta};
 use lse_deform::mesh::{self, Quality, Topology, generate};
 use lse_deform::problem::LseProblem;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, Error, LaplacianKind, LseSolver, Report, backend, formulation, mtx};
+use lse_deform::{
+    Deformer, Error, Formulation, FormulationChoice, LaplacianKind, LseSolver, Method, QrKind,
+    Report, SpdKind, formulation, mtx,
+};
 
 mod cli;
 
@@ -104,6 +108,19 @@ struct MethodArgs {
     /// refinement is the method of multipliers and makes it exact).
     #[arg(long, value_parser = parse_refine)]
     refine: Option<formulation::Refine>,
+}
+
+impl MethodArgs {
+    /// The formulation these options name.
+    fn formulation(&self) -> Result<Box<dyn Formulation>, Error> {
+        let choice = FormulationChoice {
+            method: self.method.parse()?,
+            qr: self.qr.parse()?,
+            spd: self.spd.parse()?,
+            weight: self.weight,
+        };
+        Ok(choice.build()?)
+    }
 }
 
 fn parse_refine(s: &str) -> Result<formulation::Refine, String> {
@@ -476,7 +493,7 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh)?;
     let constraints = constraints_for(&a.constraints, &mesh, a.strict)?;
     let m = &a.method;
-    let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
+    let formulation = m.formulation()?;
     if a.energy.energy == "arap" {
         return deform_arap(&a, mesh, constraints, formulation.as_ref());
     }
@@ -568,7 +585,7 @@ fn export_system(a: ExportArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh)?;
     let constraints = constraints_for(&a.constraints, &mesh, false)?;
     let m = &a.method;
-    let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
+    let formulation = m.formulation()?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
     deformer.precompute(formulation.as_ref())?;
     let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
@@ -620,7 +637,7 @@ fn solve(a: SolveArgs) -> Result<(), Error> {
         path(&a.d, "D.mtx")?,
     );
     let m = &a.method;
-    let formulation = formulation::build(&m.method, &m.qr, &m.spd, m.weight)?;
+    let formulation = m.formulation()?;
     let meta_path = a.meta.clone().or_else(|| {
         a.dir
             .as_ref()
@@ -780,65 +797,69 @@ struct CompareRow {
     report: Option<lse_deform::Report>,
 }
 
-/// The configurations `compare` runs: (method, QR, SPD, weight).
-type Config = (String, Option<String>, String, Option<f64>);
+/// Every name of `names` parsed.
+fn parse_all<T: std::str::FromStr<Err = ProblemError>>(names: &[String]) -> Result<Vec<T>, Error> {
+    Ok(names.iter().map(|n| n.parse()).collect::<Result<_, _>>()?)
+}
 
-/// Every configuration the filters of `a` allow, in table order.
-fn compare_configs(a: &CompareArgs) -> Result<Vec<Config>, Error> {
-    let invalid = |message: String| -> Error {
-        lse_deform::error::ProblemError::InvalidArgument { message }.into()
-    };
-    // NAMES lists the back ends of this build only.
-    let available =
-        |names: &[&'static str]| -> Vec<String> { names.iter().map(|n| n.to_string()).collect() };
-    let qrs = if a.qr.is_empty() {
-        available(backend::qr::NAMES)
+/// Every configuration the filters of `a` allow, in table order (the
+/// names parsed here, so a misspelt one stops `compare` before any work).
+fn compare_configs(a: &CompareArgs) -> Result<Vec<FormulationChoice>, Error> {
+    let invalid = |message: String| -> Error { ProblemError::InvalidArgument { message }.into() };
+    let qrs: Vec<QrKind> = if a.qr.is_empty() {
+        QrKind::available()
     } else {
-        a.qr.clone()
+        parse_all(&a.qr)?
     };
-    let spds: Vec<String> = if a.spd.is_empty() {
-        available(backend::spd::NAMES)
+    let spds: Vec<SpdKind> = if a.spd.is_empty() {
+        SpdKind::available()
             .into_iter()
-            .filter(|n| n != "faer-auto")
+            .filter(|&k| k != SpdKind::FaerAuto)
             .collect()
     } else {
-        a.spd.clone()
+        parse_all(&a.spd)?
     };
-    for m in &a.methods {
-        if !formulation::METHODS.contains(&m.as_str()) {
-            return Err(invalid(format!(
-                "unknown method '{m}' in --methods (expected some of: {})",
-                formulation::METHODS.join(", ")
-            )));
-        }
-    }
+    let methods = a
+        .methods
+        .iter()
+        .map(|m| {
+            m.parse::<Method>().map_err(|_| {
+                invalid(format!(
+                    "unknown method '{m}' in --methods (expected some of: {})",
+                    Method::ALL.map(Method::name).join(", ")
+                ))
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let mut configs = Vec::new();
-    for method in &a.methods {
-        match method.as_str() {
-            "nullspace-qr" => {
-                for q in &qrs {
-                    for s in &spds {
-                        configs.push((method.clone(), Some(q.clone()), s.clone(), None));
-                    }
+    for method in methods {
+        let with = |spd: SpdKind| FormulationChoice {
+            spd,
+            ..FormulationChoice::new(method)
+        };
+        match method {
+            Method::NullSpaceQr => {
+                for &qr in &qrs {
+                    configs.extend(spds.iter().map(|&s| FormulationChoice { qr, ..with(s) }));
                 }
             }
-            "penalty" => {
+            Method::Penalty => {
                 for &w in &a.weights {
-                    for s in &spds {
-                        configs.push((method.clone(), None, s.clone(), Some(w)));
-                    }
+                    configs.extend(spds.iter().map(|&s| FormulationChoice {
+                        weight: Some(w),
+                        ..with(s)
+                    }));
                 }
             }
-            "kkt" => {
-                for s in spds.iter().filter(|s| s.starts_with("faer-")) {
-                    configs.push((method.clone(), None, s.clone(), None));
-                }
+            Method::Kkt => {
+                let faer = [
+                    SpdKind::FaerSupernodal,
+                    SpdKind::FaerSimplicial,
+                    SpdKind::FaerAuto,
+                ];
+                configs.extend(spds.iter().filter(|s| faer.contains(s)).map(|&s| with(s)));
             }
-            _ => {
-                for s in &spds {
-                    configs.push((method.clone(), None, s.clone(), None));
-                }
-            }
+            Method::Eliminate => configs.extend(spds.iter().map(|&s| with(s))),
         }
     }
     if configs.is_empty() {
@@ -868,18 +889,12 @@ fn compare_reference(deformer: &mut Deformer) -> Result<(faer::Mat<f64>, f64), E
 /// Runs one configuration and fills its row.
 fn compare_one(
     deformer: &mut Deformer,
-    config: &Config,
+    config: &FormulationChoice,
     a: &CompareArgs,
     reference: &(faer::Mat<f64>, f64),
     row: &mut CompareRow,
 ) -> Result<(), Error> {
-    let (method, qr, spd, weight) = config;
-    let f = formulation::build(
-        method,
-        qr.as_deref().unwrap_or("sparse-givens"),
-        spd,
-        *weight,
-    )?;
+    let f = config.build()?;
     deformer.set_refine(a.refine);
     deformer.precompute(f.as_ref())?;
     let mut times = Vec::new();
@@ -939,13 +954,19 @@ fn compare(a: CompareArgs) -> Result<(), Error> {
     bar.inc(1);
     let mut rows = Vec::new();
     for config in &configs {
-        let (method, qr, spd, weight) = config;
-        bar.set_message(format!("{method} {} {spd}", qr.as_deref().unwrap_or("")));
+        // The QR back end is named for the null-space method only.
+        let qr = (config.method == Method::NullSpaceQr).then(|| config.qr.name().to_string());
+        bar.set_message(format!(
+            "{} {} {}",
+            config.method,
+            qr.as_deref().unwrap_or(""),
+            config.spd
+        ));
         let mut row = CompareRow {
-            method: method.clone(),
-            qr: qr.clone(),
-            spd: spd.clone(),
-            weight: *weight,
+            method: config.method.name().into(),
+            qr,
+            spd: config.spd.name().into(),
+            weight: config.weight,
             status: "ok".into(),
             precompute_s: None,
             solve_median_s: None,

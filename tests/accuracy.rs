@@ -9,7 +9,8 @@ use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::formulation::{Refine, RefineStop};
 use lse_deform::testing::random_surface;
 use lse_deform::{
-    Deformer, Elimination, Formulation, Kkt, LaplacianKind, Mesh, NullSpaceQr, Penalty,
+    Deformer, Elimination, Formulation, FormulationChoice, Kkt, LaplacianKind, Mesh, Method,
+    NullSpaceQr, Penalty, QrKind,
 };
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
@@ -106,6 +107,15 @@ fn dense_lse(a: &Mat<f64>, c: &Mat<f64>, b: &Mat<f64>, d: &Mat<f64>) -> Mat<f64>
         .solve(&rhs)
         .submatrix(0, 0, n, c.ncols())
         .to_owned()
+}
+
+/// The null-space method with QR back end `qr` and the default SPD back end.
+fn nullspace_qr_with(qr: QrKind) -> Box<dyn Formulation> {
+    let choice = FormulationChoice {
+        qr,
+        ..FormulationChoice::new(Method::NullSpaceQr)
+    };
+    choice.build().unwrap()
 }
 
 #[test]
@@ -389,12 +399,12 @@ fn the_earlier_of_two_conflicting_constraints_wins() {
         [p[7][0], p[7][1], p[7][2] + 0.1],
         [p[7][0] + 0.1, p[7][1], p[7][2]],
     );
-    for qr in ["dense-householder", "sparse-givens"] {
+    for qr in [QrKind::DenseHouseholder, QrKind::SparseGivens] {
         for (first, second) in [(a, b), (b, a)] {
             let mut cs: Vec<Constraint> = (0..3).map(|v| pos(v, p[v])).collect();
             cs.push(pos(7, first));
             cs.push(pos(7, second));
-            let f = lse_deform::formulation::build("nullspace-qr", qr, "faer-auto", None).unwrap();
+            let f = nullspace_qr_with(qr);
             let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs)).unwrap();
             let x = positions(&mut d, f.as_ref(), None);
             let r = d.report();
@@ -433,8 +443,8 @@ fn rows_a_factor_ten_either_side_of_the_rank_tolerance() {
             t: 1.0 - tau,
             target,
         }));
-        for qr in ["dense-householder", "sparse-givens"] {
-            let f = lse_deform::formulation::build("nullspace-qr", qr, "faer-auto", None).unwrap();
+        for qr in [QrKind::DenseHouseholder, QrKind::SparseGivens] {
+            let f = nullspace_qr_with(qr);
             let mut d =
                 Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs.clone())).unwrap();
             positions(&mut d, f.as_ref(), None);

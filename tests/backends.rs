@@ -9,8 +9,8 @@ use std::time::Instant;
 
 use faer::Mat;
 use faer::sparse::{SparseColMat, SparseRowMat, Triplet};
-use lse_deform::backend::qr::{self, ConstraintQr, QrBackend, RankTolerance};
-use lse_deform::backend::spd::{self, SpdBackend};
+use lse_deform::backend::qr::{self, ConstraintQr, QrBackend, QrKind, RankTolerance};
+use lse_deform::backend::spd::{self, SpdBackend, SpdKind};
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::error::{NumericalError, ProblemError};
 use lse_deform::testing::{dense_reference, random_surface, relative_difference};
@@ -22,17 +22,17 @@ use rand_chacha::ChaCha8Rng;
 
 /// Every QR back end in this build.
 fn qr_backends() -> Vec<Arc<dyn QrBackend>> {
-    qr::NAMES
-        .iter()
-        .filter_map(|n| qr::by_name(n).ok())
+    QrKind::available()
+        .into_iter()
+        .map(|k| k.backend().unwrap())
         .collect()
 }
 
 /// Every SPD back end in this build.
 fn spd_backends() -> Vec<Arc<dyn SpdBackend>> {
-    spd::NAMES
-        .iter()
-        .filter_map(|n| spd::by_name(n).ok())
+    SpdKind::available()
+        .into_iter()
+        .map(|k| k.backend().unwrap())
         .collect()
 }
 
@@ -260,7 +260,7 @@ proptest! {
         let n_base = ((n as f64 * n_base_frac) as usize / 2).max(1);
         let (b, dependent) = random_b(n, n_base, n_dep, seed);
         let tol = RankTolerance::default();
-        let reference = qr::by_name("dense-householder").unwrap().factor(b.as_ref(), tol).unwrap();
+        let reference = QrKind::DenseHouseholder.backend().unwrap().factor(b.as_ref(), tol).unwrap();
         prop_assert_eq!(reference.rank(), b.nrows() - dependent.len());
         prop_assert_eq!(reference.skipped(), &dependent[..]);
         for backend in qr_backends() {
@@ -610,44 +610,61 @@ fn spd_backends_detect_breakdown() {
 }
 
 #[test]
-fn factories_know_every_name() {
-    // NAMES lists exactly the back ends of this build.
-    for &name in qr::NAMES {
-        assert_eq!(qr::by_name(name).unwrap().name(), name);
+fn kinds_know_every_name() {
+    // Every kind's name parses back to it; its back end, when in this
+    // build, carries the same name.
+    for kind in QrKind::ALL {
+        assert_eq!(kind.name().parse::<QrKind>().unwrap(), kind);
+        assert_eq!(kind.to_string(), kind.name());
+        if kind.in_this_build() {
+            assert_eq!(kind.backend().unwrap().name(), kind.name());
+        }
     }
-    for &name in spd::NAMES {
-        assert_eq!(spd::by_name(name).unwrap().name(), name);
+    for kind in SpdKind::ALL {
+        assert_eq!(kind.name().parse::<SpdKind>().unwrap(), kind);
+        assert_eq!(kind.to_string(), kind.name());
+        if kind.in_this_build() {
+            assert_eq!(kind.backend().unwrap().name(), kind.name());
+        }
     }
-    // The SuiteSparse ones: in NAMES with the feature, else a message
+    // The SuiteSparse ones: in this build with the feature, else a message
     // saying how to get them.
-    for &name in qr::SUITESPARSE_NAMES {
-        assert_eq!(qr::NAMES.contains(&name), cfg!(feature = "suitesparse"));
-        if let Err(ProblemError::InvalidArgument { message }) = qr::by_name(name) {
-            assert!(message.contains("--features suitesparse"), "{message}");
-        }
+    let suitesparse = cfg!(feature = "suitesparse");
+    assert_eq!(QrKind::Spqr.in_this_build(), suitesparse);
+    assert_eq!(SpdKind::Cholmod.in_this_build(), suitesparse);
+    if let Err(ProblemError::InvalidArgument { message }) = QrKind::Spqr.backend() {
+        assert!(
+            !suitesparse && message.contains("--features suitesparse"),
+            "{message}"
+        );
     }
-    for &name in spd::SUITESPARSE_NAMES {
-        assert_eq!(spd::NAMES.contains(&name), cfg!(feature = "suitesparse"));
-        if let Err(ProblemError::InvalidArgument { message }) = spd::by_name(name) {
-            assert!(message.contains("--features suitesparse"), "{message}");
-        }
+    if let Err(ProblemError::InvalidArgument { message }) = SpdKind::Cholmod.backend() {
+        assert!(
+            !suitesparse && message.contains("--features suitesparse"),
+            "{message}"
+        );
     }
-    assert_eq!(
-        qr_backends().len(),
-        if cfg!(feature = "suitesparse") { 3 } else { 2 }
-    );
-    assert_eq!(
-        spd_backends().len(),
-        if cfg!(feature = "suitesparse") { 5 } else { 4 }
-    );
-    let Err(ProblemError::InvalidArgument { message }) = qr::by_name("householder") else {
+    assert_eq!(qr_backends().len(), if suitesparse { 3 } else { 2 });
+    assert_eq!(spd_backends().len(), if suitesparse { 5 } else { 4 });
+    // An unknown name: the message lists the names of this build.
+    let Err(ProblemError::InvalidArgument { message }) = "householder".parse::<QrKind>() else {
         panic!("unknown QR name accepted");
     };
-    assert!(qr::NAMES.iter().all(|n| message.contains(n)), "{message}");
-    let Err(ProblemError::InvalidArgument { message }) = spd::by_name("cholesky") else {
+    assert!(
+        QrKind::available()
+            .iter()
+            .all(|k| message.contains(k.name())),
+        "{message}"
+    );
+    let Err(ProblemError::InvalidArgument { message }) = "cholesky".parse::<SpdKind>() else {
         panic!("unknown SPD name accepted");
     };
-    assert!(spd::NAMES.iter().all(|n| message.contains(n)), "{message}");
+    assert!(
+        SpdKind::available()
+            .iter()
+            .all(|k| message.contains(k.name())),
+        "{message}"
+    );
 }
 
 /// Timings on a 35k-vertex surface (run with

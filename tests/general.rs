@@ -6,25 +6,28 @@
 
 use faer::Mat;
 use faer::sparse::{SparseColMat, Triplet};
-use lse_deform::backend::{qr, spd};
 use lse_deform::error::{Error, NumericalError, ProblemError};
-use lse_deform::formulation::{self, Formulation};
+use lse_deform::formulation::{Formulation, FormulationChoice, Method};
 use lse_deform::problem::LseProblem;
 use lse_deform::testing::{dense_reference, random_lse, relative_difference};
-use lse_deform::{Constraint, ConstraintSet, Deformer, Kkt, LaplacianKind, LseSolver, NullSpaceQr};
-
-fn available(names: &[&'static str], ok: impl Fn(&str) -> bool) -> Vec<&'static str> {
-    names.iter().copied().filter(|n| ok(n)).collect()
-}
+use lse_deform::{
+    Constraint, ConstraintSet, Deformer, Kkt, LaplacianKind, LseSolver, NullSpaceQr, QrKind,
+    SpdKind,
+};
 
 #[test]
 fn null_space_on_every_back_end_matches_the_dense_reference_and_names_dependent_rows() {
     for (seed, k) in [(1u64, 3usize), (2, 1), (3, 5)] {
         let lse = random_lse(40, 12, 6, k, seed);
         let reference = dense_reference(&lse.problem, &lse.independent_rows);
-        for q in available(qr::NAMES, |n| qr::by_name(n).is_ok()) {
-            for s in available(spd::NAMES, |n| spd::by_name(n).is_ok()) {
-                let f = formulation::build("nullspace-qr", q, s, None).unwrap();
+        for q in QrKind::available() {
+            for s in SpdKind::available() {
+                let choice = FormulationChoice {
+                    qr: q,
+                    spd: s,
+                    ..FormulationChoice::new(Method::NullSpaceQr)
+                };
+                let f = choice.build().unwrap();
                 let mut solver = LseSolver::new(lse.problem.clone());
                 solver.precompute(f.as_ref()).unwrap();
                 let x = solver.solve().unwrap();
@@ -410,5 +413,52 @@ proptest::proptest! {
         d.solve_matrix().unwrap();
         proptest::prop_assert_eq!(d.report().rank, Some(base.len()));
         proptest::prop_assert_eq!(d.report().redundant.clone(), (6..9).collect::<Vec<_>>());
+    }
+}
+
+#[test]
+fn formulation_choices_name_themselves_and_refuse_what_they_cannot_build() {
+    for method in Method::ALL {
+        assert_eq!(method.name().parse::<Method>().unwrap(), method);
+    }
+    let Err(ProblemError::InvalidArgument { message }) = "qr".parse::<Method>() else {
+        panic!("unknown method accepted");
+    };
+    assert!(
+        Method::ALL.iter().all(|m| message.contains(m.name())),
+        "{message}"
+    );
+    // Each built formulation reports the method it was chosen as.
+    let mut penalty = FormulationChoice::new(Method::Penalty);
+    penalty.weight = Some(1e4);
+    assert!(penalty.build().unwrap().name().starts_with("penalty"));
+    let refused = |choice: FormulationChoice, needle: &str| match choice.build() {
+        Err(ProblemError::InvalidArgument { message }) => {
+            assert!(message.contains(needle), "{choice:?}: {message}")
+        }
+        Err(e) => panic!("{choice:?}: {e}"),
+        Ok(_) => panic!("{choice:?} built"),
+    };
+    // The penalty method needs a finite positive weight.
+    for weight in [
+        None,
+        Some(0.0),
+        Some(-1.0),
+        Some(f64::NAN),
+        Some(f64::INFINITY),
+    ] {
+        let choice = FormulationChoice {
+            weight,
+            ..FormulationChoice::new(Method::Penalty)
+        };
+        refused(choice, "weight");
+    }
+    // KKT factors with faer's LDLᵀ only.
+    for spd in [SpdKind::Nalgebra, SpdKind::Cholmod] {
+        let choice = FormulationChoice {
+            spd,
+            ..FormulationChoice::new(Method::Kkt)
+        };
+        refused(choice, "faer-auto, faer-simplicial or faer-supernodal");
     }
 }

@@ -16,8 +16,8 @@ use lse_deform::constraints::parse_constraints;
 use lse_deform::error::{ConstraintError, Error, MeshError, NumericalError, ProblemError};
 use lse_deform::mesh::{MeshFormat, generate, read_mesh_bytes};
 use lse_deform::{
-    Constraint, ConstraintKind, ConstraintSet, Deformer, Kkt, LaplacianKind, Mesh, NullSpaceQr,
-    Penalty,
+    Constraint, ConstraintKind, ConstraintSet, Deformer, Formulation, FormulationChoice, Kkt,
+    LaplacianKind, Mesh, Method, NullSpaceQr, Penalty, QrKind,
 };
 
 // ---------------------------------------------------------------------------
@@ -49,6 +49,15 @@ const TETRA_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf
 const TETRA_OFF: &str =
     "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
 const TETRA_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+
+/// The null-space method with QR back end `qr` and the default SPD back end.
+fn nullspace_qr_with(qr: QrKind) -> Box<dyn Formulation> {
+    let choice = FormulationChoice {
+        qr,
+        ..FormulationChoice::new(Method::NullSpaceQr)
+    };
+    choice.build().unwrap()
+}
 
 #[test]
 fn the_valid_files_of_this_catalogue_load() {
@@ -713,15 +722,6 @@ fn sliver_meshes_solve_exactly_or_fail_with_a_reason() {
 // stay proportional to the input (full counts in benches/performance.rs,
 // group t8_crowded); here the answers are checked on smaller counts.
 
-/// The QR back ends of this build.
-fn qr_names() -> Vec<&'static str> {
-    lse_deform::backend::qr::NAMES
-        .iter()
-        .copied()
-        .filter(|n| cfg!(feature = "suitesparse") || *n != "spqr")
-        .collect()
-}
-
 /// Runs a [`CrowdedScene`] on every QR back end and checks the rank, the
 /// redundant and the conflicting sets against [`CrowdedScene::expected`]
 /// (derived from how the scene is built, not from a solver), the conflict
@@ -741,8 +741,8 @@ fn check_crowded(partners: usize, count: usize) {
     assert!(!redundant.is_empty() && !conflicting.is_empty());
     let shift = 0.01 * mesh.bbox_diagonal();
     let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs).unwrap();
-    for qr in qr_names() {
-        let f = lse_deform::formulation::build("nullspace-qr", qr, "faer-auto", None).unwrap();
+    for qr in QrKind::available() {
+        let f = nullspace_qr_with(qr);
         d.precompute(f.as_ref()).unwrap();
         let s = d.solve().unwrap();
         let r = &s.report;

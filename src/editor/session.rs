@@ -13,7 +13,7 @@ use crate::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use crate::constraints::ConstraintSet;
 use crate::deform::{Affine, Deformer};
 use crate::error::{Error, ProblemError};
-use crate::formulation::{self, Refine};
+use crate::formulation::{Formulation, FormulationChoice, Refine};
 use crate::handle::HandleBasis;
 use crate::laplacian::LaplacianKind;
 use crate::mesh::Mesh;
@@ -58,16 +58,21 @@ fn invalid(message: String) -> Error {
 }
 
 impl Settings {
+    /// The formulation of `method` with the default back ends (and
+    /// `weight` for the penalty method).
+    fn formulation(&self) -> Result<Box<dyn Formulation>, Error> {
+        let choice = FormulationChoice {
+            weight: Some(self.weight),
+            ..FormulationChoice::new(self.method.parse()?)
+        };
+        Ok(choice.build()?)
+    }
+
     /// Checks every word and number (the CLI's messages).
     pub fn check(&self) -> Result<(), Error> {
         self.laplacian.parse::<LaplacianKind>().map_err(invalid)?;
         Refine::parse(&self.refine)?;
-        formulation::build(
-            &self.method,
-            "sparse-givens",
-            "faer-auto",
-            Some(self.weight),
-        )?;
+        self.formulation()?;
         if self.energy != "laplacian" && self.energy != "arap" {
             return Err(invalid(format!(
                 "unknown energy '{}' (expected laplacian or arap)",
@@ -133,12 +138,7 @@ pub fn build(
     let laplacian: LaplacianKind = settings.laplacian.parse().map_err(invalid)?;
     let mut deformer = Deformer::new(mesh.clone(), laplacian, constraints.clone())?;
     let setup_s = t0.elapsed().as_secs_f64();
-    let formulation = formulation::build(
-        &settings.method,
-        "sparse-givens",
-        "faer-auto",
-        Some(settings.weight),
-    )?;
+    let formulation = settings.formulation()?;
     if settings.energy == "arap" {
         stage("ARAP precompute");
         let t = Instant::now();

@@ -12,8 +12,10 @@
 use faer::sparse::SparseColMat;
 use faer::{Mat, MatMut};
 
+use crate::backend::qr::QrKind;
+use crate::backend::spd::SpdKind;
 use crate::condition::ConditionEstimate;
-use crate::error::Error;
+use crate::error::{Error, ProblemError};
 use crate::problem::LseProblem;
 use crate::report::Report;
 
@@ -129,58 +131,131 @@ pub trait Prepared: Send {
     fn factored_matrix(&self) -> Option<SparseColMat<usize, f64>>;
 }
 
-/// The method names accepted by [`build`].
-pub const METHODS: &[&str] = &["nullspace-qr", "penalty", "kkt", "eliminate"];
+/// A formulation, as a typed choice (`FromStr` reads the CLI's and
+/// Python's names, [`Method::name`] gives them back).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// [`NullSpaceQr`], the paper's method.
+    NullSpaceQr,
+    /// [`Penalty`].
+    Penalty,
+    /// [`Kkt`].
+    Kkt,
+    /// [`Elimination`].
+    Eliminate,
+}
 
-/// A formulation with its back ends, chosen by name (the CLI's `--method`,
-/// `--qr`, `--spd`, `--weight`).
-///
-/// - `nullspace-qr`: any QR back end × any SPD back end;
-/// - `penalty`: any SPD back end, `weight` required (there is no weight that
-///   is right for every mesh: it competes with the scale of `L`);
-/// - `kkt`: faer's `LDLᵀ`; `spd` selects its variant (`faer-auto`,
-///   `faer-simplicial`, `faer-supernodal`), other SPD names are refused;
-/// - `eliminate`: any SPD back end (position constraints only).
-pub fn build(
-    method: &str,
-    qr: &str,
-    spd: &str,
-    weight: Option<f64>,
-) -> Result<Box<dyn Formulation>, crate::error::ProblemError> {
-    use crate::backend::{qr as qr_backend, spd as spd_backend};
-    use crate::error::ProblemError;
-    let invalid = |message: String| ProblemError::InvalidArgument { message };
-    match method {
-        "nullspace-qr" => Ok(Box::new(NullSpaceQr::new(
-            qr_backend::by_name(qr)?,
-            spd_backend::by_name(spd)?,
-        ))),
-        "penalty" => {
-            let w = weight.ok_or_else(|| {
-                invalid(
-                    "--method penalty needs --weight W (the weight of the former hard rows)".into(),
-                )
-            })?;
-            if !(w.is_finite() && w > 0.0) {
-                return Err(invalid(format!("weight {w} must be finite and > 0")));
-            }
-            Ok(Box::new(Penalty::with_backend(
-                w,
-                spd_backend::by_name(spd)?,
-            )))
+impl Method {
+    /// Every method, in the order they are listed to users.
+    pub const ALL: [Method; 4] = [
+        Method::NullSpaceQr,
+        Method::Penalty,
+        Method::Kkt,
+        Method::Eliminate,
+    ];
+
+    /// The name the CLI and Python use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::NullSpaceQr => "nullspace-qr",
+            Method::Penalty => "penalty",
+            Method::Kkt => "kkt",
+            Method::Eliminate => "eliminate",
         }
-        "kkt" => match spd {
-            "faer-auto" => Ok(Box::new(Kkt::default())),
-            "faer-simplicial" => Ok(Box::new(Kkt::simplicial())),
-            "faer-supernodal" => Ok(Box::new(Kkt::supernodal())),
-            other => Err(invalid(format!(
-                "--method kkt factors a symmetric indefinite matrix with faer's LDLᵀ; --spd must be faer-auto, faer-simplicial or faer-supernodal, not '{other}'"
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = ProblemError;
+    /// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
+    /// message lists the names).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| ProblemError::InvalidArgument {
+                message: format!(
+                    "unknown method '{s}' (expected one of: {})",
+                    Method::ALL.map(Method::name).join(", ")
+                ),
+            })
+    }
+}
+
+/// A formulation with its back ends (the CLI's `--method`, `--qr`,
+/// `--spd`, `--weight`); [`FormulationChoice::build`] makes it.
+///
+/// - `NullSpaceQr`: any QR back end × any SPD back end;
+/// - `Penalty`: any SPD back end, `weight` required (there is no weight that
+///   is right for every mesh: it competes with the scale of `L`);
+/// - `Kkt`: faer's `LDLᵀ`; `spd` selects its variant (`FaerAuto`,
+///   `FaerSimplicial`, `FaerSupernodal`), other SPD kinds are refused;
+/// - `Eliminate`: any SPD back end (position constraints only).
+///
+/// `qr` is used by `NullSpaceQr` only; `weight` by `Penalty` only.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FormulationChoice {
+    /// The formulation.
+    pub method: Method,
+    /// The QR back end of `NullSpaceQr`.
+    pub qr: QrKind,
+    /// The SPD back end (for `Kkt`: the faer `LDLᵀ` variant).
+    pub spd: SpdKind,
+    /// The relative weight of the hard rows under `Penalty`.
+    pub weight: Option<f64>,
+}
+
+impl FormulationChoice {
+    /// `method` with the default back ends: sparse Givens QR, faer's
+    /// automatic Cholesky, no weight.
+    pub fn new(method: Method) -> FormulationChoice {
+        FormulationChoice {
+            method,
+            qr: QrKind::SparseGivens,
+            spd: SpdKind::FaerAuto,
+            weight: None,
+        }
+    }
+
+    /// The formulation.
+    ///
+    /// Errors: [`ProblemError::InvalidArgument`] for a penalty without a
+    /// finite positive weight, an SPD kind that KKT cannot use, or a back
+    /// end missing from this build.
+    pub fn build(&self) -> Result<Box<dyn Formulation>, ProblemError> {
+        let invalid = |message: String| ProblemError::InvalidArgument { message };
+        match self.method {
+            Method::NullSpaceQr => Ok(Box::new(NullSpaceQr::new(
+                self.qr.backend()?,
+                self.spd.backend()?,
             ))),
-        },
-        "eliminate" => Ok(Box::new(Elimination::new(spd_backend::by_name(spd)?))),
-        other => Err(invalid(format!(
-            "unknown method '{other}' (expected one of: {})",
-            METHODS.join(", ")
-        ))),
+            Method::Penalty => {
+                let w = self.weight.ok_or_else(|| {
+                    invalid(
+                        "--method penalty needs --weight W (the weight of the former hard rows)"
+                            .into(),
+                    )
+                })?;
+                if !(w.is_finite() && w > 0.0) {
+                    return Err(invalid(format!("weight {w} must be finite and > 0")));
+                }
+                Ok(Box::new(Penalty::with_backend(w, self.spd.backend()?)))
+            }
+            Method::Kkt => match self.spd {
+                SpdKind::FaerAuto => Ok(Box::new(Kkt::default())),
+                SpdKind::FaerSimplicial => Ok(Box::new(Kkt::simplicial())),
+                SpdKind::FaerSupernodal => Ok(Box::new(Kkt::supernodal())),
+                other => Err(invalid(format!(
+                    "--method kkt factors a symmetric indefinite matrix with faer's LDLᵀ; --spd must be faer-auto, faer-simplicial or faer-supernodal, not '{other}'"
+                ))),
+            },
+            Method::Eliminate => Ok(Box::new(Elimination::new(self.spd.backend()?))),
+        }
     }
 }

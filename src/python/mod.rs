@@ -22,7 +22,8 @@ use pyo3::exceptions::{PyRuntimeError, PyRuntimeWarning, PyUserWarning};
 use pyo3::prelude::*;
 
 use crate::constraints::ConstraintSet;
-use crate::formulation::{self, Formulation, Refine};
+use crate::error::ProblemError;
+use crate::formulation::{Formulation, FormulationChoice, Refine};
 use crate::laplacian::{self, LaplacianKind};
 use crate::mesh::Mesh;
 use crate::problem::LseProblem;
@@ -31,33 +32,42 @@ use crate::{Deformer, Error, LseSolver};
 
 use errors::{InputError, NumericalError, input, released, to_py, type_error};
 
-/// The CLI's default QR back end (`--qr`).
-const DEFAULT_QR: &str = "sparse-givens";
-/// The CLI's default SPD back end (`--spd`).
-const DEFAULT_SPD: &str = "faer-auto";
+/// The formulation named by the keyword arguments, with the CLI's
+/// defaults (`--qr sparse-givens --spd faer-auto`) where they are absent.
+fn build_formulation(
+    method: &str,
+    qr: Option<&str>,
+    spd: Option<&str>,
+    weight: Option<f64>,
+) -> Result<Box<dyn Formulation>, ProblemError> {
+    let mut choice = FormulationChoice::new(method.parse()?);
+    if let Some(qr) = qr {
+        choice.qr = qr.parse()?;
+    }
+    if let Some(spd) = spd {
+        choice.spd = spd.parse()?;
+    }
+    choice.weight = weight;
+    choice.build()
+}
 
 /// The formulation and refinement chosen by the keyword arguments
 /// `method`, `qr`, `spd`, `weight`, `refine` (the CLI's options).
-struct Method {
+struct Chosen {
     formulation: Box<dyn Formulation>,
     refine: Option<Refine>,
 }
 
-impl Method {
+impl Chosen {
     fn parse(
         method: &str,
         qr: Option<&str>,
         spd: Option<&str>,
         weight: Option<f64>,
         refine: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Method> {
-        let formulation = formulation::build(
-            method,
-            qr.unwrap_or(DEFAULT_QR),
-            spd.unwrap_or(DEFAULT_SPD),
-            weight,
-        )
-        .map_err(|e| to_py(e.into()))?;
+    ) -> PyResult<Chosen> {
+        let formulation =
+            build_formulation(method, qr, spd, weight).map_err(|e| to_py(e.into()))?;
         let refine = match refine {
             None => None,
             Some(r) if r.is_none() => None,
@@ -76,7 +86,7 @@ impl Method {
                 }
             }),
         };
-        Ok(Method {
+        Ok(Chosen {
             formulation,
             refine,
         })
@@ -84,9 +94,8 @@ impl Method {
 }
 
 fn laplacian_kind(name: &str) -> PyResult<LaplacianKind> {
-    name.parse().map_err(|message: String| {
-        to_py(crate::error::ProblemError::InvalidArgument { message }.into())
-    })
+    name.parse()
+        .map_err(|message: String| to_py(ProblemError::InvalidArgument { message }.into()))
 }
 
 /// The mesh of `V`, `F` (validated by [`Mesh::new`], GIL released).
@@ -139,7 +148,7 @@ fn deform<'py>(
     refine: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let kind = laplacian_kind(laplacian)?;
-    let m = Method::parse(method, qr, spd, weight, refine)?;
+    let m = Chosen::parse(method, qr, spd, weight, refine)?;
     let mesh = mesh(py, V, F)?;
     let set = constraints_for(constraints, &mesh)?;
     let solution = released(py, move || {
@@ -188,7 +197,7 @@ fn solve_lse<'py>(
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let m = Method::parse(method, qr, spd, weight, refine)?;
+    let m = Chosen::parse(method, qr, spd, weight, refine)?;
     let a = convert::sparse(A, "A")?;
     let b = convert::sparse(B, "B")?;
     let (c, one_d) = convert::dense(C, "C", None, true)?;
@@ -261,7 +270,7 @@ impl PyDeformer {
         refine: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyDeformer> {
         let kind = laplacian_kind(laplacian)?;
-        let m = Method::parse(method, qr, spd, weight, refine)?;
+        let m = Chosen::parse(method, qr, spd, weight, refine)?;
         let mesh = mesh(py, V, F)?;
         let set = constraints_for(constraints, &mesh)?;
         let deformer = released(py, move || {

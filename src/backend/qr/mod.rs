@@ -20,7 +20,7 @@
 //! of `R` is counted before factoring and checked against the memory budget
 //! (`fill.rs`).
 //!
-//! Back ends ([`by_name`]): [`DenseHouseholder`] (the paper's method per
+//! Back ends ([`QrKind`]): [`DenseHouseholder`] (the paper's method per
 //! independent block, the reference), [`SparseGivens`] (row-by-row Givens on
 //! the whole sparse `Bᵀ`, Heath's rank test) and, with the cargo feature
 //! `suitesparse`, `Spqr` (SuiteSparseQR). All three use the same relative
@@ -50,43 +50,95 @@ pub use sparse_givens::{GivensQr, GivensRowOrder, SparseGivens};
 #[cfg(feature = "suitesparse")]
 pub use spqr::{Spqr, SpqrQr};
 
-/// The QR back ends of this build, in the order they are listed to users
-/// (what [`by_name`] accepts): `spqr` only with the cargo feature
-/// `suitesparse`.
-#[cfg(feature = "suitesparse")]
-pub const NAMES: &[&str] = &["dense-householder", "sparse-givens", "spqr"];
-/// The QR back ends of this build, in the order they are listed to users
-/// (what [`by_name`] accepts): `spqr` only with the cargo feature
-/// `suitesparse`.
-#[cfg(not(feature = "suitesparse"))]
-pub const NAMES: &[&str] = &["dense-householder", "sparse-givens"];
+/// A QR back end, as a typed choice ([`QrKind::backend`] makes it;
+/// `FromStr` reads the CLI's and Python's names, [`QrKind::name`] gives
+/// them back).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum QrKind {
+    /// [`DenseHouseholder`]: the paper's method per independent block.
+    DenseHouseholder,
+    /// [`SparseGivens`]: row-by-row Givens on the whole sparse `Bᵀ`.
+    SparseGivens,
+    /// SuiteSparseQR (cargo feature `suitesparse`).
+    Spqr,
+}
 
-/// Back ends that exist with the cargo feature `suitesparse` only; in a
-/// build without it [`by_name`] says how to get them.
-pub const SUITESPARSE_NAMES: &[&str] = &["spqr"];
+impl QrKind {
+    /// Every kind, in the order they are listed to users.
+    pub const ALL: [QrKind; 3] = [QrKind::DenseHouseholder, QrKind::SparseGivens, QrKind::Spqr];
 
-/// The QR back end called `name` (one of [`NAMES`]).
-///
-/// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
-/// message lists [`NAMES`]) and for `spqr` in a build without the
-/// `suitesparse` feature (the message says how to enable it).
-pub fn by_name(name: &str) -> Result<Arc<dyn QrBackend>, ProblemError> {
-    match name {
-        "dense-householder" => Ok(Arc::new(DenseHouseholder)),
-        "sparse-givens" => Ok(Arc::new(SparseGivens::default())),
-        #[cfg(feature = "suitesparse")]
-        "spqr" => Ok(Arc::new(Spqr)),
-        #[cfg(not(feature = "suitesparse"))]
-        "spqr" => Err(ProblemError::InvalidArgument {
-            message: "the QR back end 'spqr' (SuiteSparseQR) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
-        }),
-        other => Err(ProblemError::InvalidArgument {
-            message: format!(
-                "unknown QR back end '{other}' (expected one of: {})",
-                NAMES.join(", ")
-            ),
-        }),
+    /// The name the CLI and Python use.
+    pub fn name(self) -> &'static str {
+        match self {
+            QrKind::DenseHouseholder => "dense-householder",
+            QrKind::SparseGivens => "sparse-givens",
+            QrKind::Spqr => "spqr",
+        }
     }
+
+    /// Whether this build has the back end (`Spqr` needs the cargo feature
+    /// `suitesparse`).
+    pub fn in_this_build(self) -> bool {
+        self != QrKind::Spqr || cfg!(feature = "suitesparse")
+    }
+
+    /// The kinds of this build, in [`QrKind::ALL`]'s order.
+    pub fn available() -> Vec<QrKind> {
+        QrKind::ALL
+            .into_iter()
+            .filter(|k| k.in_this_build())
+            .collect()
+    }
+
+    /// The back end.
+    ///
+    /// Errors: [`ProblemError::InvalidArgument`] for `Spqr` in a build
+    /// without the `suitesparse` feature (the message says how to enable
+    /// it).
+    pub fn backend(self) -> Result<Arc<dyn QrBackend>, ProblemError> {
+        match self {
+            QrKind::DenseHouseholder => Ok(Arc::new(DenseHouseholder)),
+            QrKind::SparseGivens => Ok(Arc::new(SparseGivens::default())),
+            #[cfg(feature = "suitesparse")]
+            QrKind::Spqr => Ok(Arc::new(Spqr)),
+            #[cfg(not(feature = "suitesparse"))]
+            QrKind::Spqr => Err(ProblemError::InvalidArgument {
+                message: "the QR back end 'spqr' (SuiteSparseQR) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
+            }),
+        }
+    }
+}
+
+impl std::fmt::Display for QrKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for QrKind {
+    type Err = ProblemError;
+    /// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
+    /// message lists the names of this build).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        QrKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| ProblemError::InvalidArgument {
+                message: format!(
+                    "unknown QR back end '{s}' (expected one of: {})",
+                    names(&QrKind::available())
+                ),
+            })
+    }
+}
+
+/// `kinds`' names joined by ", " (for messages).
+fn names(kinds: &[QrKind]) -> String {
+    kinds
+        .iter()
+        .map(|k| k.name())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// The rank-detection tolerance `η`: constraint `j` is skipped when the norm

@@ -31,55 +31,103 @@ pub use cholmod::Cholmod;
 pub use faer_llt::FaerLlt;
 pub use nalgebra::NalgebraCsc;
 
-/// The SPD back ends of this build, in the order they are listed to users
-/// (what [`by_name`] accepts): `cholmod` only with the cargo feature
-/// `suitesparse`.
-#[cfg(feature = "suitesparse")]
-pub const NAMES: &[&str] = &[
-    "faer-supernodal",
-    "faer-simplicial",
-    "faer-auto",
-    "nalgebra",
-    "cholmod",
-];
-/// The SPD back ends of this build, in the order they are listed to users
-/// (what [`by_name`] accepts): `cholmod` only with the cargo feature
-/// `suitesparse`.
-#[cfg(not(feature = "suitesparse"))]
-pub const NAMES: &[&str] = &[
-    "faer-supernodal",
-    "faer-simplicial",
-    "faer-auto",
-    "nalgebra",
-];
+/// An SPD back end, as a typed choice ([`SpdKind::backend`] makes it;
+/// `FromStr` reads the CLI's and Python's names, [`SpdKind::name`] gives
+/// them back).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SpdKind {
+    /// faer's supernodal Cholesky.
+    FaerSupernodal,
+    /// faer's simplicial (column by column) Cholesky.
+    FaerSimplicial,
+    /// faer's choice between the two, from the symbolic factor's density.
+    FaerAuto,
+    /// nalgebra-sparse's CSC Cholesky.
+    Nalgebra,
+    /// SuiteSparse CHOLMOD (cargo feature `suitesparse`).
+    Cholmod,
+}
 
-/// Back ends that exist with the cargo feature `suitesparse` only; in a
-/// build without it [`by_name`] says how to get them.
-pub const SUITESPARSE_NAMES: &[&str] = &["cholmod"];
+impl SpdKind {
+    /// Every kind, in the order they are listed to users.
+    pub const ALL: [SpdKind; 5] = [
+        SpdKind::FaerSupernodal,
+        SpdKind::FaerSimplicial,
+        SpdKind::FaerAuto,
+        SpdKind::Nalgebra,
+        SpdKind::Cholmod,
+    ];
 
-/// The SPD back end called `name` (one of [`NAMES`]).
-///
-/// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
-/// message lists [`NAMES`]) and for `cholmod` in a build without the
-/// `suitesparse` feature (the message says how to enable it).
-pub fn by_name(name: &str) -> Result<Arc<dyn SpdBackend>, ProblemError> {
-    match name {
-        "faer-supernodal" => Ok(Arc::new(FaerLlt::supernodal())),
-        "faer-simplicial" => Ok(Arc::new(FaerLlt::simplicial())),
-        "faer-auto" => Ok(Arc::new(FaerLlt::auto())),
-        "nalgebra" => Ok(Arc::new(NalgebraCsc)),
-        #[cfg(feature = "suitesparse")]
-        "cholmod" => Ok(Arc::new(Cholmod)),
-        #[cfg(not(feature = "suitesparse"))]
-        "cholmod" => Err(ProblemError::InvalidArgument {
-            message: "the SPD back end 'cholmod' (SuiteSparse CHOLMOD) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
-        }),
-        other => Err(ProblemError::InvalidArgument {
-            message: format!(
-                "unknown SPD back end '{other}' (expected one of: {})",
-                NAMES.join(", ")
-            ),
-        }),
+    /// The name the CLI and Python use.
+    pub fn name(self) -> &'static str {
+        match self {
+            SpdKind::FaerSupernodal => "faer-supernodal",
+            SpdKind::FaerSimplicial => "faer-simplicial",
+            SpdKind::FaerAuto => "faer-auto",
+            SpdKind::Nalgebra => "nalgebra",
+            SpdKind::Cholmod => "cholmod",
+        }
+    }
+
+    /// Whether this build has the back end (`Cholmod` needs the cargo
+    /// feature `suitesparse`).
+    pub fn in_this_build(self) -> bool {
+        self != SpdKind::Cholmod || cfg!(feature = "suitesparse")
+    }
+
+    /// The kinds of this build, in [`SpdKind::ALL`]'s order.
+    pub fn available() -> Vec<SpdKind> {
+        SpdKind::ALL
+            .into_iter()
+            .filter(|k| k.in_this_build())
+            .collect()
+    }
+
+    /// The back end.
+    ///
+    /// Errors: [`ProblemError::InvalidArgument`] for `Cholmod` in a build
+    /// without the `suitesparse` feature (the message says how to enable
+    /// it).
+    pub fn backend(self) -> Result<Arc<dyn SpdBackend>, ProblemError> {
+        match self {
+            SpdKind::FaerSupernodal => Ok(Arc::new(FaerLlt::supernodal())),
+            SpdKind::FaerSimplicial => Ok(Arc::new(FaerLlt::simplicial())),
+            SpdKind::FaerAuto => Ok(Arc::new(FaerLlt::auto())),
+            SpdKind::Nalgebra => Ok(Arc::new(NalgebraCsc)),
+            #[cfg(feature = "suitesparse")]
+            SpdKind::Cholmod => Ok(Arc::new(Cholmod)),
+            #[cfg(not(feature = "suitesparse"))]
+            SpdKind::Cholmod => Err(ProblemError::InvalidArgument {
+                message: "the SPD back end 'cholmod' (SuiteSparse CHOLMOD) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
+            }),
+        }
+    }
+}
+
+impl std::fmt::Display for SpdKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for SpdKind {
+    type Err = ProblemError;
+    /// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
+    /// message lists the names of this build).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        SpdKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| ProblemError::InvalidArgument {
+                message: format!(
+                    "unknown SPD back end '{s}' (expected one of: {})",
+                    SpdKind::available()
+                        .iter()
+                        .map(|k| k.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            })
     }
 }
 
