@@ -298,6 +298,12 @@ pub struct ConstraintSet {
     constraints: Vec<Constraint>,
     /// The mesh the constraints were made for, when known.
     mesh: Option<MeshSignature>,
+    /// Each group's name and members (increasing), in order of first
+    /// appearance: derived from `constraints` by [`ConstraintSet::from_vec`]
+    /// and [`ConstraintSet::push`], the only ways a constraint enters (a
+    /// constraint's group cannot change inside the set), so that a drag's
+    /// [`ConstraintSet::group`] does not scan every constraint per frame.
+    groups: Vec<(String, Vec<usize>)>,
 }
 
 impl ConstraintSet {
@@ -310,13 +316,12 @@ impl ConstraintSet {
     /// valid weights, no vertex repeated within a constraint). Vertex ranges
     /// are checked against a mesh by [`ConstraintSet::check_vertices`].
     pub fn from_vec(constraints: Vec<Constraint>) -> Result<ConstraintSet, ConstraintError> {
-        for (index, c) in constraints.iter().enumerate() {
-            check_values(index, c)?;
+        let mut set = ConstraintSet::new();
+        set.constraints.reserve(constraints.len());
+        for c in constraints {
+            set.push(c)?;
         }
-        Ok(ConstraintSet {
-            constraints,
-            mesh: None,
-        })
+        Ok(set)
     }
 
     /// Hard position constraints `p_{vertices[i]} = targets[i]`, constraint
@@ -379,27 +384,34 @@ impl ConstraintSet {
     pub fn push(&mut self, c: Constraint) -> Result<usize, ConstraintError> {
         let index = self.constraints.len();
         check_values(index, &c)?;
+        self.add_to_group(index, &c);
         self.constraints.push(c);
         Ok(index)
     }
 
+    /// Records constraint `index` (`c`) as a member of its group, if any.
+    fn add_to_group(&mut self, index: usize, c: &Constraint) {
+        let Some(name) = c.group.as_deref() else {
+            return;
+        };
+        match self.groups.iter_mut().find(|(g, _)| g == name) {
+            Some((_, members)) => members.push(index),
+            None => self.groups.push((name.to_string(), vec![index])),
+        }
+    }
+
     /// The indices of the constraints in group `name`, increasing (empty if
     /// there is no such group).
-    pub fn group(&self, name: &str) -> Vec<usize> {
-        (0..self.constraints.len())
-            .filter(|&i| self.constraints[i].group.as_deref() == Some(name))
-            .collect()
+    pub fn group(&self, name: &str) -> &[usize] {
+        self.groups
+            .iter()
+            .find(|(g, _)| g == name)
+            .map_or(&[], |(_, members)| members.as_slice())
     }
 
     /// The group names, each once, in order of first appearance.
     pub fn group_names(&self) -> Vec<&str> {
-        let mut names: Vec<&str> = Vec::new();
-        for name in self.constraints.iter().filter_map(|c| c.group.as_deref()) {
-            if !names.contains(&name) {
-                names.push(name);
-            }
-        }
-        names
+        self.groups.iter().map(|(g, _)| g.as_str()).collect()
     }
 
     /// The constraints in priority order.
@@ -630,13 +642,13 @@ pub fn parse_constraints(text: &str) -> Result<ConstraintSet, ConstraintError> {
             });
         }
     };
-    let mut constraints = Vec::with_capacity(list.len());
+    let mut set = ConstraintSet::new();
+    set.constraints.reserve(list.len());
     for (index, item) in list.iter().enumerate() {
-        let c = parse_one(index, item)?;
-        check_values(index, &c)?;
-        constraints.push(c);
+        set.push(parse_one(index, item)?)?;
     }
-    Ok(ConstraintSet { constraints, mesh })
+    set.mesh = mesh;
+    Ok(set)
 }
 
 fn parse_one(index: usize, item: &Value) -> Result<Constraint, ConstraintError> {

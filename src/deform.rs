@@ -307,7 +307,7 @@ impl Deformer {
             }
             .into());
         }
-        Ok(members)
+        Ok(members.to_vec())
     }
 
     /// The rest target of every constraint (see [`Deformer::transform_group`]).

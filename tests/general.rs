@@ -462,3 +462,50 @@ fn formulation_choices_name_themselves_and_refuse_what_they_cannot_build() {
         refused(choice, "faer-auto, faer-simplicial or faer-supernodal");
     }
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    /// A set's groups, whether built by `from_vec`, by `push` or read back
+    /// from its JSON, are exactly what a scan of its constraints finds:
+    /// each group's members in increasing order, names in order of first
+    /// appearance.
+    #[test]
+    fn groups_are_what_a_scan_of_the_constraints_finds(
+        labels in proptest::collection::vec(0usize..4, 0..40)
+    ) {
+        let name = |l: usize| ["a", "handle 1", "fixed"].get(l).copied();
+        let list: Vec<Constraint> = labels
+            .iter()
+            .enumerate()
+            .map(|(v, &l)| {
+                let c = Constraint::position(v, [v as f64, 0.0, 1.0]);
+                match name(l) {
+                    Some(g) => c.in_group(g),
+                    None => c,
+                }
+            })
+            .collect();
+        let from_vec = ConstraintSet::from_vec(list.clone()).unwrap();
+        let mut pushed = ConstraintSet::new();
+        for c in list {
+            pushed.push(c).unwrap();
+        }
+        let read = lse_deform::constraints::parse_constraints(&from_vec.to_json()).unwrap();
+        let mut names: Vec<&str> = Vec::new();
+        for g in labels.iter().filter_map(|&l| name(l)) {
+            if !names.contains(&g) {
+                names.push(g);
+            }
+        }
+        for set in [&from_vec, &pushed, &read] {
+            proptest::prop_assert_eq!(set.group_names(), names.clone());
+            for g in ["a", "handle 1", "fixed", "b"] {
+                let scan: Vec<usize> = (0..labels.len())
+                    .filter(|&i| name(labels[i]) == Some(g))
+                    .collect();
+                proptest::prop_assert_eq!(set.group(g), scan.as_slice());
+            }
+        }
+        proptest::prop_assert_eq!(&pushed, &from_vec);
+    }
+}
