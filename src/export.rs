@@ -155,7 +155,7 @@ pub fn export_meta(
     });
     let path = dir.join(META_FILE);
     let text = serde_json::to_string_pretty(&meta).map_err(|e| Error::io(&path, e.into()))?;
-    std::fs::write(&path, text + "\n").map_err(|e| Error::io(&path, e))?;
+    crate::atomic::write_bytes(&path, (text + "\n").as_bytes()).map_err(|e| Error::io(&path, e))?;
     Ok(path)
 }
 

@@ -21,7 +21,8 @@
 //! [`report`], and [`arap`] (as-rigid-as-possible iterations on the same
 //! formulations); [`condition`] (condition-number estimates of the factored
 //! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
-//! [`interop`] (conversions to `sprs` and `nalgebra-sparse`); with the
+//! [`interop`] (conversions to `sprs` and `nalgebra-sparse`), [`atomic`]
+//! (every output file written whole or not at all); with the
 //! feature `python`, `python` (the Python module, a front door).
 #![deny(missing_docs)]
 // Numerical kernels index several arrays with one loop variable; iterator
@@ -29,6 +30,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod arap;
+pub mod atomic;
 pub mod backend;
 pub mod condition;
 pub mod constraints;

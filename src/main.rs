@@ -456,6 +456,12 @@ fn load(path: &Path) -> Result<mesh::Mesh, Error> {
     Ok(loaded.mesh)
 }
 
+/// Writes `text` and a newline to `path` atomically: a failed write (a
+/// full disk) leaves a previous file as it was.
+fn write_text(path: &Path, text: String) -> Result<(), Error> {
+    lse_deform::atomic::write_bytes(path, (text + "\n").as_bytes()).map_err(|e| Error::io(path, e))
+}
+
 /// Fail fast: the output mesh (its format and its directory) and any other
 /// output file are checked before the input is read or anything is solved.
 fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result<(), Error> {
@@ -549,7 +555,7 @@ fn deform_arap(
     mesh::write_mesh(&out, &a.output)?;
     if let Some(path) = &a.report {
         let json = serde_json::to_string_pretty(&report).map_err(|e| Error::io(path, e.into()))?;
-        std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
+        write_text(path, json)?;
     }
     eprintln!(
         "{} + ARAP ({}, init {}): {} vertices, {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; {} iterations ({}), energy {:.6e} -> {:.6e}; precompute {:.3} s, {:.4} s per iteration (local {:.3} s, global {:.3} s in all)",
@@ -629,6 +635,10 @@ fn matrix_path(
 }
 
 fn solve(a: SolveArgs) -> Result<(), Error> {
+    // Fail fast, as `deform` does: both outputs must be writable before
+    // the matrices are read and factored.
+    check_outputs(None, Some(&a.output))?;
+    check_outputs(None, a.report.as_deref())?;
     let path = |flag: &Option<PathBuf>, name: &str| matrix_path(flag, &a.dir, name);
     let (pa, pc, pb, pd) = (
         path(&a.a, "A.mtx")?,
@@ -712,7 +722,7 @@ fn finish_report(
     }
     if let Some(path) = path {
         let json = serde_json::to_string_pretty(report).map_err(|e| Error::io(path, e.into()))?;
-        std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
+        write_text(path, json)?;
     }
     eprintln!("{}", summary_line(report, unknowns, constraints));
     Ok(())
@@ -997,7 +1007,7 @@ fn compare(a: CompareArgs) -> Result<(), Error> {
     print_compare_table(&rows);
     if let Some(path) = &a.json {
         let json = serde_json::to_string_pretty(&rows).map_err(|e| Error::io(path, e.into()))?;
-        std::fs::write(path, json + "\n").map_err(|e| Error::io(path, e))?;
+        write_text(path, json)?;
     }
     Ok(())
 }
@@ -1179,7 +1189,8 @@ fn scene(a: SceneArgs) -> Result<(), Error> {
         conflict: a.conflict,
     };
     let set = mixed.constraints(&mesh)?;
-    std::fs::write(&a.output, set.to_json()).map_err(|e| Error::io(&a.output, e))?;
+    lse_deform::atomic::write_bytes(&a.output, set.to_json().as_bytes())
+        .map_err(|e| Error::io(&a.output, e))?;
     let (fixed, handle) = s.regions(&mesh)?;
     let mut extra = String::new();
     for (count, what) in [

@@ -32,7 +32,7 @@
 //! column-major, with the same round-trip formatting (`{:e}`).
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
 
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat, Triplet};
@@ -479,32 +479,32 @@ pub fn write_sparse(path: &Path, m: SparseColMatRef<'_, usize, f64>) -> Result<(
     write_sprs(path, &faer_to_sprs(m))
 }
 
-/// `sprs`'s writer into our own buffered file, flushed explicitly:
-/// `sprs::io::write_matrix_market` drops its `BufWriter` without flushing,
-/// which would lose an error on the last block (a full disk).
+/// `sprs`'s writer into our own buffered file, written atomically
+/// ([`crate::atomic`]; the buffer is flushed there, so an error on the last
+/// block — a full disk — is not lost, as it would be in
+/// `sprs::io::write_matrix_market`, which drops its `BufWriter` unflushed).
 pub(crate) fn write_sprs(path: &Path, m: &sprs::CsMat<f64>) -> Result<(), Error> {
-    let file = File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut w = BufWriter::new(file);
-    sprs::io::write_matrix_market_to_bufwrite(&mut w, m).map_err(|e| Error::io(path, e))?;
-    w.flush().map_err(|e| Error::io(path, e))
+    crate::atomic::write(path, |w| sprs::io::write_matrix_market_to_bufwrite(w, m))
+        .map_err(|e| Error::io(path, e))
 }
 
 /// Writes a dense matrix as `%%MatrixMarket matrix array real general`:
 /// the dimensions, then every entry in column-major order, one per line,
-/// in Rust's shortest round-trip exponent notation.
+/// in Rust's shortest round-trip exponent notation. Atomically
+/// ([`crate::atomic`]): on an error a previous file is left as it was.
 pub fn write_dense(path: &Path, m: MatRef<'_, f64>) -> Result<(), Error> {
-    let file = File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut w = BufWriter::new(file);
-    let io = |e| Error::io(path, e);
-    writeln!(w, "%%MatrixMarket matrix array real general").map_err(io)?;
-    writeln!(w, "% written by lse-deform").map_err(io)?;
-    writeln!(w, "{} {}", m.nrows(), m.ncols()).map_err(io)?;
-    for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            writeln!(w, "{:e}", m[(i, j)]).map_err(io)?;
+    crate::atomic::write(path, |w| {
+        writeln!(w, "%%MatrixMarket matrix array real general")?;
+        writeln!(w, "% written by lse-deform")?;
+        writeln!(w, "{} {}", m.nrows(), m.ncols())?;
+        for j in 0..m.ncols() {
+            for i in 0..m.nrows() {
+                writeln!(w, "{:e}", m[(i, j)])?;
+            }
         }
-    }
-    w.flush().map_err(io)
+        Ok(())
+    })
+    .map_err(|e| Error::io(path, e))
 }
 
 #[cfg(test)]

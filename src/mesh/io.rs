@@ -60,7 +60,7 @@
 //! IEEE-754 doubles themselves.
 
 use std::fs::File;
-use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::io::{self, BufRead, BufReader, Write};
 use std::path::Path;
 
 use flate2::Compression;
@@ -1233,20 +1233,19 @@ pub fn check_writable(path: &Path) -> Result<(), Error> {
 
 /// Writes a mesh, choosing the format from the extension: `.obj`, `.off`,
 /// `.ply` (binary little-endian, double coordinates), each optionally
-/// followed by `.gz` (gzip-compressed).
+/// followed by `.gz` (gzip-compressed). Atomically ([`crate::atomic`]): on
+/// an error (a full disk) a previous file at `path` is left as it was.
 pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<(), Error> {
     let (format, gzip) = MeshFormat::from_path(path)?;
-    let file = File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut out = BufWriter::with_capacity(1 << 16, file);
-    let result = if gzip {
-        let mut gz = GzEncoder::new(&mut out, Compression::default());
-        write_format(mesh, &mut gz, format).and_then(|()| gz.finish().map(|_| ()))
-    } else {
-        write_format(mesh, &mut out, format)
-    };
-    result
-        .and_then(|()| out.flush())
-        .map_err(|e| Error::io(path, e))
+    crate::atomic::write(path, |out| {
+        if gzip {
+            let mut gz = GzEncoder::new(out, Compression::default());
+            write_format(mesh, &mut gz, format).and_then(|()| gz.finish().map(|_| ()))
+        } else {
+            write_format(mesh, out, format)
+        }
+    })
+    .map_err(|e| Error::io(path, e))
 }
 
 fn write_format<W: Write>(mesh: &Mesh, w: W, format: MeshFormat) -> io::Result<()> {

@@ -5,7 +5,9 @@ use std::path::Path;
 use super::raster::{RenderError, check_size};
 
 /// Writes packed RGB bytes (`3 · width · height`, rows from the top) as a
-/// PNG; the path must end in `.png` and its directory is created.
+/// PNG; the path must end in `.png` and its directory is created. Written
+/// atomically ([`crate::atomic`]): on an error a previous image is left as
+/// it was.
 pub fn write_png(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<(), RenderError> {
     let err = |message: String| RenderError::Output {
         path: path.to_path_buf(),
@@ -29,13 +31,13 @@ pub fn write_png(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<(
         std::fs::create_dir_all(parent)
             .map_err(|e| err(format!("cannot create {}: {e}", parent.display())))?;
     }
-    let file = std::fs::File::create(path).map_err(|e| err(e.to_string()))?;
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().map_err(|e| err(e.to_string()))?;
-    writer
-        .write_image_data(bytes)
-        .map_err(|e| err(e.to_string()))?;
-    writer.finish().map_err(|e| err(e.to_string()))
+    crate::atomic::write(path, |file| {
+        let mut encoder = png::Encoder::new(file, width, height);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header()?;
+        writer.write_image_data(bytes)?;
+        writer.finish()
+    })
+    .map_err(|e: png::EncodingError| err(e.to_string()))
 }
