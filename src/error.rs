@@ -627,6 +627,19 @@ pub enum NumericalError {
         /// The first vertex with a non-finite coordinate.
         vertex: usize,
     },
+    /// The ARAP objective is not finite in the mesh's units: the squared
+    /// lengths of the deformation overflow double precision (a target far
+    /// outside the mesh), or a NaN entered them.
+    #[error(
+        "ARAP: the energy {} is {value:e}, not finite: the squared lengths of the deformation are beyond the range of double precision (is a target far outside the mesh?)",
+        if *iteration == 0 { "of the initial guess".to_string() } else { format!("after iteration {iteration}") }
+    )]
+    NonFiniteEnergy {
+        /// The iteration (0: the initial guess).
+        iteration: usize,
+        /// The energy (infinite or NaN).
+        value: f64,
+    },
     /// A back end reported an error.
     #[error("{backend}: {message}")]
     Backend {

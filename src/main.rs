@@ -551,6 +551,9 @@ fn deform_arap(
             c.index, c.residual
         );
     }
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
     let out = arap.mesh().with_positions(arap.positions())?;
     mesh::write_mesh(&out, &a.output)?;
     if let Some(path) = &a.report {

@@ -12,6 +12,32 @@
 //! (local step: optimal rotations for fixed `X`; global step: optimal `X`
 //! for fixed rotations), up to rounding.
 //!
+//! **Units.** As for the Laplacian deformer ([`crate::Deformer`]), the
+//! problem is assembled on the mesh and targets divided by the mesh's
+//! [`Mesh::length_unit`] `ℓ` (its mean edge length), and positions, energies
+//! and residuals are multiplied back: the iterations do not depend on the
+//! units the mesh is given in, and no square of a coordinate (a triangle's
+//! area, the energy) overflows or underflows for meshes from 1e-150 to
+//! 1e150 (unscaled, a Bunny at 1e±100 loses every triangle's area to
+//! overflow or underflow, and its system is singular). Soft weights are
+//! used as given, without a power of `ℓ`: a row of `A_E` is
+//! `√(K A_t) ∇φ`, an area's square root (a length) times a gradient (one
+//! over a length), so its entries are dimensionless (the power of length
+//! in the operator's entries is `a = 0`), and `C_E` is a length; a soft
+//! row `w b·X − w d` has dimensionless coefficients `b` and a length `d`.
+//! Dividing every length by `ℓ` therefore divides the energy `E` and every
+//! soft term `w²‖b·X − d‖²` alike by `ℓ²`: their balance, and the
+//! minimiser, stay as they are with the weights unscaled. The energies of
+//! [`ArapReport`] and [`Step`] are in the mesh's units (length², the
+//! problem's times `ℓ²`).
+//!
+//! **Failures.** An energy or a position that is not finite in the mesh's
+//! units (a target so far outside the mesh that the squares of the
+//! deformed edges overflow) stops the iterations with
+//! [`NumericalError::NonFiniteEnergy`] or
+//! [`NumericalError::NonFiniteSolution`]; the stop rule of
+//! [`ArapDeformer::run`] stops on a NaN too, whatever it meets.
+//!
 //! The local step fits one rotation per vertex ([`rotations`]), in
 //! parallel (rayon). The step-wise API ([`ArapDeformer::iterate`]) is the
 //! hook for interactive use: move targets with
@@ -100,9 +126,11 @@ impl std::str::FromStr for ArapInit {
 /// What one call of [`ArapDeformer::iterate`] did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Step {
-    /// The objective after the step, with rotations fitted to its positions.
+    /// The objective after the step, with rotations fitted to its
+    /// positions (in the mesh's units, length²).
     pub energy: f64,
-    /// `max ‖b_k·X − d_k‖₂` over the kept hard constraints.
+    /// `max ‖b_k·X − d_k‖₂` over the kept hard constraints (in the mesh's
+    /// units).
     pub max_constraint_residual: f64,
     /// Seconds of the local step (rotation fits and objective).
     pub local_s: f64,
@@ -116,14 +144,22 @@ pub struct Step {
 /// [`ArapDeformer::run`]).
 pub struct ArapDeformer {
     mesh: Mesh,
+    /// [`Mesh::length_unit`] of `mesh`: the problem is in lengths divided
+    /// by it.
+    unit: f64,
+    /// The constraints with their current targets, in the mesh's units.
     constraints: ConstraintSet,
+    /// The same in the problem's units (targets divided by `unit`).
+    unit_constraints: ConstraintSet,
+    /// The rest geometry in the problem's units.
     triangles: ArapTriangles,
     problem: LseProblem,
     system: Option<Box<dyn Prepared>>,
     report: Report,
-    /// Current positions (n × 3).
+    /// Current positions (n × 3), in the problem's units.
     x: Mat<f64>,
-    /// Rotations fitted to `x`, and the objective with them.
+    /// Rotations fitted to `x`, and the objective with them (in the
+    /// problem's units: the mesh's divided by `unit²`).
     rotations: Vec<Mat3>,
     energy: f64,
     /// Scratch: the global step's solution, swapped with `x` when finite.
@@ -138,8 +174,13 @@ pub struct ArapDeformer {
 
 impl ArapDeformer {
     /// Set-up: checks the constraints (vertex range, every component
-    /// pinned), builds the energy rows and the problem. The positions start
-    /// at the rest pose.
+    /// pinned), builds the energy rows and the problem on the mesh and
+    /// targets divided by [`Mesh::length_unit`] (see the module
+    /// documentation). The positions start at the rest pose.
+    ///
+    /// Errors: besides those of the constraints,
+    /// [`NumericalError::TargetOutOfRange`] for a target that is not finite
+    /// once divided by the length unit.
     pub fn new(
         mesh: Mesh,
         constraints: ConstraintSet,
@@ -150,20 +191,34 @@ impl ArapDeformer {
         constraints.check_vertices(n)?;
         let (component_of, n_components) = topology::vertex_components(n, mesh.faces());
         check_pinned(&component_of, n_components, &constraints)?;
-        let triangles = ArapTriangles::new(&mesh, energy);
+        let unit = mesh.length_unit();
+        let unit_mesh = mesh.with_positions(
+            mesh.positions()
+                .iter()
+                .map(|p| p.map(|v| v / unit))
+                .collect(),
+        )?;
+        let mut unit_constraints = constraints.clone();
+        for (i, c) in constraints.as_slice().iter().enumerate() {
+            unit_constraints.set_rhs(i, in_unit(i, c.kind.rhs(), unit)?)?;
+        }
+        let triangles = ArapTriangles::new(&unit_mesh, energy);
         let rows = triangles.rows();
         let rhs = triangles.rest_rhs();
-        let problem = LseProblem::new(&rows, &rhs, &constraints, mesh.bbox_diagonal())?;
-        let x = Mat::from_fn(n, 3, |i, c| mesh.positions()[i][c]);
+        let problem = LseProblem::new(&rows, &rhs, &unit_constraints, unit_mesh.bbox_diagonal())?;
+        let x = Mat::from_fn(n, 3, |i, c| unit_mesh.positions()[i][c]);
         let mut report = Report {
             laplacian: Some(format!("arap-{}", energy.name())),
             warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
+            length_unit: unit,
             ..Report::default()
         };
         report.timings_s.setup = t.elapsed().as_secs_f64();
         Ok(ArapDeformer {
             mesh,
+            unit,
             constraints,
+            unit_constraints,
             triangles,
             problem,
             system: None,
@@ -190,6 +245,7 @@ impl ArapDeformer {
         let mut report = Report {
             laplacian: self.report.laplacian.clone(),
             warnings: self.report.warnings.clone(),
+            length_unit: self.unit,
             ..Report::default()
         };
         report.timings_s.setup = self.report.timings_s.setup;
@@ -201,13 +257,17 @@ impl ArapDeformer {
     /// Sets the initial guess (see [`ArapInit`]), fits its rotations and
     /// clears the iteration history. [`ArapInit::Linear`] needs
     /// [`ArapDeformer::precompute`] first.
+    ///
+    /// Errors: [`NumericalError::NonFiniteEnergy`] when the initial guess's
+    /// energy is not finite in the mesh's units.
     pub fn initialize(&mut self, init: ArapInit) -> Result<(), Error> {
         let n = self.mesh.n_vertices();
         self.rotations = vec![IDENTITY; n];
-        self.x = Mat::from_fn(n, 3, |i, c| self.mesh.positions()[i][c]);
+        let unit = self.unit;
+        self.x = Mat::from_fn(n, 3, |i, c| self.mesh.positions()[i][c] / unit);
         match init {
             ArapInit::Rest => {
-                for c in self.constraints.as_slice() {
+                for c in self.unit_constraints.as_slice() {
                     if let (None, ConstraintKind::Position { vertex, target }) = (c.weight, &c.kind)
                     {
                         for k in 0..3 {
@@ -221,11 +281,12 @@ impl ArapDeformer {
             }
         }
         self.local_step();
+        let initial_energy = self.energy_checked(0)?;
         self.init = init;
         self.arap = ArapReport {
             energy: self.triangles.energy().name().into(),
             init: init.name().into(),
-            initial_energy: self.energy,
+            initial_energy,
             ..ArapReport::default()
         };
         Ok(())
@@ -236,6 +297,10 @@ impl ArapDeformer {
     /// positions and rotations — after [`ArapDeformer::set_target`] too,
     /// which is how an editor runs a few iterations per frame. Appends to
     /// the report's history and returns the last step (`None` for `n = 0`).
+    ///
+    /// Errors: [`NumericalError::NonFiniteSolution`] for a position and
+    /// [`NumericalError::NonFiniteEnergy`] for an energy that is not finite
+    /// in the mesh's units (the failed step's positions stay current).
     pub fn iterate(&mut self, n: usize) -> Result<Option<Step>, Error> {
         let mut last = None;
         for _ in 0..n {
@@ -245,9 +310,10 @@ impl ArapDeformer {
             let t = Instant::now();
             let kept = self.local_step();
             let local_s = t.elapsed().as_secs_f64();
-            let residual = self.max_constraint_residual();
+            let energy = self.energy_checked(self.arap.iterations + 1)?;
+            let residual = self.max_constraint_residual() * self.unit;
             let a = &mut self.arap;
-            a.energies.push(self.energy);
+            a.energies.push(energy);
             a.constraint_residuals.push(residual);
             a.iterations += 1;
             a.local_time_s += local_s;
@@ -255,7 +321,7 @@ impl ArapDeformer {
             a.kept_rotations += kept;
             a.iteration_times_s.push(local_s + global_s);
             last = Some(Step {
-                energy: self.energy,
+                energy,
                 max_constraint_residual: residual,
                 local_s,
                 global_s,
@@ -268,8 +334,11 @@ impl ArapDeformer {
     /// the objective `(E_{k−1} − E_k)/E_{k−1}` is `≤ tolerance` (checked
     /// from the second iteration on, the first starting from a guess that
     /// may violate the constraints; `tolerance = 0` runs all iterations
-    /// unless the objective reaches zero). Fills the solution diagnostics
-    /// and returns the ARAP report.
+    /// unless the objective reaches zero). The rule stops on a NaN as on a
+    /// small decrease (a NaN comparison is false, which must not mean "go
+    /// on"); a non-finite energy is an error before it is reached (see
+    /// [`ArapDeformer::iterate`]). Fills the solution diagnostics and
+    /// returns the ARAP report.
     pub fn run(&mut self, max_iterations: usize, tolerance: f64) -> Result<ArapReport, Error> {
         if !(tolerance.is_finite() && tolerance >= 0.0) {
             return Err(ProblemError::InvalidArgument {
@@ -285,7 +354,7 @@ impl ArapDeformer {
                 stop = "stationary";
                 break;
             }
-            if k > 0 && tolerance > 0.0 && (before - self.energy) <= tolerance * before.abs() {
+            if k > 0 && tolerance > 0.0 && !decreased_by_more_than(before, self.energy, tolerance) {
                 stop = "tolerance";
                 break;
             }
@@ -342,9 +411,16 @@ impl ArapDeformer {
         let t = Instant::now();
         let mut x = self.x.clone();
         let refinement = refine(system.as_mut(), &self.problem, &mut x, mode)?;
-        if first_non_finite(&x).is_none() && refinement.steps > 0 {
-            self.x = x;
+        if self.first_non_finite_in_mesh_units(&x).is_none() && refinement.steps > 0 {
+            let (x_before, energy_before) = (std::mem::replace(&mut self.x, x), self.energy);
+            let rotations_before = self.rotations.clone();
             self.local_step();
+            if self.energy_checked(self.arap.iterations).is_err() {
+                // The refined positions are kept only with a finite energy.
+                self.x = x_before;
+                self.energy = energy_before;
+                self.rotations = rotations_before;
+            }
         }
         self.report.timings_s.refine = t.elapsed().as_secs_f64();
         self.report.forward_error_estimate = Some(refinement.forward_error_estimate);
@@ -352,11 +428,20 @@ impl ArapDeformer {
         Ok(())
     }
 
-    /// Moves the target of constraint `index`; the next
-    /// [`ArapDeformer::iterate`] reuses the factor and starts from the
-    /// current positions.
+    /// Moves the target of constraint `index` (in the mesh's units); the
+    /// next [`ArapDeformer::iterate`] reuses the factor and starts from the
+    /// current positions. On error nothing changes.
     pub fn set_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
-        self.problem.set_rhs(index, target)?;
+        if target.iter().any(|v| !v.is_finite()) {
+            return Err(crate::error::ConstraintError::NonFinite {
+                index,
+                field: "target",
+            }
+            .into());
+        }
+        let scaled = in_unit(index, target, self.unit)?;
+        self.problem.set_rhs(index, scaled)?;
+        self.unit_constraints.set_rhs(index, scaled)?;
         self.constraints.set_rhs(index, target)?;
         Ok(())
     }
@@ -391,7 +476,7 @@ impl ArapDeformer {
                 message: "ARAP iterations need precompute first".into(),
             })?;
         system.solve_into(problem, self.x_next.as_mut())?;
-        if let Some(vertex) = first_non_finite(&self.x_next) {
+        if let Some(vertex) = self.first_non_finite_in_mesh_units(&self.x_next) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
         std::mem::swap(&mut self.x, &mut self.x_next);
@@ -434,12 +519,12 @@ impl ArapDeformer {
         if self.problem.soft_constraints().is_empty() {
             return 0.0;
         }
-        let positions = self.positions();
+        let positions = self.problem_positions();
         self.problem
             .soft_constraints()
             .iter()
             .map(|&(i, w)| {
-                let kind = &self.constraints[i].kind;
+                let kind = &self.unit_constraints[i].kind;
                 let (value, target) = (kind.row().apply(&positions), kind.rhs());
                 (0..3)
                     .map(|c| (w * (value[c] - target[c])).powi(2))
@@ -456,22 +541,69 @@ impl ArapDeformer {
             .fold(0.0, f64::max)
     }
 
-    /// Current positions, in the mesh's vertex order.
-    pub fn positions(&self) -> Vec<[f64; 3]> {
+    /// The objective in the mesh's units (`E ℓ²`, multiplied in two steps
+    /// so that `ℓ²` alone cannot overflow), or
+    /// [`NumericalError::NonFiniteEnergy`] naming `iteration` (0: the
+    /// initial guess).
+    fn energy_checked(&self, iteration: usize) -> Result<f64, Error> {
+        let value = self.energy * self.unit * self.unit;
+        if value.is_finite() {
+            Ok(value)
+        } else {
+            Err(NumericalError::NonFiniteEnergy {
+                iteration,
+                value: if self.energy.is_nan() {
+                    f64::NAN
+                } else {
+                    value
+                },
+            }
+            .into())
+        }
+    }
+
+    /// The first vertex of `x` (in the problem's units) whose position in
+    /// the mesh's units is not finite.
+    fn first_non_finite_in_mesh_units(&self, x: &Mat<f64>) -> Option<usize> {
+        if self.unit <= 1.0 {
+            return first_non_finite(x);
+        }
+        let unit = self.unit;
+        (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !(x[(i, c)] * unit).is_finite()))
+    }
+
+    /// Current positions in the problem's units.
+    fn problem_positions(&self) -> Vec<[f64; 3]> {
         (0..self.x.nrows())
             .map(|i| [self.x[(i, 0)], self.x[(i, 1)], self.x[(i, 2)]])
             .collect()
     }
 
-    /// Current positions as an n × 3 matrix.
+    /// Current positions, in the mesh's vertex order and units.
+    pub fn positions(&self) -> Vec<[f64; 3]> {
+        let u = self.unit;
+        (0..self.x.nrows())
+            .map(|i| [self.x[(i, 0)] * u, self.x[(i, 1)] * u, self.x[(i, 2)] * u])
+            .collect()
+    }
+
+    /// Current positions as an n × 3 matrix in the problem's units: the
+    /// mesh's divided by [`ArapDeformer::length_unit`].
     pub fn positions_matrix(&self) -> &Mat<f64> {
         &self.x
     }
 
+    /// The length the problem's lengths are divided by: the mesh's mean
+    /// edge length ([`Mesh::length_unit`]).
+    pub fn length_unit(&self) -> f64 {
+        self.unit
+    }
+
     /// The objective at the current positions (with their fitted
-    /// rotations); NaN before [`ArapDeformer::initialize`].
+    /// rotations), in the mesh's units (length²); NaN before
+    /// [`ArapDeformer::initialize`].
     pub fn energy(&self) -> f64 {
-        self.energy
+        self.energy * self.unit * self.unit
     }
 
     /// The rotations fitted to the current positions.
@@ -495,18 +627,62 @@ impl ArapDeformer {
         &self.mesh
     }
 
-    /// The constraints with their current targets.
+    /// The constraints with their current targets, in the mesh's units.
     pub fn constraints(&self) -> &ConstraintSet {
         &self.constraints
     }
 
-    /// The assembled global-step problem.
+    /// The assembled global-step problem, in the problem's units (lengths
+    /// divided by [`ArapDeformer::length_unit`]).
     pub fn problem(&self) -> &LseProblem {
         &self.problem
     }
 
-    /// The energy rows and rest geometry.
+    /// The energy rows and rest geometry, in the problem's units.
     pub fn triangles(&self) -> &ArapTriangles {
         &self.triangles
+    }
+}
+
+/// Whether the objective fell from `before` to `after` by more than
+/// `tolerance` relative to `before`. `false` when either is NaN: a stop
+/// rule written as "go on while this holds" stops on a NaN.
+fn decreased_by_more_than(before: f64, after: f64, tolerance: f64) -> bool {
+    matches!(
+        (before - after).partial_cmp(&(tolerance * before.abs())),
+        Some(std::cmp::Ordering::Greater)
+    )
+}
+
+/// Target `value` of constraint `index` divided by the length unit, or
+/// [`NumericalError::TargetOutOfRange`] if that is not finite.
+fn in_unit(index: usize, value: [f64; 3], unit: f64) -> Result<[f64; 3], Error> {
+    let scaled = value.map(|v| v / unit);
+    if scaled.iter().all(|v| v.is_finite()) {
+        return Ok(scaled);
+    }
+    let largest = value.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    Err(NumericalError::TargetOutOfRange {
+        index,
+        value: largest,
+        unit,
+        ratio: largest / unit,
+    }
+    .into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::decreased_by_more_than;
+
+    #[test]
+    fn the_stop_rule_stops_on_nan() {
+        assert!(decreased_by_more_than(1.0, 0.5, 1e-6));
+        assert!(!decreased_by_more_than(1.0, 1.0 - 1e-9, 1e-6));
+        assert!(!decreased_by_more_than(1.0, 2.0, 1e-6));
+        for (before, after) in [(f64::NAN, 1.0), (1.0, f64::NAN), (f64::NAN, f64::NAN)] {
+            assert!(!decreased_by_more_than(before, after, 1e-6));
+        }
+        assert!(!decreased_by_more_than(f64::INFINITY, f64::INFINITY, 1e-6));
     }
 }
