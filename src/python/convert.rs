@@ -5,7 +5,15 @@
 //! non-contiguous and negatively strided arrays all read the same; nothing
 //! here assumes a memory order. Dtypes: real arrays accept float, int and
 //! uint kinds (converted to float64), index arrays int and uint kinds;
-//! anything else is a `TypeError` naming the argument and its dtype.
+//! anything else is an `InputTypeError` (a `TypeError`) naming the
+//! argument and its dtype.
+//!
+//! Memory: an array's shape can promise far more than its storage (a
+//! broadcast `numpy.broadcast_to(x, (2**31, 3))` holds three numbers), so
+//! every buffer made here from a shape is checked against the memory budget
+//! ([`crate::limits`]) and allocated by `try_reserve` before it is filled:
+//! too large is a `TooLargeError` naming the array and the bytes, never an
+//! abort or a panic.
 
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, MatRef};
@@ -18,7 +26,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use serde_json::Value;
 
-use super::errors::{input, type_error};
+use super::errors::{allocation_failed, input, type_error};
 use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
 use crate::error::{MeshError, ProblemError};
 use crate::report::Report;
@@ -103,6 +111,46 @@ fn shape_2d(
     Ok((rows, cols))
 }
 
+/// `items` items of `bytes_each` bytes, saturating.
+fn bytes_of(items: usize, bytes_each: usize) -> u64 {
+    (items as u64).saturating_mul(bytes_each as u64)
+}
+
+/// Refuses `bytes` for `what` (named only on failure) beyond the memory
+/// budget: a `TooLargeError`.
+fn check_budget(what: &impl Fn() -> String, bytes: u64) -> PyResult<()> {
+    crate::limits::check(bytes, || format!("{} would need", what()))
+        .map_err(|detail| super::errors::to_py(ProblemError::TooLarge { detail }.into()))
+}
+
+/// An empty vector with room for `n` items, checked against the budget and
+/// reserved with `try_reserve_exact`: a `TooLargeError` instead of an abort.
+fn vec_for<T>(n: usize, what: impl Fn() -> String) -> PyResult<Vec<T>> {
+    let bytes = bytes_of(n, std::mem::size_of::<T>());
+    check_budget(&what, bytes)?;
+    let mut v = Vec::new();
+    v.try_reserve_exact(n)
+        .map_err(|e| allocation_failed(&what(), bytes, e))?;
+    Ok(v)
+}
+
+/// `Mat::from_fn` that checks the budget and reserves with faer's
+/// `try_reserve` first (`Mat::from_fn` panics when its allocation fails).
+fn mat_from_fn(
+    rows: usize,
+    cols: usize,
+    what: impl Fn() -> String,
+    f: impl FnMut(usize, usize) -> f64,
+) -> PyResult<Mat<f64>> {
+    let bytes = bytes_of(rows, 8).saturating_mul(cols as u64);
+    check_budget(&what, bytes)?;
+    let mut m = Mat::new();
+    m.try_reserve(rows, cols)
+        .map_err(|e| allocation_failed(&what(), bytes, format!("{e:?}")))?;
+    m.resize_with(rows, cols, f);
+    Ok(m)
+}
+
 /// A real array as an owned matrix (1-D arrays as one column when
 /// `column_ok`); the flag says whether it was 1-D.
 pub(crate) fn dense(
@@ -113,24 +161,29 @@ pub(crate) fn dense(
 ) -> PyResult<(Mat<f64>, bool)> {
     let array = numeric_array(obj, name, Kind::Real)?;
     let (rows, cols) = shape_2d(&array, name, columns, column_ok)?;
+    let what = || format!("the {rows} × {cols} array {name}");
     let one_d = array.ndim() == 1;
     if one_d {
         let typed = array.cast::<PyArray1<f64>>()?.readonly();
         let view = typed.as_array();
-        Ok((Mat::from_fn(rows, 1, |i, _| view[i]), true))
+        Ok((mat_from_fn(rows, 1, what, |i, _| view[i])?, true))
     } else {
         let typed = array.cast::<PyArray2<f64>>()?.readonly();
         let view = typed.as_array();
-        Ok((Mat::from_fn(rows, cols, |i, j| view[[i, j]]), false))
+        Ok((mat_from_fn(rows, cols, what, |i, j| view[[i, j]])?, false))
     }
 }
 
-/// An n × 3 real array as rows.
+/// An n × 3 real array as rows (read straight from the array: no
+/// intermediate matrix).
 pub(crate) fn rows3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<[f64; 3]>> {
-    let (m, _) = dense(obj, name, Some(3), false)?;
-    Ok((0..m.nrows())
-        .map(|i| [m[(i, 0)], m[(i, 1)], m[(i, 2)]])
-        .collect())
+    let array = numeric_array(obj, name, Kind::Real)?;
+    let (rows, _) = shape_2d(&array, name, Some(3), false)?;
+    let typed = array.cast::<PyArray2<f64>>()?.readonly();
+    let view = typed.as_array();
+    let mut out = vec_for(rows, || format!("the {rows} × 3 array {name}"))?;
+    out.extend((0..rows).map(|i| [view[[i, 0]], view[[i, 1]], view[[i, 2]]]));
+    Ok(out)
 }
 
 /// An integer array's entries in row-major order with its (rows, columns)
@@ -144,20 +197,27 @@ fn index_entries(
     let array = numeric_array(obj, name, Kind::Index)?;
     let shape = shape_2d(&array, name, columns, column_ok)?;
     let unsigned = array.dtype().kind() == b'u';
+    let mut values: Vec<i128> = vec_for(shape.0.saturating_mul(shape.1), || {
+        format!("the {} × {} index array {name}", shape.0, shape.1)
+    })?;
     macro_rules! read {
         ($t:ty) => {{
             if array.ndim() == 1 {
                 let typed = array.cast::<PyArray1<$t>>()?.readonly();
-                typed.as_array().iter().map(|&v| v as i128).collect()
+                values.extend(typed.as_array().iter().map(|&v| v as i128));
             } else {
                 let typed = array.cast::<PyArray2<$t>>()?.readonly();
                 // `iter` walks in logical (row-major) order whatever the
                 // memory order.
-                typed.as_array().iter().map(|&v| v as i128).collect()
+                values.extend(typed.as_array().iter().map(|&v| v as i128));
             }
         }};
     }
-    let values: Vec<i128> = if unsigned { read!(u64) } else { read!(i64) };
+    if unsigned {
+        read!(u64)
+    } else {
+        read!(i64)
+    }
     Ok((shape, values))
 }
 
@@ -171,7 +231,7 @@ fn as_index(v: i128) -> Option<usize> {
 /// [`crate::Mesh::new`].
 pub(crate) fn faces(obj: &Bound<'_, PyAny>, n_vertices: usize) -> PyResult<Vec<[usize; 3]>> {
     let ((rows, _), values) = index_entries(obj, "F", Some(3), false)?;
-    let mut faces = Vec::with_capacity(rows);
+    let mut faces = vec_for(rows, || format!("the {rows} faces of F"))?;
     for (face, chunk) in values.chunks_exact(3).enumerate() {
         let mut f = [0usize; 3];
         for (slot, &v) in f.iter_mut().zip(chunk) {
@@ -200,17 +260,17 @@ pub(crate) fn indices(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<usize>
             "{name} must be a 1-D array of indices (or k × 1), got {cols} columns"
         )));
     }
-    values
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| {
-            as_index(v).ok_or_else(|| {
-                input(format!(
-                    "{name}[{i}] = {v} is not an index (indices are 0-based and ≥ 0)"
-                ))
-            })
-        })
-        .collect()
+    let mut out = vec_for(values.len(), || {
+        format!("the {} indices of {name}", values.len())
+    })?;
+    for (i, &v) in values.iter().enumerate() {
+        out.push(as_index(v).ok_or_else(|| {
+            input(format!(
+                "{name}[{i}] = {v} is not an index (indices are 0-based and ≥ 0)"
+            ))
+        })?);
+    }
+    Ok(out)
 }
 
 /// The constraints argument: a list of dicts in the JSON format (or a
@@ -352,7 +412,13 @@ pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMa
     let scipy_sparse = py.import("scipy.sparse")?;
     if !scipy_sparse.call_method1("issparse", (obj,))?.is_truthy()? {
         let (m, _) = dense(obj, name, None, false)?;
-        let mut triplets = Vec::new();
+        let nonzeros = (0..m.ncols())
+            .map(|j| (0..m.nrows()).filter(|&i| m[(i, j)] != 0.0).count())
+            .sum::<usize>();
+        check_size(name, m.nrows(), m.ncols(), nonzeros)?;
+        let mut triplets = vec_for(nonzeros, || {
+            format!("the {nonzeros} nonzeros of the dense array {name}")
+        })?;
         for j in 0..m.ncols() {
             for i in 0..m.nrows() {
                 if m[(i, j)] != 0.0 {
@@ -377,8 +443,11 @@ pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMa
         }
     };
     let data = dense(&obj.getattr("data")?, &format!("{name}.data"), None, true)?.0;
-    let values: Vec<f64> = (0..data.nrows()).map(|i| data[(i, 0)]).collect();
-    check_size(name, rows, cols, values.len())?;
+    check_size(name, rows, cols, data.nrows())?;
+    let mut values = vec_for(data.nrows(), || {
+        format!("the {} entries of {name}", data.nrows())
+    })?;
+    values.extend((0..data.nrows()).map(|i| data[(i, 0)]));
     let triplets = match format.as_str() {
         "coo" => {
             let r = indices(&obj.getattr("row")?, &format!("{name}.row"))?;
@@ -393,9 +462,11 @@ pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMa
             }
             check_range(name, "row", &r, rows)?;
             check_range(name, "column", &c, cols)?;
-            (0..values.len())
-                .map(|k| Triplet::new(r[k], c[k], values[k]))
-                .collect()
+            let mut triplets = vec_for(values.len(), || {
+                format!("the {} entries of {name}", values.len())
+            })?;
+            triplets.extend((0..values.len()).map(|k| Triplet::new(r[k], c[k], values[k])));
+            triplets
         }
         by_rows => {
             let by_rows = by_rows == "csr";
@@ -459,7 +530,9 @@ fn compressed_triplets(
         )));
     }
     check_range(name, minor_name, &idx[..ptr[major]], minor)?;
-    let mut triplets = Vec::with_capacity(ptr[major]);
+    let mut triplets = vec_for(ptr[major], || {
+        format!("the {} entries of {name}", ptr[major])
+    })?;
     for k in 0..major {
         for p in ptr[k]..ptr[k + 1] {
             let (i, j) = if by_rows { (k, idx[p]) } else { (idx[p], k) };

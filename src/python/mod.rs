@@ -7,10 +7,14 @@
 //!
 //! Conventions are those of libigl's Python bindings: `V` float64 n × 3,
 //! `F` int64 m × 3, sparse matrices from `scipy.sparse`; any memory order.
-//! Errors: `InputError(ValueError)` for bad input and
-//! `NumericalError(ArithmeticError)` for numerical failure, with the CLI's
-//! one-line messages; `TypeError` for an argument that is not an array of
-//! a convertible dtype; report warnings become `RuntimeWarning`s.
+//! Errors (see [`errors`]): `InputError(ValueError)` for bad input,
+//! with `InputTypeError(InputError, TypeError)` for an argument that is not
+//! an array of a convertible dtype and `TooLargeError(InputError,
+//! MemoryError)` for what exceeds the memory budget or fails to allocate,
+//! and `NumericalError(ArithmeticError)` for numerical failure, with the
+//! CLI's one-line messages; every one an `Exception` (each entry point runs
+//! under [`errors::guarded`], so not even a bug raises pyo3's
+//! `PanicException`); report warnings become `RuntimeWarning`s.
 
 mod convert;
 mod errors;
@@ -30,7 +34,10 @@ use crate::problem::LseProblem;
 use crate::report::Report;
 use crate::{Deformer, Error, LseSolver};
 
-use errors::{InputError, NumericalError, input, released, to_py, type_error};
+use errors::{
+    InputError, NumericalError, guarded, input, input_type_error_class, released, to_py,
+    too_large_error_class, type_error,
+};
 
 /// The formulation named by the keyword arguments, with the CLI's
 /// defaults (`--qr sparse-givens --spd faer-auto`) where they are absent.
@@ -147,20 +154,22 @@ fn deform<'py>(
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let kind = laplacian_kind(laplacian)?;
-    let m = Chosen::parse(method, qr, spd, weight, refine)?;
-    let mesh = mesh(py, V, F)?;
-    let set = constraints_for(constraints, &mesh)?;
-    let solution = released(py, move || {
-        let mut deformer = Deformer::new(mesh, kind, set)?;
-        deformer.set_refine(m.refine);
-        deformer.precompute(m.formulation.as_ref())?;
-        deformer.solve()
-    })?;
-    Ok((
-        convert::positions_to_numpy(py, &solution.positions).into_any(),
-        report_with_warnings(py, &solution.report)?,
-    ))
+    guarded(|| {
+        let kind = laplacian_kind(laplacian)?;
+        let m = Chosen::parse(method, qr, spd, weight, refine)?;
+        let mesh = mesh(py, V, F)?;
+        let set = constraints_for(constraints, &mesh)?;
+        let solution = released(py, move || {
+            let mut deformer = Deformer::new(mesh, kind, set)?;
+            deformer.set_refine(m.refine);
+            deformer.precompute(m.formulation.as_ref())?;
+            deformer.solve()
+        })?;
+        Ok((
+            convert::positions_to_numpy(py, &solution.positions).into_any(),
+            report_with_warnings(py, &solution.report)?,
+        ))
+    })
 }
 
 /// The Laplacian of `(V, F)` as a `scipy.sparse.csc_matrix` (n × n; the
@@ -174,10 +183,12 @@ fn laplacian_matrix<'py>(
     F: &Bound<'py, PyAny>,
     kind: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let kind = laplacian_kind(kind)?;
-    let mesh = mesh(py, V, F)?;
-    let l = released(py, move || Ok(laplacian::laplacian(&mesh, kind)?))?;
-    convert::csc_to_scipy(py, &l)
+    guarded(|| {
+        let kind = laplacian_kind(kind)?;
+        let mesh = mesh(py, V, F)?;
+        let l = released(py, move || Ok(laplacian::laplacian(&mesh, kind)?))?;
+        convert::csc_to_scipy(py, &l)
+    })
 }
 
 /// Solves `min ‖A X − C‖ subject to B X = D` for sparse `A` (l × n) and
@@ -197,23 +208,25 @@ fn solve_lse<'py>(
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let m = Chosen::parse(method, qr, spd, weight, refine)?;
-    let a = convert::sparse(A, "A")?;
-    let b = convert::sparse(B, "B")?;
-    let (c, one_d) = convert::dense(C, "C", None, true)?;
-    let (d, _) = convert::dense(D, "D", None, true)?;
-    let (x, report) = released(py, move || {
-        let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref())?;
-        let mut solver = LseSolver::new(problem);
-        solver.set_refine(m.refine);
-        solver.precompute(m.formulation.as_ref())?;
-        let x = solver.solve()?;
-        Ok((x, solver.report().clone()))
-    })?;
-    Ok((
-        convert::matrix_to_numpy(py, x.as_ref(), one_d),
-        report_with_warnings(py, &report)?,
-    ))
+    guarded(|| {
+        let m = Chosen::parse(method, qr, spd, weight, refine)?;
+        let a = convert::sparse(A, "A")?;
+        let b = convert::sparse(B, "B")?;
+        let (c, one_d) = convert::dense(C, "C", None, true)?;
+        let (d, _) = convert::dense(D, "D", None, true)?;
+        let (x, report) = released(py, move || {
+            let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref())?;
+            let mut solver = LseSolver::new(problem);
+            solver.set_refine(m.refine);
+            solver.precompute(m.formulation.as_ref())?;
+            let x = solver.solve()?;
+            Ok((x, solver.report().clone()))
+        })?;
+        Ok((
+            convert::matrix_to_numpy(py, x.as_ref(), one_d),
+            report_with_warnings(py, &report)?,
+        ))
+    })
 }
 
 /// What a `Deformer` holds behind its lock.
@@ -269,20 +282,22 @@ impl PyDeformer {
         weight: Option<f64>,
         refine: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyDeformer> {
-        let kind = laplacian_kind(laplacian)?;
-        let m = Chosen::parse(method, qr, spd, weight, refine)?;
-        let mesh = mesh(py, V, F)?;
-        let set = constraints_for(constraints, &mesh)?;
-        let deformer = released(py, move || {
-            let mut deformer = Deformer::new(mesh, kind, set)?;
-            deformer.set_refine(m.refine);
-            Ok(deformer)
-        })?;
-        Ok(PyDeformer {
-            state: Mutex::new(DeformerState {
-                deformer,
-                formulation: m.formulation,
-            }),
+        guarded(|| {
+            let kind = laplacian_kind(laplacian)?;
+            let m = Chosen::parse(method, qr, spd, weight, refine)?;
+            let mesh = mesh(py, V, F)?;
+            let set = constraints_for(constraints, &mesh)?;
+            let deformer = released(py, move || {
+                let mut deformer = Deformer::new(mesh, kind, set)?;
+                deformer.set_refine(m.refine);
+                Ok(deformer)
+            })?;
+            Ok(PyDeformer {
+                state: Mutex::new(DeformerState {
+                    deformer,
+                    formulation: m.formulation,
+                }),
+            })
         })
     }
 
@@ -301,17 +316,19 @@ impl PyDeformer {
         indices: &Bound<'_, PyAny>,
         targets: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let indices = convert::indices(indices, "indices")?;
-        let targets = convert::rows3(targets, "targets")?;
-        if indices.len() != targets.len() {
-            return Err(input(format!(
-                "{} indices but {} targets (one row of targets per index)",
-                indices.len(),
-                targets.len()
-            )));
-        }
-        let updates: Vec<(usize, [f64; 3])> = indices.into_iter().zip(targets).collect();
-        self.with_state(py, move |s| s.deformer.set_targets(&updates))
+        guarded(|| {
+            let indices = convert::indices(indices, "indices")?;
+            let targets = convert::rows3(targets, "targets")?;
+            if indices.len() != targets.len() {
+                return Err(input(format!(
+                    "{} indices but {} targets (one row of targets per index)",
+                    indices.len(),
+                    targets.len()
+                )));
+            }
+            let updates: Vec<(usize, [f64; 3])> = indices.into_iter().zip(targets).collect();
+            self.with_state(py, move |s| s.deformer.set_targets(&updates))
+        })
     }
 
     /// Applies the affine map `M` (3 × 4 `[R | t]`, or 4 × 4 with last row
@@ -321,6 +338,49 @@ impl PyDeformer {
     #[pyo3(signature = (name, M))]
     #[allow(non_snake_case)]
     fn transform_group(&self, py: Python<'_>, name: &str, M: &Bound<'_, PyAny>) -> PyResult<()> {
+        guarded(|| self.transform_group_unguarded(py, name, M))
+    }
+
+    /// The constraint indices of group `name`, increasing.
+    fn group(&self, py: Python<'_>, name: &str) -> PyResult<Vec<usize>> {
+        let name = name.to_string();
+        self.with_state(py, move |s| s.deformer.group_members(&name))
+    }
+
+    /// Solve: the deformed positions (n × 3) for the current targets,
+    /// reusing the factorisation (GIL released). Call `precompute()` first.
+    fn solve<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        guarded(|| {
+            let (positions, report) = self.with_state(py, |s| {
+                let solution = s.deformer.solve()?;
+                Ok((solution.positions, solution.report))
+            })?;
+            for w in &report.warnings {
+                warn::<PyRuntimeWarning>(py, w)?;
+            }
+            Ok(convert::positions_to_numpy(py, &positions).into_any())
+        })
+    }
+
+    /// The report of the last precompute and solve, a dict with the keys
+    /// of the CLI's JSON report.
+    #[getter]
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        guarded(|| {
+            let report = self.with_state(py, |s| Ok(s.deformer.report().clone()))?;
+            convert::report_dict(py, &report)
+        })
+    }
+}
+
+impl PyDeformer {
+    #[allow(non_snake_case)]
+    fn transform_group_unguarded(
+        &self,
+        py: Python<'_>,
+        name: &str,
+        M: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
         let (m, _) = convert::dense(M, "M", Some(4), false)?;
         let homogeneous_ok = m.nrows() == 4 && (0..4).all(|j| m[(3, j)] == [0.0, 0.0, 0.0, 1.0][j]);
         if !(m.nrows() == 3 || homogeneous_ok) {
@@ -338,33 +398,6 @@ impl PyDeformer {
         let name = name.to_string();
         self.with_state(py, move |s| s.deformer.transform_group(&name, &affine))
     }
-
-    /// The constraint indices of group `name`, increasing.
-    fn group(&self, py: Python<'_>, name: &str) -> PyResult<Vec<usize>> {
-        let name = name.to_string();
-        self.with_state(py, move |s| s.deformer.group_members(&name))
-    }
-
-    /// Solve: the deformed positions (n × 3) for the current targets,
-    /// reusing the factorisation (GIL released). Call `precompute()` first.
-    fn solve<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let (positions, report) = self.with_state(py, |s| {
-            let solution = s.deformer.solve()?;
-            Ok((solution.positions, solution.report))
-        })?;
-        for w in &report.warnings {
-            warn::<PyRuntimeWarning>(py, w)?;
-        }
-        Ok(convert::positions_to_numpy(py, &positions).into_any())
-    }
-
-    /// The report of the last precompute and solve, a dict with the keys
-    /// of the CLI's JSON report.
-    #[getter]
-    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let report = self.with_state(py, |s| Ok(s.deformer.report().clone()))?;
-        convert::report_dict(py, &report)
-    }
 }
 
 /// The native module `lse_deform._native`; the package `lse_deform`
@@ -375,6 +408,8 @@ pub fn native_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("InputError", py.get_type::<InputError>())?;
     m.add("NumericalError", py.get_type::<NumericalError>())?;
+    m.add("InputTypeError", input_type_error_class(py)?)?;
+    m.add("TooLargeError", too_large_error_class(py)?)?;
     m.add_class::<PyDeformer>()?;
     m.add_function(wrap_pyfunction!(deform, m)?)?;
     m.add_function(wrap_pyfunction!(laplacian_matrix, m)?)?;

@@ -12,15 +12,21 @@ matrices from ``scipy.sparse``; C- and Fortran-ordered arrays alike.
 - ``laplacian(V, F, kind) -> scipy.sparse.csc_matrix``
 - ``solve_lse(A, C, B, D, ...) -> (X, report)``: min ||AX - C|| s.t. BX = D
 
-Errors: ``InputError`` (a ``ValueError``) for bad input,
-``NumericalError`` (an ``ArithmeticError``) for numerical failure, with the
-command-line tool's one-line messages.
+Errors, each an ``Exception``, with the command-line tool's one-line
+messages: ``InputError`` (a ``ValueError``) for bad input, among them
+``InputTypeError`` (also a ``TypeError``) for an argument of a type or
+dtype that cannot be converted and ``TooLargeError`` (also a
+``MemoryError``) for an array or system beyond the memory budget
+(``LSE_MEMORY_LIMIT``, or the available memory) or an allocation that
+failed; ``NumericalError`` (an ``ArithmeticError``) for numerical failure.
 """
 
 from ._native import (
     Deformer,
     InputError,
+    InputTypeError,
     NumericalError,
+    TooLargeError,
     __version__,
     deform,
     laplacian,
@@ -30,7 +36,9 @@ from ._native import (
 __all__ = [
     "Deformer",
     "InputError",
+    "InputTypeError",
     "NumericalError",
+    "TooLargeError",
     "__version__",
     "deform",
     "laplacian",

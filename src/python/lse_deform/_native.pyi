@@ -15,6 +15,13 @@ class InputError(ValueError):
 class NumericalError(ArithmeticError):
     """A numerical failure (the CLI's exit code 3)."""
 
+class InputTypeError(InputError, TypeError):
+    """An argument of a type or dtype that cannot be converted."""
+
+class TooLargeError(InputError, MemoryError):
+    """An input or system beyond the memory budget (LSE_MEMORY_LIMIT or
+    the available memory), or an allocation that failed."""
+
 Report = Dict[str, Any]
 """The CLI's JSON report as a dict: method, rank, redundant, conflicting,
 max_constraint_residual, forward_error_estimate, timings_s, warnings, ..."""

@@ -1,0 +1,148 @@
+"""Every error from Python is an ``Exception`` of one of three families --
+``InputError``, ``NumericalError``, ``MemoryError`` -- never pyo3's
+``PanicException`` (a ``BaseException`` that ``except Exception`` lets
+through) and never an abort of the interpreter. Arrays whose shapes
+promise more memory than there is (a broadcast view holds one number) are
+refused, naming the array, before anything is allocated; an allocation the
+budget allowed but the system refuses is a ``TooLargeError`` too."""
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import lse_deform
+from lse_deform import InputError, InputTypeError, NumericalError, TooLargeError
+from conftest import bumpy_grid, fixed_and_handle
+
+V, F = bumpy_grid(n=6)
+B_IDX, BC = fixed_and_handle(V)
+FAMILIES = (InputError, NumericalError, MemoryError)
+
+
+def small_lse():
+    A = sp.eye(4, format="csc")
+    C = np.arange(12.0).reshape(4, 3)
+    B = sp.csr_matrix(np.ones((1, 4)))
+    D = np.ones((1, 3))
+    return A, C, B, D
+
+
+def huge(shape, dtype=np.float64):
+    """A read-only view of `shape` over a single value: a few bytes of
+    storage, however large the shape."""
+    return np.broadcast_to(np.ones((), dtype=dtype), shape)
+
+
+def test_the_classes():
+    assert issubclass(InputTypeError, InputError) and issubclass(InputTypeError, TypeError)
+    assert issubclass(TooLargeError, InputError) and issubclass(TooLargeError, MemoryError)
+    assert issubclass(InputError, ValueError) and issubclass(NumericalError, ArithmeticError)
+    for cls in (InputError, InputTypeError, NumericalError, TooLargeError):
+        assert issubclass(cls, Exception)
+        assert cls.__module__ == "lse_deform"
+
+
+def deformer():
+    d = lse_deform.Deformer(V, F, (B_IDX, BC))
+    d.precompute()
+    return d
+
+
+A, C, B, D = small_lse()
+
+# (what, call, the name the message must give)
+TOO_LARGE = [
+    ("C of 2**31 x 3 (broadcast)", lambda: lse_deform.solve_lse(A, huge((2**31, 3)), B, D), "C"),
+    ("dense A of 1e5 x 1e5 (broadcast)", lambda: lse_deform.solve_lse(huge((10**5, 10**5)), C, B, D), "A"),
+    ("D of 2**40 x 3", lambda: lse_deform.solve_lse(A, C, B, huge((2**40, 3))), "D"),
+    ("V of 2**40 x 3", lambda: lse_deform.deform(huge((2**40, 3)), F, (B_IDX, BC)), "V"),
+    ("F of 2**40 x 3", lambda: lse_deform.deform(V, huge((2**40, 3), np.int64), (B_IDX, BC)), "F"),
+    ("b of 2**40", lambda: lse_deform.deform(V, F, (huge((2**40,), np.int64), BC)), "b"),
+    ("Laplacian of V of 2**40 x 3", lambda: lse_deform.laplacian(huge((2**40, 3)), F), "V"),
+    ("Deformer of V of 2**40 x 3", lambda: lse_deform.Deformer(huge((2**40, 3)), F, (B_IDX, BC)), "V"),
+    ("set_targets indices of 2**40", lambda: deformer().set_targets(huge((2**40,), np.int64), BC[:1]), "indices"),
+    ("set_targets targets of 2**40 x 3", lambda: deformer().set_targets([0], huge((2**40, 3))), "targets"),
+    ("transform_group M of 2**40 x 4", lambda: deformer().transform_group("g", huge((2**40, 4))), "M"),
+]
+
+
+@pytest.mark.parametrize("what, call, name", TOO_LARGE, ids=[t[0] for t in TOO_LARGE])
+def test_arrays_beyond_the_memory_budget_are_memory_errors(what, call, name):
+    with pytest.raises(MemoryError) as e:
+        call()
+    assert isinstance(e.value, TooLargeError) and isinstance(e.value, InputError)
+    message = str(e.value)
+    assert f" {name} " in message or f" {name}:" in message, message
+    assert "memory budget" in message, message
+
+
+def test_an_allocation_the_system_refuses_is_a_memory_error():
+    """With a budget larger than any machine, the allocation itself fails
+    (a 2**52 x 3 array needs 96 PiB, beyond the address space): a typed
+    error from `try_reserve`, in a child interpreter so that the budget can
+    be set before the module first reads it."""
+    code = textwrap.dedent(
+        """
+        import numpy as np, scipy.sparse as sp, lse_deform
+        C = np.broadcast_to(np.ones(()), (2**52, 3))
+        try:
+            lse_deform.solve_lse(sp.eye(4, format="csc"), C, sp.csr_matrix(np.ones((1, 4))), np.ones((1, 3)))
+        except Exception as e:
+            print(type(e).__name__, isinstance(e, MemoryError), e)
+        """
+    )
+    env = {"LSE_MEMORY_LIMIT": "1000000T", "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("TooLargeError True "), out.stdout + out.stderr
+    assert "could not be allocated" in out.stdout, out.stdout
+
+
+# One call per kind of failure, across every entry point: each raises an
+# Exception of one of the three families.
+CATALOGUE = [
+    lambda: lse_deform.deform(V.astype(complex), F, (B_IDX, BC)),
+    lambda: lse_deform.deform(V, F.astype(float), (B_IDX, BC)),
+    lambda: lse_deform.deform(V, F, 5),
+    lambda: lse_deform.deform(V[:, :2], F, (B_IDX, BC)),
+    lambda: lse_deform.deform(V, F, []),
+    lambda: lse_deform.deform(V, F, (B_IDX, BC), method="bogus"),
+    lambda: lse_deform.deform(V, F, (B_IDX, BC), refine=True),
+    lambda: lse_deform.laplacian(V, F, kind="bogus"),
+    lambda: lse_deform.solve_lse("A", C, B, D),
+    lambda: lse_deform.solve_lse(A, np.ones((5, 3)), B, D),
+    lambda: lse_deform.solve_lse(
+        sp.csc_matrix(np.array([[1.0, 1, 0], [1, 1, 0], [0, 0, 1]])),
+        np.ones((3, 3)),
+        sp.csr_matrix(np.array([[0.0, 0, 1]])),
+        np.ones((1, 3)),
+    ),
+    lambda: lse_deform.solve_lse(sp.csc_matrix((2**62, 4)), np.ones((0, 3)), B, D),
+    lambda: deformer().set_targets([999], [[0, 0, 0]]),
+    lambda: deformer().transform_group("nope", np.eye(4)),
+    lambda: lse_deform.Deformer(V, F, (B_IDX, BC)).solve(),
+] + [t[1] for t in TOO_LARGE]
+
+
+@pytest.mark.parametrize("call", CATALOGUE)
+def test_every_error_is_an_exception_of_the_three_families(call):
+    try:
+        call()
+    except Exception as e:  # what a caller writes: nothing may get past it
+        assert isinstance(e, FAMILIES), f"{type(e).__mro__}: {e}"
+    else:
+        pytest.fail("no error")
+
+
+def test_each_family_is_provoked():
+    raised = set()
+    for call in CATALOGUE:
+        try:
+            call()
+        except FAMILIES as e:
+            raised |= {f for f in FAMILIES if isinstance(e, f)}
+    assert raised == set(FAMILIES)
