@@ -621,6 +621,22 @@ pub enum NumericalError {
         /// `value / unit` (infinite).
         ratio: f64,
     },
+    /// A soft weight times the power of the length unit that keeps the
+    /// documented energy (`w ℓᵃ`, [`crate::problem::SoftWeightScale`]) is
+    /// not a finite positive double.
+    #[error(
+        "constraint {index}: its soft weight {weight:e} times the mesh's length unit {length:e} to the power {power} (which keeps the energy in the mesh's units) is beyond the range of double precision"
+    )]
+    SoftWeightOutOfRange {
+        /// Constraint index.
+        index: usize,
+        /// The weight as given.
+        weight: f64,
+        /// The length unit `ℓ`.
+        length: f64,
+        /// The power `a`.
+        power: i32,
+    },
     /// The solve produced a non-finite value.
     #[error("solve produced a non-finite position at vertex {vertex}")]
     NonFiniteSolution {

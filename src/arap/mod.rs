@@ -50,7 +50,7 @@ use crate::cpu::clear_upper_vector_state;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine, refine};
 use crate::mesh::{Mesh, topology};
-use crate::problem::{LseProblem, check_pinned};
+use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
 use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_finite};
 
 pub mod energy;
@@ -153,7 +153,13 @@ impl ArapDeformer {
         let triangles = ArapTriangles::new(&mesh, energy);
         let rows = triangles.rows();
         let rhs = triangles.rest_rhs();
-        let problem = LseProblem::new(&rows, &rhs, &constraints, mesh.bbox_diagonal())?;
+        let problem = LseProblem::new(
+            &rows,
+            &rhs,
+            &constraints,
+            mesh.bbox_diagonal(),
+            SoftWeightScale::NONE,
+        )?;
         let x = Mat::from_fn(n, 3, |i, c| mesh.positions()[i][c]);
         let mut report = Report {
             laplacian: Some(format!("arap-{}", energy.name())),
@@ -438,8 +444,8 @@ impl ArapDeformer {
         self.problem
             .soft_constraints()
             .iter()
-            .map(|&(i, w)| {
-                let kind = &self.constraints[i].kind;
+            .map(|row| {
+                let (kind, w) = (&self.constraints[row.index].kind, row.weight);
                 let (value, target) = (kind.row().apply(&positions), kind.rhs());
                 (0..3)
                     .map(|c| (w * (value[c] - target[c])).powi(2))
