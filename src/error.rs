@@ -638,9 +638,12 @@ pub enum NumericalError {
         power: i32,
     },
     /// The solve produced a non-finite value.
-    #[error("solve produced a non-finite position at vertex {vertex}")]
+    #[error(
+        "solve produced a non-finite value in row {vertex} of X (for a mesh, the position of vertex {vertex})"
+    )]
     NonFiniteSolution {
-        /// The first vertex with a non-finite coordinate.
+        /// The first row of `X` (vertex, for a mesh) with a non-finite
+        /// entry.
         vertex: usize,
     },
     /// A back end reported an error.
