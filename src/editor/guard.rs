@@ -415,4 +415,109 @@ mod tests {
         let u: Uri = "/api/positions?format=f64".parse().unwrap();
         assert!(without_token(&u).is_none());
     }
+
+    /// A request head with these parts (`None`: header absent).
+    #[allow(clippy::too_many_arguments)]
+    fn head(
+        method: &str,
+        uri: &str,
+        host: Option<&str>,
+        origin: Option<&str>,
+        site: Option<&str>,
+        auth: Option<&str>,
+        kind: Option<&str>,
+    ) -> Request {
+        let mut b = Request::builder().method(method).uri(uri);
+        for (name, value) in [
+            ("host", host),
+            ("origin", origin),
+            ("sec-fetch-site", site),
+            ("authorization", auth),
+            ("content-type", kind),
+        ] {
+            if let Some(v) = value {
+                b = b.header(name, v);
+            }
+        }
+        b.body(axum::body::Body::empty()).unwrap()
+    }
+
+    const TOKEN: &str = "0123456789abcdef0123456789abcdef";
+
+    fn pick(
+        options: &'static [&'static str],
+    ) -> impl proptest::strategy::Strategy<Value = Option<String>> {
+        use proptest::prelude::*;
+        prop_oneof![
+            Just(None),
+            proptest::sample::select(options).prop_map(|s| Some(s.to_string())),
+            "[ -~]{0,24}".prop_map(Some),
+        ]
+    }
+
+    proptest::proptest! {
+        /// Whatever the head, `admit` answers without panicking; what it
+        /// admits names this server, and unless it is a page file it
+        /// carries the token, comes from no other origin, has a JSON body
+        /// type when it has a body, and has lost its token parameter; what
+        /// it refuses gets 401, 403, 414 or 415. A head that meets every
+        /// rule is admitted.
+        #[test]
+        fn admission(
+            method in proptest::sample::select(&["GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"][..]),
+            path in proptest::sample::select(&["/", "/main.js", "/api.js", "/api/mesh", "/api/transform", "/api", "/API/mesh", "/main.js/", "/nope"][..]),
+            query in proptest::option::of(proptest::prop_oneof![
+                proptest::strategy::Just(format!("token={TOKEN}")),
+                proptest::strategy::Just(format!("format=f64&token={TOKEN}")),
+                proptest::strategy::Just(format!("token=x&token={TOKEN}&a=b")),
+                proptest::strategy::Just("token=".to_string()),
+                "[a-zA-Z0-9=&_-]{0,16}",
+            ]),
+            host in pick(&["127.0.0.1:8080", "localhost:8080", "LOCALHOST:8080", "[::1]:8080", "evil.example:8080", "127.0.0.1:8081", "127.0.0.1"]),
+            origin in pick(&["http://127.0.0.1:8080", "http://localhost:8080", "null", "http://evil.example", "https://127.0.0.1:8080"]),
+            site in pick(&["same-origin", "none", "same-site", "cross-site"]),
+            auth in pick(&["Bearer 0123456789abcdef0123456789abcdef", "bearer 0123456789abcdef0123456789abcdef", "Bearer  0123456789abcdef0123456789abcdef ", "Bearer 0123456789abcdef0123456789abcdeF", "Basic eDp5", "Bearer"]),
+            kind in pick(&["application/json", "application/json; charset=utf-8", "APPLICATION/JSON", "text/plain", "application/jsonx"]),
+        ) {
+            let g = Guard::new("127.0.0.1:8080".parse().unwrap(), "127.0.0.1", TOKEN.into(), &["/", "/main.js", "/api.js"]);
+            let uri = match &query {
+                Some(q) => format!("{path}?{q}"),
+                None => path.to_string(),
+            };
+            let mut request = head(method, &uri, host.as_deref(), origin.as_deref(), site.as_deref(), auth.as_deref(), kind.as_deref());
+            let outcome = g.admit(&mut request);
+            // The rules, stated directly.
+            let host_ok = host.as_deref().is_some_and(|h| {
+                ["127.0.0.1:8080", "localhost:8080", "[::1]:8080"].iter().any(|a| a.eq_ignore_ascii_case(h))
+            });
+            let public = matches!(method, "GET" | "HEAD") && ["/", "/main.js", "/api.js"].contains(&path);
+            let same_origin = site.as_deref().is_none_or(|s| s == "same-origin" || s == "none")
+                && origin.as_deref().is_none_or(|o| host.as_deref().is_some_and(|h| o.eq_ignore_ascii_case(&format!("http://{h}"))));
+            let bearer_ok = auth.as_deref().is_some_and(|a| {
+                let a = a.trim();
+                a.len() > 7 && a[..7].eq_ignore_ascii_case("bearer ") && a[7..].trim() == TOKEN
+            });
+            let query_ok = query.as_deref().is_some_and(|q| q.split('&').any(|kv| kv == format!("token={TOKEN}")));
+            let json_ok = !matches!(method, "POST" | "PUT" | "PATCH")
+                || kind.as_deref().is_some_and(|k| k.split(';').next().unwrap().trim().eq_ignore_ascii_case("application/json"));
+            let admissible = host_ok && (public || (same_origin && (bearer_ok || query_ok) && json_ok));
+            match outcome {
+                Ok(()) => {
+                    proptest::prop_assert!(admissible, "admitted {method} {uri} host {host:?} origin {origin:?} site {site:?} auth {auth:?} kind {kind:?}");
+                    if !public {
+                        let q = request.uri().query().unwrap_or("");
+                        proptest::prop_assert!(!q.split('&').any(|kv| kv.starts_with("token=")), "{q}");
+                        let others: Vec<&str> = query.as_deref().unwrap_or("").split('&').filter(|kv| !kv.is_empty() && !kv.starts_with("token=")).collect();
+                        proptest::prop_assert_eq!(q.split('&').filter(|kv| !kv.is_empty()).collect::<Vec<_>>(), others);
+                        proptest::prop_assert_eq!(request.uri().path(), path);
+                    }
+                }
+                Err(e) => {
+                    proptest::prop_assert!(!admissible, "refused {method} {uri} host {host:?} origin {origin:?} site {site:?} auth {auth:?} kind {kind:?}: {}", e.message);
+                    proptest::prop_assert!([401, 403, 414, 415].contains(&e.status.as_u16()));
+                    proptest::prop_assert_eq!(e.status == StatusCode::UNAUTHORIZED, e.www_authenticate);
+                }
+            }
+        }
+    }
 }
