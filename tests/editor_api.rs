@@ -6,6 +6,7 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -69,6 +70,27 @@ fn start_with(max_body: usize, args: &[&str], env: &[(&str, &str)]) -> Server {
     write_mesh(&mesh, &mesh_path).unwrap();
     let c_path = dir.path().join("c.json");
     std::fs::write(&c_path, cs.to_json()).unwrap();
+    let max_body = max_body.to_string();
+    let mut all_args = vec!["--max-body-bytes", max_body.as_str()];
+    all_args.extend_from_slice(args);
+    let (child, client) = spawn_edit(&mesh_path, &c_path, &all_args, env);
+    Server {
+        child,
+        client,
+        mesh,
+        constraints: cs,
+        _dir: dir,
+    }
+}
+
+/// Starts `lse-deform edit MESH --constraints C ARGS` on any free port and
+/// parses its first line, `listening on http://ADDR/?token=T`.
+fn spawn_edit(
+    mesh_path: &Path,
+    c_path: &Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> (Child, Client) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_lse-deform"))
         .args([
             "edit",
@@ -76,7 +98,7 @@ fn start_with(max_body: usize, args: &[&str], env: &[(&str, &str)]) -> Server {
             "--constraints",
             c_path.to_str().unwrap(),
         ])
-        .args(["--port", "0", "--max-body-bytes", &max_body.to_string()])
+        .args(["--port", "0"])
         .args(args)
         .env_remove("LSE_DEFORM_EDIT_TOKEN")
         .envs(env.iter().copied())
@@ -95,15 +117,74 @@ fn start_with(max_body: usize, args: &[&str], env: &[(&str, &str)]) -> Server {
         .unwrap_or_else(|| panic!("first line: {line:?}"));
     let token = token.strip_prefix("?token=").unwrap_or("").to_string();
     assert!(addr.starts_with("127.0.0.1:"), "{addr}");
-    Server {
+    (
         child,
-        client: Client {
+        Client {
             addr: addr.to_string(),
             token,
         },
-        mesh,
-        constraints: cs,
-        _dir: dir,
+    )
+}
+
+/// `lse-deform scene MESH -o s.json && lse-deform edit MESH -c s.json`,
+/// then `POST /api/transform {"group": "handle", …}`: the scene's groups
+/// make the drag take the basis path, and the positions equal the
+/// library's full solve of the file's constraints with the handle moved.
+#[test]
+fn a_scene_file_drags_on_the_basis_path_as_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh_path = dir.path().join("sphere.obj");
+    write_mesh(&generate::icosphere(2).unwrap(), &mesh_path).unwrap();
+    let c_path = dir.path().join("s.json");
+    let status = Command::new(env!("CARGO_BIN_EXE_lse-deform"))
+        .args(["scene", mesh_path.to_str().unwrap(), "-o"])
+        .arg(&c_path)
+        .stderr(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let cs = lse_deform::constraints::read_constraints_file(&c_path).unwrap();
+    let groups: std::collections::BTreeSet<_> = cs
+        .as_slice()
+        .iter()
+        .filter_map(|c| c.group.clone())
+        .collect();
+    assert_eq!(
+        groups.into_iter().collect::<Vec<_>>(),
+        ["fixed", "handle"],
+        "every scene constraint is in one of the two groups"
+    );
+    assert!(cs.as_slice().iter().all(|c| c.group.is_some()));
+    let (mut child, client) = spawn_edit(&mesh_path, &c_path, &[], &[]);
+    let m = rotation_x(0.4, [0.0, 0.1, 0.2]);
+    let (status, body) = request(
+        &client,
+        "POST",
+        "/api/transform",
+        &transform_body("handle", m),
+    );
+    let answer = String::from_utf8_lossy(&body).to_string();
+    let got = positions_f64(&client);
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(status, 200, "{answer}");
+    assert_eq!(json(answer.as_bytes())["path"], "basis", "{answer}");
+    let mesh = lse_deform::mesh::read_mesh(&mesh_path).unwrap().mesh;
+    let diag = mesh.bbox_diagonal();
+    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs).unwrap();
+    d.transform_group("handle", &m).unwrap();
+    d.precompute(&NullSpaceQr::default()).unwrap();
+    let want = d.solve().unwrap().positions;
+    let moved = want
+        .iter()
+        .zip(d.mesh().positions())
+        .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    assert!(moved > 1e-3 * diag, "the handle moved the mesh");
+    for (g, w) in got.iter().zip(&want) {
+        for c in 0..3 {
+            assert!((g[c] - w[c]).abs() <= 1e-9 * diag, "{g:?} vs {w:?}");
+        }
     }
 }
 
