@@ -8,6 +8,9 @@ host's speed affects each alike.
     lse-deform edit MESH --constraints SCENE.json --port 0   # one per build
     python3 experiments/editor_frames.py URL [URL ...] [--group 'handle 1'] [--frames 300] [--rounds 5]
 
+Each URL is the one `lse-deform edit` prints (`http://HOST:PORT/?token=T`);
+the token goes with every request as `Authorization: Bearer T`.
+
 Standard library only. The transform of frame k is a translation along a
 circle of radius 0.1 (mesh units), as the bench's drag.
 """
@@ -16,11 +19,31 @@ import json
 import math
 import statistics
 import time
+import urllib.parse
 import urllib.request
+
+# Base URL (without the token) -> the token of that server.
+TOKENS = {}
+
+
+def base_of(printed):
+    """The server's base URL from the URL `lse-deform edit` printed,
+    remembering its token."""
+    parts = urllib.parse.urlsplit(printed)
+    token = urllib.parse.parse_qs(parts.query).get("token", [""])[0]
+    if not token:
+        raise SystemExit(f"{printed}: no ?token= (give the URL that lse-deform edit printed)")
+    base = f"{parts.scheme}://{parts.netloc}"
+    TOKENS[base] = token
+    return base
+
+
+def headers(url, **more):
+    return {"authorization": f"Bearer {TOKENS[url]}", **more}
 
 
 def get(url, path):
-    with urllib.request.urlopen(url + path) as r:
+    with urllib.request.urlopen(urllib.request.Request(url + path, headers=headers(url))) as r:
         return json.load(r)
 
 
@@ -35,7 +58,7 @@ def frame(url, group, k):
     body = json.dumps({"group": group, "matrix": m}).encode()
     request = urllib.request.Request(
         url + "/api/transform", data=body, method="POST",
-        headers={"content-type": "application/json"})
+        headers=headers(url, **{"content-type": "application/json"}))
     t = time.perf_counter()
     with urllib.request.urlopen(request) as r:
         answer = json.load(r)
@@ -54,7 +77,7 @@ def main():
     p.add_argument("--frames", type=int, default=300)
     p.add_argument("--rounds", type=int, default=5)
     a = p.parse_args()
-    urls = [u.rstrip("/") for u in a.urls]
+    urls = [base_of(u) for u in a.urls]
     for u in urls:
         wait_until_idle(u)
         frame(u, a.group, 0)  # the first frame after a selection warms the caches

@@ -235,6 +235,7 @@ pub fn failure_kind(e: &Error) -> &'static str {
         Error::Numerical(N::NonFiniteSolution { .. }) => "non-finite solution",
         Error::Numerical(N::NonFiniteEnergy { .. }) => "non-finite ARAP energy",
         Error::Numerical(N::TargetOutOfRange { .. }) => "target out of range",
+        Error::Numerical(N::SoftWeightOutOfRange { .. }) => "soft weight out of range",
         Error::Numerical(N::Backend { .. }) => "back-end error",
         Error::Problem(_) => "unsupported problem",
         Error::Constraint(_) => "bad constraint",

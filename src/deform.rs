@@ -34,7 +34,7 @@ use crate::error::{ConstraintError, Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine};
 use crate::laplacian::{self, LaplacianKind};
 use crate::mesh::{Mesh, topology};
-use crate::problem::{LseProblem, check_pinned};
+use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
 use crate::report::Report;
 use crate::solver::LseSolver;
 
@@ -57,14 +57,23 @@ pub struct Solution {
 /// [`Deformer::set_targets`] or [`Deformer::set_group_targets`];
 /// [`Deformer::transform_group`] moves current targets relative to it.
 ///
-/// **Units.** The problem is assembled on the mesh and targets divided by
-/// the mesh's [`Mesh::length_unit`] (its mean edge length), and the
-/// solution multiplied back: the result does not depend on the units,
-/// position or orientation the mesh is given in (moved by a similarity, it
-/// deforms to the same positions moved, with the same rank and the same
-/// redundant and conflicting sets), and no coordinate product overflows for
-/// meshes from 1e-300 to 1e300. Targets given to the deformer are in the
-/// mesh's units; [`Deformer::problem`], [`Deformer::solve_matrix`],
+/// **Units** (docs/units.md). The energy minimised is the documented one
+/// in the mesh's own units,
+/// `‖L(X − P)‖²_F + Σ_soft w²‖b·X − d‖²` with every `w` as given. For the
+/// numerics the problem is assembled on the mesh and targets divided by the
+/// mesh's [`Mesh::length_unit`] `ℓ` (its mean edge length), every soft
+/// row carries `w ℓᵃ` instead of `w` (`a` =
+/// [`LaplacianKind::inverse_length_power`]; [`SoftWeightScale`] derives
+/// why this keeps the minimiser), and the solution is multiplied back.
+/// What the scaling changes: no product of coordinates overflows or
+/// underflows for meshes from 1e-300 to 1e300, and tolerances are relative
+/// to the mesh. What it does not change: the minimiser, the rank, the
+/// redundant and conflicting sets. A mesh moved by a rigid motion deforms
+/// to the same positions moved; scaled by `s`, it deforms to the result
+/// scaled when hard constraints alone act, and with soft constraints when
+/// every soft weight is scaled by `s⁻ᵃ` too (the energy is not scale-free
+/// otherwise). Targets given to the deformer are in the mesh's units;
+/// [`Deformer::problem`], [`Deformer::solve_matrix`],
 /// [`Deformer::solve_into`] are in the problem's.
 pub struct Deformer {
     mesh: Mesh,
@@ -118,11 +127,22 @@ impl Deformer {
             }
             unit_constraints.set_rhs(i, scaled)?;
         }
-        let problem = LseProblem::new(&l, &delta, &unit_constraints, unit_mesh.bbox_diagonal())?;
+        let soft_scale = SoftWeightScale {
+            length: unit,
+            power: laplacian.inverse_length_power(),
+        };
+        let problem = LseProblem::new(
+            &l,
+            &delta,
+            &unit_constraints,
+            unit_mesh.bbox_diagonal(),
+            soft_scale,
+        )?;
         let mut report = Report {
             laplacian: Some(laplacian.name().into()),
             warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
             length_unit: unit,
+            soft_weight_scale: Some(soft_scale.factor()),
             ..Report::default()
         };
         report.timings_s.setup = t.elapsed().as_secs_f64();

@@ -621,10 +621,29 @@ pub enum NumericalError {
         /// `value / unit` (infinite).
         ratio: f64,
     },
+    /// A soft weight times the power of the length unit that keeps the
+    /// documented energy (`w ℓᵃ`, [`crate::problem::SoftWeightScale`]) is
+    /// not a finite positive double.
+    #[error(
+        "constraint {index}: its soft weight {weight:e} times the mesh's length unit {length:e} to the power {power} (which keeps the energy in the mesh's units) is beyond the range of double precision"
+    )]
+    SoftWeightOutOfRange {
+        /// Constraint index.
+        index: usize,
+        /// The weight as given.
+        weight: f64,
+        /// The length unit `ℓ`.
+        length: f64,
+        /// The power `a`.
+        power: i32,
+    },
     /// The solve produced a non-finite value.
-    #[error("solve produced a non-finite position at vertex {vertex}")]
+    #[error(
+        "solve produced a non-finite value in row {vertex} of X (for a mesh, the position of vertex {vertex})"
+    )]
     NonFiniteSolution {
-        /// The first vertex with a non-finite coordinate.
+        /// The first row of `X` (vertex, for a mesh) with a non-finite
+        /// entry.
         vertex: usize,
     },
     /// The ARAP objective is not finite in the mesh's units: the squared

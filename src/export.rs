@@ -93,9 +93,12 @@ pub const META_FILE: &str = "meta.json";
 ///   that are the Laplacian, before the soft rows), `length_scale` (the
 ///   unit of the conflict tolerance), `length_unit` (the mesh length the
 ///   problem's lengths are divided by: `X` times it is the deformed
-///   positions, see [`crate::Deformer`]), `constraint_of_b_row` and
-///   `constraint_of_soft_row` (the constraint index of each row of `B` and
-///   of each soft row of `A`).
+///   positions, see [`crate::Deformer`]), `soft_weight_scale` (the factor
+///   `length_unitᵃ` the soft rows of `A` and `C` carry on top of their
+///   weights, docs/units.md), `constraint_of_b_row`,
+///   `constraint_of_soft_row` and `soft_weight_of_row` (the constraint
+///   index of each row of `B` and of each soft row of `A`, and the soft
+///   weight as given).
 ///
 /// `lse-deform solve` reads `laplacian_rows` and `length_scale` back
 /// ([`LseProblem::with_laplacian_rows`], [`LseProblem::with_length_scale`]),
@@ -151,7 +154,9 @@ pub fn export_meta(
         "length_scale": problem.length_scale(),
         "length_unit": report.length_unit,
         "constraint_of_b_row": problem.hard_constraints(),
-        "constraint_of_soft_row": problem.soft_constraints().iter().map(|s| s.0).collect::<Vec<_>>(),
+        "soft_weight_scale": report.soft_weight_scale,
+        "constraint_of_soft_row": problem.soft_constraints().iter().map(|s| s.index).collect::<Vec<_>>(),
+        "soft_weight_of_row": problem.soft_constraints().iter().map(|s| s.weight).collect::<Vec<_>>(),
     });
     let path = dir.join(META_FILE);
     let text = serde_json::to_string_pretty(&meta).map_err(|e| Error::io(&path, e.into()))?;

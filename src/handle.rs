@@ -289,7 +289,7 @@ fn basis_right_hand_sides(deformer: &Deformer, members: &[Vec<usize>]) -> (Mat<f
             };
             let (target, row, scale) = match place {
                 RowPlace::Hard(r) => (&mut d, r, 1.0),
-                RowPlace::Soft(r) => (&mut c, n_lap + r, soft[r].1),
+                RowPlace::Soft(r) => (&mut c, n_lap + r, soft[r].row_weight),
             };
             for j in 0..3 {
                 target[(row, j)] = 0.0;

@@ -4,7 +4,9 @@
 //! Two ways in:
 //! - [`LseProblem::new`], a mesh: `A = [L; w·B_soft]` (l × n) and
 //!   `C = [δ; w·D_soft]` (l × 3): the Laplacian rows first, then one row per
-//!   soft constraint scaled by its weight. `B` (m × n) and `D` (m × 3) hold
+//!   soft constraint scaled by its weight (times the problem's
+//!   [`SoftWeightScale`] when the mesh was divided by a length unit:
+//!   docs/units.md). `B` (m × n) and `D` (m × 3) hold
 //!   the hard constraints, one row each, in the constraints' list order
 //!   (their priority).
 //! - [`LseProblem::from_parts`], any sparse `A` (l × n) and `B` (m × n) with
@@ -23,7 +25,7 @@ use faer::sparse::{
 use faer::{Mat, MatRef};
 
 use crate::constraints::ConstraintSet;
-use crate::error::{ConstraintError, Error, ProblemError};
+use crate::error::{ConstraintError, Error, NumericalError, ProblemError};
 
 /// Where a constraint lives in the assembled system.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,9 +46,70 @@ pub struct LseProblem {
     n_laplacian_rows: usize,
     places: Vec<RowPlace>,
     hard: Vec<usize>,
-    soft: Vec<(usize, f64)>,
+    soft: Vec<SoftRow>,
     length_scale: f64,
     general: bool,
+}
+
+/// A soft constraint's row of `A` and `C`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SoftRow {
+    /// The constraint's index in the constraint list.
+    pub index: usize,
+    /// Its weight `w`, as given.
+    pub weight: f64,
+    /// The weight its row of `A` and `C` carries: `w` times the problem's
+    /// [`SoftWeightScale`] (`w` itself for a problem in the mesh's units).
+    pub row_weight: f64,
+}
+
+/// The factor `ℓᵃ` every soft weight is multiplied by when a mesh problem
+/// is assembled on the positions divided by a length `ℓ` (docs/units.md,
+/// "Soft weights").
+///
+/// With `X = ℓ X̂`, `P = ℓ P̂`, `d = ℓ d̂` and a Laplacian whose entries
+/// scale as `length⁻ᵃ` (`L = ℓ⁻ᵃ L̂`,
+/// [`crate::LaplacianKind::inverse_length_power`]),
+/// `‖L(X − P)‖² + Σ w²‖b·X − d‖² = ℓ^(2−2a) (‖L̂(X̂ − P̂)‖² + Σ (w ℓᵃ)² ‖b·X̂ − d̂‖²)`:
+/// the two energies differ by a positive constant factor, so they have the
+/// same minimiser exactly when every soft row of the scaled problem carries
+/// `w ℓᵃ`. The hard rows are unaffected (`b·X = d ⇔ b·X̂ = d̂`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SoftWeightScale {
+    /// `ℓ`, the length the mesh was divided by.
+    pub length: f64,
+    /// `a`, the power of length in `L`'s entries.
+    pub power: i32,
+}
+
+impl SoftWeightScale {
+    /// No scaling: weights as given (a problem in the mesh's own units).
+    pub const NONE: SoftWeightScale = SoftWeightScale {
+        length: 1.0,
+        power: 0,
+    };
+
+    /// `w ℓᵃ`, multiplied one factor of `ℓ` at a time so that no
+    /// intermediate power of `ℓ` overflows when the product is
+    /// representable (`ℓ = 1e200`, `w = 1e-390`… is not, `ℓ = 1e150`,
+    /// `w = 1e-300` is: `w ℓ² = 1`).
+    pub fn apply(self, w: f64) -> f64 {
+        let mut r = w;
+        for _ in 0..self.power.unsigned_abs() {
+            if self.power > 0 {
+                r *= self.length;
+            } else {
+                r /= self.length;
+            }
+        }
+        r
+    }
+
+    /// `ℓᵃ` (infinite or zero when it is not representable; the report's
+    /// `soft_weight_scale`).
+    pub fn factor(self) -> f64 {
+        self.apply(1.0)
+    }
 }
 
 /// The number of right-hand-side columns a formulation's
@@ -120,12 +183,16 @@ impl LseProblem {
     /// Assembles `A, C, B, D` from a Laplacian `l` (n × n), the Laplacian
     /// coordinates `delta = L P` (n × 3) and the constraints (whose vertices
     /// must be `< n`). `length_scale` (the mesh's bounding-box diagonal) is
-    /// the unit of absolute tolerances on constraint residuals.
+    /// the unit of absolute tolerances on constraint residuals. Soft row
+    /// `k` carries `soft_scale.apply(w_k)` ([`SoftWeightScale::NONE`] for a
+    /// problem in the mesh's own units); a product that is not a finite
+    /// positive number is a [`NumericalError::SoftWeightOutOfRange`].
     pub fn new(
         l: &SparseColMat<usize, f64>,
         delta: &Mat<f64>,
         constraints: &ConstraintSet,
         length_scale: f64,
+        soft_scale: SoftWeightScale,
     ) -> Result<LseProblem, Error> {
         let n = l.ncols();
         constraints.check_vertices(n)?;
@@ -140,8 +207,22 @@ impl LseProblem {
                     hard.push(i);
                 }
                 Some(w) => {
+                    let row_weight = soft_scale.apply(w);
+                    if !(row_weight.is_finite() && row_weight > 0.0) {
+                        return Err(NumericalError::SoftWeightOutOfRange {
+                            index: i,
+                            weight: w,
+                            length: soft_scale.length,
+                            power: soft_scale.power,
+                        }
+                        .into());
+                    }
                     places.push(RowPlace::Soft(soft.len()));
-                    soft.push((i, w));
+                    soft.push(SoftRow {
+                        index: i,
+                        weight: w,
+                        row_weight,
+                    });
                 }
             }
         }
@@ -174,8 +255,8 @@ impl LseProblem {
         // A = [L; w B_soft] (CSC): column j holds L's column, then the soft
         // entries on j (rows n_lap + k, increasing in k).
         let mut soft_count = vec![0usize; n + 1];
-        for &(i, _) in &soft {
-            for &(v, _) in constraints[i].kind.row().entries() {
+        for row in &soft {
+            for &(v, _) in constraints[row.index].kind.row().entries() {
                 soft_count[v + 1] += 1;
             }
         }
@@ -185,10 +266,10 @@ impl LseProblem {
         let mut soft_rows = vec![0usize; soft_count[n]];
         let mut soft_vals = vec![0.0; soft_count[n]];
         let mut fill = soft_count.clone();
-        for (k, &(i, w)) in soft.iter().enumerate() {
-            for &(v, a) in constraints[i].kind.row().entries() {
+        for (k, row) in soft.iter().enumerate() {
+            for &(v, a) in constraints[row.index].kind.row().entries() {
                 soft_rows[fill[v]] = n_lap + k;
-                soft_vals[fill[v]] = w * a;
+                soft_vals[fill[v]] = row.row_weight * a;
                 fill[v] += 1;
             }
         }
@@ -238,7 +319,7 @@ impl LseProblem {
                 }
             }
             RowPlace::Soft(k) => {
-                let w = self.soft[k].1;
+                let w = self.soft[k].row_weight;
                 for c in 0..3 {
                     self.c[(self.n_laplacian_rows + k, c)] = w * value[c];
                 }
@@ -429,8 +510,9 @@ impl LseProblem {
         &self.hard
     }
 
-    /// The constraint index and weight of each soft row of `A`.
-    pub fn soft_constraints(&self) -> &[(usize, f64)] {
+    /// Each soft row of `A`: its constraint, its weight as given and the
+    /// weight the row carries.
+    pub fn soft_constraints(&self) -> &[SoftRow] {
         &self.soft
     }
 

@@ -73,6 +73,9 @@ impl<T: Serialize> Serialize for Detected<T> {
 pub struct SoftResidual {
     /// Constraint index in the constraints file.
     pub index: usize,
+    /// Its weight `w`, as given (the energy's term is `w²‖b·X − d‖²` in
+    /// the mesh's units, whatever the length unit of the assembly).
+    pub weight: f64,
     /// `‖b·X − d‖₂` (unweighted), in the mesh's units.
     pub residual: f64,
 }
@@ -189,6 +192,15 @@ pub struct Report {
     /// as matrices). Positions, residuals and tolerances in this report are
     /// in the mesh's own units.
     pub length_unit: f64,
+    /// `length_unitᵃ`, the factor the soft rows of the assembled problem
+    /// carry on top of their weights, `a` the power of length in the
+    /// Laplacian's entries (2 for `cotan` and `intrinsic-delaunay`, 0 for
+    /// `uniform` and `cotan-symmetric`): it makes the assembled problem's
+    /// minimiser that of the documented energy
+    /// `‖L(X − P)‖² + Σ w²‖b·X − d‖²` in the mesh's units (docs/units.md).
+    /// 1 for ARAP (its rows are dimensionless: `a = 0`); `None` for a
+    /// problem given as matrices.
+    pub soft_weight_scale: Option<f64>,
     /// Iterative refinement of the last solve: steps, the size of every
     /// correction, why it stopped.
     pub refinement: Option<crate::formulation::Refinement>,
@@ -330,15 +342,16 @@ pub fn fill_solution_diagnostics(
         .soft_constraints()
         .iter()
         .enumerate()
-        .map(|(k, &(index, w))| {
+        .map(|(k, soft)| {
             let row = residual.row(n_lap + k);
             let norm = (0..row.ncols())
                 .map(|c| row[c] * row[c])
                 .sum::<f64>()
                 .sqrt();
             SoftResidual {
-                index,
-                residual: norm / w * unit,
+                index: soft.index,
+                weight: soft.weight,
+                residual: norm / soft.row_weight * unit,
             }
         })
         .collect();

@@ -5,6 +5,11 @@ use crate::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use crate::error::{Error, ProblemError};
 use crate::mesh::{Mesh, MeshSignature};
 
+/// The group of a scene's fixed region.
+pub const FIXED_GROUP: &str = "fixed";
+/// The group of a scene's handle.
+pub const HANDLE_GROUP: &str = "handle";
+
 /// "Fix the bottom, drag the top": the `fixed_fraction` of vertices lowest
 /// along `axis` are held in place (hard), and the `handle_fraction` of
 /// vertices closest to the highest vertex along `axis` (excluding fixed ones)
@@ -79,17 +84,23 @@ impl FixedAndHandle {
         Ok((fixed, handle))
     }
 
-    /// The constraints: fixed vertices first (highest priority), then the
-    /// handle.
+    /// The constraints: fixed vertices first (highest priority, group
+    /// [`FIXED_GROUP`]), then the handle (group [`HANDLE_GROUP`]), so that a
+    /// scene file can be dragged as it is (`Deformer::transform_group`, the
+    /// editor's `POST /api/transform`, Python's `transform_group`) and
+    /// `render` colours its regions.
     pub fn constraints(&self, mesh: &Mesh) -> Result<ConstraintSet, Error> {
         let (fixed, handle) = self.regions(mesh)?;
         let p = mesh.positions();
         let mut list = Vec::with_capacity(fixed.len() + handle.len());
         for v in fixed {
-            list.push(Constraint::hard(ConstraintKind::Position {
-                vertex: v,
-                target: p[v],
-            }));
+            list.push(
+                Constraint::hard(ConstraintKind::Position {
+                    vertex: v,
+                    target: p[v],
+                })
+                .in_group(FIXED_GROUP),
+            );
         }
         for v in handle {
             let target = [0, 1, 2].map(|k| p[v][k] + self.offset[k]);
@@ -97,7 +108,7 @@ impl FixedAndHandle {
             list.push(Constraint {
                 kind,
                 weight: self.handle_weight,
-                group: None,
+                group: Some(HANDLE_GROUP.into()),
             });
         }
         let mut set = ConstraintSet::from_vec(list)?;

@@ -6,8 +6,9 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::mesh::{generate, write_mesh};
@@ -16,9 +17,16 @@ use serde_json::Value;
 
 const NX: usize = 10;
 
+/// Where a server listens and its token.
+#[derive(Clone)]
+struct Client {
+    addr: String,
+    token: String,
+}
+
 struct Server {
     child: Child,
-    addr: String,
+    client: Client,
     mesh: Mesh,
     constraints: ConstraintSet,
     _dir: tempfile::TempDir,
@@ -50,12 +58,39 @@ fn scene() -> (Mesh, ConstraintSet) {
 }
 
 fn start(max_body: usize) -> Server {
+    start_with(max_body, &[], &[])
+}
+
+/// `lse-deform edit` on the scene with more arguments and environment
+/// variables; its first line parsed as `listening on http://ADDR/?token=T`.
+fn start_with(max_body: usize, args: &[&str], env: &[(&str, &str)]) -> Server {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, cs) = scene();
     let mesh_path = dir.path().join("grid.obj");
     write_mesh(&mesh, &mesh_path).unwrap();
     let c_path = dir.path().join("c.json");
     std::fs::write(&c_path, cs.to_json()).unwrap();
+    let max_body = max_body.to_string();
+    let mut all_args = vec!["--max-body-bytes", max_body.as_str()];
+    all_args.extend_from_slice(args);
+    let (child, client) = spawn_edit(&mesh_path, &c_path, &all_args, env);
+    Server {
+        child,
+        client,
+        mesh,
+        constraints: cs,
+        _dir: dir,
+    }
+}
+
+/// Starts `lse-deform edit MESH --constraints C ARGS` on any free port and
+/// parses its first line, `listening on http://ADDR/?token=T`.
+fn spawn_edit(
+    mesh_path: &Path,
+    c_path: &Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> (Child, Client) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_lse-deform"))
         .args([
             "edit",
@@ -63,7 +98,10 @@ fn start(max_body: usize) -> Server {
             "--constraints",
             c_path.to_str().unwrap(),
         ])
-        .args(["--port", "0", "--max-body-bytes", &max_body.to_string()])
+        .args(["--port", "0"])
+        .args(args)
+        .env_remove("LSE_DEFORM_EDIT_TOKEN")
+        .envs(env.iter().copied())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -72,46 +110,169 @@ fn start(max_body: usize) -> Server {
     BufReader::new(child.stdout.take().unwrap())
         .read_line(&mut line)
         .unwrap();
-    let addr = line
+    let (addr, token) = line
         .trim()
         .strip_prefix("listening on http://")
-        .and_then(|s| s.strip_suffix('/'))
-        .unwrap_or_else(|| panic!("first line: {line:?}"))
-        .to_string();
+        .and_then(|s| s.split_once('/'))
+        .unwrap_or_else(|| panic!("first line: {line:?}"));
+    let token = token.strip_prefix("?token=").unwrap_or("").to_string();
     assert!(addr.starts_with("127.0.0.1:"), "{addr}");
-    Server {
+    (
         child,
-        addr,
-        mesh,
-        constraints: cs,
-        _dir: dir,
+        Client {
+            addr: addr.to_string(),
+            token,
+        },
+    )
+}
+
+/// `lse-deform scene MESH -o s.json && lse-deform edit MESH -c s.json`,
+/// then `POST /api/transform {"group": "handle", …}`: the scene's groups
+/// make the drag take the basis path, and the positions equal the
+/// library's full solve of the file's constraints with the handle moved.
+#[test]
+fn a_scene_file_drags_on_the_basis_path_as_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh_path = dir.path().join("sphere.obj");
+    write_mesh(&generate::icosphere(2).unwrap(), &mesh_path).unwrap();
+    let c_path = dir.path().join("s.json");
+    let status = Command::new(env!("CARGO_BIN_EXE_lse-deform"))
+        .args(["scene", mesh_path.to_str().unwrap(), "-o"])
+        .arg(&c_path)
+        .stderr(Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let cs = lse_deform::constraints::read_constraints_file(&c_path).unwrap();
+    let groups: std::collections::BTreeSet<_> = cs
+        .as_slice()
+        .iter()
+        .filter_map(|c| c.group.clone())
+        .collect();
+    assert_eq!(
+        groups.into_iter().collect::<Vec<_>>(),
+        ["fixed", "handle"],
+        "every scene constraint is in one of the two groups"
+    );
+    assert!(cs.as_slice().iter().all(|c| c.group.is_some()));
+    let (mut child, client) = spawn_edit(&mesh_path, &c_path, &[], &[]);
+    let m = rotation_x(0.4, [0.0, 0.1, 0.2]);
+    let (status, body) = request(
+        &client,
+        "POST",
+        "/api/transform",
+        &transform_body("handle", m),
+    );
+    let answer = String::from_utf8_lossy(&body).to_string();
+    let got = positions_f64(&client);
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(status, 200, "{answer}");
+    assert_eq!(json(answer.as_bytes())["path"], "basis", "{answer}");
+    let mesh = lse_deform::mesh::read_mesh(&mesh_path).unwrap().mesh;
+    let diag = mesh.bbox_diagonal();
+    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs).unwrap();
+    d.transform_group("handle", &m).unwrap();
+    d.precompute(&NullSpaceQr::default()).unwrap();
+    let want = d.solve().unwrap().positions;
+    let moved = want
+        .iter()
+        .zip(d.mesh().positions())
+        .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    assert!(moved > 1e-3 * diag, "the handle moved the mesh");
+    for (g, w) in got.iter().zip(&want) {
+        for c in 0..3 {
+            assert!((g[c] - w[c]).abs() <= 1e-9 * diag, "{g:?} vs {w:?}");
+        }
     }
 }
 
-/// One request with `Connection: close`: (status, body).
-fn request(addr: &str, method: &str, path: &str, body: &[u8]) -> (u16, Vec<u8>) {
+/// An answer: status, head (lower case) and body.
+struct Answer {
+    status: u16,
+    head: String,
+    body: Vec<u8>,
+}
+
+/// Writes `head` (without its blank line) and `body` on a new connection
+/// and reads the answer until the server closes it; panics when nothing
+/// arrives within 30 s (a server that waits forever).
+fn exchange(addr: &str, head: &str, body: &[u8]) -> Answer {
     let mut s = TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    let head = format!(
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: {}\r\n\r\n",
-        body.len()
-    );
-    s.write_all(head.as_bytes()).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    s.write_all(format!("{head}\r\n").as_bytes()).unwrap();
     // The server may answer (413) before reading a large body.
     let _ = s.write_all(body);
+    read_answer(&mut s)
+}
+
+fn read_answer(s: &mut TcpStream) -> Answer {
     let mut raw = Vec::new();
-    let _ = s.read_to_end(&mut raw);
+    if let Err(e) = s.read_to_end(&mut raw) {
+        assert!(
+            !matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+            ),
+            "no answer within 30 s (got {} bytes)",
+            raw.len()
+        );
+    }
     let split = raw
         .windows(4)
         .position(|w| w == b"\r\n\r\n")
         .expect("a response head");
     let head = String::from_utf8_lossy(&raw[..split]).to_lowercase();
     let status: u16 = head[9..12].parse().unwrap();
-    let mut payload = raw[split + 4..].to_vec();
+    let mut body = raw[split + 4..].to_vec();
     if head.contains("transfer-encoding: chunked") {
-        payload = dechunk(&payload);
+        body = dechunk(&body);
     }
-    (status, payload)
+    Answer { status, head, body }
+}
+
+/// The head of a request with `Connection: close`, the server's `Host`,
+/// the token and, for a body, `Content-Type: application/json`; `extra`
+/// lines are added, and replace a default line of the same name.
+fn head_of(c: &Client, method: &str, path: &str, extra: &[(&str, &str)], len: usize) -> String {
+    let mut lines: Vec<(String, String)> = vec![
+        ("Host".into(), c.addr.clone()),
+        ("Connection".into(), "close".into()),
+        ("Content-Length".into(), len.to_string()),
+        ("Authorization".into(), format!("Bearer {}", c.token)),
+    ];
+    if method == "POST" || method == "PUT" {
+        lines.push(("Content-Type".into(), "application/json".into()));
+    }
+    for (name, value) in extra {
+        lines.retain(|(n, _)| !n.eq_ignore_ascii_case(name));
+        if !value.is_empty() {
+            lines.push((name.to_string(), value.to_string()));
+        }
+    }
+    let mut head = format!("{method} {path} HTTP/1.1\r\n");
+    for (n, v) in lines {
+        head.push_str(&format!("{n}: {v}\r\n"));
+    }
+    head
+}
+
+/// A request with extra header lines (an empty value removes a default).
+fn request_with(
+    c: &Client,
+    method: &str,
+    path: &str,
+    extra: &[(&str, &str)],
+    body: &[u8],
+) -> Answer {
+    exchange(&c.addr, &head_of(c, method, path, extra, body.len()), body)
+}
+
+/// One request with `Connection: close`: (status, body).
+fn request(c: &Client, method: &str, path: &str, body: &[u8]) -> (u16, Vec<u8>) {
+    let a = request_with(c, method, path, &[], body);
+    (a.status, a.body)
 }
 
 fn dechunk(mut b: &[u8]) -> Vec<u8> {
@@ -133,8 +294,8 @@ fn json(body: &[u8]) -> Value {
         .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(body)))
 }
 
-fn positions_f64(addr: &str) -> Vec<[f64; 3]> {
-    let (status, body) = request(addr, "GET", "/api/positions?format=f64", b"");
+fn positions_f64(c: &Client) -> Vec<[f64; 3]> {
+    let (status, body) = request(c, "GET", "/api/positions?format=f64", b"");
     assert_eq!(status, 200);
     body.chunks_exact(24)
         .map(|c| [0, 1, 2].map(|k| f64::from_le_bytes(c[8 * k..8 * k + 8].try_into().unwrap())))
@@ -171,7 +332,7 @@ fn transform_matches_the_library_full_solve() {
     let server = start(1 << 20);
     // Before any move: the positions are the basis at the identity, equal
     // to a full solve, and the report carries the basis's refinement.
-    let at_rest = positions_f64(&server.addr);
+    let at_rest = positions_f64(&server.client);
     let want = library_positions(&server, None);
     let diag = server.mesh.bbox_diagonal();
     for (g, w) in at_rest.iter().zip(&want) {
@@ -179,7 +340,7 @@ fn transform_matches_the_library_full_solve() {
             assert!((g[c] - w[c]).abs() <= 1e-9 * diag, "{g:?} vs {w:?}");
         }
     }
-    let report = json(&request(&server.addr, "GET", "/api/report", b"").1);
+    let report = json(&request(&server.client, "GET", "/api/report", b"").1);
     assert_eq!(report["refinement"]["mode"], "until 1e-9");
     let estimate = report["forward_error_estimate"].as_f64().unwrap();
     assert!(estimate <= 1e-9, "{estimate:e}");
@@ -189,14 +350,14 @@ fn transform_matches_the_library_full_solve() {
     );
     let m = rotation_x(0.7, [0.1, 0.2, 0.5]);
     let (status, body) = request(
-        &server.addr,
+        &server.client,
         "POST",
         "/api/transform",
         &transform_body("handle", m),
     );
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
     assert_eq!(json(&body)["path"], "basis");
-    let got = positions_f64(&server.addr);
+    let got = positions_f64(&server.client);
     let want = library_positions(&server, Some(("handle", m)));
     for (g, w) in got.iter().zip(&want) {
         for c in 0..3 {
@@ -204,17 +365,17 @@ fn transform_matches_the_library_full_solve() {
         }
     }
     // f32 has the same values, rounded.
-    let (status, body) = request(&server.addr, "GET", "/api/positions", b"");
+    let (status, body) = request(&server.client, "GET", "/api/positions", b"");
     assert_eq!(status, 200);
     assert_eq!(body.len(), got.len() * 12);
     let x0 = f32::from_le_bytes(body[0..4].try_into().unwrap());
     assert_eq!(x0, got[0][0] as f32);
     // The report states the method and no conflict; the mesh its counts.
-    let report = json(&request(&server.addr, "GET", "/api/report", b"").1);
+    let report = json(&request(&server.client, "GET", "/api/report", b"").1);
     assert_eq!(report["method"], "nullspace-qr");
     assert_eq!(report["rank"], 2 * (NX + 1));
     assert!(report["max_constraint_residual_relative"].as_f64().unwrap() < 1e-12);
-    let mesh = json(&request(&server.addr, "GET", "/api/mesh", b"").1);
+    let mesh = json(&request(&server.client, "GET", "/api/mesh", b"").1);
     assert_eq!(mesh["vertices"], (NX + 1) * (NX + 1));
     assert_eq!(mesh["faces"], 2 * NX * NX);
 }
@@ -222,11 +383,22 @@ fn transform_matches_the_library_full_solve() {
 #[test]
 fn the_page_and_its_modules_are_served_and_nothing_else() {
     let server = start(1 << 20);
-    let (status, body) = request(&server.addr, "GET", "/", b"");
-    assert_eq!(status, 200);
-    assert!(String::from_utf8_lossy(&body).contains("<canvas"));
+    let page = request_with(&server.client, "GET", "/", &[], b"");
+    assert_eq!(page.status, 200);
+    assert!(String::from_utf8_lossy(&page.body).contains("<canvas"));
+    for h in [
+        "content-security-policy: frame-ancestors 'none'",
+        "referrer-policy: no-referrer",
+        "x-content-type-options: nosniff",
+    ] {
+        assert!(page.head.contains(h), "{h}: {}", page.head);
+    }
     for module in ["/main.js", "/view.js", "/api.js"] {
-        assert_eq!(request(&server.addr, "GET", module, b"").0, 200, "{module}");
+        assert_eq!(
+            request(&server.client, "GET", module, b"").0,
+            200,
+            "{module}"
+        );
     }
     for hostile in [
         "/../Cargo.toml",
@@ -236,17 +408,18 @@ fn the_page_and_its_modules_are_served_and_nothing_else() {
         "/etc/passwd",
         "/nope.js",
     ] {
-        let (status, body) = request(&server.addr, "GET", hostile, b"");
+        let (status, body) = request(&server.client, "GET", hostile, b"");
         assert!(status == 404 || status == 400, "{hostile}: {status}");
         let text = String::from_utf8_lossy(&body);
+        assert!(json(&body)["error"].is_string(), "{hostile}: {text}");
         assert!(
             !text.contains("[package]") && !text.contains("root:"),
             "{hostile}: {text}"
         );
     }
-    assert_eq!(request(&server.addr, "GET", "/api/transform", b"").0, 405);
+    assert_eq!(request(&server.client, "GET", "/api/transform", b"").0, 405);
     assert_eq!(
-        request(&server.addr, "DELETE", "/api/constraints", b"").0,
+        request(&server.client, "DELETE", "/api/constraints", b"").0,
         405
     );
 }
@@ -254,7 +427,7 @@ fn the_page_and_its_modules_are_served_and_nothing_else() {
 #[test]
 fn malformed_requests_get_400_with_a_message_and_change_nothing() {
     let server = start(1 << 20);
-    let before = positions_f64(&server.addr);
+    let before = positions_f64(&server.client);
     let cases: Vec<(&str, &str, Vec<u8>, &str)> = vec![
         (
             "POST",
@@ -322,7 +495,7 @@ fn malformed_requests_get_400_with_a_message_and_change_nothing() {
         ("GET", "/api/positions?format=xyz", vec![], "xyz"),
     ];
     for (method, path, body, needle) in cases {
-        let (status, answer) = request(&server.addr, method, path, &body);
+        let (status, answer) = request(&server.client, method, path, &body);
         assert_eq!(
             status,
             400,
@@ -333,9 +506,9 @@ fn malformed_requests_get_400_with_a_message_and_change_nothing() {
         assert!(message.contains(needle), "{method} {path}: {message}");
         assert!(!message.contains('\n'), "one line: {message}");
     }
-    assert_eq!(positions_f64(&server.addr), before);
+    assert_eq!(positions_f64(&server.client), before);
     assert_eq!(
-        json(&request(&server.addr, "GET", "/api/report", b"").1)["method"],
+        json(&request(&server.client, "GET", "/api/report", b"").1)["method"],
         "nullspace-qr"
     );
 }
@@ -344,7 +517,7 @@ fn malformed_requests_get_400_with_a_message_and_change_nothing() {
 fn huge_bodies_get_413_stating_the_limit() {
     let server = start(50_000);
     let big = vec![b' '; 200_000];
-    let (status, body) = request(&server.addr, "PUT", "/api/constraints", &big);
+    let (status, body) = request(&server.client, "PUT", "/api/constraints", &big);
     assert_eq!(status, 413);
     assert!(
         json(&body)["error"]
@@ -353,14 +526,14 @@ fn huge_bodies_get_413_stating_the_limit() {
             .contains("50000 bytes")
     );
     // Still serving.
-    assert_eq!(request(&server.addr, "GET", "/api/mesh", b"").0, 200);
+    assert_eq!(request(&server.client, "GET", "/api/mesh", b"").0, 200);
 }
 
 #[test]
 fn settings_switch_method_and_energy() {
     let server = start(1 << 20);
     let (status, body) = request(
-        &server.addr,
+        &server.client,
         "PUT",
         "/api/settings",
         br#"{"method": "kkt"}"#,
@@ -368,7 +541,7 @@ fn settings_switch_method_and_energy() {
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
     assert_eq!(json(&body)["method"], "kkt");
     let (status, body) = request(
-        &server.addr,
+        &server.client,
         "PUT",
         "/api/settings",
         br#"{"energy": "arap", "arap_iterations_per_frame": 3}"#,
@@ -376,7 +549,7 @@ fn settings_switch_method_and_energy() {
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
     let m = rotation_x(0.5, [0.0, 0.0, 0.3]);
     let (status, body) = request(
-        &server.addr,
+        &server.client,
         "POST",
         "/api/transform",
         &transform_body("handle", m),
@@ -384,13 +557,13 @@ fn settings_switch_method_and_energy() {
     assert_eq!(status, 200);
     assert_eq!(json(&body)["path"], "arap");
     let (status, body) = request(
-        &server.addr,
+        &server.client,
         "POST",
         "/api/iterate",
         br#"{"iterations": 5}"#,
     );
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
-    let report = json(&request(&server.addr, "GET", "/api/report", b"").1);
+    let report = json(&request(&server.client, "GET", "/api/report", b"").1);
     assert_eq!(
         report["arap"]["iterations"],
         3 + 3 + 5,
@@ -398,7 +571,7 @@ fn settings_switch_method_and_energy() {
         report["arap"]
     );
     // Hard constraints hold: the fixed row did not move; the handle row is at R p + t.
-    let p = positions_f64(&server.addr);
+    let p = positions_f64(&server.client);
     let rest = server.mesh.positions();
     for v in 0..=NX {
         for c in 0..3 {
@@ -416,21 +589,21 @@ fn settings_switch_method_and_energy() {
 #[test]
 fn concurrent_clients_see_whole_frames() {
     let server = start(1 << 20);
-    let addr = server.addr.clone();
+    let client = server.client.clone();
     let threads: Vec<_> = (0..6)
         .map(|k| {
-            let addr = addr.clone();
+            let c = client.clone();
             std::thread::spawn(move || {
                 for f in 0..8 {
                     let t = [0.01 * k as f64, 0.02 * f as f64, 0.3];
                     let (status, _) = request(
-                        &addr,
+                        &c,
                         "POST",
                         "/api/transform",
                         &transform_body("handle", rotation_x(0.0, t)),
                     );
                     assert_eq!(status, 200);
-                    let p = positions_f64(&addr);
+                    let p = positions_f64(&c);
                     // Every handle vertex moved by one and the same translation.
                     let rest = generate::grid(NX, NX).unwrap().positions().to_vec();
                     let h0 = NX * (NX + 1);
@@ -453,19 +626,18 @@ fn concurrent_clients_see_whole_frames() {
 fn a_client_that_disconnects_mid_request_does_not_stop_the_server() {
     let server = start(1 << 20);
     for _ in 0..3 {
-        let mut s = TcpStream::connect(&server.addr).unwrap();
-        s.write_all(
-            b"PUT /api/constraints HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\n{\"constr",
-        )
-        .unwrap();
+        let mut s = TcpStream::connect(&server.client.addr).unwrap();
+        let head = head_of(&server.client, "PUT", "/api/constraints", &[], 100_000);
+        s.write_all(format!("{head}\r\n{{\"constr").as_bytes())
+            .unwrap();
         drop(s);
-        let mut s = TcpStream::connect(&server.addr).unwrap();
+        let mut s = TcpStream::connect(&server.client.addr).unwrap();
         s.write_all(b"GET /api/posi").unwrap();
         drop(s);
     }
-    assert_eq!(request(&server.addr, "GET", "/api/mesh", b"").0, 200);
+    assert_eq!(request(&server.client, "GET", "/api/mesh", b"").0, 200);
     let (status, _) = request(
-        &server.addr,
+        &server.client,
         "POST",
         "/api/transform",
         &transform_body("handle", rotation_x(0.1, [0.0; 3])),
@@ -479,7 +651,7 @@ fn moving_the_fixed_group_falls_back_to_solves_until_it_is_back_at_rest() {
     let path = |group: &str, m| {
         json(
             &request(
-                &server.addr,
+                &server.client,
                 "POST",
                 "/api/transform",
                 &transform_body(group, m),
@@ -495,13 +667,580 @@ fn moving_the_fixed_group_falls_back_to_solves_until_it_is_back_at_rest() {
     assert_eq!(path("fixed", lift), "full-solve");
     assert_eq!(path("handle", id), "full-solve");
     // Both lifted by the same translation: the whole grid moves rigidly.
-    let p = positions_f64(&server.addr);
+    let p = positions_f64(&server.client);
     let rest = server.mesh.positions();
     assert_eq!(path("handle", lift), "full-solve");
-    let p2 = positions_f64(&server.addr);
+    let p2 = positions_f64(&server.client);
     for (q, r) in p2.iter().zip(rest) {
         assert!((q[2] - r[2] - 0.1).abs() < 1e-9, "{q:?}");
     }
     assert!(p.len() == p2.len());
     assert_eq!(path("fixed", id), "basis");
+}
+
+/// `{"error": one line, "kind": word}` with `status`; the kind.
+fn assert_json_error(a: &Answer, status: u16, what: &str) -> String {
+    let text = String::from_utf8_lossy(&a.body);
+    assert_eq!(a.status, status, "{what}: {text}");
+    assert!(
+        a.head.contains("content-type: application/json"),
+        "{what}: {}",
+        a.head
+    );
+    let v: Value =
+        serde_json::from_slice(&a.body).unwrap_or_else(|e| panic!("{what}: {e}: {text:?}"));
+    let message = v["error"]
+        .as_str()
+        .unwrap_or_else(|| panic!("{what}: {text}"));
+    assert!(
+        !message.is_empty() && !message.contains('\n'),
+        "{what}: {message}"
+    );
+    v["kind"]
+        .as_str()
+        .unwrap_or_else(|| panic!("{what}: {text}"))
+        .to_string()
+}
+
+#[test]
+fn cross_origin_requests_get_403() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    let before = positions_f64(c);
+    let body = transform_body("handle", rotation_x(0.3, [0.0, 0.0, 0.5]));
+    // What a page on another site can send without a preflight: text/plain
+    // with its Origin; with or without the token, 403.
+    for auth in [format!("Bearer {}", c.token), String::new()] {
+        let a = request_with(
+            c,
+            "POST",
+            "/api/transform",
+            &[
+                ("Content-Type", "text/plain"),
+                ("Origin", "http://evil.example"),
+                ("Authorization", &auth),
+            ],
+            &body,
+        );
+        assert_eq!(assert_json_error(&a, 403, "evil Origin"), "cross-origin");
+    }
+    let same_port_other_host = format!(
+        "http://localhost.evil.example:{}",
+        c.addr.split(':').nth(1).unwrap()
+    );
+    for extra in [
+        vec![("Origin", "null")],
+        vec![("Origin", same_port_other_host.as_str())],
+        vec![("Sec-Fetch-Site", "cross-site")],
+        vec![("Sec-Fetch-Site", "same-site")],
+        vec![
+            ("Origin", "http://evil.example"),
+            ("Sec-Fetch-Site", "cross-site"),
+        ],
+    ] {
+        let a = request_with(c, "POST", "/api/transform", &extra, &body);
+        assert_eq!(
+            assert_json_error(&a, 403, &format!("{extra:?}")),
+            "cross-origin"
+        );
+        // Reading is refused as well.
+        let a = request_with(c, "GET", "/api/positions?format=f64", &extra, b"");
+        assert_eq!(
+            assert_json_error(&a, 403, &format!("GET {extra:?}")),
+            "cross-origin"
+        );
+    }
+    assert_eq!(positions_f64(c), before, "nothing moved");
+    // A body that is not JSON is refused even from a script with the token.
+    for kind in [
+        "text/plain",
+        "application/x-www-form-urlencoded",
+        "multipart/form-data; boundary=x",
+        "",
+    ] {
+        let a = request_with(
+            c,
+            "POST",
+            "/api/transform",
+            &[("Content-Type", kind)],
+            &body,
+        );
+        assert_eq!(assert_json_error(&a, 415, kind), "unsupported-media-type");
+        let a = request_with(
+            c,
+            "PUT",
+            "/api/settings",
+            &[("Content-Type", kind)],
+            br#"{"weight": 5}"#,
+        );
+        assert_eq!(assert_json_error(&a, 415, kind), "unsupported-media-type");
+    }
+    assert_eq!(positions_f64(c), before, "nothing moved");
+    // The page itself: same origin, as a browser says it.
+    let own = format!("http://{}", c.addr);
+    for extra in [
+        vec![("Origin", own.as_str()), ("Sec-Fetch-Site", "same-origin")],
+        vec![("Content-Type", "application/json; charset=utf-8")],
+        vec![("Sec-Fetch-Site", "none")],
+    ] {
+        let a = request_with(c, "POST", "/api/transform", &extra, &body);
+        assert_eq!(
+            a.status,
+            200,
+            "{extra:?}: {}",
+            String::from_utf8_lossy(&a.body)
+        );
+    }
+    assert_ne!(positions_f64(c), before);
+}
+
+#[test]
+fn a_foreign_host_gets_403() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    let port = c.addr.split(':').nth(1).unwrap();
+    // A name re-pointed at 127.0.0.1 (DNS rebinding) keeps its own Host.
+    for host in [
+        format!("evil.example:{port}"),
+        "evil.example".to_string(),
+        format!("127.0.0.1:{}", port.parse::<u32>().unwrap() + 1),
+        format!("localhost.evil.example:{port}"),
+        String::new(),
+    ] {
+        for path in ["/", "/api/mesh", "/api/positions"] {
+            let a = request_with(c, "GET", path, &[("Host", &host)], b"");
+            assert_eq!(
+                assert_json_error(&a, 403, &host),
+                "forbidden-host",
+                "{host} {path}"
+            );
+        }
+        let a = request_with(
+            c,
+            "POST",
+            "/api/transform",
+            &[("Host", &host)],
+            &transform_body("handle", rotation_x(0.2, [0.0; 3])),
+        );
+        assert_eq!(assert_json_error(&a, 403, &host), "forbidden-host");
+    }
+    for host in [
+        format!("localhost:{port}"),
+        c.addr.clone(),
+        format!("[::1]:{port}"),
+        format!("LOCALHOST:{port}"),
+    ] {
+        let a = request_with(c, "GET", "/api/mesh", &[("Host", &host)], b"");
+        assert_eq!(a.status, 200, "{host}");
+        assert_eq!(
+            request_with(c, "GET", "/", &[("Host", &host)], b"").status,
+            200,
+            "{host}"
+        );
+    }
+}
+
+#[test]
+fn api_requests_need_the_session_token() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    assert_eq!(c.token.len(), 64, "{}", c.token);
+    assert!(
+        c.token.bytes().all(|b| b.is_ascii_hexdigit()),
+        "{}",
+        c.token
+    );
+    assert_ne!(
+        start(1 << 20).client.token,
+        c.token,
+        "a new token each session"
+    );
+    let wrong = format!("Bearer {}", "0".repeat(64));
+    let almost = format!("Bearer {}x", &c.token[..63]);
+    for (path, auth) in [
+        ("/api/mesh", ""),
+        ("/api/mesh", wrong.as_str()),
+        ("/api/mesh", almost.as_str()),
+        ("/api/mesh", "Basic dXNlcjpwYXNz"),
+        ("/api/positions?format=f64&token=nope", ""),
+        ("/api/nope", ""),
+    ] {
+        let a = request_with(c, "GET", path, &[("Authorization", auth)], b"");
+        assert_eq!(
+            assert_json_error(&a, 401, path),
+            "unauthorized",
+            "{path} {auth}"
+        );
+        assert!(a.head.contains("www-authenticate: bearer"), "{}", a.head);
+    }
+    let a = request_with(
+        c,
+        "POST",
+        "/api/transform",
+        &[("Authorization", "")],
+        &transform_body("handle", rotation_x(0.2, [0.0; 3])),
+    );
+    assert_eq!(assert_json_error(&a, 401, "POST"), "unauthorized");
+    // The query parameter works alone and with other parameters.
+    let with_query = request_with(
+        c,
+        "GET",
+        &format!("/api/positions?token={}&format=f64", c.token),
+        &[("Authorization", "")],
+        b"",
+    );
+    assert_eq!(with_query.status, 200);
+    assert_eq!(with_query.body.len(), (NX + 1) * (NX + 1) * 24);
+    let a = request_with(
+        c,
+        "GET",
+        &format!("/api/positions?format=f32&token={}", c.token),
+        &[("Authorization", "")],
+        b"",
+    );
+    assert_eq!(a.status, 200);
+    assert_eq!(a.body.len(), (NX + 1) * (NX + 1) * 12);
+    let a = request_with(
+        c,
+        "GET",
+        &format!("/api/report?token={}", c.token),
+        &[("Authorization", "")],
+        b"",
+    );
+    assert_eq!(a.status, 200);
+    // The page's files are served without it (the page reads the token
+    // from its own URL).
+    for path in ["/", "/main.js", "/view.js", "/api.js"] {
+        assert_eq!(
+            request_with(c, "GET", path, &[("Authorization", "")], b"").status,
+            200,
+            "{path}"
+        );
+    }
+    // A token given in the environment (for scripts) is the one printed.
+    let fixed = "a-script-token_0123456789";
+    let s = start_with(1 << 20, &[], &[("LSE_DEFORM_EDIT_TOKEN", fixed)]);
+    assert_eq!(s.client.token, fixed);
+    assert_eq!(request(&s.client, "GET", "/api/mesh", b"").0, 200);
+    // One too short to be a secret is refused at start.
+    let out = Command::new(env!("CARGO_BIN_EXE_lse-deform"))
+        .args(["edit", "nothing.obj", "--token", "short"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("token"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn concurrent_settings_changes_all_take_effect() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    for trial in 0..10 {
+        let weight = 1000.0 + trial as f64;
+        let iterations = 3 + trial;
+        // Both requests are on the wire before either is answered.
+        let mut sockets: Vec<TcpStream> = [
+            serde_json::json!({"weight": weight}),
+            serde_json::json!({"arap_iterations_per_frame": iterations}),
+        ]
+        .iter()
+        .map(|change| {
+            let body = change.to_string();
+            let mut s = TcpStream::connect(&c.addr).unwrap();
+            s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+            let head = head_of(c, "PUT", "/api/settings", &[], body.len());
+            s.write_all(format!("{head}\r\n{body}").as_bytes()).unwrap();
+            s
+        })
+        .collect();
+        for s in &mut sockets {
+            let a = read_answer(s);
+            assert_eq!(a.status, 200, "{}", String::from_utf8_lossy(&a.body));
+        }
+        let settings = json(&request(c, "GET", "/api/report", b"").1)["editor"]["settings"].clone();
+        assert_eq!(settings["weight"], weight, "trial {trial}: {settings}");
+        assert_eq!(
+            settings["arap_iterations_per_frame"], iterations,
+            "trial {trial}: {settings}"
+        );
+    }
+}
+
+#[test]
+fn a_body_declared_beyond_the_cap_gets_413_at_once() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    // 1e10 bytes declared, none sent: answered without reading.
+    let a = exchange(
+        &c.addr,
+        &head_of(c, "PUT", "/api/constraints", &[], 10_000_000_000),
+        b"",
+    );
+    assert_eq!(
+        assert_json_error(&a, 413, "1e10 bytes declared"),
+        "too-large"
+    );
+    assert!(String::from_utf8_lossy(&a.body).contains(&(1 << 20).to_string()));
+    // Not a number: hyper's own 400, with a JSON body.
+    let head = head_of(
+        c,
+        "PUT",
+        "/api/constraints",
+        &[("Content-Length", "1e10")],
+        0,
+    );
+    let a = exchange(&c.addr, &head, b"");
+    assert_eq!(
+        assert_json_error(&a, 400, "Content-Length: 1e10"),
+        "bad-request"
+    );
+    assert_eq!(request(c, "GET", "/api/mesh", b"").0, 200);
+}
+
+#[test]
+fn a_body_that_does_not_arrive_gets_408() {
+    let server = start_with(1 << 20, &["--body-timeout", "1"], &[]);
+    let c = &server.client;
+    // Within the cap but never sent in full: 408 after the body timeout.
+    for (method, path) in [
+        ("PUT", "/api/constraints"),
+        ("POST", "/api/transform"),
+        ("PUT", "/api/settings"),
+    ] {
+        let a = exchange(&c.addr, &head_of(c, method, path, &[], 1000), b"{\"constr");
+        assert_eq!(assert_json_error(&a, 408, path), "timeout");
+    }
+    // Still serving, and unchanged.
+    assert_eq!(request(c, "GET", "/api/mesh", b"").0, 200);
+    assert_eq!(
+        json(&request(c, "GET", "/api/report", b"").1)["editor"]["generation"],
+        1
+    );
+}
+
+#[test]
+fn idle_connections_are_closed() {
+    let server = start_with(1 << 20, &["--idle-timeout", "1"], &[]);
+    let c = &server.client;
+    // Connected, nothing sent; then half a request head; then idle after
+    // a keep-alive answer: each closed by the server (read returns 0)
+    // rather than held open.
+    let keep_alive = head_of(
+        c,
+        "GET",
+        "/api/progress",
+        &[("Connection", "keep-alive")],
+        0,
+    ) + "\r\n";
+    for sent in ["", "GET /api/mesh HTTP/1.1\r\nHost: ", keep_alive.as_str()] {
+        let mut s = TcpStream::connect(&c.addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        s.write_all(sent.as_bytes()).unwrap();
+        let mut raw = Vec::new();
+        let read = s.read_to_end(&mut raw);
+        assert!(read.is_ok(), "{sent:?}: not closed within 30 s: {read:?}");
+        if sent == keep_alive {
+            assert!(
+                String::from_utf8_lossy(&raw).starts_with("HTTP/1.1 200"),
+                "{}",
+                String::from_utf8_lossy(&raw)
+            );
+        } else {
+            assert!(raw.is_empty(), "{}", String::from_utf8_lossy(&raw));
+        }
+    }
+    assert_eq!(request(c, "GET", "/api/mesh", b"").0, 200);
+}
+
+#[test]
+fn every_error_answer_has_a_json_body() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    let a = request_with(c, "GET", "/api/transform", &[], b"");
+    assert_eq!(
+        assert_json_error(&a, 405, "GET /api/transform"),
+        "method-not-allowed"
+    );
+    assert!(a.head.contains("allow: post"), "{}", a.head);
+    assert!(String::from_utf8_lossy(&a.body).contains("POST"));
+    let a = request_with(c, "DELETE", "/api/constraints", &[], b"");
+    assert_eq!(
+        assert_json_error(&a, 405, "DELETE /api/constraints"),
+        "method-not-allowed"
+    );
+    let a = request_with(c, "POST", "/", &[], b"{}");
+    assert_eq!(assert_json_error(&a, 405, "POST /"), "method-not-allowed");
+    // 414: above the editor's 8 KiB, and above hyper's own 64 KiB.
+    for n in [20_000, 100_000] {
+        let path = format!("/api/mesh?x={}", "a".repeat(n));
+        let a = request_with(c, "GET", &path, &[], b"");
+        assert_eq!(
+            assert_json_error(&a, 414, &format!("URI of {n}")),
+            "uri-too-long"
+        );
+    }
+    // Not HTTP at all, and a request head beyond hyper's buffer.
+    let a = exchange(&c.addr, "GARBAGE\r\n", b"");
+    assert_eq!(assert_json_error(&a, 400, "garbage"), "bad-request");
+    let big = format!(
+        "{}X-Big: {}\r\n",
+        head_of(c, "GET", "/api/mesh", &[], 0),
+        "b".repeat(1 << 20)
+    );
+    let a = exchange(&c.addr, &big, b"");
+    assert!(a.status == 431 || a.status == 400, "{}", a.status);
+    assert_json_error(&a, a.status, "1 MiB header");
+    for (method, path) in [("GET", "/api/nope"), ("GET", "/nope.js")] {
+        let a = request_with(c, method, path, &[], b"");
+        assert_eq!(assert_json_error(&a, 404, path), "not-found");
+    }
+    assert_eq!(request(c, "GET", "/api/mesh", b"").0, 200);
+}
+
+#[test]
+fn a_transform_beyond_f32_is_refused_and_positions_are_never_inf() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    for energy in ["laplacian", "arap"] {
+        let (status, _) = request(
+            c,
+            "PUT",
+            "/api/settings",
+            format!(r#"{{"energy": "{energy}"}}"#).as_bytes(),
+        );
+        assert_eq!(status, 200);
+        let before = positions_f64(c);
+        let generation =
+            json(&request(c, "GET", "/api/report", b"").1)["editor"]["generation"].clone();
+        for far in [1e39, -4e38, 1e300] {
+            let a = request_with(
+                c,
+                "POST",
+                "/api/transform",
+                &[],
+                &transform_body("handle", rotation_x(0.0, [0.0, 0.0, far])),
+            );
+            assert_eq!(
+                assert_json_error(&a, 422, &format!("{energy} {far:e}")),
+                "not-representable"
+            );
+            assert!(String::from_utf8_lossy(&a.body).contains("f32"));
+            assert_eq!(
+                positions_f64(c),
+                before,
+                "{energy} {far:e}: nothing changed"
+            );
+            let (status, f32s) = request(c, "GET", "/api/positions?format=f32", b"");
+            assert_eq!(status, 200);
+            assert!(
+                f32s.chunks_exact(4)
+                    .all(|b| f32::from_le_bytes(b.try_into().unwrap()).is_finite())
+            );
+        }
+        let report = json(&request(c, "GET", "/api/report", b"").1);
+        assert_eq!(report["editor"]["generation"], generation);
+        // A move after the refusal starts from the state before it.
+        let m = rotation_x(0.0, [0.0, 0.0, 0.25]);
+        let (status, body) = request(c, "POST", "/api/transform", &transform_body("handle", m));
+        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+        if energy == "laplacian" {
+            let got = positions_f64(c);
+            let want = library_positions(&server, Some(("handle", m)));
+            for (g, w) in got.iter().zip(&want) {
+                for k in 0..3 {
+                    assert!(
+                        (g[k] - w[k]).abs() <= 1e-9 * server.mesh.bbox_diagonal(),
+                        "{g:?} vs {w:?}"
+                    );
+                }
+            }
+        }
+        let (status, _) = request(
+            c,
+            "POST",
+            "/api/transform",
+            &transform_body("handle", rotation_x(0.0, [0.0; 3])),
+        );
+        assert_eq!(status, 200);
+    }
+}
+
+/// A constraints file of about `bytes` that fails only at its last entry
+/// (so the server parses all of it and answers 400 without a precompute).
+fn slow_to_parse(bytes: usize) -> Vec<u8> {
+    let one =
+        r#"{"type": "position", "vertex": 7, "target": [0.125, 0.25, 0.5], "group": "handle"}"#;
+    let mut out = String::with_capacity(bytes + 200);
+    out.push_str(r#"{"constraints": ["#);
+    while out.len() < bytes {
+        out.push_str(one);
+        out.push_str(", ");
+    }
+    out.push_str(r#"{"type": "bogus"}]}"#);
+    out.into_bytes()
+}
+
+#[test]
+fn progress_and_report_answer_while_large_bodies_are_parsed() {
+    let server = start(64 << 20);
+    let c = &server.client;
+    let body = slow_to_parse(24 << 20);
+    // The time the server takes for one such body alone.
+    let t = Instant::now();
+    let (status, answer) = request(c, "PUT", "/api/constraints", &body);
+    let alone = t.elapsed();
+    assert_eq!(status, 400, "{}", String::from_utf8_lossy(&answer));
+    assert!(String::from_utf8_lossy(&answer).contains("bogus"));
+    // Two at once — as many as the server has async workers — then
+    // /api/progress and /api/report as soon as both bodies are sent.
+    let body = std::sync::Arc::new(body);
+    let (sent_tx, sent_rx) = std::sync::mpsc::channel();
+    let puts: Vec<_> = (0..2)
+        .map(|_| {
+            let (c, body, sent) = (c.clone(), body.clone(), sent_tx.clone());
+            std::thread::spawn(move || {
+                let mut s = TcpStream::connect(&c.addr).unwrap();
+                s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+                let head = head_of(&c, "PUT", "/api/constraints", &[], body.len());
+                s.write_all(format!("{head}\r\n").as_bytes()).unwrap();
+                s.write_all(&body).unwrap();
+                sent.send(()).unwrap();
+                let a = read_answer(&mut s);
+                (a.status, Instant::now())
+            })
+        })
+        .collect();
+    sent_rx.recv().unwrap();
+    sent_rx.recv().unwrap();
+    let mut latencies = Vec::new();
+    for path in ["/api/progress", "/api/report", "/api/progress"] {
+        let t = Instant::now();
+        let (status, _) = request(c, "GET", path, b"");
+        latencies.push((path, t.elapsed()));
+        assert_eq!(status, 200, "{path}");
+    }
+    let answered = Instant::now();
+    let puts: Vec<(u16, Instant)> = puts.into_iter().map(|t| t.join().unwrap()).collect();
+    eprintln!(
+        "one {} MB body alone: {alone:.2?}; while two are parsed: {latencies:.2?}",
+        body.len() >> 20
+    );
+    for (status, _) in &puts {
+        assert_eq!(*status, 400);
+    }
+    let first_put = puts.iter().map(|(_, t)| *t).min().unwrap();
+    assert!(
+        answered < first_put,
+        "the reads were answered only after a body's parse ended"
+    );
+    for (path, l) in latencies {
+        assert!(
+            l < Duration::from_secs(2) && l < alone / 2,
+            "{path}: {l:?} (one body alone: {alone:?})"
+        );
+    }
 }

@@ -20,7 +20,8 @@
 //! area, the energy) overflows or underflows for meshes from 1e-150 to
 //! 1e150 (unscaled, a Bunny at 1e±100 loses every triangle's area to
 //! overflow or underflow, and its system is singular). Soft weights are
-//! used as given, without a power of `ℓ`: a row of `A_E` is
+//! used as given ([`SoftWeightScale`] with `a = 0`, the report's
+//! `soft_weight_scale` 1; docs/units.md): a row of `A_E` is
 //! `√(K A_t) ∇φ`, an area's square root (a length) times a gradient (one
 //! over a length), so its entries are dimensionless (the power of length
 //! in the operator's entries is `a = 0`), and `C_E` is a length; a soft
@@ -76,7 +77,7 @@ use crate::cpu::clear_upper_vector_state;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine, refine};
 use crate::mesh::{Mesh, topology};
-use crate::problem::{LseProblem, check_pinned};
+use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
 use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_finite};
 
 pub mod energy;
@@ -205,12 +206,24 @@ impl ArapDeformer {
         let triangles = ArapTriangles::new(&unit_mesh, energy);
         let rows = triangles.rows();
         let rhs = triangles.rest_rhs();
-        let problem = LseProblem::new(&rows, &rhs, &unit_constraints, unit_mesh.bbox_diagonal())?;
+        // Soft weights as given: `a = 0` (the module documentation).
+        let soft_scale = SoftWeightScale {
+            length: unit,
+            power: 0,
+        };
+        let problem = LseProblem::new(
+            &rows,
+            &rhs,
+            &unit_constraints,
+            unit_mesh.bbox_diagonal(),
+            soft_scale,
+        )?;
         let x = Mat::from_fn(n, 3, |i, c| unit_mesh.positions()[i][c]);
         let mut report = Report {
             laplacian: Some(format!("arap-{}", energy.name())),
             warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
             length_unit: unit,
+            soft_weight_scale: Some(soft_scale.factor()),
             ..Report::default()
         };
         report.timings_s.setup = t.elapsed().as_secs_f64();
@@ -246,6 +259,7 @@ impl ArapDeformer {
             laplacian: self.report.laplacian.clone(),
             warnings: self.report.warnings.clone(),
             length_unit: self.unit,
+            soft_weight_scale: self.report.soft_weight_scale,
             ..Report::default()
         };
         report.timings_s.setup = self.report.timings_s.setup;
@@ -523,8 +537,8 @@ impl ArapDeformer {
         self.problem
             .soft_constraints()
             .iter()
-            .map(|&(i, w)| {
-                let kind = &self.unit_constraints[i].kind;
+            .map(|row| {
+                let (kind, w) = (&self.unit_constraints[row.index].kind, row.row_weight);
                 let (value, target) = (kind.row().apply(&positions), kind.rhs());
                 (0..3)
                     .map(|c| (w * (value[c] - target[c])).powi(2))

@@ -1,16 +1,33 @@
 //! `lse-deform edit`: the interactive editor — an HTTP server (axum on
-//! tokio) serving an embedded page (WebGL2, ES modules, no build step) and
-//! the JSON/binary API it uses. A front door: it translates requests into
-//! calls of [`crate::Deformer`], [`crate::handle::HandleBasis`] and
-//! [`crate::arap::ArapDeformer`] ([`session`]) and holds no numerics.
+//! tokio, hyper's connections) serving an embedded page (WebGL2, ES
+//! modules, no build step) and the JSON/binary API it uses. A front door:
+//! it translates requests into calls of [`crate::Deformer`],
+//! [`crate::handle::HandleBasis`] and [`crate::arap::ArapDeformer`]
+//! ([`session`]) and holds no numerics.
 //!
-//! Safety: only the embedded assets are served (a URL path is looked up in
-//! a fixed table, never on the filesystem); request bodies are capped
-//! (413 with the limit); malformed requests get 400 with `{"error": …}`
-//! (the CLI's one-line message); one editing state behind a lock, every
-//! update serialised; precomputes run on blocking threads, so the server
-//! answers (progress, positions) meanwhile, and finish even if the client
-//! disconnects.
+//! A careful local web service ([`guard`], [`conn`]): a per-session token
+//! (`listening on http://HOST:PORT/?token=T`; every API request carries
+//! `Authorization: Bearer T` or `?token=T`, 401 otherwise); `Host` checked
+//! against the bound address and name (403: DNS rebinding); cross-origin
+//! requests (`Origin`, `Sec-Fetch-Site`) refused with 403; `POST`/`PUT`
+//! bodies only as `application/json` (415); a request body must arrive
+//! within the body timeout (408) and stay under the cap (413, at once when
+//! `Content-Length` says so); idle connections closed after the idle
+//! timeout; URIs above 8 KiB get 414; every error answer is `{"error":
+//! message, "kind": word}` (the CLI's one-line message); only the embedded
+//! assets are served (a URL path is looked up in a fixed table, never on
+//! the filesystem).
+//!
+//! One editing state behind a lock; a change of constraints or settings is
+//! one read-modify-write under the build lock, so concurrent changes all
+//! take effect; parsing, precomputes and every request touching the state
+//! run on the blocking pool, so the async workers answer
+//! (`/api/progress`, `/api/report`) meanwhile, and a precompute finishes
+//! even if the client disconnects. Positions are checked finite in the
+//! format sent: a transform that would put a group's targets beyond the
+//! range of f32 is refused (422, `kind` `not-representable`, nothing
+//! changes), and `GET /api/positions?format=f32` answers 422 rather than
+//! send `inf`.
 //!
 //! API (JSON unless stated): `PUT /api/constraints` (the constraints file
 //! format; answer: the report), `POST /api/transform`
@@ -23,32 +40,45 @@
 //! fields), `POST /api/iterate` (`{"iterations": n}`, ARAP), `GET
 //! /api/progress`.
 
+pub mod conn;
+pub mod guard;
 pub mod session;
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
+use std::pin::Pin;
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use axum::Router;
-use axum::body::Bytes;
-use axum::extract::rejection::{BytesRejection, QueryRejection};
-use axum::extract::{DefaultBodyLimit, Query, State};
-use axum::http::{StatusCode, header};
+use axum::body::{Body, Bytes, HttpBody};
+use axum::extract::rejection::QueryRejection;
+use axum::extract::{Query, Request, State};
+use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post, put};
 use serde::Deserialize;
-use serde_json::{Value, json};
+use serde_json::{Map, Value, json};
 
 use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
 use crate::deform::Affine;
-use crate::error::Error;
+use crate::error::{Error, ProblemError};
 use crate::mesh::{self, Mesh};
-pub use session::{Session, Settings};
+pub use session::{FrameError, Session, Settings};
 
 /// Default cap on a request body: 256 MiB (a constraint on every vertex of
 /// a half-million-vertex mesh is about 60 MB of JSON).
 pub const DEFAULT_MAX_BODY_BYTES: usize = 256 << 20;
+
+/// Default time for a request body to arrive after its head.
+pub const DEFAULT_BODY_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Default time a connection may stay idle (or take for a request head)
+/// before it is closed.
+pub const DEFAULT_IDLE_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The environment variable that may hold the session token.
+pub const TOKEN_ENV: &str = "LSE_DEFORM_EDIT_TOKEN";
 
 /// The options of `lse-deform edit`.
 #[derive(Debug, Clone)]
@@ -63,6 +93,12 @@ pub struct EditOptions {
     pub port: u16,
     /// The cap on request bodies.
     pub max_body_bytes: usize,
+    /// The session token (`None`: 32 random bytes in hex).
+    pub token: Option<String>,
+    /// The time a request body has to arrive (408 beyond).
+    pub body_timeout: Duration,
+    /// The time a connection may stay idle before it is closed.
+    pub idle_timeout: Duration,
 }
 
 /// The embedded page: (URL path, content type, bytes).
@@ -89,16 +125,21 @@ const ASSETS: &[(&str, &str, &[u8])] = &[
     ),
 ];
 
+/// The URL paths of [`ASSETS`]: the only ones served without the token.
+const PUBLIC: &[&str] = &["/", "/main.js", "/view.js", "/api.js"];
+
 /// The shared state of the server.
 #[derive(Clone)]
 struct App {
     session: Arc<Mutex<Session>>,
-    /// Serialises rebuilds (constraints, settings).
+    /// Serialises changes of constraints and settings (each one
+    /// read-modify-write).
     build: Arc<Mutex<()>>,
     progress: Arc<Mutex<Progress>>,
     mesh_info: Arc<Value>,
     faces: Arc<Vec<u8>>,
     max_body_bytes: usize,
+    body_timeout: Duration,
 }
 
 #[derive(Default)]
@@ -113,74 +154,168 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// An API error: a status and `{"error": message}`.
-struct ApiError(StatusCode, String);
+/// An API error: a status and `{"error": message, "kind": word}`.
+#[derive(Debug)]
+pub struct ApiError {
+    status: StatusCode,
+    kind: &'static str,
+    message: String,
+    /// 401: say `WWW-Authenticate: Bearer`.
+    www_authenticate: bool,
+}
+
+impl ApiError {
+    fn new(status: StatusCode, kind: &'static str, message: String) -> ApiError {
+        ApiError {
+            status,
+            kind,
+            message,
+            www_authenticate: false,
+        }
+    }
+}
+
+/// `{"error": message, "kind": kind}`.
+fn error_json(kind: &str, message: &str) -> String {
+    json!({"error": message, "kind": kind}).to_string()
+}
+
+/// The `kind` of an error answer with `status` when nothing more precise
+/// is known.
+fn status_kind(status: StatusCode) -> &'static str {
+    match status.as_u16() {
+        400 => "bad-request",
+        401 => "unauthorized",
+        403 => "forbidden",
+        404 => "not-found",
+        405 => "method-not-allowed",
+        408 => "timeout",
+        413 => "too-large",
+        414 => "uri-too-long",
+        415 => "unsupported-media-type",
+        422 => "unprocessable",
+        431 => "head-too-large",
+        500..=599 => "internal",
+        _ => "error",
+    }
+}
+
+/// A message for an error answer that has none.
+fn status_message(status: StatusCode) -> String {
+    status.canonical_reason().map_or_else(
+        || format!("HTTP status {}", status.as_u16()),
+        |r| r.to_lowercase(),
+    )
+}
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        (self.0, axum::Json(json!({"error": self.1}))).into_response()
+        let mut response = (
+            self.status,
+            [(header::CONTENT_TYPE, "application/json")],
+            error_json(self.kind, &self.message),
+        )
+            .into_response();
+        if self.www_authenticate {
+            response
+                .headers_mut()
+                .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+        }
+        response
     }
 }
 
 impl From<Error> for ApiError {
     fn from(e: Error) -> Self {
-        let status = match e {
-            Error::Numerical(_) => StatusCode::UNPROCESSABLE_ENTITY,
-            _ => StatusCode::BAD_REQUEST,
+        let (status, kind) = match e {
+            Error::Numerical(_) => (StatusCode::UNPROCESSABLE_ENTITY, "numerical"),
+            _ => (StatusCode::BAD_REQUEST, "bad-request"),
         };
-        ApiError(status, e.to_string())
+        ApiError::new(status, kind, e.to_string())
+    }
+}
+
+impl From<FrameError> for ApiError {
+    fn from(e: FrameError) -> Self {
+        match e {
+            FrameError::Engine(e) => e.into(),
+            e @ FrameError::NotRepresentable(_) => ApiError::new(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                "not-representable",
+                e.to_string(),
+            ),
+        }
     }
 }
 
 fn bad(message: impl Into<String>) -> ApiError {
-    ApiError(StatusCode::BAD_REQUEST, message.into())
+    ApiError::new(StatusCode::BAD_REQUEST, "bad-request", message.into())
 }
 
 type ApiResult<T> = Result<T, ApiError>;
 
 /// Reads the mesh (and constraints), binds, prints `listening on
-/// http://HOST:PORT/` as the first line on stdout and serves until the
-/// process is stopped.
+/// http://HOST:PORT/?token=T` as the first line on stdout and serves until
+/// the process is stopped.
 pub fn run(options: EditOptions) -> Result<(), Error> {
+    let invalid = |message| Error::from(ProblemError::InvalidArgument { message });
+    let token = match options.token.clone() {
+        Some(t) => {
+            guard::check_token(&t).map_err(invalid)?;
+            t
+        }
+        None => guard::random_token().map_err(invalid)?,
+    };
+    for (name, t) in [
+        ("--body-timeout", options.body_timeout),
+        ("--idle-timeout", options.idle_timeout),
+    ] {
+        if t.is_zero() {
+            return Err(invalid(format!("{name} must be positive")));
+        }
+    }
     let loaded = mesh::read_mesh(&options.mesh)?;
     for note in &loaded.notes {
         eprintln!("note: {note}");
     }
     let mesh = loaded.mesh;
-    let app = App::new(mesh, &options.mesh, options.max_body_bytes);
+    let app = App::new(mesh, &options);
     if let Some(path) = &options.constraints {
         let constraints = read_constraints_file(path)?;
-        app.rebuild(Some(constraints), None)?;
-    }
-    if options.host != "127.0.0.1" {
-        eprintln!(
-            "warning: binding {} rather than 127.0.0.1: the editor has no authentication, and anyone who can reach this address can edit",
-            options.host
-        );
+        app.rebuild(Change::Constraints(constraints))?;
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .map_err(|e| Error::io(&options.mesh, e))?;
-    runtime.block_on(serve(app, &options.host, options.port))
+    runtime.block_on(serve(app, &options, token))
 }
 
-async fn serve(app: App, host: &str, port: u16) -> Result<(), Error> {
+async fn serve(app: App, options: &EditOptions, token: String) -> Result<(), Error> {
+    let (host, port) = (options.host.as_str(), options.port);
     let io = |e| Error::io(format!("{host}:{port}"), e);
     let listener = tokio::net::TcpListener::bind((host, port))
         .await
         .map_err(io)?;
     let addr: SocketAddr = listener.local_addr().map_err(io)?;
-    println!("listening on http://{addr}/");
+    if !addr.ip().is_loopback() {
+        eprintln!(
+            "warning: listening on {addr}, not a loopback address: anyone who can reach it and learns the token can edit, and plain HTTP carries the token unencrypted"
+        );
+    }
+    let guard = guard::Guard::new(addr, host, token.clone(), PUBLIC);
+    println!("listening on http://{addr}/?token={token}");
     use std::io::Write;
     let _ = std::io::stdout().flush();
-    axum::serve(listener, router(app)).await.map_err(io)
+    conn::serve(listener, router(app, guard), options.idle_timeout).await;
+    Ok(())
 }
 
-fn router(app: App) -> Router {
-    let limit = app.max_body_bytes;
-    Router::new()
+/// The routes, inside the guard (wrapping the whole router, so that it
+/// sees every answer whole, axum's 405 with its `Allow` too).
+fn router(app: App, guard: guard::Guard) -> Router {
+    let routes = Router::new()
         .route("/", get(asset))
         .route("/{file}", get(asset))
         .route(
@@ -197,14 +332,27 @@ fn router(app: App) -> Router {
         .route("/api/mesh", get(get_mesh))
         .route("/api/progress", get(get_progress))
         .route("/api/deformed.obj", get(get_deformed_obj))
-        .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such route".into()) })
-        .layer(DefaultBodyLimit::max(limit))
-        .with_state(app)
+        .fallback(|| async {
+            ApiError::new(StatusCode::NOT_FOUND, "not-found", "no such route".into())
+        })
+        .with_state(app);
+    Router::new()
+        .fallback_service(routes)
+        .layer(axum::middleware::from_fn_with_state(guard, guard::check))
+}
+
+/// A change of the editing state that needs a new precompute.
+enum Change {
+    /// New constraints (the settings kept).
+    Constraints(ConstraintSet),
+    /// Some settings fields (the others and the constraints kept).
+    Settings(Map<String, Value>),
 }
 
 impl App {
-    fn new(mesh: Mesh, path: &Path, max_body_bytes: usize) -> App {
+    fn new(mesh: Mesh, options: &EditOptions) -> App {
         let (lo, hi) = bbox(mesh.positions());
+        let path: &Path = &options.mesh;
         let mesh_info = json!({
             "name": path.file_name().map(|s| s.to_string_lossy().into_owned()),
             "vertices": mesh.n_vertices(),
@@ -224,26 +372,24 @@ impl App {
             progress: Arc::new(Mutex::new(Progress::default())),
             mesh_info: Arc::new(mesh_info),
             faces: Arc::new(faces),
-            max_body_bytes,
+            max_body_bytes: options.max_body_bytes,
+            body_timeout: options.body_timeout,
         }
     }
 
-    /// Precomputes new constraints and/or settings (the current ones where
-    /// `None`) and installs them; on error the state stays as it was.
-    /// Blocking: call on a blocking thread.
-    fn rebuild(
-        &self,
-        constraints: Option<ConstraintSet>,
-        settings: Option<Settings>,
-    ) -> Result<Value, Error> {
+    /// Applies `change` to the current constraints and settings, read
+    /// under the build lock (so a concurrent change is never lost),
+    /// precomputes and installs the result; on error the state stays as it
+    /// was. Blocking: call on a blocking thread.
+    fn rebuild(&self, change: Change) -> Result<Value, Error> {
         let _serial = lock(&self.build);
         let (mesh, constraints, settings) = {
             let s = lock(&self.session);
-            (
-                s.mesh.clone(),
-                constraints.unwrap_or_else(|| s.constraints.clone()),
-                settings.unwrap_or_else(|| s.settings.clone()),
-            )
+            let (constraints, settings) = match change {
+                Change::Constraints(c) => (c, s.settings.clone()),
+                Change::Settings(fields) => (s.constraints.clone(), s.settings.with(fields)?),
+            };
+            (s.mesh.clone(), constraints, settings)
         };
         settings.check()?;
         constraints.check_vertices(mesh.n_vertices())?;
@@ -285,28 +431,61 @@ async fn blocking<T: Send + 'static>(
     f: impl FnOnce() -> ApiResult<T> + Send + 'static,
 ) -> ApiResult<T> {
     tokio::task::spawn_blocking(f).await.map_err(|e| {
-        ApiError(
+        ApiError::new(
             StatusCode::INTERNAL_SERVER_ERROR,
+            "internal",
             format!("internal error: {e}"),
         )
     })?
 }
 
-/// The body, or 413 stating the limit / 400.
-fn body(app: &App, body: Result<Bytes, BytesRejection>) -> ApiResult<Bytes> {
-    body.map_err(|r| {
-        if r.status() == StatusCode::PAYLOAD_TOO_LARGE {
-            ApiError(
-                StatusCode::PAYLOAD_TOO_LARGE,
-                format!(
-                    "request body exceeds the limit of {} bytes",
-                    app.max_body_bytes
-                ),
-            )
-        } else {
-            bad(format!("could not read the request body: {r}"))
+/// The body of `request`: 413 stating the limit (at once when
+/// `Content-Length` exceeds it), 408 when it has not arrived within the
+/// body timeout, 400 when the connection fails.
+async fn read_body(app: &App, request: Request) -> ApiResult<Bytes> {
+    let limit = app.max_body_bytes;
+    let too_large = || {
+        ApiError::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            "too-large",
+            format!("request body exceeds the limit of {limit} bytes"),
+        )
+    };
+    let declared = request
+        .headers()
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<u64>().ok());
+    if declared.is_some_and(|n| n > limit as u64) {
+        return Err(too_large());
+    }
+    let mut body: Body = request.into_body();
+    let collect = async {
+        let mut out = Vec::new();
+        while let Some(frame) = std::future::poll_fn(|cx| Pin::new(&mut body).poll_frame(cx)).await
+        {
+            let frame = frame.map_err(|e| bad(format!("could not read the request body: {e}")))?;
+            if let Ok(data) = frame.into_data() {
+                if out.len() + data.len() > limit {
+                    return Err(too_large());
+                }
+                out.extend_from_slice(&data);
+            }
         }
-    })
+        Ok(Bytes::from(out))
+    };
+    tokio::time::timeout(app.body_timeout, collect)
+        .await
+        .unwrap_or_else(|_| {
+            Err(ApiError::new(
+                StatusCode::REQUEST_TIMEOUT,
+                "timeout",
+                format!(
+                    "the request body did not arrive within {} s",
+                    app.body_timeout.as_secs_f64()
+                ),
+            ))
+        })
 }
 
 fn json_body<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> ApiResult<T> {
@@ -315,48 +494,45 @@ fn json_body<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> ApiResult<T> {
 
 async fn asset(uri: axum::http::Uri) -> Response {
     match ASSETS.iter().find(|(path, _, _)| *path == uri.path()) {
+        // Not framed by another site, not sniffed as another type, and the
+        // page's URL (with its token until the page drops it) not sent on.
         Some((_, mime, bytes)) => (
             [
                 (header::CONTENT_TYPE, *mime),
                 (header::CACHE_CONTROL, "no-cache"),
+                (header::X_CONTENT_TYPE_OPTIONS, "nosniff"),
+                (header::CONTENT_SECURITY_POLICY, "frame-ancestors 'none'"),
+                (header::REFERRER_POLICY, "no-referrer"),
             ],
             *bytes,
         )
             .into_response(),
-        None => ApiError(StatusCode::NOT_FOUND, "no such page".into()).into_response(),
+        None => {
+            ApiError::new(StatusCode::NOT_FOUND, "not-found", "no such page".into()).into_response()
+        }
     }
 }
 
-async fn put_constraints(
-    State(app): State<App>,
-    b: Result<Bytes, BytesRejection>,
-) -> ApiResult<axum::Json<Value>> {
-    let bytes = body(&app, b)?;
-    let text = std::str::from_utf8(&bytes)
-        .map_err(|e| bad(format!("constraints: the body is not UTF-8: {e}")))?;
-    let constraints = parse_constraints(text).map_err(Error::from)?;
-    let report =
-        blocking(move || app.rebuild(Some(constraints), None).map_err(ApiError::from)).await?;
+async fn put_constraints(State(app): State<App>, request: Request) -> ApiResult<axum::Json<Value>> {
+    let bytes = read_body(&app, request).await?;
+    let report = blocking(move || {
+        let text = std::str::from_utf8(&bytes)
+            .map_err(|e| bad(format!("constraints: the body is not UTF-8: {e}")))?;
+        let constraints = parse_constraints(text).map_err(Error::from)?;
+        drop(bytes);
+        Ok(app.rebuild(Change::Constraints(constraints))?)
+    })
+    .await?;
     Ok(axum::Json(report))
 }
 
-async fn put_settings(
-    State(app): State<App>,
-    b: Result<Bytes, BytesRejection>,
-) -> ApiResult<axum::Json<Value>> {
-    let bytes = body(&app, b)?;
-    let changes: Value = json_body(&bytes)?;
-    let Value::Object(changes) = changes else {
-        return Err(bad("settings: expected a JSON object"));
-    };
+async fn put_settings(State(app): State<App>, request: Request) -> ApiResult<axum::Json<Value>> {
+    let bytes = read_body(&app, request).await?;
     let report = blocking(move || {
-        let mut current = serde_json::to_value(&lock(&app.session).settings).unwrap_or(Value::Null);
-        for (k, v) in changes {
-            current[k] = v;
-        }
-        let settings: Settings =
-            serde_json::from_value(current).map_err(|e| bad(format!("settings: {e}")))?;
-        app.rebuild(None, Some(settings)).map_err(ApiError::from)
+        let Value::Object(fields) = json_body(&bytes)? else {
+            return Err(bad("settings: expected a JSON object"));
+        };
+        Ok(app.rebuild(Change::Settings(fields))?)
     })
     .await?;
     Ok(axum::Json(report))
@@ -369,13 +545,10 @@ struct TransformRequest {
     matrix: Affine,
 }
 
-async fn post_transform(
-    State(app): State<App>,
-    b: Result<Bytes, BytesRejection>,
-) -> ApiResult<axum::Json<Value>> {
-    let bytes = body(&app, b)?;
-    let request: TransformRequest = json_body(&bytes)?;
+async fn post_transform(State(app): State<App>, request: Request) -> ApiResult<axum::Json<Value>> {
+    let bytes = read_body(&app, request).await?;
     blocking(move || {
+        let request: TransformRequest = json_body(&bytes)?;
         let t = Instant::now();
         let mut s = lock(&app.session);
         let (path, compute_s) = s.transform(&request.group, &request.matrix)?;
@@ -395,19 +568,16 @@ struct IterateRequest {
     iterations: usize,
 }
 
-async fn post_iterate(
-    State(app): State<App>,
-    b: Result<Bytes, BytesRejection>,
-) -> ApiResult<axum::Json<Value>> {
-    let bytes = body(&app, b)?;
-    let request: IterateRequest = json_body(&bytes)?;
-    if request.iterations > 1000 {
-        return Err(bad(format!(
-            "iterations {} must be ≤ 1000",
-            request.iterations
-        )));
-    }
+async fn post_iterate(State(app): State<App>, request: Request) -> ApiResult<axum::Json<Value>> {
+    let bytes = read_body(&app, request).await?;
     blocking(move || {
+        let request: IterateRequest = json_body(&bytes)?;
+        if request.iterations > 1000 {
+            return Err(bad(format!(
+                "iterations {} must be ≤ 1000",
+                request.iterations
+            )));
+        }
         let n = lock(&app.session).iterate(request.iterations)?;
         Ok(axum::Json(json!({"iterations": n})))
     })
@@ -420,22 +590,58 @@ struct FormatQuery {
     format: Option<String>,
 }
 
+/// `positions` little-endian in `format` (f32 or f64); 422 when a value is
+/// not finite in that format (a coordinate beyond ±3.4e38 in f32) rather
+/// than send it.
 fn encode(positions: &[[f64; 3]], format: Option<&str>) -> ApiResult<Vec<u8>> {
-    match format.unwrap_or("f32") {
-        "f32" => Ok(positions
-            .iter()
-            .flatten()
-            .flat_map(|&v| (v as f32).to_le_bytes())
-            .collect()),
-        "f64" => Ok(positions
-            .iter()
-            .flatten()
-            .flat_map(|&v| v.to_le_bytes())
-            .collect()),
-        other => Err(bad(format!(
-            "unknown format '{other}' (expected f32 or f64)"
-        ))),
-    }
+    let finite: fn(f64) -> bool = match format.unwrap_or("f32") {
+        "f32" => {
+            let mut out = Vec::with_capacity(positions.len() * 12);
+            let mut all_finite = true;
+            for &v in positions.iter().flatten() {
+                let x = v as f32;
+                all_finite &= x.is_finite();
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+            if all_finite {
+                return Ok(out);
+            }
+            |v: f64| (v as f32).is_finite()
+        }
+        "f64" => {
+            if positions.iter().flatten().all(|v| v.is_finite()) {
+                return Ok(positions
+                    .iter()
+                    .flatten()
+                    .flat_map(|&v| v.to_le_bytes())
+                    .collect());
+            }
+            f64::is_finite
+        }
+        other => {
+            return Err(bad(format!(
+                "unknown format '{other}' (expected f32 or f64)"
+            )));
+        }
+    };
+    let format = format.unwrap_or("f32");
+    let (vertex, p) = positions
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !p.iter().all(|&v| finite(v)))
+        .expect("a value that is not finite");
+    Err(ApiError::new(
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "not-representable",
+        format!(
+            "vertex {vertex} at {p:?} is not finite in {format}{}",
+            if format == "f32" {
+                " (beyond ±3.4e38): ask for format=f64"
+            } else {
+                ""
+            }
+        ),
+    ))
 }
 
 fn binary(bytes: Vec<u8>) -> Response {
@@ -507,4 +713,27 @@ async fn get_deformed_obj(State(app): State<App>) -> ApiResult<Response> {
         Ok(([(header::CONTENT_TYPE, "text/plain; charset=utf-8")], out).into_response())
     })
     .await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn positions_beyond_f32_are_refused_not_sent_as_inf() {
+        let ok = [[1.0, -2.0, 3.0e38]];
+        assert_eq!(encode(&ok, None).unwrap().len(), 12);
+        assert_eq!(encode(&ok, Some("f64")).unwrap().len(), 24);
+        let far = [[0.0; 3], [1.0, 1e39, 0.0]];
+        let e = encode(&far, Some("f32")).unwrap_err();
+        assert_eq!(e.status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!(e.kind, "not-representable");
+        assert!(e.message.contains("vertex 1"), "{}", e.message);
+        assert_eq!(encode(&far, Some("f64")).unwrap().len(), 48);
+        let nan = [[f64::NAN, 0.0, 0.0]];
+        assert_eq!(
+            encode(&nan, Some("f64")).unwrap_err().kind,
+            "not-representable"
+        );
+    }
 }

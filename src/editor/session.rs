@@ -68,6 +68,16 @@ impl Settings {
         Ok(choice.build()?)
     }
 
+    /// These settings with `fields` replaced (any of the fields above; an
+    /// unknown field or a wrong type is an error naming it).
+    pub fn with(&self, fields: serde_json::Map<String, Value>) -> Result<Settings, Error> {
+        let mut current = serde_json::to_value(self).unwrap_or(Value::Null);
+        for (k, v) in fields {
+            current[k] = v;
+        }
+        serde_json::from_value(current).map_err(|e| invalid(format!("settings: {e}")))
+    }
+
     /// Checks every word and number (the CLI's messages).
     pub fn check(&self) -> Result<(), Error> {
         self.laplacian.parse::<LaplacianKind>().map_err(invalid)?;
@@ -220,6 +230,58 @@ pub enum FramePath {
     Arap,
 }
 
+/// Why a frame was refused.
+#[derive(Debug)]
+pub enum FrameError {
+    /// The library's refusal (no such group, no constraints yet, a failed
+    /// solve).
+    Engine(Error),
+    /// The transform would put a target of the group beyond the range of
+    /// f32, the format positions are sent in (and so would put the
+    /// positions there); nothing changed.
+    NotRepresentable(String),
+}
+
+impl From<Error> for FrameError {
+    fn from(e: Error) -> Self {
+        FrameError::Engine(e)
+    }
+}
+
+impl std::fmt::Display for FrameError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FrameError::Engine(e) => e.fmt(f),
+            FrameError::NotRepresentable(m) => f.write_str(m),
+        }
+    }
+}
+
+impl std::error::Error for FrameError {}
+
+/// Checks that the targets of group `name` (as `targets` set them) are
+/// finite in f32; if not, moves the group back to `previous` and says why.
+fn targets_in_f32(
+    targets: &mut Deformer,
+    name: &str,
+    m: &Affine,
+    previous: &Affine,
+) -> Result<(), FrameError> {
+    let constraints = targets.constraints();
+    let far = constraints
+        .group(name)
+        .iter()
+        .map(|&i| (i, constraints[i].kind.rhs()))
+        .find(|(_, t)| t.iter().any(|&v| !(v as f32).is_finite()));
+    if let Some((index, target)) = far {
+        targets.transform_group(name, previous)?;
+        return Err(FrameError::NotRepresentable(format!(
+            "transform of group '{name}' by {m:?}: constraint {index}'s target would be {target:?}, beyond the range of f32 (±3.4e38) in which positions are sent; nothing changed"
+        )));
+    }
+    Ok(())
+}
+
 /// The editing state.
 pub struct Session {
     /// The mesh as loaded.
@@ -296,16 +358,18 @@ impl Session {
     /// Moves group `name` by `m` (applied to its rest targets) and
     /// recomputes the positions: by the response basis when it covers the
     /// group, else a full solve, or ARAP iterations. Returns the path taken
-    /// and its seconds.
-    pub fn transform(&mut self, name: &str, m: &Affine) -> Result<(FramePath, f64), Error> {
+    /// and its seconds. A transform that would put a target of the group
+    /// beyond f32 is refused ([`FrameError::NotRepresentable`]) and changes
+    /// nothing.
+    pub fn transform(&mut self, name: &str, m: &Affine) -> Result<(FramePath, f64), FrameError> {
         let iterations = self.settings.arap_iterations_per_frame;
-        let engine = self
-            .engine
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
+        let engine = self.engine.as_mut().ok_or_else(|| {
+            Error::from(ProblemError::BadUpdate {
                 message: "no constraints yet: PUT /api/constraints first".into(),
-            })?;
+            })
+        })?;
         let t = Instant::now();
+        let previous = self.transforms.get(name).copied().unwrap_or(IDENTITY);
         let path = match engine {
             Engine::Linear {
                 deformer,
@@ -313,6 +377,7 @@ impl Session {
                 basis_stale,
             } => {
                 deformer.transform_group(name, m)?;
+                targets_in_f32(deformer, name, m, &previous)?;
                 // X₀ holds the other groups at rest: the basis is valid
                 // while every group outside it is at the identity.
                 let in_basis = |g: &str| {
@@ -351,6 +416,7 @@ impl Session {
             }
             Engine::Arap { targets, arap } => {
                 targets.transform_group(name, m)?;
+                targets_in_f32(targets, name, m, &previous)?;
                 for i in targets.group_members(name)? {
                     arap.set_target(i, targets.constraints()[i].kind.rhs())?;
                 }

@@ -620,24 +620,24 @@ fn check_pivots(
                 matrix: MATRIX.into(),
                 unknown,
                 detail: format!(
-                    "its pivot (eliminated {i}-th) is {:e}, {ratio:e} of the magnitude it was computed from; expected positive and above the tolerance {KKT_PIVOT_TOLERANCE:e}",
-                    d[i]
+                    "{}; expected positive and above {KKT_PIVOT_TOLERANCE:e} of that magnitude",
+                    describe_pivot(i, dim, d[i], reference[i])
                 ),
             }
             .into());
         }
         let detail = if is_vertex {
             format!(
-                "the pivot of vertex {unknown} (eliminated {i}-th) is {:e}, {ratio:e} of the magnitude it was computed from (expected positive and above the tolerance {KKT_PIVOT_TOLERANCE:e}): AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",
-                d[i]
+                "vertex {unknown}: {} (expected positive and above {KKT_PIVOT_TOLERANCE:e} of that magnitude): AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",
+                describe_pivot(i, dim, d[i], reference[i])
             )
         } else {
             let k = unknown - n;
             let index = problem.hard_constraints()[k];
             format!(
-                "hard constraint {index} (row {k} of B, {}) depends on the constraints eliminated before it: the pivot of its multiplier is {:e}, {ratio:e} of the magnitude it was computed from (expected negative with a ratio above the tolerance {KKT_PIVOT_TOLERANCE:e}); redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
+                "hard constraint {index} (row {k} of B, {}) depends on the constraints eliminated before it: for its multiplier, {} (expected negative and above {KKT_PIVOT_TOLERANCE:e} of that magnitude); redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
                 row_kind(problem.b().as_ref(), k),
-                d[i]
+                describe_pivot(i, dim, d[i], reference[i])
             )
         };
         return Err(NumericalError::Singular {
@@ -811,4 +811,23 @@ impl Prepared for PreparedKkt {
     fn factored_matrix(&self) -> Option<SparseColMat<usize, f64>> {
         Some(lower_to_full(self.k_lower.as_ref()))
     }
+}
+
+/// "pivot 4 of 12 in elimination order is -1.5e-20, 3.2e-18 of the
+/// magnitude it was computed from", without a `NaN` ratio when that
+/// magnitude is zero or a pivot is not finite.
+fn describe_pivot(position: usize, dim: usize, pivot: f64, magnitude: f64) -> String {
+    let head = format!("pivot {} of {dim} in elimination order", position + 1);
+    if !pivot.is_finite() {
+        return format!("{head} is {pivot} (not finite)");
+    }
+    if magnitude == 0.0 || !magnitude.is_finite() {
+        return format!(
+            "{head} is {pivot:e}, computed from entries of magnitude {magnitude:e}: nothing was left to pivot on"
+        );
+    }
+    format!(
+        "{head} is {pivot:e}, {:e} of the magnitude it was computed from",
+        pivot.abs() / magnitude
+    )
 }

@@ -61,6 +61,22 @@ impl LaplacianKind {
         LaplacianKind::IntrinsicDelaunay,
     ];
 
+    /// The power `a` of length by which the operator's entries scale: the
+    /// Laplacian of the mesh scaled by `s` is `s⁻ᵃ L`. `a = 0` for the
+    /// uniform weights (pure numbers) and for `½(cot α + cot β)` (angles do
+    /// not change under scaling); `a = 2` for the area-normalised kinds,
+    /// whose weights are cotangents over an area `A_i` (eq. 9). With
+    /// `X = s X̂`, `‖L(X − P)‖²` scales as `s^(2 − 2a)` and a soft term
+    /// `w²‖b·X − d‖²` as `s²`: see [`crate::deform::Deformer`] for how the
+    /// soft weights are compensated when the problem is assembled in another
+    /// length unit (docs/units.md).
+    pub fn inverse_length_power(self) -> i32 {
+        match self {
+            LaplacianKind::Uniform | LaplacianKind::CotangentSymmetric => 0,
+            LaplacianKind::Cotangent | LaplacianKind::IntrinsicDelaunay => 2,
+        }
+    }
+
     /// The name used on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {

@@ -4,10 +4,13 @@
 // transform, fetches the positions (f32) and renders — once without
 // drawing and once with, and prints the page's frame rates and the medians
 // of each phase as JSON.
-// Usage: node drag_figure.mjs URL FRAMES SCREENSHOT_PREFIX
+// Usage: node drag_figure.mjs URL FRAMES SCREENSHOT_PREFIX, where URL is
+// the one `lse-deform edit` prints, with its `?token=`.
 import { chromium } from 'playwright-core';
 
 const [url, frames = '300', prefix = 'drag'] = process.argv.slice(2);
+const token = new URL(url).searchParams.get('token');
+if (!token) throw new Error(`${url}: no ?token= (give the URL that lse-deform edit printed)`);
 const browser = await chromium.launch({
   executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
   args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
@@ -26,8 +29,8 @@ try {
   // Stop at a quarter of the circle for the picture.
   await page.evaluate(() => window.editor.scriptedDrag('handle 1', 4, 0.25, 0.25));
   await page.screenshot({ path: `${prefix}-dragged.png` });
-  const report = await (await fetch(`${url}api/report`)).json();
-  console.log(JSON.stringify({ url, ...result, withoutRendering, serverReport: report.editor }, null, 1));
+  const report = await (await fetch(new URL('/api/report', url), { headers: { authorization: `Bearer ${token}` } })).json();
+  console.log(JSON.stringify({ url: new URL('/', url).href, ...result, withoutRendering, serverReport: report.editor }, null, 1));
 } finally {
   await browser.close();
 }

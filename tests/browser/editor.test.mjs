@@ -4,6 +4,10 @@
 // tool, and check through GET /api/positions that the handle moved and the
 // fixed region did not; saves a screenshot.
 //
+// The server prints `listening on http://HOST:PORT/?token=T`: the page
+// takes the token from its URL (and drops it from the address bar), node's
+// own requests send `Authorization: Bearer T`.
+//
 // Environment: LSE_DEFORM_BIN (default ../../target/release/lse-deform),
 // EDITOR_MESH (default: a generated 4k-vertex grid), SCREENSHOT (default
 // ../../results/editor/e2e.png), DRAG_FRAMES (default 0: when > 0, a
@@ -11,7 +15,7 @@
 // JSON — the figure of results/editor/README.md).
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
-import { mkdtempSync, mkdirSync } from 'node:fs';
+import { mkdtempSync, mkdirSync, readFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -30,24 +34,31 @@ if (!mesh) {
 }
 
 const server = spawn(bin, ['edit', mesh, '--port', '0'], { stdio: ['ignore', 'pipe', 'inherit'] });
+// The first line: `listening on http://HOST:PORT/?token=T`; the page is
+// opened with it, node's own requests send the token as a Bearer header.
 const url = await new Promise((ok, fail) => {
   const lines = createInterface({ input: server.stdout });
   lines.once('line', (line) => {
-    const m = /^listening on (http:\/\/\S+\/)$/.exec(line);
+    const m = /^listening on (http:\/\/\S+\/\?token=[0-9a-f]{64})$/.exec(line);
     m ? ok(m[1]) : fail(new Error(`first line: ${line}`));
   });
   server.once('exit', (code) => fail(new Error(`server exited with ${code}`)));
 });
+const base = new URL('/', url).href;
+const token = new URL(url).searchParams.get('token');
+const api = (path) => fetch(new URL(path, base), { headers: { authorization: `Bearer ${token}` } });
 
 async function positions() {
-  const b = await (await fetch(`${url}api/positions?format=f64`)).arrayBuffer();
+  const b = await (await api('api/positions?format=f64')).arrayBuffer();
   return new Float64Array(b);
 }
 
 const browser = await chromium.launch({
   executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
   args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+    '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+    // evil.example resolves to this machine: a DNS rebinding, simulated.
+    '--host-resolver-rules=MAP evil.example 127.0.0.1'],
 });
 let failed = false;
 try {
@@ -55,6 +66,10 @@ try {
   page.on('pageerror', (e) => { console.error('page error:', e.message); failed = true; });
   await page.goto(url);
   await page.waitForFunction(() => window.editor && window.editor.ready, null, { timeout: 120000 });
+  // The page took the token from its URL and removed it from the address bar.
+  assert.equal(new URL(page.url()).search, '', `the address bar still shows ${page.url()}`);
+  // Without the token the API refuses.
+  assert.equal((await fetch(new URL('api/mesh', base))).status, 401);
   const n = await page.evaluate(() => window.editor.state.mesh.vertices);
 
   // The screen position of the vertex extreme along the longest axis (min or max).
@@ -103,7 +118,7 @@ try {
   const after = await positions();
 
   const moved = (v) => Math.hypot(...[0, 1, 2].map((c) => after[3 * v + c] - before[3 * v + c]));
-  const diag = (await (await fetch(`${url}api/mesh`)).json()).diagonal;
+  const diag = (await (await api('api/mesh')).json()).diagonal;
   const handleMove = Math.min(...groups['handle 1'].map(moved));
   const fixedMove = Math.max(...groups.fixed.map(moved));
   let surfaceMove = 0;
@@ -114,6 +129,34 @@ try {
   assert.ok(fixedMove <= 1e-9 * diag, `the fixed region moved by ${fixedMove / diag} of the diagonal`);
   mkdirSync(dirname(screenshot), { recursive: true });
   await page.screenshot({ path: screenshot });
+
+  // Saving goes through the API with the token too.
+  const [saved] = await Promise.all([page.waitForEvent('download'), page.click('#saveconstraints')]);
+  const file = JSON.parse(readFileSync(await saved.path(), 'utf8'));
+  assert.equal(file.constraints.length, groups.fixed.length + groups['handle 1'].length, 'the saved constraints');
+
+  // Another origin cannot drive the editor, even knowing the token: a
+  // simple (no-cors, text/plain) POST from a page at http://localhost:PORT
+  // — this same server, another origin than http://127.0.0.1:PORT — gets
+  // 403 and moves nothing; and a page reached through a rebound name
+  // (evil.example -> 127.0.0.1) gets 403 itself.
+  const settled = await positions();
+  const evil = await browser.newPage();
+  const port = new URL(base).port;
+  await evil.goto(`http://localhost:${port}/api.js`);
+  const target = new URL(`api/transform?token=${token}`, base).href;
+  const [answer] = await Promise.all([
+    evil.waitForResponse((r) => r.url() === target),
+    evil.evaluate(async (target) => {
+      const body = JSON.stringify({ group: 'handle 1', matrix: [[1, 0, 0, 0.5], [0, 1, 0, 0.5], [0, 0, 1, 0.5]] });
+      await fetch(target, { method: 'POST', mode: 'no-cors', headers: { 'content-type': 'text/plain' }, body });
+    }, target),
+  ]);
+  assert.equal(answer.status(), 403, 'a cross-origin POST');
+  assert.deepEqual(await positions(), settled, 'a cross-origin POST moved the mesh');
+  const rebound = await evil.goto(`http://evil.example:${port}/?token=${token}`);
+  assert.equal(rebound.status(), 403, 'a page under a foreign Host');
+  await evil.close();
 
   if (dragFrames > 0) {
     const figure = await page.evaluate((f) => window.editor.scriptedDrag('handle 1', f), dragFrames);

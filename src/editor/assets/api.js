@@ -1,27 +1,74 @@
 // The editor's HTTP API (see the README, "Interactive editing").
+//
+// Every API request carries the session's token as `Authorization: Bearer`.
+// The page takes the token from its own URL (`/?token=T`, as
+// `lse-deform edit` prints it), keeps it in sessionStorage so that a reload
+// of this tab still works, and removes it from the address bar (and so from
+// the history and from what a screenshot or a shoulder sees).
+const KEY = 'lse-deform-token';
+const fromUrl = new URLSearchParams(location.search).get('token');
+if (fromUrl) {
+  try { sessionStorage.setItem(KEY, fromUrl); } catch (_) { /* storage off: this load only */ }
+  const rest = new URLSearchParams(location.search);
+  rest.delete('token');
+  const query = rest.toString();
+  history.replaceState(null, '', location.pathname + (query ? `?${query}` : '') + location.hash);
+}
+let stored = null;
+try { stored = sessionStorage.getItem(KEY); } catch (_) { /* storage off */ }
+const token = fromUrl || stored || '';
+
+export const hasToken = token !== '';
+
+function authorised(init = {}) {
+  return { ...init, headers: { ...(init.headers || {}), authorization: `Bearer ${token}` } };
+}
 
 async function check(response) {
   if (!response.ok) {
     let message = `${response.status} ${response.statusText}`;
     try { message = (await response.json()).error || message; } catch (_) { /* not JSON */ }
+    if (response.status === 401) message += ' — open the URL with ?token=… that lse-deform edit printed';
     throw new Error(message);
   }
   return response;
 }
 
+export async function request(path, init) {
+  return check(await fetch(path, authorised(init)));
+}
+
 export async function getJson(path) {
-  return (await check(await fetch(path))).json();
+  return (await request(path)).json();
 }
 
 export async function send(method, path, body) {
   const text = typeof body === 'string' ? body : JSON.stringify(body);
-  return (await check(await fetch(path, { method, body: text, headers: { 'content-type': 'application/json' } }))).json();
+  return (await request(path, { method, body: text, headers: { 'content-type': 'application/json' } })).json();
 }
 
 export async function getF32(path) {
-  return new Float32Array(await (await check(await fetch(path))).arrayBuffer());
+  return new Float32Array(await (await request(path)).arrayBuffer());
+}
+
+export async function getF64(path) {
+  return new Float64Array(await (await request(path)).arrayBuffer());
 }
 
 export async function getU32(path) {
-  return new Uint32Array(await (await check(await fetch(path))).arrayBuffer());
+  return new Uint32Array(await (await request(path)).arrayBuffer());
+}
+
+// Saves the answer of GET `path` as a file named `name` (a plain link
+// could not send the token).
+export async function download(path, name) {
+  const blob = await (await request(path)).blob();
+  const url = URL.createObjectURL(blob);
+  const a = document.createElement('a');
+  a.href = url;
+  a.download = name;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 10000);
 }

@@ -1,7 +1,7 @@
 // The editor page: selection (brush, lasso) into named groups, dragging a
 // group (move, rotate), switches, report. Positions are computed by the
 // server (POST /api/transform, then GET /api/positions as f32).
-import { getJson, send, getF32, getU32 } from '/api.js';
+import { getJson, send, getF32, getF64, getU32, download, hasToken } from '/api.js';
 import { View } from '/view.js';
 
 const $ = (id) => document.getElementById(id);
@@ -394,6 +394,8 @@ function setupEvents() {
   }
   $('weight').addEventListener('change', (e) => { $('wval').textContent = e.target.value; settings({ weight: 10 ** Number(e.target.value) }); });
   $('arapiters').addEventListener('change', (e) => settings({ arap_iterations_per_frame: Number(e.target.value) }));
+  $('saveconstraints').addEventListener('click', () => download('/api/constraints', 'constraints.json').catch(showError));
+  $('savemesh').addEventListener('click', () => download('/api/deformed.obj', 'deformed.obj').catch(showError));
   $('load').addEventListener('change', async (e) => {
     const file = e.target.files[0];
     if (!file) return;
@@ -412,10 +414,11 @@ async function refreshReport() {
 }
 
 async function main() {
+  if (!hasToken) throw new Error('no session token: open the URL with ?token=… that lse-deform edit printed');
   state.mesh = await getJson('/api/mesh');
   $('meshinfo').textContent = `${state.mesh.name}: ${state.mesh.vertices} vertices, ${state.mesh.faces} triangles`;
   const [rest, faces] = await Promise.all([getF32('/api/rest-positions'), getU32('/api/faces')]);
-  state.restF64 = new Float64Array(await (await fetch('/api/rest-positions?format=f64')).arrayBuffer());
+  state.restF64 = await getF64('/api/rest-positions?format=f64');
   view.setMesh(rest, faces, state.mesh.bbox);
   readConstraints(await getJson('/api/constraints'));
   refreshGroupSelect();
