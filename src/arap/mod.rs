@@ -51,7 +51,10 @@ use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine, refine};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, check_pinned};
-use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_finite};
+use crate::report::{
+    ArapReport, ConflictSources, Report, conflict_warnings, fill_solution_diagnostics,
+    first_non_finite,
+};
 
 pub mod energy;
 pub mod rotations;
@@ -134,6 +137,14 @@ pub struct ArapDeformer {
     arap: ArapReport,
     init: ArapInit,
     refine: Option<Refine>,
+    /// The warnings of set-up (the mesh's), which every precompute starts
+    /// from.
+    setup_warnings: Vec<String>,
+    /// The warnings of set-up and precompute ([`ArapDeformer::finish`] adds
+    /// those of the solution to a copy).
+    precompute_warnings: Vec<String>,
+    /// The earlier constraints each conflicting one contradicts.
+    conflict_sources: ConflictSources,
 }
 
 impl ArapDeformer {
@@ -155,9 +166,10 @@ impl ArapDeformer {
         let rhs = triangles.rest_rhs();
         let problem = LseProblem::new(&rows, &rhs, &constraints, mesh.bbox_diagonal())?;
         let x = Mat::from_fn(n, 3, |i, c| mesh.positions()[i][c]);
+        let mesh_warnings: Vec<String> = mesh.warnings().iter().map(|w| w.to_string()).collect();
         let mut report = Report {
             laplacian: Some(format!("arap-{}", energy.name())),
-            warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
+            warnings: mesh_warnings.clone(),
             ..Report::default()
         };
         report.timings_s.setup = t.elapsed().as_secs_f64();
@@ -180,6 +192,9 @@ impl ArapDeformer {
             },
             init: ArapInit::Rest,
             refine: None,
+            precompute_warnings: mesh_warnings.clone(),
+            setup_warnings: mesh_warnings,
+            conflict_sources: ConflictSources::default(),
         })
     }
 
@@ -189,11 +204,14 @@ impl ArapDeformer {
         self.system = None;
         let mut report = Report {
             laplacian: self.report.laplacian.clone(),
-            warnings: self.report.warnings.clone(),
+            warnings: self.setup_warnings.clone(),
             ..Report::default()
         };
         report.timings_s.setup = self.report.timings_s.setup;
-        self.system = Some(formulation.precompute(&self.problem, &mut report)?);
+        let system = formulation.precompute(&self.problem, &mut report)?;
+        self.conflict_sources = ConflictSources::new(system.skipped());
+        self.precompute_warnings = report.warnings.clone();
+        self.system = Some(system);
         self.report = report;
         Ok(())
     }
@@ -309,6 +327,9 @@ impl ArapDeformer {
         let prepared = self.prepared()?;
         let (skipped, exact) = (prepared.skipped().to_vec(), prepared.exact());
         fill_solution_diagnostics(&mut self.report, &self.problem, &self.x, &skipped, exact);
+        self.report.warnings = self.precompute_warnings.clone();
+        let conflicts = conflict_warnings(&self.report, &self.problem, &mut self.conflict_sources);
+        self.report.warnings.extend(conflicts);
         let mut times = self.arap.iteration_times_s.clone();
         times.sort_by(f64::total_cmp);
         self.arap.time_per_iteration_s = times.get(times.len() / 2).copied().unwrap_or(0.0);
