@@ -13,9 +13,17 @@
 //!   redundant and conflicting indices.
 //! - General problems: [`random_lse`] / [`random_lses`], a sparse LSE with
 //!   known independent, redundant and conflicting rows of `B`.
-//! - The oracle: [`dense_reference`], the dense KKT solution by faer's
-//!   full-pivoting LU (independent of every sparse path), and
-//!   [`relative_difference`].
+//! - Rows where rank detection is hard, built from their meaning:
+//!   [`constructed_mixes`] (meshes, including [`sliver_meshes`], up to a
+//!   few hundred vertices: rows either side of the rank tolerance, nearly
+//!   parallel edges, edge parameters within `1e-12` of 0 or 1) and
+//!   [`constructed_lses`] (general problems, rows scaled by `10^±8`), with
+//!   the kept, redundant and conflicting sets and the sources of each
+//!   dependent row, as a [`Mixture`] allows.
+//! - The oracles: [`dense_reference`], the dense KKT solution by faer's
+//!   full-pivoting LU (independent of every sparse path), its accurate
+//!   counterpart [`accurate_reference`] (to a unit in the last place on
+//!   ill-conditioned problems), and [`relative_difference`].
 //!
 //! A test a downstream crate can copy (`lse-deform = { version = "0.1",
 //! features = ["proptest"] }` in its `[dev-dependencies]`), with its own
