@@ -403,6 +403,16 @@ pub enum ConstraintError {
         /// What differs (counts or fingerprint).
         detail: String,
     },
+    /// Hard constraints contradict earlier ones and were dropped (an error
+    /// only when asked to be strict; otherwise warnings).
+    #[error("{count} conflicting hard constraint(s), and --strict makes that an error: {detail}")]
+    Conflicting {
+        /// How many were dropped.
+        count: usize,
+        /// The first conflict: index, the constraints it contradicts,
+        /// residual.
+        detail: String,
+    },
 }
 
 /// An invalid Matrix Market file (`crate::mtx`): the file, the 1-based

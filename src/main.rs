@@ -259,7 +259,9 @@ struct DeformArgs {
     condition: bool,
     /// Turn warnings that have a strict form into errors, writing nothing:
     /// an estimated forward error above 1e-8 of the bounding-box diagonal
-    /// (exit 3) and a constraints file made for another mesh (exit 2).
+    /// (exit 3), a constraints file made for another mesh (exit 2) and a
+    /// conflicting hard constraint (exit 2; the warnings and the summary
+    /// line are still printed).
     #[arg(long)]
     strict: bool,
     #[command(flatten)]
@@ -545,6 +547,12 @@ fn deform(a: DeformArgs) -> Result<(), Error> {
     bar.set_message("solve");
     let solution = deformer.solve()?;
     bar.finish_and_clear();
+    if a.strict && !solution.report.conflicting.is_empty() {
+        // The warnings and the summary line with its counts still go to
+        // stderr; nothing is written.
+        finish_report(&solution.report, None, "vertices", "constraints")?;
+        check_strict_conflicts(&solution.report, a.strict)?;
+    }
     check_strict(&solution.report, a.strict)?;
     let out = deformer.mesh().with_positions(solution.positions)?;
     let bar = phase(&format!("writing {}", a.output.display()));
@@ -575,22 +583,10 @@ fn deform_arap(
     let history = arap.run(e.iterations, e.tolerance)?;
     bar.finish_and_clear();
     let report = arap.report().clone();
-    for c in &report.conflicting {
-        eprintln!(
-            "warning: constraint {} conflicts with earlier constraints and was dropped (residual {:.3e})",
-            c.index, c.residual
-        );
-    }
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
-    let out = arap.mesh().with_positions(arap.positions())?;
-    mesh::write_mesh(&out, &a.output)?;
-    if let Some(path) = &a.report {
-        let json = serde_json::to_string_pretty(&report).map_err(|e| Error::io(path, e.into()))?;
-        write_text(path, json)?;
-    }
-    eprintln!(
+    let summary = format!(
         "{} + ARAP ({}, init {}): {} vertices, {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; {} iterations ({}), energy {:.6e} -> {:.6e}; precompute {:.3} s, {:.4} s per iteration (local {:.3} s, global {:.3} s in all)",
         report.method,
         history.energy,
@@ -613,6 +609,17 @@ fn deform_arap(
         history.local_time_s,
         history.global_time_s,
     );
+    if a.strict && !report.conflicting.is_empty() {
+        eprintln!("{summary}");
+        return check_strict_conflicts(&report, a.strict);
+    }
+    let out = arap.mesh().with_positions(arap.positions())?;
+    mesh::write_mesh(&out, &a.output)?;
+    if let Some(path) = &a.report {
+        let json = serde_json::to_string_pretty(&report).map_err(|e| Error::io(path, e.into()))?;
+        write_text(path, json)?;
+    }
+    eprintln!("{summary}");
     Ok(())
 }
 
@@ -736,20 +743,8 @@ fn finish_report(
     unknowns: &str,
     constraints: &str,
 ) -> Result<(), Error> {
-    // A few lines, not one per conflict: a file can hold 10⁵ of them.
-    const SHOWN_CONFLICTS: usize = 10;
-    for c in report.conflicting.iter().take(SHOWN_CONFLICTS) {
-        eprintln!(
-            "warning: constraint {} conflicts with earlier constraints and was dropped (residual {:.3e})",
-            c.index, c.residual
-        );
-    }
-    if report.conflicting.len() > SHOWN_CONFLICTS {
-        eprintln!(
-            "warning: … and {} more conflicting constraints (all are listed in the report, --report)",
-            report.conflicting.len() - SHOWN_CONFLICTS
-        );
-    }
+    // The conflicting constraints are among the warnings (the first few one
+    // by one, the rest counted: a file can hold 10⁵ of them).
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
@@ -759,6 +754,38 @@ fn finish_report(
     }
     eprintln!("{}", summary_line(report, unknowns, constraints));
     Ok(())
+}
+
+/// `--strict`: a conflicting hard constraint is an error (exit 2) before
+/// anything is written; the message names the first (every one is among
+/// the warnings).
+fn check_strict_conflicts(report: &Report, strict: bool) -> Result<(), Error> {
+    let count = report.conflicting.len();
+    if !strict || count == 0 {
+        return Ok(());
+    }
+    let first = report
+        .warnings
+        .iter()
+        .find(|w| {
+            w.starts_with(&format!(
+                "constraint {} conflicts",
+                report.conflicting[0].index
+            ))
+        })
+        .cloned()
+        .unwrap_or_else(|| {
+            format!(
+                "constraint {} conflicts with earlier constraints (residual {:.3e})",
+                report.conflicting[0].index, report.conflicting[0].residual
+            )
+        });
+    let detail = if count > 1 {
+        format!("{first}; and {} more", count - 1)
+    } else {
+        first
+    };
+    Err(lse_deform::error::ConstraintError::Conflicting { count, detail }.into())
 }
 
 /// `--strict`: an estimated forward error above the warning threshold is

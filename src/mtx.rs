@@ -279,10 +279,13 @@ fn read_coordinate(
     size_line: usize,
 ) -> Result<MatrixFile, Error> {
     let path = lines.path;
+    // A symmetric or skew-symmetric file stores each off-diagonal entry
+    // once and its mirror is added: up to twice the announced count, which
+    // may be anything up to 2⁶⁴ − 1 (saturating: the budget refuses it).
     let stored = if symmetry == Symmetry::General {
         entries as u64
     } else {
-        2 * entries as u64
+        (entries as u64).saturating_mul(2)
     };
     check_memory(
         path,
@@ -648,5 +651,19 @@ mod tests {
             matches!(e, Error::Problem(ProblemError::TooLarge { .. })),
             "{e}"
         );
+        // A symmetric or skew header announcing more than 2⁶³ entries: the
+        // doubled count overflowed (a panic in debug builds) before the
+        // budget could refuse it.
+        for symmetry in ["symmetric", "skew-symmetric"] {
+            for entries in ["9223372036854775808", "18446744073709551615"] {
+                let text =
+                    format!("%%MatrixMarket matrix coordinate real {symmetry}\n2 2 {entries}\n");
+                let e = read(&text).unwrap_err();
+                assert!(
+                    matches!(e, Error::Problem(ProblemError::TooLarge { .. })),
+                    "{symmetry}, {entries}: {e}"
+                );
+            }
+        }
     }
 }

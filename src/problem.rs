@@ -138,7 +138,8 @@ impl LseProblem {
     /// ([`crate::error::NumericalError::FreeUnknown`]).
     ///
     /// The length scale of the conflict tolerance
-    /// ([`LseProblem::length_scale`]) is the largest `|D_ij|` (1 when `D`
+    /// ([`LseProblem::length_scale`]) is the largest `|D_kj| / ‖b_k‖₂`, the
+    /// size of `X` the rows of `B` imply whatever their scaling (1 when `D`
     /// is zero or empty); [`LseProblem::with_length_scale`] overrides it.
     pub fn from_parts(
         a: SparseColMatRef<'_, usize, f64>,
@@ -163,9 +164,13 @@ impl LseProblem {
         {
             return Err(ProblemError::UnusedUnknown { unknown });
         }
-        let max_d = (0..d.ncols())
-            .flat_map(|j| (0..d.nrows()).map(move |i| (i, j)))
-            .fold(0.0f64, |acc, (i, j)| acc.max(d[(i, j)].abs()));
+        // The size of X that the rows imply, |D_kj| / ‖b_k‖: a row scaled
+        // with its target leaves it unchanged.
+        let max_d = (0..m).fold(0.0f64, |acc, k| {
+            let values = &b.val()[b.symbolic().row_range(k)];
+            let norm = values.iter().map(|v| v * v).sum::<f64>().sqrt();
+            (0..d.ncols()).fold(acc, |acc, j| acc.max(d[(k, j)].abs() / norm))
+        });
         Ok(LseProblem {
             a,
             c: c.to_owned(),
@@ -175,7 +180,11 @@ impl LseProblem {
             places: (0..m).map(RowPlace::Hard).collect(),
             hard: (0..m).collect(),
             soft: Vec::new(),
-            length_scale: if max_d > 0.0 { max_d } else { 1.0 },
+            length_scale: if max_d > 0.0 && max_d.is_finite() {
+                max_d
+            } else {
+                1.0
+            },
             general: true,
         })
     }

@@ -2,6 +2,9 @@
 
 use serde::{Serialize, Serializer};
 
+mod conflicts;
+pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources, conflict_warnings};
+
 /// A list that a method may or may not be able to produce — the redundant
 /// and conflicting hard constraints, which only the methods with rank
 /// detection find. Reads as a slice (empty when not detected); serialised
@@ -209,7 +212,9 @@ pub struct Report {
     /// for how it is estimated); a warning is issued above
     /// [`crate::formulation::FORWARD_ERROR_WARNING`].
     pub forward_error_estimate: Option<f64>,
-    /// The tolerance that classified skipped constraints as conflicting.
+    /// The tolerance that classified skipped constraints as conflicting:
+    /// a skipped constraint conflicts when its residual exceeds this times
+    /// its row's norm (see [`CONFLICT_RELATIVE_TOLERANCE`]).
     pub conflict_tolerance: f64,
     /// Matrix sizes.
     pub nnz: Nnz,
@@ -271,7 +276,9 @@ pub struct ArapReport {
 }
 
 /// Relative tolerance for classifying a skipped hard constraint as
-/// conflicting: its residual must exceed `1e-8 ×` the length scale.
+/// conflicting: its residual over its row's norm, `‖b_k X − d_k‖ / ‖b_k‖`
+/// (the distance by which `X` misses it, whatever the row's scaling), must
+/// exceed `1e-8 ×` the length scale.
 ///
 /// A skipped constraint that is consistent with the kept ones is satisfied
 /// up to its own numerical remainder (`≤ η ‖b_j‖ ‖X‖`, with `η = 1e-10` the
@@ -319,7 +326,7 @@ pub fn fill_solution_diagnostics(
         let r = problem.hard_residual(k, x);
         if !is_skipped[k] {
             max_kept = max_kept.max(r);
-        } else if r > tolerance {
+        } else if r > tolerance * row_norm(problem, k) {
             conflicting.push(Conflict {
                 index,
                 residual: r * unit,
@@ -370,6 +377,16 @@ pub fn fill_solution_diagnostics(
     report.vertices = problem.n();
     report.nnz.a = problem.a().val().len();
     report.nnz.b = problem.b().val().len();
+}
+
+/// `‖b_k‖₂`, the norm of hard row `k` of `B`.
+fn row_norm(problem: &crate::problem::LseProblem, k: usize) -> f64 {
+    let b = problem.b();
+    b.val()[b.symbolic().row_range(k)]
+        .iter()
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// The first vertex with a non-finite coordinate in `x`, if any.

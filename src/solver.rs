@@ -52,7 +52,7 @@ use crate::formulation::{
     FORWARD_ERROR_WARNING, Formulation, Prepared, Refine, RefineStop, Refinement, refine,
 };
 use crate::problem::{LseProblem, RHS_BLOCK};
-use crate::report::{Report, fill_solution_diagnostics};
+use crate::report::{ConflictSources, Report, conflict_warnings, fill_solution_diagnostics};
 
 /// A problem with its precomputed system and the report of the last
 /// precompute and solve.
@@ -70,6 +70,9 @@ pub struct LseSolver {
     precompute_warnings: Vec<String>,
     /// The refinement of the last solve.
     last_refinement: Option<Refinement>,
+    /// The earlier constraints each conflicting one contradicts, found
+    /// once per precompute (for the warnings).
+    conflict_sources: ConflictSources,
 }
 
 impl LseSolver {
@@ -92,6 +95,7 @@ impl LseSolver {
             base,
             refine: None,
             last_refinement: None,
+            conflict_sources: ConflictSources::default(),
         }
     }
 
@@ -121,6 +125,7 @@ impl LseSolver {
         let system = formulation
             .precompute(&self.problem, &mut report)
             .map_err(|e| name_free_unknown(e, &self.problem))?;
+        self.conflict_sources = ConflictSources::new(system.skipped());
         self.system = Some(system);
         self.precompute_warnings = report.warnings.clone();
         self.report = report;
@@ -268,7 +273,10 @@ impl LseSolver {
     /// last solve): residual of every kept hard row, the skipped rows split
     /// into redundant and conflicting (or "not detected" for penalty),
     /// `‖AX − C‖`, soft residuals, sizes, and the last refinement with its
-    /// forward-error estimate and warnings.
+    /// forward-error estimate and warnings (a warning for each conflicting
+    /// constraint, naming the earlier ones it contradicts where they are
+    /// found, the first [`crate::report::CONFLICT_WARNINGS_SHOWN`] one by
+    /// one and the rest counted).
     pub fn diagnose(&mut self, x: MatRef<'_, f64>) -> &Report {
         let t = Instant::now();
         let (skipped, exact) = self
@@ -284,6 +292,8 @@ impl LseSolver {
             exact,
         );
         self.report.warnings = self.precompute_warnings.clone();
+        let conflicts = conflict_warnings(&self.report, &self.problem, &mut self.conflict_sources);
+        self.report.warnings.extend(conflicts);
         if let Some(r) = &self.last_refinement {
             self.report
                 .warnings

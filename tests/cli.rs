@@ -653,3 +653,62 @@ fn a_constraints_file_with_a_bom_works() {
     let o = run(&["deform", &mesh, "-c", &bom, "-o", &p(dir.path(), "o.obj")]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// A conflicting constraint is one warning naming the constraint it
+/// contradicts (the scene's `--conflict` contradicts the second fixed one);
+/// with `--strict` it is exit code 2, after the warnings and the summary
+/// line with its counts, and nothing is written.
+#[test]
+fn a_conflict_warns_once_and_with_strict_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = grid_and_scene(dir.path());
+    let n = lse_deform::constraints::parse_constraints(&std::fs::read_to_string(&scene).unwrap())
+        .unwrap()
+        .len();
+    let line = format!(
+        "warning: constraint {} conflicts with constraint 1 and was dropped (residual ",
+        n - 1
+    );
+    let out = p(dir.path(), "out.obj");
+    let report = p(dir.path(), "report.json");
+    let o = run(&["deform", &mesh, "-c", &scene, "-o", &out]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches(&line).count(), 1, "{err}");
+    assert!(err.contains("(1 redundant, 1 conflicting)"), "{err}");
+    std::fs::remove_file(&out).unwrap();
+    let o = run(&[
+        "deform", &mesh, "-c", &scene, "-o", &out, "--report", &report, "--strict",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.matches(&line).count(), 1, "{err}");
+    assert!(err.contains("(1 redundant, 1 conflicting)"), "{err}");
+    let last = err.lines().last().unwrap();
+    assert!(
+        last.starts_with(
+            "error: 1 conflicting hard constraint(s), and --strict makes that an error: constraint"
+        ) && last.contains("conflicts with constraint 1"),
+        "{err}"
+    );
+    assert!(!Path::new(&out).exists() && !Path::new(&report).exists());
+    // The same for the ARAP energy.
+    let o = run(&[
+        "deform",
+        &mesh,
+        "-c",
+        &scene,
+        "-o",
+        &out,
+        "--energy",
+        "arap",
+        "--iterations",
+        "2",
+        "--strict",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.matches(&line).count(), 1, "{err}");
+    assert!(err.contains("1 redundant, 1 conflicting"), "{err}");
+    assert!(!Path::new(&out).exists());
+}

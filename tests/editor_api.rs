@@ -1244,3 +1244,61 @@ fn progress_and_report_answer_while_large_bodies_are_parsed() {
         );
     }
 }
+
+/// A conflicting constraint reaches the report panel: `PUT
+/// /api/constraints` with the first fixed vertex asked elsewhere answers a
+/// report whose warnings name it and the constraint it contradicts, and so
+/// does `GET /api/report` after a frame, with the linear and the ARAP
+/// energy.
+#[test]
+fn a_conflict_is_among_the_report_warnings() {
+    let server = start(1 << 20);
+    let (_, mut cs) = scene();
+    let n = cs.len();
+    cs.push(Constraint::hard(ConstraintKind::Position {
+        vertex: 0,
+        target: [0.0, 0.0, 0.5],
+    }))
+    .unwrap();
+    let needle = format!("constraint {n} conflicts with constraint 0 and was dropped");
+    let has = |report: &Value| {
+        report["warnings"].as_array().is_some_and(|w| {
+            w.iter()
+                .any(|w| w.as_str().is_some_and(|w| w.starts_with(&needle)))
+        })
+    };
+    let (status, body) = request(
+        &server.client,
+        "PUT",
+        "/api/constraints",
+        cs.to_json().as_bytes(),
+    );
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    assert!(has(&json(&body)), "{}", String::from_utf8_lossy(&body));
+    let m = rotation_x(0.3, [0.0, 0.0, 0.2]);
+    let (status, _) = request(
+        &server.client,
+        "POST",
+        "/api/transform",
+        &transform_body("handle", m),
+    );
+    assert_eq!(status, 200);
+    let report = json(&request(&server.client, "GET", "/api/report", b"").1);
+    assert!(has(&report), "{report}");
+    let (status, body) = request(
+        &server.client,
+        "PUT",
+        "/api/settings",
+        br#"{"energy": "arap"}"#,
+    );
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let (status, _) = request(
+        &server.client,
+        "POST",
+        "/api/transform",
+        &transform_body("handle", m),
+    );
+    assert_eq!(status, 200);
+    let report = json(&request(&server.client, "GET", "/api/report", b"").1);
+    assert!(has(&report), "{report}");
+}

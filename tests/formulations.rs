@@ -61,7 +61,8 @@ proptest! {
             let x = solve_with(&mut d, &kkt).unwrap();
             let diff = relative_difference(&x, &qr);
             prop_assert!(diff < 1e-8, "kkt vs nullspace: {diff:e}");
-            prop_assert!(d.report().max_constraint_residual <= 1e-10 * mesh.bbox_diagonal());
+            // Exact: the solvers reach about 1e-15 of the diagonal.
+            prop_assert!(d.report().max_constraint_residual <= 1e-13 * mesh.bbox_diagonal());
         }
         let rows: Vec<usize> = (0..d.problem().b().nrows()).collect();
         let reference = dense_reference(d.problem(), &rows);
@@ -321,19 +322,40 @@ fn penalty_converges_then_breaks_down_with_one_analysis() {
             .all(|p| p.result.is_err())
     );
 
-    // The Penalty formulation through the deformer gives the same solution
-    // and reports the residual of the approximated hard rows.
+    // The Penalty formulation through the deformer (its own path, not the
+    // sweep's) gives the penalty solution of the independent QR reference
+    // and reports the residual of the approximated hard rows, recomputed
+    // here from B and D.
     let x = solve_with(&mut d, &Penalty::new(1e4)).unwrap();
-    let from_sweep = sweep.solve(&problem, 1e4).unwrap();
-    assert!(relative_difference(&x, &from_sweep.x) < 1e-12);
+    let reference = penalty_reference(&problem, 1e4 * unit);
+    let diff = relative_difference(&x, &reference);
+    // To the accuracy the normal equations `AᵀA + w²BᵀB` allow at this
+    // weight (measured: 1.7e-6 relative; the reference works on `[wB; A]`
+    // itself). Two different paths: a bug in either shows far above it.
+    assert!(
+        diff < 1e-5,
+        "penalty w = 1e4 against the QR reference: {diff:e}"
+    );
     let report = d.report();
     assert_eq!(report.penalty_weight, Some(1e4));
-    assert!(report.max_constraint_residual > 0.0);
-    // The report is in the mesh's units, the sweep in the problem's.
+    let bx = &b * &x;
+    let worst = (0..b.nrows())
+        .map(|k| {
+            (0..3)
+                .map(|c| (bx[(k, c)] - problem.d()[(k, c)]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0f64, f64::max);
     assert!(
-        (report.max_constraint_residual - from_sweep.max_constraint_residual * d.length_unit())
-            .abs()
-            < 1e-15
+        worst > 1e-12,
+        "the hard rows are only approximated: {worst:e}"
+    );
+    // The report is in the mesh's units, the problem in its own.
+    let stated = report.max_constraint_residual / d.length_unit();
+    assert!(
+        (stated - worst).abs() <= 1e-6 * worst,
+        "stated {stated:e}, recomputed {worst:e}"
     );
 }
 

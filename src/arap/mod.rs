@@ -78,7 +78,10 @@ use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine, refine};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
-use crate::report::{ArapReport, Report, fill_solution_diagnostics, first_non_finite};
+use crate::report::{
+    ArapReport, ConflictSources, Report, conflict_warnings, fill_solution_diagnostics,
+    first_non_finite,
+};
 
 pub mod energy;
 pub mod rotations;
@@ -171,6 +174,14 @@ pub struct ArapDeformer {
     arap: ArapReport,
     init: ArapInit,
     refine: Option<Refine>,
+    /// The warnings of set-up (the mesh's), which every precompute starts
+    /// from.
+    setup_warnings: Vec<String>,
+    /// The warnings of set-up and precompute ([`ArapDeformer::finish`] adds
+    /// those of the solution to a copy).
+    precompute_warnings: Vec<String>,
+    /// The earlier constraints each conflicting one contradicts.
+    conflict_sources: ConflictSources,
 }
 
 impl ArapDeformer {
@@ -219,9 +230,10 @@ impl ArapDeformer {
             soft_scale,
         )?;
         let x = Mat::from_fn(n, 3, |i, c| unit_mesh.positions()[i][c]);
+        let mesh_warnings: Vec<String> = mesh.warnings().iter().map(|w| w.to_string()).collect();
         let mut report = Report {
             laplacian: Some(format!("arap-{}", energy.name())),
-            warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
+            warnings: mesh_warnings.clone(),
             length_unit: unit,
             soft_weight_scale: Some(soft_scale.factor()),
             ..Report::default()
@@ -248,6 +260,9 @@ impl ArapDeformer {
             },
             init: ArapInit::Rest,
             refine: None,
+            precompute_warnings: mesh_warnings.clone(),
+            setup_warnings: mesh_warnings,
+            conflict_sources: ConflictSources::default(),
         })
     }
 
@@ -257,13 +272,16 @@ impl ArapDeformer {
         self.system = None;
         let mut report = Report {
             laplacian: self.report.laplacian.clone(),
-            warnings: self.report.warnings.clone(),
+            warnings: self.setup_warnings.clone(),
             length_unit: self.unit,
             soft_weight_scale: self.report.soft_weight_scale,
             ..Report::default()
         };
         report.timings_s.setup = self.report.timings_s.setup;
-        self.system = Some(formulation.precompute(&self.problem, &mut report)?);
+        let system = formulation.precompute(&self.problem, &mut report)?;
+        self.conflict_sources = ConflictSources::new(system.skipped());
+        self.precompute_warnings = report.warnings.clone();
+        self.system = Some(system);
         self.report = report;
         Ok(())
     }
@@ -392,6 +410,9 @@ impl ArapDeformer {
         let prepared = self.prepared()?;
         let (skipped, exact) = (prepared.skipped().to_vec(), prepared.exact());
         fill_solution_diagnostics(&mut self.report, &self.problem, &self.x, &skipped, exact);
+        self.report.warnings = self.precompute_warnings.clone();
+        let conflicts = conflict_warnings(&self.report, &self.problem, &mut self.conflict_sources);
+        self.report.warnings.extend(conflicts);
         let mut times = self.arap.iteration_times_s.clone();
         times.sort_by(f64::total_cmp);
         self.arap.time_per_iteration_s = times.get(times.len() / 2).copied().unwrap_or(0.0);

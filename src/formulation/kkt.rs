@@ -73,7 +73,7 @@ use crate::mesh::topology::UnionFind;
 use crate::problem::{LseProblem, pivot_columns};
 use crate::report::{Report, first_non_finite};
 use crate::sparse::{
-    add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_mul,
+    add_bt_times, at_residual, at_times, hard_residual_compensated, lower_diag, lower_sym_mul,
     lower_sym_norm_inf, lower_to_full, row_entries,
 };
 
@@ -754,7 +754,8 @@ impl Prepared for PreparedKkt {
     }
 
     /// Refinement on the augmented system with the residual from `A` and
-    /// `B`: `K [Δx; Δμ] = [Aᵀ(C − A x) − s Bᵀ μ; s (D − B x)]`.
+    /// `B`: `K [Δx; Δμ] = [Aᵀ(C − A x) − s Bᵀ μ; s (D − B x)]`, the last in
+    /// twice the working precision.
     fn correction(
         &mut self,
         problem: &LseProblem,
@@ -770,7 +771,11 @@ impl Prepared for PreparedKkt {
             -self.scale,
             top.as_mut(),
         );
-        let bottom = hard_residual(problem.b().as_ref(), problem.d().as_ref(), x.as_ref());
+        // In twice the working precision: a kept row with a small
+        // remainder reproduces in a plain residual the rounding its own
+        // solve left in `x` (see the null-space formulation's correction).
+        let bottom =
+            hard_residual_compensated(problem.b().as_ref(), problem.d().as_ref(), x.as_ref());
         let mut y = Mat::<f64>::zeros(n + m, k);
         y.as_mut().submatrix_mut(0, 0, n, k).copy_from(&top);
         for r in 0..m {

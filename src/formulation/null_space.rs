@@ -27,7 +27,7 @@ use crate::error::{Error, ProblemError};
 use crate::problem::LseProblem;
 use crate::report::Report;
 use crate::sparse::NormalPattern;
-use crate::sparse::{gather_columns, lower_to_full, mt_residual};
+use crate::sparse::{gather_columns, hard_residual_compensated, lower_to_full, mt_residual};
 
 /// The null-space QR method over a QR back end and an SPD back end.
 #[derive(Clone)]
@@ -308,12 +308,24 @@ impl Prepared for PreparedNullSpace {
         Ok(true)
     }
 
-    /// Corrected semi-normal equations (Björck 1987) on the reduced
-    /// problem: `g = (AQ2)ᵀ (C − A X)` (the residual of the original rows,
-    /// projected by the `AQ2` the factor was built from, as the solve
-    /// does), `Δz = H⁻¹ g`, `ΔX = Q [0; Δz]`. The
-    /// correction lies in the null space of the kept rows of `B`, so the
-    /// hard constraints stay exact.
+    /// One step of refinement of both parts of `X = Q [y; z]`:
+    /// `Δy = R1⁻ᵀ (D − B X)_kept` for the constrained directions, then
+    /// corrected semi-normal equations (Björck 1987) on the reduced problem
+    /// at the moved point `X' = X + Q [Δy; 0]`: `g = (AQ2)ᵀ (C − A X')` (the
+    /// residual of the original rows, projected by the `AQ2` the factor was
+    /// built from, as the solve does), `Δz = H⁻¹ g`; `ΔX = Q [Δy; Δz]`.
+    ///
+    /// `Δy` is below a unit in the last place when the kept rows are well
+    /// separated from the rank tolerance (the hard constraints hold to
+    /// rounding either way). But a kept row whose remainder `ρ` is small
+    /// puts `1/ρ` into `R1⁻ᵀ`, and with it an error of about `ε/ρ` into
+    /// `y` that no residual of `A` sees, and that the row's own residual
+    /// evaluated in working precision does not see either (it reproduces
+    /// the rounding that caused it). The residual `D − B X` is therefore
+    /// evaluated in twice the working precision
+    /// ([`hard_residual_compensated`]): `Δy` is then that error, the
+    /// forward-error estimate reports it, and applying it removes it
+    /// (mixed-precision refinement, which converges while `ε/ρ < 1`).
     fn correction(
         &mut self,
         problem: &LseProblem,
@@ -325,16 +337,25 @@ impl Prepared for PreparedNullSpace {
         let qr = &*self.qr;
         let k = x.ncols();
         let a = problem.a();
+        let rd = hard_residual_compensated(problem.b().as_ref(), problem.d().as_ref(), x.as_ref());
+        let mut gy = Mat::<f64>::zeros(qr.rank(), k);
+        qr.solve_r1t(rd.as_ref(), gy.as_mut());
+        let mut moved = x.clone();
+        if gy.norm_max() > 0.0 {
+            let mut dxp = Mat::<f64>::zeros(qr.n(), k);
+            let zero = Mat::<f64>::zeros(qr.n() - qr.rank(), k);
+            qr.apply_q(gy.as_ref(), zero.as_ref(), dxp.as_mut());
+            moved += &dxp;
+        }
         let mut gz = mt_residual(
             self.aq2.as_ref(),
             a.as_ref(),
             None,
             problem.c().as_ref(),
-            x.as_ref(),
+            moved.as_ref(),
         );
         factor.solve_in_place(gz.as_mut());
         clear_upper_vector_state();
-        let gy = Mat::<f64>::zeros(qr.rank(), k);
         let mut dx = Mat::<f64>::zeros(qr.n(), k);
         qr.apply_q(gy.as_ref(), gz.as_ref(), dx.as_mut());
         Ok(Some(dx))

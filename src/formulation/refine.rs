@@ -8,11 +8,16 @@
 //! `AᵀC − AᵀA X`), maps it through the same factor to a correction `ΔX` and
 //! adds it (DESIGN §6):
 //!
-//! - null-space QR: `g = Q2ᵀ Aᵀ (C − A X)`, `Δz = H⁻¹ g`, `ΔX = Q [0; Δz]`
-//!   (Björck's corrected semi-normal equations on the reduced problem; the
-//!   hard rows never move);
+//! - null-space QR: `Δy = R1⁻ᵀ (D − B X)_kept` with the residual in twice
+//!   the working precision (a kept row close to dependence amplifies the
+//!   rounding of `y`, which a plain residual does not see), then
+//!   `g = Q2ᵀ Aᵀ (C − A X')` at `X' = X + Q [Δy; 0]`, `Δz = H⁻¹ g`,
+//!   `ΔX = Q [Δy; Δz]` (Björck's corrected semi-normal equations on the
+//!   reduced problem; `Δy` is below an ulp unless a kept row is nearly
+//!   dependent);
 //! - elimination: the same with `Q2` the selection of the free columns;
-//! - KKT: `K [Δx; Δμ] = [Aᵀ(C − A x) − s Bᵀ μ; s (D − B x)]`;
+//! - KKT: `K [Δx; Δμ] = [Aᵀ(C − A x) − s Bᵀ μ; s (D − B x)]` (the last
+//!   residual in twice the working precision);
 //! - penalty: the method of multipliers (Van Loan 1985; Björck 1996 §5.1.5):
 //!   shifted targets `D_{k+1} = D_k + (D − B X_k)` and
 //!   `ΔX = K⁻¹ [Aᵀ(C − A X_k) + w² Bᵀ(D_{k+1} − B X_k)]`, which converges to
@@ -33,8 +38,14 @@
 //! reached the rounding floor: with `e` the error before a correction `ΔX`
 //! and `ρ` the contraction per step, `‖e − ΔX‖ ≤ ρ‖e‖` and
 //! `‖ΔX‖ ≥ (1 − ρ)‖e‖`, so the error after it is at most `ρ/(1 − ρ)‖ΔX‖`,
-//! at most `‖ΔX‖` for `ρ ≤ ½`. Above [`FORWARD_ERROR_WARNING`] a result is
-//! returned with a warning.
+//! at most `‖ΔX‖` for `ρ ≤ ½`. When refinement stops at its step limit
+//! while the corrections still shrink by `ρ > ½` per step, the estimate is
+//! the rest of that geometric series, `ρ/(1 − ρ) ‖ΔX‖`. The method of
+//! multipliers can contract slowly (its rate is `max_i 1/(1 + w²μ_i)`), so
+//! for penalty with [`Refine::Off`] a second correction is computed from the
+//! first applied to a copy, and the estimate is `‖ΔX₁‖ / (1 − ρ)` with
+//! `ρ = ‖ΔX₂‖/‖ΔX₁‖` (when `ρ < 1`). Above [`FORWARD_ERROR_WARNING`] a
+//! result is returned with a warning.
 //!
 //! **Stopping without a last correction** (exact formulations, [`Refine::Auto`]
 //! and [`Refine::Until`]). A correction is a solve with the same factor, so
@@ -255,6 +266,18 @@ pub fn refine(
         out.forward_error_estimate = size;
         if mode == Refine::Off {
             out.stop_reason = RefineStop::Off;
+            if track_constraints && size.is_finite() && size > 0.0 {
+                // The method of multipliers can contract slowly: measure
+                // its rate with a second correction from the first applied
+                // to a copy (the next solve restarts the multipliers), and
+                // count the corrections still to come.
+                let trial = &*x + &dx;
+                system.accept_correction();
+                if let Some(next) = system.correction(problem, &trial)? {
+                    let rate = max_row_norm(&next) / scale / size;
+                    out.forward_error_estimate = size * geometric_tail(rate);
+                }
+            }
             break;
         }
         let floor = CONVERGED_ULPS * f64::EPSILON * max_row_norm(x) / scale;
@@ -310,13 +333,32 @@ pub fn refine(
             break;
         }
     }
+    // Stopped while still contracting — at the step limit, or (the method
+    // of multipliers, whose slowest mode can contract by nearly 1 per step
+    // long before rounding matters) at a correction that did not shrink:
+    // the corrections still to come, at the rate of the last two applied.
+    let slow = out.stop_reason == RefineStop::StepLimit;
+    if slow && let [.., before, last] = out.corrections[..out.steps] {
+        let tail = last * (geometric_tail(last / before) - 1.0);
+        out.forward_error_estimate = out.forward_error_estimate.max(tail);
+    }
     if track_constraints {
         // `‖B (X − X*)‖ = ‖B X − D‖` and the rows of `B` have norm of order
         // one: the residual bounds the error from below.
         let r = *out.constraint_residuals.last().unwrap_or(&0.0);
         let last = *out.corrections.last().unwrap_or(&0.0);
         out.forward_error_estimate = out.forward_error_estimate.max(r);
-        if mode != Refine::Off && conflict_shows(r, last) {
+        let first = out.constraint_residuals[0];
+        // A residual above the conflict tolerance that the multiplier
+        // updates did not reduce (stopped by a correction that did not
+        // shrink, or by the step limit) is a conflict too: for consistent
+        // rows each update removes a fixed fraction of it.
+        let flat = matches!(
+            out.stop_reason,
+            RefineStop::Stagnated | RefineStop::StepLimit
+        ) && r > crate::report::CONFLICT_RELATIVE_TOLERANCE
+            && r >= FLAT_RESIDUAL * first;
+        if mode != Refine::Off && (conflict_shows(r, last) || flat) {
             out.stop_reason = RefineStop::ConflictingConstraints;
         }
     }
@@ -354,6 +396,23 @@ impl Contraction {
         } else {
             f64::INFINITY
         }
+    }
+}
+
+/// A hard-constraint residual still at this fraction of its size before
+/// the multiplier updates when they stop has not been reduced by them
+/// (see [`refine`]).
+const FLAT_RESIDUAL: f64 = 0.9;
+
+/// `1 / (1 − ρ)`, the sum of the corrections `1, ρ, ρ², …` of an iteration
+/// contracting by `ρ` per step, for `0 ≤ ρ < 1`; 1 otherwise (a correction
+/// that does not shrink is rounding noise, and then the first is the
+/// estimate).
+fn geometric_tail(rate: f64) -> f64 {
+    if rate.is_finite() && (0.0..1.0).contains(&rate) {
+        1.0 / (1.0 - rate)
+    } else {
+        1.0
     }
 }
 

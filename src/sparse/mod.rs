@@ -266,6 +266,34 @@ pub(crate) fn hard_residual(
     })
 }
 
+/// [`hard_residual`] as if evaluated in twice the working precision and
+/// rounded once (the products split exactly by a fused multiply–add, the
+/// sums compensated: Ogita, Rump & Oishi's Dot2). A row with a small
+/// remainder amplifies its rounding in the solution by the inverse of that
+/// remainder, and reproduces the same rounding when its residual is
+/// evaluated in working precision — where the residual reads zero; this
+/// one sees it.
+pub(crate) fn hard_residual_compensated(
+    b: SparseRowMatRef<'_, usize, f64>,
+    d: MatRef<'_, f64>,
+    x: MatRef<'_, f64>,
+) -> Mat<f64> {
+    let (ptr, cols, val) = (b.symbolic().row_ptr(), b.symbolic().col_idx(), b.val());
+    Mat::from_fn(b.nrows(), d.ncols(), |k, col| {
+        let (mut s, mut e) = (d[(k, col)], 0.0);
+        for p in ptr[k]..ptr[k + 1] {
+            let (a, y) = (-val[p], x[(cols[p], col)]);
+            let product = a * y;
+            let product_error = a.mul_add(y, -product);
+            let sum = s + product;
+            let bb = sum - s;
+            e += (s - (sum - bb)) + (product - bb) + product_error;
+            s = sum;
+        }
+        s + e
+    })
+}
+
 /// `out += s · Bᵀ D` for a sparse `B` (m × n, CSR) and a dense `D` (m × k).
 pub(crate) fn add_bt_times(
     b: SparseRowMatRef<'_, usize, f64>,

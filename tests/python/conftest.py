@@ -1,6 +1,11 @@
 """Shared helpers of the Python tests: generated meshes (no file needed),
 the CLI's fixed-and-handle scene, the shared meshes when they are there,
-and the `lse-deform` binary for the export-system round trip."""
+and the `lse-deform` binary for the export-system round trip.
+
+Under CI (the environment variable `CI` set to anything but empty, 0,
+false or no, as CI services and `.ci/run` do) a skipped test fails the
+run: a test that cannot run there (a missing module, mesh or binary)
+proves nothing, and must not pass as if it did."""
 
 import os
 import pathlib
@@ -53,11 +58,9 @@ def fixed_and_handle(V, fixed=0.2, handle=0.02):
 
 
 def shared_mesh(name):
-    """A mesh of ../shared/meshes (or /work/shared/meshes), or None."""
-    for base in (ROOT.parent / "shared" / "meshes", pathlib.Path("/work/shared/meshes")):
-        if (base / name).exists():
-            return base / name
-    return None
+    """A mesh of ../shared/meshes (next to the repository), or None."""
+    path = ROOT.parent / "shared" / "meshes" / name
+    return path if path.exists() else None
 
 
 def cli_binary():
@@ -87,3 +90,39 @@ def write_obj(path, V, F):
 @pytest.fixture
 def grid():
     return bumpy_grid()
+
+
+def in_ci():
+    """Whether `CI` is set (to anything but empty, 0, false or no)."""
+    return os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
+
+
+_SKIPPED = []
+
+
+def _note_skip(report):
+    if report.skipped and not hasattr(report, "wasxfail"):
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+        _SKIPPED.append("%s: %s" % (report.nodeid or "(collection)", reason))
+
+
+def pytest_runtest_logreport(report):
+    _note_skip(report)
+
+
+def pytest_collectreport(report):
+    _note_skip(report)
+
+
+def pytest_terminal_summary(terminalreporter):
+    if in_ci() and _SKIPPED:
+        terminalreporter.write_line(
+            "CI is set, so these skips fail the run:", red=True, bold=True
+        )
+        for line in _SKIPPED:
+            terminalreporter.write_line("  " + line, red=True)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if in_ci() and _SKIPPED and session.exitstatus == 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

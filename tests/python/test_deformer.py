@@ -83,3 +83,23 @@ def test_penalty_default_is_the_cli_default_and_refine_passes_through():
     assert np.abs(U - exact).max() <= 1e-9
     _, three = lse_deform.deform(V, F, (B_IDX, BC), refine=3)
     assert three["refinement"]["steps"] <= 3
+
+
+def test_a_conflicting_constraint_is_a_runtime_warning_naming_the_earlier_one():
+    # constraint 0 fixes vertex B_IDX[0]; the last one asks it elsewhere
+    v0 = int(B_IDX[0])
+    conflict = {"type": "position", "vertex": v0, "target": (BC[0] + [0.0, 0.0, 0.1]).tolist()}
+    cs = items(BC) + [conflict]
+    n = len(cs) - 1
+    message = "constraint %d conflicts with constraint 0 and was dropped" % n
+    with pytest.warns(RuntimeWarning, match=message):
+        U, report = lse_deform.deform(V, F, cs)
+    assert [c["index"] for c in report["conflicting"]] == [n]
+    assert any(w.startswith(message) for w in report["warnings"])
+    assert np.abs(U[v0] - BC[0]).max() <= 1e-12
+    # the Deformer's solve warns alike, every time
+    d = lse_deform.Deformer(V, F, cs)
+    d.precompute()
+    for _ in range(2):
+        with pytest.warns(RuntimeWarning, match=message):
+            d.solve()
