@@ -46,24 +46,6 @@
 //! first applied to a copy, and the estimate is `‖ΔX₁‖ / (1 − ρ)` with
 //! `ρ = ‖ΔX₂‖/‖ΔX₁‖` (when `ρ < 1`). Above [`FORWARD_ERROR_WARNING`] a
 //! result is returned with a warning.
-//!
-//! **Stopping without a last correction** (exact formulations, [`Refine::Auto`]
-//! and [`Refine::Until`]). A correction is a solve with the same factor, so
-//! it is as accurate, relatively, as the solve that produced `X₀`: if the
-//! factor's rounding leaves a relative error `ρ` in a solve
-//! (`ρ ≈ c ε κ(N)`), then `‖e₀‖ ≈ ρ ‖X‖` and every correction removes all
-//! but a fraction `ρ` of the error it corrects. The first correction thus
-//! measures the contraction: `ρ̂ = ‖ΔX₁‖ / ‖X‖`; later ones measure it
-//! directly, `‖ΔX_k‖ / ‖ΔX_{k−1}‖`, and the larger of the two is used.
-//! After applying `ΔX_k` the error left is at most `ρ̂/(1 − ρ̂) ‖ΔX_k‖`
-//! (above); when that is within [`CONVERGED_ULPS`] ulps of the solution,
-//! refinement stops, instead of computing one more correction only to see
-//! that it is rounding noise. The common well-conditioned case then costs
-//! one correction (the Bunny's first correction is about 1e-10 of the
-//! diagonal, `ρ̂` about 1e-10, the predicted error 1e-20). The estimate
-//! reported is that prediction, but never below the floor of
-//! [`CONVERGED_ULPS`] ulps. The method of multipliers (penalty) contracts by
-//! another law and keeps the measured stopping rule.
 
 use faer::Mat;
 use serde::Serialize;
@@ -82,17 +64,14 @@ pub enum Refine {
     /// computed and not applied).
     Off,
     /// Refine until a correction is below [`CONVERGED_ULPS`] ulps of the
-    /// solution's size, or the error it leaves is predicted to be (exact
-    /// formulations, module documentation), or a correction stops
-    /// shrinking, or [`AUTO_MAX_STEPS`] steps.
+    /// solution's size, stops shrinking, or [`AUTO_MAX_STEPS`] steps.
     #[default]
     Auto,
     /// Exactly this many steps unless a correction stops shrinking or
     /// reaches the rounding floor (then fewer).
     Steps(usize),
     /// As [`Refine::Auto`], and stop after applying a correction of at
-    /// most this size, or one that leaves an error predicted to be at most
-    /// this size (relative to the length scale, as the estimate).
+    /// most this size (relative to the length scale, as the estimate).
     /// The estimate is then that correction's size: the error before it,
     /// and an upper bound of the error after it while the iteration
     /// contracts by at most ½ per step (module documentation).
@@ -168,8 +147,7 @@ pub enum RefineStop {
     /// Refinement was off (one correction was computed for the estimate).
     #[default]
     Off,
-    /// A correction fell below [`CONVERGED_ULPS`] ulps of the solution, or
-    /// the error left after it is predicted to (module documentation).
+    /// A correction fell below [`CONVERGED_ULPS`] ulps of the solution.
     Converged,
     /// A correction was at most the tolerance of [`Refine::Until`].
     Tolerance,
@@ -253,7 +231,6 @@ pub fn refine(
     }
     let cap = mode.max_steps();
     let mut stalled = 0;
-    let mut contraction = Contraction::default();
     loop {
         let Some(dx) = system.correction(problem, x)? else {
             out.stop_reason = RefineStop::Exact;
@@ -288,7 +265,6 @@ pub fn refine(
             out.stop_reason = RefineStop::Stagnated;
             break;
         }
-        let predicted = contraction.error_after(size, max_row_norm(x) / scale);
         *x += &dx;
         system.accept_correction();
         out.steps += 1;
@@ -309,23 +285,10 @@ pub fn refine(
             out.stop_reason = RefineStop::Converged;
             break;
         }
-        // The exact formulations stop on the predicted error left
-        // (module documentation); `Steps(n)` runs its steps.
-        let predicted = if system.exact() && !matches!(mode, Refine::Steps(_)) {
-            predicted
-        } else {
-            f64::INFINITY
-        };
-        if predicted <= floor {
-            out.stop_reason = RefineStop::Converged;
-            out.forward_error_estimate = floor;
-            break;
-        }
         if let Refine::Until(tolerance) = mode
-            && size.min(predicted) <= tolerance
+            && size <= tolerance
         {
             out.stop_reason = RefineStop::Tolerance;
-            out.forward_error_estimate = size.min(predicted.max(floor));
             break;
         }
         if out.steps >= cap {
@@ -363,40 +326,6 @@ pub fn refine(
         }
     }
     Ok(out)
-}
-
-/// The contraction of refinement with an exact formulation's factor,
-/// estimated from the corrections seen so far (module documentation).
-#[derive(Debug, Default)]
-struct Contraction {
-    /// The first correction's size over the solution's (`‖ΔX₁‖ / ‖X‖`).
-    first: Option<f64>,
-    /// The size of the last correction.
-    last: Option<f64>,
-}
-
-impl Contraction {
-    /// Records correction `size` (relative to the length scale, as
-    /// `x_size`, the solution's largest row before it) and returns the
-    /// error predicted to remain once it is applied, `ρ̂/(1 − ρ̂) size`
-    /// (infinite when `ρ̂ ≥ 1` or nothing can be predicted).
-    fn error_after(&mut self, size: f64, x_size: f64) -> f64 {
-        let first = *self.first.get_or_insert(if x_size > 0.0 {
-            size / x_size
-        } else {
-            f64::INFINITY
-        });
-        let measured = self
-            .last
-            .map_or(0.0, |p| if p > 0.0 { size / p } else { 0.0 });
-        self.last = Some(size);
-        let rho = first.max(measured);
-        if rho.is_finite() && rho < 1.0 {
-            rho / (1.0 - rho) * size
-        } else {
-            f64::INFINITY
-        }
-    }
 }
 
 /// A hard-constraint residual still at this fraction of its size before
