@@ -38,9 +38,11 @@ pub const MESH_BYTES_PER_VERTEX: u64 = 32;
 /// Bytes of a loaded mesh per face: three `usize` and a line number.
 pub const MESH_BYTES_PER_FACE: u64 = 32;
 
-/// Bytes of parsing per byte of a constraints file: the JSON document tree
-/// (`serde_json::Value`, about 5× the text for arrays of small numbers) and
-/// the constraints built from it.
+/// Bytes of parsing per byte of a constraints file: the constraints, built
+/// as the file is read (no JSON document tree; `tests/parse_memory.rs`
+/// measures about 3 bytes per byte of a typical file, most of it the moment
+/// the list doubles its capacity), with room for files where every
+/// constraint names a group of its own.
 pub const CONSTRAINT_BYTES_PER_FILE_BYTE: u64 = 8;
 
 /// Bytes per entry of a Cholesky factor: the `f64` value and, amortised over
