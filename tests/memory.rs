@@ -1,12 +1,19 @@
-//! Requests and inputs designed to make the process allocate out of
+//! Requests and files designed to make the process allocate out of
 //! proportion to their size get a typed refusal before the allocation, and
 //! leave a server answering: a response basis of thousands of groups or
-//! beyond the memory budget (the editor, 413), and 10⁵ distinct groups
-//! (indexed, not scanned).
+//! beyond the memory budget (the editor, 413), Matrix Market headers that
+//! declare huge shapes (`solve`), and 10⁵ distinct groups (indexed, not
+//! scanned).
+//!
+//! The command-line cases run under `ulimit -v` (2 GiB of address space):
+//! before the checks, each of them allocated gigabytes and was aborted or
+//! ran out of memory there; now each ends with its typed message and exit
+//! code 2 within a few megabytes.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
-use std::process::{Child, Command, Stdio};
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
 use std::time::Instant;
 
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
@@ -232,4 +239,67 @@ fn a_basis_beyond_the_memory_budget_gets_413_and_changes_nothing() {
     // Under the budget the same server builds a basis.
     let (status, answer) = request(&s, "PUT", "/api/constraints", &many_groups(3));
     assert_eq!(status, 200, "{}", String::from_utf8_lossy(&answer));
+}
+
+// ---------------------------------------------------------------------------
+// Files
+
+/// `sh -c 'ulimit -v 2 GiB; exec lse-deform ARGS'` in `dir`.
+fn run_limited(dir: &Path, args: &[&str]) -> Output {
+    Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 2097152 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_lse-deform"))
+        .args(args)
+        .current_dir(dir)
+        .env_remove("LSE_MEMORY_LIMIT")
+        .output()
+        .unwrap()
+}
+
+/// Exit code 2 and one `error:` line holding every word.
+fn assert_refused(out: &Output, words: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{:?}: {stderr}", out.status);
+    let error = stderr
+        .lines()
+        .find(|l| l.starts_with("error:"))
+        .unwrap_or_else(|| panic!("no error line: {stderr}"));
+    for w in words {
+        assert!(error.contains(w), "expected {w:?} in: {error}");
+    }
+}
+
+const ONE_ROW: &str = "%%MatrixMarket matrix array real general\n1 3\n0\n0\n0\n";
+
+/// Two 66-byte files declaring 3·10⁸ columns with one entry each: refused
+/// from their headers (before: 3.8–11 GB allocated for the column
+/// pointers, then the same problem refused as singular).
+#[test]
+fn matrix_headers_declaring_huge_shapes_are_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let wide = "%%MatrixMarket matrix coordinate real general\n1 300000000 1\n1 1 1\n";
+    std::fs::write(dir.path().join("A.mtx"), wide).unwrap();
+    std::fs::write(dir.path().join("B.mtx"), wide).unwrap();
+    std::fs::write(dir.path().join("C.mtx"), ONE_ROW).unwrap();
+    std::fs::write(dir.path().join("D.mtx"), ONE_ROW).unwrap();
+    let out = run_limited(dir.path(), &["solve", ".", "-o", "x.mtx"]);
+    assert_refused(&out, &["300000000 unknowns", "no unique solution"]);
+
+    // A one-entry coordinate C of 3·10⁸ rows (2.3 GB as a dense matrix)
+    // for a 2-row A: the shapes are compared before C is expanded.
+    let square = "%%MatrixMarket matrix coordinate real general\n2 2 2\n1 1 1\n2 2 1\n";
+    std::fs::write(dir.path().join("A.mtx"), square).unwrap();
+    std::fs::write(
+        dir.path().join("B.mtx"),
+        "%%MatrixMarket matrix coordinate real general\n1 2 1\n1 1 1\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("C.mtx"),
+        "%%MatrixMarket matrix coordinate real general\n300000000 3 1\n1 1 1\n",
+    )
+    .unwrap();
+    let out = run_limited(dir.path(), &["solve", ".", "-o", "x.mtx"]);
+    assert_refused(&out, &["C must have as many rows as A", "C 300000000 × 3"]);
 }
