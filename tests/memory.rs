@@ -2,8 +2,9 @@
 //! proportion to their size get a typed refusal before the allocation, and
 //! leave a server answering: a response basis of thousands of groups or
 //! beyond the memory budget (the editor, 413), Matrix Market headers that
-//! declare huge shapes (`solve`), and 10⁵ distinct groups (indexed, not
-//! scanned).
+//! declare huge shapes (`solve`), streams that never end (`/dev/zero` as a
+//! matrix, a mesh or a constraints file), and 10⁵ distinct groups (indexed,
+//! not scanned).
 //!
 //! The command-line cases run under `ulimit -v` (2 GiB of address space):
 //! before the checks, each of them allocated gigabytes and was aborted or
@@ -302,4 +303,54 @@ fn matrix_headers_declaring_huge_shapes_are_refused_before_allocating() {
     .unwrap();
     let out = run_limited(dir.path(), &["solve", ".", "-o", "x.mtx"]);
     assert_refused(&out, &["C must have as many rows as A", "C 300000000 × 3"]);
+}
+
+/// Streams that never end, as a matrix, a mesh (a `.obj`, `.off` or `.ply`
+/// name for `/dev/zero`) or a constraints file: each refused from its
+/// first bytes (before: read until the allocator gave up).
+#[test]
+fn endless_streams_are_refused_not_read_to_exhaustion() {
+    let zero = Path::new("/dev/zero");
+    if !zero.exists() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("B.mtx"),
+        "%%MatrixMarket matrix coordinate real general\n1 2 1\n1 1 1\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("C.mtx"), ONE_ROW).unwrap();
+    std::fs::write(d.join("D.mtx"), ONE_ROW).unwrap();
+    let out = run_limited(
+        d,
+        &[
+            "solve",
+            "--a",
+            "/dev/zero",
+            "--b",
+            "B.mtx",
+            "--c",
+            "C.mtx",
+            "--d",
+            "D.mtx",
+            "-o",
+            "x.mtx",
+        ],
+    );
+    assert_refused(&out, &["/dev/zero, line 1", "longer than"]);
+
+    for name in ["zero.obj", "zero.off", "zero.ply"] {
+        std::os::unix::fs::symlink(zero, d.join(name)).unwrap();
+        let out = run_limited(d, &["info", name]);
+        assert_refused(&out, &["parse error", "line 1"]);
+    }
+
+    write_mesh(&generate::grid(3, 3).unwrap(), &d.join("grid.obj")).unwrap();
+    let out = run_limited(
+        d,
+        &["deform", "grid.obj", "-c", "/dev/zero", "-o", "out.obj"],
+    );
+    assert_refused(&out, &["malformed JSON at line 1, column 1"]);
 }
