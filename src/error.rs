@@ -162,7 +162,7 @@ pub enum MeshError {
     },
     /// A face has (numerically) zero area.
     #[error(
-        "face {face}{} (vertices {vertices:?}) has zero area ({area:e}): its angles and cotangent weights are undefined",
+        "face {face}{} (vertices {vertices:?}) has zero area ({area:e}): its angles and cotangent weights are undefined, so no cotangent Laplacian can be built on this rest shape (the uniform Laplacian needs no angles)",
         at_line(line)
     )]
     DegenerateFace {
