@@ -314,16 +314,16 @@ impl Deformer {
     pub fn group_members(&self, name: &str) -> Result<Vec<usize>, Error> {
         let members = self.constraints.group(name);
         if members.is_empty() {
+            // The first few names: a set can hold 10⁵ groups.
+            const SHOWN: usize = 20;
             let names = self.constraints.group_names();
+            let listed = match names.len() {
+                0 => "none".to_string(),
+                k if k <= SHOWN => names.join(", "),
+                k => format!("{}, … ({k} in all)", names[..SHOWN].join(", ")),
+            };
             return Err(ProblemError::BadUpdate {
-                message: format!(
-                    "there is no constraint group '{name}' (groups: {})",
-                    if names.is_empty() {
-                        "none".to_string()
-                    } else {
-                        names.join(", ")
-                    }
-                ),
+                message: format!("there is no constraint group '{name}' (groups: {listed})"),
             }
             .into());
         }

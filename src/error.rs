@@ -162,7 +162,7 @@ pub enum MeshError {
     },
     /// A face has (numerically) zero area.
     #[error(
-        "face {face}{} (vertices {vertices:?}) has zero area ({area:e}): its angles and cotangent weights are undefined",
+        "face {face}{} (vertices {vertices:?}) has zero area ({area:e}): its angles and cotangent weights are undefined, so no cotangent Laplacian can be built on this rest shape (the uniform Laplacian needs no angles)",
         at_line(line)
     )]
     DegenerateFace {
@@ -437,11 +437,6 @@ pub enum ProblemError {
         "no constraints: a Laplacian deformation needs at least one constraint that fixes a position"
     )]
     NoConstraints,
-    /// The chosen method needs at least one hard constraint.
-    #[error(
-        "no hard constraints: the null-space QR method needs at least one; give one constraint without \"weight\" or use --method penalty for soft-only problems"
-    )]
-    NoHardConstraints,
     /// A mesh component is free to translate.
     #[error(
         "mesh component {component} ({vertices} vertices, e.g. vertex {example_vertex}) is not pinned: no position, edge or face constraint touches it (relative constraints alone leave it free to translate), so the system is singular; add a constraint on it"

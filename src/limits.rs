@@ -4,7 +4,7 @@
 //! The budget is `LSE_MEMORY_LIMIT` when set (bytes, with an optional
 //! `K`, `M`, `G` or `T` suffix, powers of 1024), otherwise the memory the
 //! kernel reports as available (`MemAvailable` in `/proc/meminfo`) when the
-//! process starts using it, otherwise unlimited. Five estimates are checked
+//! process starts using it, otherwise unlimited. These estimates are checked
 //! against it, each before the memory is allocated:
 //!
 //! | what | estimate | where |
@@ -15,6 +15,14 @@
 //! | a dense Householder block | its reflectors, `8 k min(k, m)` bytes, and its dense `(k − m)²` block of the normal matrix | [`crate::backend::qr::DenseHouseholder`] |
 //! | a Cholesky factor | [`FACTOR_BYTES_PER_ENTRY`] × the factor's nnz from the symbolic analysis | every formulation, between analysis and numeric factorisation |
 //! | the `R` of a sparse QR of `Bᵀ` | 16 bytes × `nnz(R)` counted from the column elimination tree of `Bᵀ` (never forming `B Bᵀ`) | `sparse-givens` (each column order it tries) and `spqr`, before factoring |
+//! | a response basis of `G` groups | `8 k (3 (l + m) + 6 n)` bytes, `k = 3 + 4G` columns ([`crate::handle::HandleBasis::estimated_bytes`]) | [`crate::handle::HandleBasis::new`]; the editor before its precompute |
+//! | the four Matrix Market files of `solve` | from their headers together: 48 bytes per announced entry and 8 per column of `A` and `B`, and `C`, `D` dense | [`crate::mtx::read_system`], before any entry is read |
+//!
+//! What has no size up front is bounded as it is read: a stream (a pipe, a
+//! device) given as a mesh or constraints file is read up to the bytes
+//! whose estimate fits the budget and refused beyond, a line of a text mesh
+//! or Matrix Market file is at most 16 MiB or 1 MiB, and a Matrix Market
+//! file at most 256 bytes per value its size line announces.
 //!
 //! The estimates are deliberately rough (within a small factor): their job
 //! is to turn "killed by the kernel" into a message with numbers in it.
@@ -38,9 +46,11 @@ pub const MESH_BYTES_PER_VERTEX: u64 = 32;
 /// Bytes of a loaded mesh per face: three `usize` and a line number.
 pub const MESH_BYTES_PER_FACE: u64 = 32;
 
-/// Bytes of parsing per byte of a constraints file: the JSON document tree
-/// (`serde_json::Value`, about 5× the text for arrays of small numbers) and
-/// the constraints built from it.
+/// Bytes of parsing per byte of a constraints file: the constraints, built
+/// as the file is read (no JSON document tree; `tests/parse_memory.rs`
+/// measures about 3 bytes per byte of a typical file, most of it the moment
+/// the list doubles its capacity), with room for files where every
+/// constraint names a group of its own.
 pub const CONSTRAINT_BYTES_PER_FILE_BYTE: u64 = 8;
 
 /// Bytes per entry of a Cholesky factor: the `f64` value and, amortised over

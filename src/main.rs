@@ -701,8 +701,7 @@ fn solve(a: SolveArgs) -> Result<(), Error> {
         .unwrap_or_default();
     let bar = phase("reading the matrices");
     let t = std::time::Instant::now();
-    let (ma, mc) = (mtx::read_sparse(&pa)?, mtx::read_dense(&pc)?);
-    let (mb, md) = (mtx::read_sparse(&pb)?, mtx::read_dense(&pd)?);
+    let (ma, mc, mb, md) = mtx::read_system(&pa, &pc, &pb, &pd)?;
     let mut problem = LseProblem::from_parts(ma.as_ref(), mc.as_ref(), mb.as_ref(), md.as_ref())?;
     if let Some(rows) = meta.laplacian_rows {
         problem = problem.with_laplacian_rows(rows);

@@ -14,14 +14,20 @@
 //!   for `array` only `general`.
 //!
 //! Comment (`%`) and blank lines are skipped anywhere after the header.
-//! Everything else is checked and refused with a
+//! Lines end at `\n`, `\r\n` or a lone `\r`; a leading UTF-8 byte-order
+//! mark is skipped. Everything else is checked and refused with a
 //! [`MatrixFileError`] naming the file and the 1-based line: a bad header,
 //! missing or extra numbers, indices out of range, non-finite values
 //! (NaN, `inf`), more or fewer entries than the size line announces,
 //! non-UTF-8 text. Duplicate coordinate entries are summed (the convention
 //! of MATLAB and SciPy). Sizes are checked against the memory budget
-//! ([`crate::limits`]) before anything is allocated for them. The reader
-//! never panics, whatever the bytes.
+//! ([`crate::limits`]) before anything is allocated for them, and what is
+//! read is bounded whatever the source (a stream such as `/dev/zero` is
+//! refused, not read to exhaustion): a line is at most [`MAX_LINE_BYTES`],
+//! the file at most 256 bytes per announced value besides 16 MiB of header
+//! and comments. [`read_system`] reads the four files of `solve`, checking
+//! their headers together (shapes, entries, memory) before any entry. The
+//! reader never panics, whatever the bytes.
 //!
 //! **Writers.** Sparse matrices go through `sprs`'s Matrix Market writer
 //! (`sprs::io::write_matrix_market_to_bufwrite`, into a buffer we flush
@@ -118,6 +124,62 @@ enum Symmetry {
     Skew,
 }
 
+/// What a Matrix Market file's first lines (header and size line) say,
+/// before any entry is read: enough to check shapes and memory first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MatrixHeader {
+    /// Rows.
+    pub rows: usize,
+    /// Columns.
+    pub cols: usize,
+    /// `coordinate`: the entries its size line announces; `array`: `None`.
+    pub entries: Option<usize>,
+    /// `symmetric` or `skew-symmetric`: each entry off the diagonal stands
+    /// for two.
+    pub symmetric: bool,
+}
+
+impl MatrixHeader {
+    /// The most nonzeros the matrix can have: the announced entries (twice
+    /// for a symmetric file), or rows × cols for an array.
+    pub fn max_nonzeros(&self) -> u64 {
+        match self.entries {
+            Some(e) if self.symmetric => (e as u64).saturating_mul(2),
+            Some(e) => e as u64,
+            None => (self.rows as u64).saturating_mul(self.cols as u64),
+        }
+    }
+
+    /// Bytes of reading the file into the form it has: the entries and
+    /// their compressed copy ([`BYTES_PER_SPARSE_ENTRY`] each) and the
+    /// column pointers, or the dense array.
+    fn read_bytes(&self) -> u64 {
+        match self.entries {
+            Some(_) => self
+                .max_nonzeros()
+                .saturating_mul(BYTES_PER_SPARSE_ENTRY)
+                .saturating_add((self.cols as u64).saturating_add(1).saturating_mul(8)),
+            None => self.dense_bytes(),
+        }
+    }
+
+    /// Bytes of the matrix as a dense one.
+    fn dense_bytes(&self) -> u64 {
+        (self.rows as u64)
+            .saturating_mul(self.cols as u64)
+            .saturating_mul(8)
+    }
+}
+
+/// A file whose header and size line have been read; the entries next.
+struct Opened<'p, R: BufRead> {
+    lines: Lines<'p, R>,
+    header: MatrixHeader,
+    pattern: bool,
+    symmetry: Symmetry,
+    size_line: usize,
+}
+
 /// Reads a Matrix Market file (see the module documentation).
 pub fn read_matrix(path: &Path) -> Result<MatrixFile, Error> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
@@ -126,11 +188,18 @@ pub fn read_matrix(path: &Path) -> Result<MatrixFile, Error> {
 
 /// [`read_matrix`] from any reader; `path` names it in errors.
 pub fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile, Error> {
-    let mut lines = Lines {
-        inner: reader.lines(),
-        number: 0,
-        path,
-    };
+    open(reader, path)?.read_entries()
+}
+
+/// The header and size line of a Matrix Market file, without its entries.
+pub fn read_header(path: &Path) -> Result<MatrixHeader, Error> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    Ok(open(BufReader::new(file), path)?.header)
+}
+
+/// Reads the header and the size line.
+fn open<R: BufRead>(reader: R, path: &Path) -> Result<Opened<'_, R>, Error> {
+    let mut lines = Lines::new(reader, path);
     let err = |line: Option<usize>, message: String| -> Error {
         MatrixFileError {
             path: path.to_path_buf(),
@@ -145,6 +214,9 @@ pub fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile,
             "empty file (expected the header '%%MatrixMarket matrix …')".into(),
         )
     })?;
+    // A byte-order mark (which Windows editors write) is not part of the
+    // header.
+    let header = header.strip_prefix('\u{feff}').unwrap_or(&header);
     let lower = header.to_ascii_lowercase();
     let fields: Vec<&str> = lower.split_whitespace().collect();
     if fields.len() != 5 || fields[0] != "%%matrixmarket" || fields[1] != "matrix" {
@@ -152,7 +224,7 @@ pub fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile,
             Some(1),
             format!(
                 "expected the header '%%MatrixMarket matrix FORMAT FIELD SYMMETRY', found '{}'",
-                truncate(&header)
+                truncate(header)
             ),
         ));
     }
@@ -245,13 +317,135 @@ pub fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile,
             ),
         ));
     }
-    if sparse {
-        read_coordinate(
-            &mut lines, rows, cols, dims[2], pattern, symmetry, size_line,
-        )
-    } else {
-        read_array(&mut lines, rows, cols, size_line)
+    let header = MatrixHeader {
+        rows,
+        cols,
+        entries: sparse.then(|| dims[2]),
+        symmetric: symmetry != Symmetry::General,
+    };
+    // The rest of the file may hold this many bytes: the entries' lines (a
+    // stream that goes on beyond is refused, not read to exhaustion).
+    let values = header.entries.map_or(header.max_nonzeros(), |e| e as u64);
+    lines.allow(values.saturating_mul(MAX_BYTES_PER_VALUE));
+    Ok(Opened {
+        lines,
+        header,
+        pattern,
+        symmetry,
+        size_line,
+    })
+}
+
+impl<R: BufRead> Opened<'_, R> {
+    /// Reads the entries (after checking their memory against the budget).
+    fn read_entries(mut self) -> Result<MatrixFile, Error> {
+        let MatrixHeader {
+            rows,
+            cols,
+            entries,
+            ..
+        } = self.header;
+        match entries {
+            Some(entries) => read_coordinate(
+                &mut self.lines,
+                rows,
+                cols,
+                entries,
+                self.pattern,
+                self.symmetry,
+                self.size_line,
+            ),
+            None => read_array(&mut self.lines, rows, cols, self.size_line),
+        }
     }
+}
+
+/// `A`, `C`, `B`, `D` of `min ‖AX − C‖ s.t. BX = D`.
+pub type SystemMatrices = (
+    SparseColMat<usize, f64>,
+    Mat<f64>,
+    SparseColMat<usize, f64>,
+    Mat<f64>,
+);
+
+/// The matrices of `min ‖AX − C‖ s.t. BX = D` from four Matrix Market
+/// files (what `lse-deform solve` reads): `A` and `B` sparse (an `array`
+/// file converted), `C` and `D` dense (a `coordinate` file expanded).
+///
+/// All four headers are read first, and before any entry is read: the
+/// shapes must fit together (the checks of
+/// [`crate::problem::LseProblem::from_parts`],
+/// [`ProblemError::Dimensions`]), `A` and `B` must announce at least one
+/// entry per unknown and `B` one per row (else an unknown or a constraint
+/// is empty: the problem has no unique solution), and the memory of
+/// reading all four (with the dense expansions) must fit the memory
+/// budget ([`ProblemError::TooLarge`]). So a few bytes of header cannot
+/// make the reader allocate for a matrix that would be refused anyway.
+pub fn read_system(a: &Path, c: &Path, b: &Path, d: &Path) -> Result<SystemMatrices, Error> {
+    fn open_file(path: &Path) -> Result<Opened<'_, BufReader<File>>, Error> {
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        open(BufReader::new(file), path)
+    }
+    let (fa, fc, fb, fd) = (open_file(a)?, open_file(c)?, open_file(b)?, open_file(d)?);
+    let (ha, hc, hb, hd) = (fa.header, fc.header, fb.header, fd.header);
+    crate::problem::check_part_shapes(
+        (ha.rows, ha.cols),
+        (hc.rows, hc.cols),
+        (hb.rows, hb.cols),
+        (hd.rows, hd.cols),
+    )?;
+    let n = ha.cols as u64;
+    let entries = ha.max_nonzeros().saturating_add(hb.max_nonzeros());
+    if entries < n {
+        return Err(ProblemError::Dimensions {
+            message: format!(
+                "A and B hold at most {entries} entries together (their size lines), fewer than the {n} unknowns: some unknown appears in no row of A or B, so the problem has no unique solution"
+            ),
+        }
+        .into());
+    }
+    if hb.max_nonzeros() < hb.rows as u64 {
+        return Err(ProblemError::Dimensions {
+            message: format!(
+                "B has {} rows but holds at most {} entries (its size line): some row of B has no entry, a constraint that says nothing about X",
+                hb.rows,
+                hb.max_nonzeros()
+            ),
+        }
+        .into());
+    }
+    // Reading A and B (an array file converted keeps its nonzeros), and C
+    // and D as read and as dense matrices.
+    let sparse = |h: &MatrixHeader| {
+        h.read_bytes().saturating_add(if h.entries.is_none() {
+            h.max_nonzeros().saturating_mul(16)
+        } else {
+            0
+        })
+    };
+    let dense = |h: &MatrixHeader| {
+        h.dense_bytes().saturating_add(if h.entries.is_some() {
+            h.read_bytes()
+        } else {
+            0
+        })
+    };
+    let total = sparse(&ha)
+        .saturating_add(sparse(&hb))
+        .saturating_add(dense(&hc))
+        .saturating_add(dense(&hd));
+    crate::limits::check(total, || {
+        format!(
+            "reading A ({} × {}), C ({} × {}), B ({} × {}) and D ({} × {}) would need",
+            ha.rows, ha.cols, hc.rows, hc.cols, hb.rows, hb.cols, hd.rows, hd.cols
+        )
+    })
+    .map_err(|detail| Error::from(ProblemError::TooLarge { detail }))?;
+    let ma = fa.read_entries()?.into_sparse();
+    let mc = fc.read_entries()?.into_dense(c)?;
+    let mb = fb.read_entries()?.into_sparse();
+    let md = fd.read_entries()?.into_dense(d)?;
+    Ok((ma, mc, mb, md))
 }
 
 fn truncate(s: &str) -> String {
@@ -420,15 +614,51 @@ fn parse_value(t: &str) -> Result<f64, String> {
     }
 }
 
+/// The longest line read: an entry's line is a few dozen bytes, and a
+/// stream without line breaks (`/dev/zero`) is refused here instead of
+/// being read into memory to exhaustion.
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Bytes a file may hold besides its entries' lines (header, size line,
+/// comments).
+const HEADER_BYTES: u64 = 16 << 20;
+
+/// Bytes a file may hold per value its size line announces (an entry's
+/// line is at most about 60).
+const MAX_BYTES_PER_VALUE: u64 = 256;
+
 /// Lines with their 1-based numbers; I/O and UTF-8 errors become errors
-/// naming the line.
+/// naming the line. A line ends at `\n`, `\r\n` or a lone `\r` (classic
+/// Mac OS); lines are at most [`MAX_LINE_BYTES`], and the file at most the
+/// bytes [`Lines::allow`] granted.
 struct Lines<'p, R: BufRead> {
-    inner: std::io::Lines<R>,
+    inner: R,
     number: usize,
     path: &'p Path,
+    /// The last line ended in `\r`: a `\n` next belongs to it.
+    after_cr: bool,
+    /// Bytes that may still be read.
+    remaining: u64,
+    line: Vec<u8>,
 }
 
-impl<R: BufRead> Lines<'_, R> {
+impl<'p, R: BufRead> Lines<'p, R> {
+    fn new(inner: R, path: &'p Path) -> Self {
+        Lines {
+            inner,
+            number: 0,
+            path,
+            after_cr: false,
+            remaining: HEADER_BYTES,
+            line: Vec::new(),
+        }
+    }
+
+    /// Lets `bytes` more be read.
+    fn allow(&mut self, bytes: u64) {
+        self.remaining = self.remaining.saturating_add(bytes);
+    }
+
     fn error(&self, line: Option<usize>, message: String) -> Error {
         MatrixFileError {
             path: self.path.to_path_buf(),
@@ -439,16 +669,68 @@ impl<R: BufRead> Lines<'_, R> {
     }
 
     fn next_raw(&mut self) -> Result<Option<String>, Error> {
-        match self.inner.next() {
-            None => Ok(None),
-            Some(Ok(s)) => {
-                self.number += 1;
-                Ok(Some(s))
+        self.line.clear();
+        let mut read_any = false;
+        loop {
+            let available = match self.inner.fill_buf() {
+                Ok(b) => b,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    return Err(
+                        self.error(Some(self.number + 1), format!("cannot read the line: {e}"))
+                    );
+                }
+            };
+            if available.is_empty() {
+                break;
             }
-            Some(Err(e)) => {
-                self.number += 1;
-                Err(self.error(Some(self.number), format!("cannot read the line: {e}")))
+            if self.after_cr {
+                self.after_cr = false;
+                if available[0] == b'\n' {
+                    self.inner.consume(1);
+                    continue;
+                }
             }
+            read_any = true;
+            let end = available.iter().position(|&b| b == b'\n' || b == b'\r');
+            let take = end.unwrap_or(available.len());
+            if self.line.len() + take > MAX_LINE_BYTES {
+                return Err(self.error(
+                    Some(self.number + 1),
+                    format!(
+                        "the line is longer than {MAX_LINE_BYTES} bytes (not a Matrix Market file?)"
+                    ),
+                ));
+            }
+            let consumed = take + usize::from(end.is_some());
+            if consumed as u64 > self.remaining {
+                return Err(self.error(
+                    Some(self.number + 1),
+                    format!(
+                        "the file goes on beyond the size its size line allows ({MAX_BYTES_PER_VALUE} bytes per entry and {} for the header and comments)",
+                        crate::limits::format_bytes(HEADER_BYTES)
+                    ),
+                ));
+            }
+            self.remaining -= consumed as u64;
+            self.line.extend_from_slice(&available[..take]);
+            if let Some(i) = end {
+                self.after_cr = available[i] == b'\r';
+                self.inner.consume(consumed);
+                break;
+            }
+            self.inner.consume(consumed);
+        }
+        if !read_any {
+            return Ok(None);
+        }
+        self.number += 1;
+        match std::str::from_utf8(&self.line) {
+            Ok(s) => Ok(Some(s.to_string())),
+            Err(_) => Err(self.error(
+                Some(self.number),
+                "cannot read the line: stream did not contain valid UTF-8".into(),
+            )),
         }
     }
 
@@ -635,6 +917,148 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(line_of(e), Some(3));
+    }
+
+    /// A byte-order mark (as Windows editors write, and as a constraints
+    /// file may start) is skipped; lines may end in `\r\n` or a lone `\r`
+    /// (which used to make the whole file its "header").
+    #[test]
+    fn byte_order_marks_and_every_line_ending_are_read() {
+        let lf = "%%MatrixMarket matrix coordinate real general\n% c\n2 3 2\n1 1 2.5\n2 3 -1\n";
+        let expected = read(lf).unwrap().into_sparse().to_dense();
+        for text in [
+            format!("\u{feff}{lf}"),
+            lf.replace('\n', "\r\n"),
+            lf.replace('\n', "\r"),
+            format!("\u{feff}{}", lf.replace('\n', "\r")),
+            lf.trim_end().to_string(),
+        ] {
+            let m = read(&text)
+                .unwrap_or_else(|e| panic!("{text:?}: {e}"))
+                .into_sparse()
+                .to_dense();
+            assert_eq!(m, expected, "{text:?}");
+        }
+        // Line numbers count `\r` line ends too.
+        let e =
+            read("%%MatrixMarket matrix coordinate real general\r2 2 1\r\r3 1 1\r").unwrap_err();
+        assert_eq!(line_of(e), Some(4));
+        // A header that is not one is shown as its first line only.
+        let e = read("%%MatrixMarket matrix coordinate real\r2 2 1\r1 1 1\r").unwrap_err();
+        let message = e.to_string();
+        assert!(
+            message.ends_with("found '%%MatrixMarket matrix coordinate real'"),
+            "{message}"
+        );
+    }
+
+    /// An endless stream is refused early, whatever it holds: one endless
+    /// line, endless comment lines, endless blank lines after the entries.
+    #[test]
+    fn endless_streams_are_refused_at_a_size_bound() {
+        use std::io::Read;
+        let path = Path::new("stream");
+        let e = read_matrix_from(BufReader::new(std::io::repeat(0)), path).unwrap_err();
+        assert!(
+            e.to_string().contains("line 1: the line is longer than"),
+            "{e}"
+        );
+        let comments = b"%%MatrixMarket matrix coordinate real general\n"
+            .chain(std::io::repeat(b'%').take(10))
+            .chain(&b"\n"[..])
+            .chain(std::io::repeat(b'\n'));
+        let e = read_matrix_from(BufReader::new(comments), path).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("beyond the size its size line allows"),
+            "{e}"
+        );
+        let entries = b"%%MatrixMarket matrix coordinate real general\n2 2 1\n1 1 1\n"
+            .chain(std::io::repeat(b'\n'));
+        let e = read_matrix_from(BufReader::new(entries), path).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("beyond the size its size line allows"),
+            "{e}"
+        );
+    }
+
+    /// `read_system` compares the four headers before reading entries: a
+    /// file whose entries could not even be read is not read when the
+    /// headers already say the problem is refused.
+    #[test]
+    fn read_system_checks_the_headers_together_first() {
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, text: &str| {
+            let p = dir.path().join(name);
+            std::fs::write(&p, text).unwrap();
+            p
+        };
+        let one_row = "%%MatrixMarket matrix array real general\n1 3\n0\n0\n0\n";
+        let garbage = "x y z\n";
+        let a = write(
+            "A.mtx",
+            &format!("%%MatrixMarket matrix coordinate real general\n1 300000000 1\n{garbage}"),
+        );
+        let b = write(
+            "B.mtx",
+            &format!("%%MatrixMarket matrix coordinate real general\n1 300000000 1\n{garbage}"),
+        );
+        let (c, d) = (write("C.mtx", one_row), write("D.mtx", one_row));
+        let e = read_system(&a, &c, &b, &d).unwrap_err();
+        assert!(
+            matches!(e, Error::Problem(ProblemError::Dimensions { .. })),
+            "{e}"
+        );
+        assert!(
+            e.to_string().contains("fewer than the 300000000 unknowns"),
+            "{e}"
+        );
+        // A row of B without an entry.
+        let a2 = write(
+            "A2.mtx",
+            "%%MatrixMarket matrix coordinate real general\n2 2 2\n1 1 1\n2 2 1\n",
+        );
+        let b2 = write(
+            "B2.mtx",
+            &format!("%%MatrixMarket matrix coordinate real general\n2 2 1\n{garbage}"),
+        );
+        let d2 = write("D2.mtx", "%%MatrixMarket matrix array real general\n2 3\n");
+        let c2 = write(
+            "C2.mtx",
+            "%%MatrixMarket matrix coordinate real general\n2 3 1\n1 1 1\n",
+        );
+        let e = read_system(&a2, &c2, &b2, &d2).unwrap_err();
+        assert!(e.to_string().contains("some row of B has no entry"), "{e}");
+        // Shapes, before C's one entry is expanded into 3·10⁸ rows.
+        let b3 = write(
+            "B3.mtx",
+            "%%MatrixMarket matrix coordinate real general\n1 2 1\n1 1 1\n",
+        );
+        let c3 = write(
+            "C3.mtx",
+            &format!("%%MatrixMarket matrix coordinate real general\n300000000 3 1\n{garbage}"),
+        );
+        let e = read_system(&a2, &c3, &b3, &d).unwrap_err();
+        assert!(
+            e.to_string().contains("C must have as many rows as A"),
+            "{e}"
+        );
+        // B with no rows is a problem without hard constraints.
+        let b0 = write(
+            "B0.mtx",
+            "%%MatrixMarket matrix coordinate real general\n0 2 0\n",
+        );
+        let d0 = write("D0.mtx", "%%MatrixMarket matrix array real general\n0 3\n");
+        let c4 = write(
+            "C4.mtx",
+            "%%MatrixMarket matrix array real general\n2 3\n1\n2\n3\n4\n5\n6\n",
+        );
+        let (ma, mc, mb, md) = read_system(&a2, &c4, &b0, &d0).unwrap();
+        assert_eq!(
+            (ma.nrows(), mc.ncols(), mb.nrows(), md.nrows()),
+            (2, 3, 0, 0)
+        );
     }
 
     #[test]

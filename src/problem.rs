@@ -587,38 +587,54 @@ fn check_shapes(
     b: SparseColMatRef<'_, usize, f64>,
     d: MatRef<'_, f64>,
 ) -> Result<(), ProblemError> {
+    check_part_shapes(
+        (a.nrows(), a.ncols()),
+        (c.nrows(), c.ncols()),
+        (b.nrows(), b.ncols()),
+        (d.nrows(), d.ncols()),
+    )
+}
+
+/// The shape checks of [`LseProblem::from_parts`] on `(rows, cols)` alone
+/// (a reader checks them before it reads any entry).
+pub(crate) fn check_part_shapes(
+    a: (usize, usize),
+    c: (usize, usize),
+    b: (usize, usize),
+    d: (usize, usize),
+) -> Result<(), ProblemError> {
     let dims = |message: String| Err(ProblemError::Dimensions { message });
-    let shape = |r: usize, c: usize| format!("{r} × {c}");
+    let shape = |(r, c): (usize, usize)| format!("{r} × {c}");
     let all = format!(
         "A is {}, C {}, B {}, D {}",
-        shape(a.nrows(), a.ncols()),
-        shape(c.nrows(), c.ncols()),
-        shape(b.nrows(), b.ncols()),
-        shape(d.nrows(), d.ncols())
+        shape(a),
+        shape(c),
+        shape(b),
+        shape(d)
     );
-    if a.ncols() == 0 {
+    if a.1 == 0 {
         return dims(format!("no unknowns ({all})"));
     }
-    if b.ncols() != a.ncols() {
+    if b.1 != a.1 {
         return dims(format!(
             "A and B must have the same number of columns (unknowns): {all}"
         ));
     }
-    if c.nrows() != a.nrows() {
+    if c.0 != a.0 {
         return dims(format!("C must have as many rows as A: {all}"));
     }
-    if d.nrows() != b.nrows() {
+    if d.0 != b.0 {
         return dims(format!("D must have as many rows as B: {all}"));
     }
-    if c.ncols() != d.ncols() {
+    if c.1 != d.1 {
         return dims(format!(
             "C and D must have the same number of columns (right-hand sides): {all}"
         ));
     }
-    if c.ncols() == 0 {
+    if c.1 == 0 {
         return dims(format!("C and D need at least one column: {all}"));
     }
-    if a.nrows() + b.nrows() == 0 {
+    if a.0 == 0 && b.0 == 0 {
         return dims(format!("A and B have no rows: {all}"));
     }
     Ok(())

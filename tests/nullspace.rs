@@ -198,25 +198,83 @@ proptest! {
     }
 }
 
+/// Soft constraints alone (`B` with no rows): the null-space method solves
+/// the plain least-squares problem (`Q = I`, nothing eliminated) like every
+/// other method, on a mesh and as general matrices (it used to refuse it,
+/// advising a constraint without "weight").
 #[test]
-fn no_hard_constraint_is_a_clear_error() {
+fn no_hard_constraint_solves_like_the_other_methods() {
+    use lse_deform::{FormulationChoice, LseSolver, Method, QrKind};
     let mesh = random_surface(4, 4, 1);
-    let p = mesh.positions()[3];
-    let set = ConstraintSet::from_vec(vec![Constraint::soft(
-        ConstraintKind::Position {
-            vertex: 3,
-            target: p,
-        },
-        1.0,
-    )])
+    let p = mesh.positions();
+    let set = ConstraintSet::from_vec(
+        [
+            (3, [0.2, 0.0, 0.1]),
+            (12, [0.0, -0.3, 0.4]),
+            (20, [0.1, 0.1, 0.1]),
+        ]
+        .into_iter()
+        .map(|(v, d): (usize, [f64; 3])| {
+            let target = [p[v][0] + d[0], p[v][1] + d[1], p[v][2] + d[2]];
+            Constraint::soft(ConstraintKind::Position { vertex: v, target }, 2.0)
+        })
+        .collect(),
+    )
     .unwrap();
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
-    let err = d.precompute(&NullSpaceQr::default()).err().unwrap();
-    assert!(
-        matches!(err, Error::Problem(ProblemError::NoHardConstraints)),
-        "{err}"
-    );
-    assert!(err.to_string().contains("--method penalty"));
+    let choices: Vec<FormulationChoice> = [
+        (Method::NullSpaceQr, QrKind::SparseGivens),
+        (Method::NullSpaceQr, QrKind::DenseHouseholder),
+        (Method::Kkt, QrKind::SparseGivens),
+        (Method::Eliminate, QrKind::SparseGivens),
+        (Method::Penalty, QrKind::SparseGivens),
+    ]
+    .into_iter()
+    .map(|(method, qr)| FormulationChoice {
+        qr,
+        weight: Some(1e3),
+        ..FormulationChoice::new(method)
+    })
+    .collect();
+    let mut solutions = Vec::new();
+    let mut general = Vec::new();
+    for choice in &choices {
+        let formulation = choice.build().unwrap();
+        let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set.clone()).unwrap();
+        assert_eq!(d.problem().b().nrows(), 0);
+        d.precompute(formulation.as_ref())
+            .unwrap_or_else(|e| panic!("{:?}: {e}", choice.method));
+        solutions.push(d.solve_matrix().unwrap());
+        // The same matrices as a general problem.
+        let problem = d.problem();
+        let no_rows =
+            faer::sparse::SparseColMat::<usize, f64>::try_new_from_triplets(0, problem.n(), &[])
+                .unwrap();
+        let parts = lse_deform::problem::LseProblem::from_parts(
+            problem.a().as_ref(),
+            problem.c().as_ref(),
+            no_rows.as_ref(),
+            problem.d().as_ref(),
+        )
+        .unwrap();
+        let mut solver = LseSolver::new(parts);
+        solver
+            .precompute(formulation.as_ref())
+            .unwrap_or_else(|e| panic!("{:?} (general): {e}", choice.method));
+        general.push(solver.solve().unwrap());
+    }
+    for (k, choice) in choices.iter().enumerate() {
+        for (x, first, what) in [
+            (&solutions[k], &solutions[0], "mesh"),
+            (&general[k], &general[0], "general"),
+        ] {
+            let diff = relative_difference(x, first);
+            assert!(
+                diff < 1e-9,
+                "{:?} {what}: relative difference {diff:e}",
+                choice.method
+            );
+        }
+    }
 }
 
 #[test]

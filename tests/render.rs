@@ -189,3 +189,92 @@ fn bad_inputs_are_one_line_errors_with_exit_code_2() {
     }
     assert!(!Path::new(&out).exists());
 }
+
+/// `deform` pulls the three corners of a face to one point: the mesh it
+/// writes has faces of zero area. It reads back (with a warning naming
+/// them), renders (alone and over the original), and deforms again with the
+/// uniform Laplacian; as the rest shape of the cotangent Laplacian it is
+/// refused naming the face and why. (Before, every reader refused it.)
+#[test]
+fn a_deformation_that_collapses_a_face_renders_and_reads_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = p(dir.path(), "grid.obj");
+    let o = run(&["generate", "grid", "--vertices", "100", "-o", &mesh]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let first = lse_deform::mesh::read_mesh(Path::new(&mesh))
+        .unwrap()
+        .mesh
+        .faces()[0];
+    let last = lse_deform::mesh::read_mesh(Path::new(&mesh))
+        .unwrap()
+        .mesh
+        .n_vertices()
+        - 1;
+    let mut constraints: Vec<String> = first
+        .iter()
+        .map(|v| format!(r#"{{"type": "position", "vertex": {v}, "target": [0.5, 0.5, 0]}}"#))
+        .collect();
+    constraints.push(format!(
+        r#"{{"type": "position", "vertex": {last}, "target": [1, 1, 0]}}"#
+    ));
+    let scene = p(dir.path(), "collapse.json");
+    std::fs::write(
+        &scene,
+        format!(r#"{{"constraints": [{}]}}"#, constraints.join(", ")),
+    )
+    .unwrap();
+    let collapsed = p(dir.path(), "collapsed.obj");
+    let o = run(&["deform", &mesh, "-c", &scene, "-o", &collapsed]);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // Read back: a warning, not an error.
+    let loaded = lse_deform::mesh::read_mesh(Path::new(&collapsed)).unwrap();
+    let warnings: Vec<String> = loaded
+        .mesh
+        .warnings()
+        .iter()
+        .map(|w| w.to_string())
+        .collect();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("zero area") && w.contains("face 0")),
+        "{warnings:?}"
+    );
+
+    // Rendered, alone and as a deformation of the original.
+    for args in [
+        vec!["render", collapsed.as_str()],
+        vec!["render", mesh.as_str(), collapsed.as_str()],
+    ] {
+        let png = p(dir.path(), "c.png");
+        let _ = std::fs::remove_file(&png);
+        let o = run(&[args.as_slice(), &["-o", &png]].concat());
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("zero area"), "{}", stderr(&o));
+        let (w, h, px) = read_png(&png);
+        assert!(w > 0 && h > 0 && px.iter().any(|&c| c != WHITE));
+    }
+
+    // Deformed again: the uniform Laplacian takes it; the cotangent one
+    // names the face.
+    let again = p(dir.path(), "again.obj");
+    let o = run(&[
+        "deform",
+        &collapsed,
+        "-c",
+        &scene,
+        "--laplacian",
+        "uniform",
+        "-o",
+        &again,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(&["deform", &collapsed, "-c", &scene, "-o", &again]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let error = stderr(&o);
+    assert!(
+        error.contains("error: face 0 (vertices") && error.contains("cotangent"),
+        "{error}"
+    );
+}

@@ -27,7 +27,10 @@
 //! format sent: a transform that would put a group's targets beyond the
 //! range of f32 is refused (422, `kind` `not-representable`, nothing
 //! changes), and `GET /api/positions?format=f32` answers 422 rather than
-//! send `inf`.
+//! send `inf`. A change whose work would not fit is refused before it
+//! starts with 413 (`kind` `too-large`, nothing changed, progress idle):
+//! a response basis of more than [`session::MAX_BASIS_GROUPS`] groups or
+//! beyond the memory budget ([`crate::limits`]), a factor beyond it.
 //!
 //! API (JSON unless stated): `PUT /api/constraints` (the constraints file
 //! format; answer: the report), `POST /api/transform`
@@ -62,7 +65,7 @@ use serde_json::{Map, Value, json};
 
 use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
 use crate::deform::Affine;
-use crate::error::{Error, ProblemError};
+use crate::error::{ConstraintError, Error, MeshError, ProblemError};
 use crate::mesh::{self, Mesh};
 pub use session::{FrameError, Session, Settings};
 
@@ -229,6 +232,13 @@ impl From<Error> for ApiError {
     fn from(e: Error) -> Self {
         let (status, kind) = match e {
             Error::Numerical(_) => (StatusCode::UNPROCESSABLE_ENTITY, "numerical"),
+            // Beyond the memory budget or the editor's caps: refused
+            // before the work, nothing changed.
+            Error::Problem(ProblemError::TooLarge { .. })
+            | Error::Constraint(ConstraintError::TooLarge { .. })
+            | Error::Mesh(MeshError::TooLarge { .. }) => {
+                (StatusCode::PAYLOAD_TOO_LARGE, "too-large")
+            }
             _ => (StatusCode::BAD_REQUEST, "bad-request"),
         };
         ApiError::new(status, kind, e.to_string())
@@ -405,12 +415,24 @@ impl App {
             p.stage = Some(name.to_string());
             p.started.get_or_insert_with(Instant::now);
         };
-        let built = session::build(&mesh, &constraints, &settings, &stage);
-        *lock(&self.progress) = Progress::default();
-        let built = built?;
+        // Idle again however the build ends (an error, or a panic that
+        // would otherwise leave `/api/progress` busy for good).
+        let built = {
+            let _idle = IdleOnDrop(&self.progress);
+            session::build(&mesh, &constraints, &settings, &stage)
+        }?;
         let mut s = lock(&self.session);
         s.install(constraints, settings, built);
         Ok(s.report())
+    }
+}
+
+/// Resets the progress when dropped.
+struct IdleOnDrop<'a>(&'a Mutex<Progress>);
+
+impl Drop for IdleOnDrop<'_> {
+    fn drop(&mut self) {
+        *lock(self.0) = Progress::default();
     }
 }
 

@@ -22,6 +22,14 @@ use crate::mesh::Mesh;
 /// (moving it falls back to full solves).
 pub const FIXED_GROUP: &str = "fixed";
 
+/// The most movable groups (other than [`FIXED_GROUP`]) the response basis
+/// takes: each adds four solved columns of `n` numbers, built at every
+/// change and read at every frame (past a few dozen groups a frame costs
+/// more than a full solve). More is refused with
+/// [`ProblemError::TooLarge`] before any work, as is a basis beyond the
+/// memory budget ([`HandleBasis::estimated_bytes`]).
+pub const MAX_BASIS_GROUPS: usize = 256;
+
 /// The switches of the page (the CLI's words).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -170,14 +178,15 @@ pub fn build(
         });
     }
     deformer.set_refine(Some(Refine::parse(&settings.refine)?));
+    let groups = constraints.group_names();
+    let movable: Vec<&str> = groups.into_iter().filter(|g| *g != FIXED_GROUP).collect();
+    check_basis_size(&deformer, movable.len())?;
     stage("precompute (factorisation)");
     let t = Instant::now();
     deformer.precompute(formulation.as_ref())?;
     let precompute_s = t.elapsed().as_secs_f64();
     stage("response basis");
     let t = Instant::now();
-    let groups = constraints.group_names();
-    let movable: Vec<&str> = groups.into_iter().filter(|g| *g != FIXED_GROUP).collect();
     let basis = if movable.is_empty() {
         None
     } else {
@@ -216,6 +225,24 @@ pub fn build(
             "ready_s": t0.elapsed().as_secs_f64(),
         }),
     })
+}
+
+/// Refuses a response basis of more than [`MAX_BASIS_GROUPS`] groups, or
+/// one beyond the memory budget, before the precompute.
+fn check_basis_size(deformer: &Deformer, groups: usize) -> Result<(), Error> {
+    let problem = deformer.problem();
+    let (n, l, m) = (problem.n(), problem.c().nrows(), problem.d().nrows());
+    if groups > MAX_BASIS_GROUPS {
+        let bytes = HandleBasis::estimated_bytes(n, l, m, groups);
+        return Err(ProblemError::TooLarge {
+            detail: format!(
+                "{groups} movable constraint groups, more than the {MAX_BASIS_GROUPS} the editor's response basis takes (each adds 4 solved columns of {n} numbers, read at every frame; about {} here): give fewer distinct group names",
+                crate::limits::format_bytes(bytes)
+            ),
+        }
+        .into());
+    }
+    HandleBasis::check_memory(n, l, m, groups)
 }
 
 /// How a frame was computed.

@@ -23,7 +23,7 @@ use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::cpu::clear_upper_vector_state;
-use crate::error::{Error, ProblemError};
+use crate::error::Error;
 use crate::problem::LseProblem;
 use crate::report::Report;
 use crate::sparse::NormalPattern;
@@ -76,9 +76,6 @@ impl Formulation for NullSpaceQr {
         problem: &LseProblem,
         report: &mut Report,
     ) -> Result<Box<dyn Prepared>, Error> {
-        if problem.b().nrows() == 0 {
-            return Err(ProblemError::NoHardConstraints.into());
-        }
         report.method = self.name();
         report.qr_backend = Some(self.qr.name().into());
         report.spd_backend = Some(self.spd.name().into());

@@ -49,8 +49,12 @@ pub struct IntrinsicTriangulation {
 }
 
 impl IntrinsicTriangulation {
-    /// The mesh's own triangulation with its Euclidean edge lengths.
+    /// The mesh's own triangulation with its Euclidean edge lengths. A face
+    /// of zero area is refused ([`MeshError::DegenerateFace`]).
     pub fn new(mesh: &Mesh) -> Result<IntrinsicTriangulation, MeshError> {
+        if let Some(e) = mesh.degenerate_face() {
+            return Err(e);
+        }
         let faces = mesh.faces();
         let p = mesh.positions();
         let m = 3 * faces.len();

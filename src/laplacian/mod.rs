@@ -109,11 +109,19 @@ impl std::str::FromStr for LaplacianKind {
     }
 }
 
-/// Builds the Laplacian `L` (n × n) of the given kind. Fails only for
+/// Builds the Laplacian `L` (n × n) of the given kind. Fails for the
+/// cotangent kinds on a mesh with a face of zero area (its angles and so its
+/// cotangent weights are undefined: [`MeshError::DegenerateFace`] naming the
+/// first one; the uniform Laplacian needs only the connectivity), and for
 /// [`LaplacianKind::IntrinsicDelaunay`] on a mesh that is not an oriented
 /// manifold.
 pub fn laplacian(mesh: &Mesh, kind: LaplacianKind) -> Result<SparseColMat<usize, f64>, MeshError> {
     let n = mesh.n_vertices();
+    if kind != LaplacianKind::Uniform
+        && let Some(e) = mesh.degenerate_face()
+    {
+        return Err(e);
+    }
     match kind {
         LaplacianKind::Uniform => {
             let pattern = AdjacencyPattern::new(n, mesh.faces());

@@ -207,15 +207,37 @@ pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
             detail,
         })?;
     }
-    let result = if gzip {
-        read_from(
-            BufReader::with_capacity(1 << 16, MultiGzDecoder::new(reader)),
-            format,
-            None,
-        )
+    // Whatever the source (a pipe, a device, a gzip bomb), no more is read
+    // than the memory budget allows for a file.
+    let cap = limits::memory_budget() / limits::MESH_BYTES_PER_FILE_BYTE;
+    let (result, beyond_cap) = if gzip {
+        let decoder = BufReader::with_capacity(1 << 16, MultiGzDecoder::new(reader));
+        let mut capped = io::Read::take(decoder, cap + 1);
+        (read_from(&mut capped, format, None), capped.limit() == 0)
     } else {
-        read_from(reader, format, size)
+        let mut capped = io::Read::take(reader, cap + 1);
+        (read_from(&mut capped, format, size), capped.limit() == 0)
     };
+    if beyond_cap && result.is_err() {
+        let detail = limits::check(
+            (cap + 1).saturating_mul(limits::MESH_BYTES_PER_FILE_BYTE),
+            || {
+                format!(
+                    "{} (more than {}{}) would need",
+                    path.display(),
+                    limits::format_bytes(cap),
+                    if gzip { " decompressed" } else { "" }
+                )
+            },
+        )
+        .err()
+        .unwrap_or_else(|| format!("{} delivered more than {cap} bytes", path.display()));
+        return Err(MeshError::TooLarge {
+            what: "mesh file",
+            detail,
+        }
+        .into());
+    }
     match result {
         Ok(mut loaded) => {
             if gzip != gzip_ext {
@@ -273,6 +295,13 @@ fn read_from<R: BufRead>(
         MeshFormat::Obj => read_obj(reader),
         MeshFormat::Off => read_off(reader, size),
         MeshFormat::Ply => {
+            let head = reader.fill_buf()?;
+            let n = head.len().min(3);
+            if head[..n] != b"ply"[..n] {
+                // Not a PLY file: the parser's message on what has arrived,
+                // without reading the rest of the stream (which may not end).
+                return read_ply(head);
+            }
             let mut bytes = Vec::new();
             reader.read_to_end(&mut bytes)?;
             read_ply(&bytes)
@@ -283,19 +312,26 @@ fn read_from<R: BufRead>(
 // ---------------------------------------------------------------------------
 // Shared helpers
 
+/// The longest line the text readers read: a stream without line breaks
+/// (`/dev/zero`) is refused here instead of read into memory to
+/// exhaustion. (A polygon of a million vertices fits.)
+pub const MAX_LINE_BYTES: usize = 16 << 20;
+
 /// A line-by-line reader over bytes: lines without their `\n` / `\r\n`,
-/// numbered from 1.
+/// numbered from 1, each at most [`MAX_LINE_BYTES`].
 struct LineReader<R> {
     reader: R,
+    format: &'static str,
     buf: Vec<u8>,
     line: usize,
     missing_final_newline: bool,
 }
 
 impl<R: BufRead> LineReader<R> {
-    fn new(reader: R) -> Self {
+    fn new(reader: R, format: &'static str) -> Self {
         LineReader {
             reader,
+            format,
             buf: Vec::new(),
             line: 0,
             missing_final_newline: false,
@@ -303,12 +339,25 @@ impl<R: BufRead> LineReader<R> {
     }
 
     /// The next line and its 1-based number, `None` at the end.
-    fn next_line(&mut self) -> io::Result<Option<(usize, &[u8])>> {
+    fn next_line(&mut self) -> Result<Option<(usize, &[u8])>, ReadError> {
         self.buf.clear();
-        if self.reader.read_until(b'\n', &mut self.buf)? == 0 {
+        let limit = MAX_LINE_BYTES as u64 + 1;
+        if io::Read::take(&mut self.reader, limit).read_until(b'\n', &mut self.buf)? == 0 {
             return Ok(None);
         }
         self.line += 1;
+        if self.buf.len() > MAX_LINE_BYTES {
+            return Err(MeshError::Parse {
+                format: self.format,
+                line: Some(self.line),
+                message: format!(
+                    "the line is longer than {} (not a text {} file?)",
+                    limits::format_bytes(MAX_LINE_BYTES as u64),
+                    self.format
+                ),
+            }
+            .into());
+        }
         if self.buf.last() == Some(&b'\n') {
             self.buf.pop();
         } else {
@@ -460,7 +509,7 @@ impl Builder {
 
 fn read_obj<R: BufRead>(reader: R) -> Result<LoadedMesh, ReadError> {
     const F: &str = "OBJ";
-    let mut lines = LineReader::new(reader);
+    let mut lines = LineReader::new(reader, F);
     let mut b = Builder::default();
     let mut poly: Vec<usize> = Vec::new();
     let mut unknown: Vec<(String, usize)> = Vec::new();
@@ -555,7 +604,9 @@ const MAX_BLIND_RESERVE: usize = 1 << 20;
 
 /// The next line with content (comments stripped), or a parse error saying
 /// what was expected.
-fn next_content<R: BufRead>(lines: &mut LineReader<R>) -> io::Result<Option<(usize, &[u8])>> {
+fn next_content<R: BufRead>(
+    lines: &mut LineReader<R>,
+) -> Result<Option<(usize, &[u8])>, ReadError> {
     loop {
         // Two-step to satisfy the borrow checker: test, then re-borrow.
         let has_content = match lines.next_line()? {
@@ -572,7 +623,7 @@ fn next_content<R: BufRead>(lines: &mut LineReader<R>) -> io::Result<Option<(usi
 fn read_off<R: BufRead>(reader: R, size: Option<u64>) -> Result<LoadedMesh, ReadError> {
     const F: &str = "OFF";
     let mut notes = Vec::new();
-    let mut lines = LineReader::new(reader);
+    let mut lines = LineReader::new(reader, F);
     let Some((first_line, text)) = next_content(&mut lines)? else {
         return Err(MeshError::Empty {
             vertices: 0,

@@ -8,12 +8,6 @@
 //! - at least one vertex and one face;
 //! - every coordinate finite;
 //! - every face index `< n_vertices`, no face repeating a vertex;
-//! - no face of (numerically) zero area: `|e1 × e2| > 64 ε ℓ²`, with `ℓ`
-//!   the face's longest edge — below that bound the cross product is
-//!   rounding noise and the face's angles are undefined (areas are computed
-//!   from squared lengths, so edge lengths must lie roughly within
-//!   `1e-75 ..= 1e75`: beyond that the squares underflow or overflow and
-//!   faces count as degenerate);
 //! - no two faces with the same vertex set;
 //! - every vertex used by at least one face (an unreferenced vertex has an
 //!   empty Laplacian row and makes every system singular).
@@ -25,6 +19,18 @@
 //! few such edges that carry no numerical risk. Operators that need a
 //! manifold surface (the intrinsic Delaunay Laplacian) refuse them with an
 //! error of their own.
+//!
+//! Faces of (numerically) zero area are *accepted* too and reported by
+//! [`Mesh::warnings`] ([`Mesh::degenerate_face`]: `|e1 × e2| ≤ 64 ε ℓ²`,
+//! with `ℓ` the face's longest edge — below that bound the cross product is
+//! rounding noise and the face's angles are undefined; areas are computed
+//! from squared lengths, so edge lengths must lie roughly within
+//! `1e-75 ..= 1e75`, beyond which faces count as degenerate). A deformation
+//! can collapse a face, and what needs only the connectivity and positions
+//! (writing, reading back, rendering, the uniform Laplacian) works on the
+//! result; the operators built from the rest shape's angles (the cotangent
+//! Laplacians, [`crate::laplacian::laplacian`]) refuse such a rest mesh
+//! with [`MeshError::DegenerateFace`], naming the face.
 
 use crate::error::MeshError;
 
@@ -52,6 +58,16 @@ pub struct Mesh {
 /// Something about a valid mesh a user should know.
 #[derive(Debug, Clone, PartialEq)]
 pub enum MeshWarning {
+    /// Faces of (numerically) zero area: fine to write, read and render,
+    /// refused as the rest shape of a cotangent Laplacian.
+    DegenerateFaces {
+        /// The first such face.
+        face: usize,
+        /// Its vertices.
+        vertices: [usize; 3],
+        /// How many there are.
+        total: usize,
+    },
     /// An edge shared by more than two faces.
     NonManifoldEdge {
         /// The edge's vertices (smaller first).
@@ -66,6 +82,14 @@ pub enum MeshWarning {
 impl std::fmt::Display for MeshWarning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            MeshWarning::DegenerateFaces {
+                face,
+                vertices,
+                total,
+            } => write!(
+                f,
+                "{total} face(s) of zero area, e.g. face {face} (vertices {vertices:?}): the cotangent Laplacians cannot be built on this mesh as a rest shape (its angles are undefined there); the uniform Laplacian and rendering take it"
+            ),
             MeshWarning::NonManifoldEdge { edge, faces, total } => write!(
                 f,
                 "{total} non-manifold edge(s), e.g. edge ({}, {}) used by {faces} faces; operators are assembled per face and stay well defined",
@@ -183,15 +207,58 @@ impl Mesh {
         }
     }
 
-    /// Warnings about a valid mesh (non-manifold edges).
+    /// Warnings about a valid mesh (faces of zero area, non-manifold
+    /// edges).
     pub fn warnings(&self) -> Vec<MeshWarning> {
-        topology::non_manifold_warning(self).into_iter().collect()
+        let degenerate =
+            self.first_degenerate_face()
+                .map(|(face, _)| MeshWarning::DegenerateFaces {
+                    face,
+                    vertices: self.faces[face],
+                    total: self
+                        .faces
+                        .iter()
+                        .filter(|f| self.face_is_degenerate(**f))
+                        .count(),
+                });
+        degenerate
+            .into_iter()
+            .chain(topology::non_manifold_warning(self))
+            .collect()
+    }
+
+    /// The first face of (numerically) zero area (see the module
+    /// documentation) as the error an operator that needs the faces'
+    /// angles returns, or `None`.
+    pub fn degenerate_face(&self) -> Option<MeshError> {
+        self.first_degenerate_face()
+            .map(|(face, area)| MeshError::DegenerateFace {
+                face,
+                vertices: self.faces[face],
+                area,
+                line: None,
+            })
+    }
+
+    /// The first face of zero area and its area.
+    fn first_degenerate_face(&self) -> Option<(usize, f64)> {
+        let p = &self.positions;
+        self.faces.iter().enumerate().find_map(|(f, &[a, b, c])| {
+            let (clearly_positive, area) = quality::area_is_clearly_positive(p[a], p[b], p[c]);
+            (!clearly_positive).then_some((f, area))
+        })
+    }
+
+    fn face_is_degenerate(&self, [a, b, c]: [usize; 3]) -> bool {
+        let p = &self.positions;
+        !quality::area_is_clearly_positive(p[a], p[b], p[c]).0
     }
 }
 
 /// Checks the invariants of the module documentation, reporting the first
 /// violation in this order: empty, non-finite coordinate, index out of range,
-/// repeated vertex, degenerate face, duplicate face, unreferenced vertex.
+/// repeated vertex, duplicate face, unreferenced vertex. (Faces of zero area
+/// are valid: see [`Mesh::degenerate_face`].)
 pub fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), MeshError> {
     if positions.is_empty() || faces.is_empty() {
         return Err(MeshError::Empty {
@@ -233,16 +300,6 @@ pub fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), Mesh
             return Err(MeshError::RepeatedVertex {
                 face: f,
                 vertex: b,
-                line: None,
-            });
-        }
-        let (clearly_positive, area) =
-            quality::area_is_clearly_positive(positions[a], positions[b], positions[c]);
-        if !clearly_positive {
-            return Err(MeshError::DegenerateFace {
-                face: f,
-                vertices: *face,
-                area,
                 line: None,
             });
         }

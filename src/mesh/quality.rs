@@ -15,8 +15,10 @@
 
 use super::Mesh;
 
-/// Triangle quality summary of a mesh. Every field is finite for a valid
-/// [`Mesh`] (faces have non-zero area and edges non-zero length).
+/// Triangle quality summary of a mesh. Every field is finite for a
+/// [`Mesh`] without faces of zero area (see [`Mesh::degenerate_face`]);
+/// such a face has an infinite (or, with coincident corners, NaN) aspect
+/// ratio.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Quality {
     /// Smallest interior angle over all triangles, in degrees (`0 <` this
