@@ -578,6 +578,10 @@ fn read_array(
     let path = lines.path;
     let total = (rows as u64).saturating_mul(cols as u64);
     check_memory(path, total.saturating_mul(8))?;
+    // An empty array may still announce a huge dimension (0 × 10¹²): no
+    // dimension may exceed what the budget holds, or every loop over the
+    // columns of the empty matrix runs for hours.
+    check_memory(path, (rows.max(cols) as u64).saturating_mul(8))?;
     let total = usize::try_from(total)
         .map_err(|_| lines.error(Some(size_line), "rows × cols overflows".into()))?;
     let mut values = Vec::with_capacity(total.min(1 << 24));
@@ -922,6 +926,17 @@ mod tests {
     /// A byte-order mark (as Windows editors write, and as a constraints
     /// file may start) is skipped; lines may end in `\r\n` or a lone `\r`
     /// (which used to make the whole file its "header").
+    /// Found by the fuzz target: an empty array announcing 10¹² columns
+    /// was accepted, and every loop over its columns ran for hours.
+    #[test]
+    fn an_empty_array_with_a_huge_dimension_is_refused() {
+        for header in ["0 1000000000000", "1000000000000 0"] {
+            let text = format!("%%MatrixMarket matrix array real general\n{header}\n");
+            let e = read(&text).err().expect(header);
+            assert!(e.to_string().contains("m.mtx"), "{e}");
+        }
+    }
+
     #[test]
     fn byte_order_marks_and_every_line_ending_are_read() {
         let lf = "%%MatrixMarket matrix coordinate real general\n% c\n2 3 2\n1 1 2.5\n2 3 -1\n";
