@@ -5,7 +5,7 @@
 //! both, and how much the middle cross-section shrinks.
 //! (b) Energy against iteration and against time, ours and libigl's
 //! `arap_solve` (through `experiments/arap_libigl.py` and a Python with the
-//! `igl` package: `$LSE_ARAP_PYTHON`, else `/work/venv-igl/bin/python` if it
+//! `igl` package: `$LSE_ARAP_PYTHON`, else `python3` if it
 //! exists; without one that part is skipped with a note) on the paper's
 //! position-only scene, from libigl's initial guess (rest pose, constrained
 //! vertices at their targets).
@@ -262,7 +262,7 @@ fn python_with_igl() -> Option<PathBuf> {
     let candidates: Vec<PathBuf> = std::env::var_os("LSE_ARAP_PYTHON")
         .map(PathBuf::from)
         .into_iter()
-        .chain(std::iter::once(PathBuf::from("/work/venv-igl/bin/python")))
+        .chain(std::iter::once(PathBuf::from("python3")))
         .collect();
     candidates.into_iter().find(|p| {
         Command::new(p)
@@ -586,7 +586,7 @@ fn section(ctx: &Context, bend: &Bend, peer: &Peer, exact: &Exact, case: &MeshCa
     let _ = writeln!(s, "{}\n", ctx.machine.one_line());
     let _ = writeln!(
         s,
-        "Regenerate: `cargo run --release --bin experiments -- arap{}` (libigl through `$LSE_ARAP_PYTHON` or /work/venv-igl).\n",
+        "Regenerate: `cargo run --release --bin experiments -- arap{}` (libigl through `$LSE_ARAP_PYTHON` or `python3`).\n",
         ctx.mesh_args()
     );
     let _ = writeln!(

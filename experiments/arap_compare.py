@@ -2,7 +2,7 @@
 """Ours (`lse-deform deform --energy arap`) against libigl's `arap_solve`,
 side by side in one run, on a position-only scene.
 
-    /work/venv-igl/bin/python experiments/arap_compare.py \\
+    $PY experiments/arap_compare.py \\
         target/release/lse-deform MESH.obj SCENE.json WORK_DIR --iterations 10,100,1000
 
 SCENE.json is a `lse-deform scene` file of hard position constraints. Both

@@ -3,7 +3,7 @@
 re-implemented from libigl's own building blocks, with the rotations fitted
 in double and in single precision.
 
-    /work/venv-igl/bin/python experiments/arap_float_check.py \\
+    $PY experiments/arap_float_check.py \\
         MESH.obj SCENE.json WORK_DIR --iterations 10,100,1000
 
 Run experiments/arap_compare.py with the same WORK_DIR first: it leaves our

@@ -1,7 +1,7 @@
 //! Triangle quality: angles and aspect ratios.
 //!
 //! The definitions match the statistics table of the test-mesh README
-//! (`/work/shared/meshes/README.md`):
+//! (`../shared/meshes/README.md`):
 //!
 //! - angles are the interior angles of each triangle, in degrees, computed
 //!   as `atan2(|u × v|, u · v)` for the two edge vectors `u`, `v` leaving the
