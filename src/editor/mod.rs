@@ -45,6 +45,7 @@
 
 pub mod conn;
 pub mod guard;
+pub mod in_process;
 pub mod session;
 
 use std::net::SocketAddr;

@@ -91,6 +91,14 @@ impl Settings {
         self.laplacian.parse::<LaplacianKind>().map_err(invalid)?;
         Refine::parse(&self.refine)?;
         self.formulation()?;
+        // Checked whatever the method: a weight kept for a later switch to
+        // `penalty` must already be one.
+        if !(self.weight.is_finite() && self.weight > 0.0) {
+            return Err(invalid(format!(
+                "weight {} must be a finite positive number",
+                self.weight
+            )));
+        }
         if self.energy != "laplacian" && self.energy != "arap" {
             return Err(invalid(format!(
                 "unknown energy '{}' (expected laplacian or arap)",
