@@ -149,9 +149,11 @@ impl Row {
         s
     }
 
-    /// Euclidean norm of the coefficient vector.
+    /// Euclidean norm of the coefficient vector, without overflow (an
+    /// edge with `t = 1e308` has coefficients near ±1e308, whose squares
+    /// are not doubles).
     pub fn norm(&self) -> f64 {
-        self.entries().iter().map(|e| e.1 * e.1).sum::<f64>().sqrt()
+        self.entries().iter().fold(0.0, |n, e| n.hypot(e.1))
     }
 }
 

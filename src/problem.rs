@@ -541,15 +541,17 @@ impl LseProblem {
         let range = self.b.symbolic().row_range(k);
         let cols = &self.b.symbolic().col_idx()[range.clone()];
         let vals = &self.b.val()[range];
-        let mut s = 0.0;
+        let mut s = 0.0f64;
         for c in 0..self.d.ncols() {
             let mut r = -self.d[(k, c)];
             for (&v, &a) in cols.iter().zip(vals) {
                 r += a * x[(v, c)];
             }
-            s += r * r;
+            // Without overflow: rows near ±1e308 have residuals whose
+            // squares are not doubles.
+            s = s.hypot(r);
         }
-        s.sqrt()
+        s
     }
 
     /// `‖A X − C‖_F`.

@@ -326,7 +326,14 @@ pub fn fill_solution_diagnostics(
         let r = problem.hard_residual(k, x);
         if !is_skipped[k] {
             max_kept = max_kept.max(r);
-        } else if r > tolerance * row_norm(problem, k) {
+        } else if r.is_nan() || r > tolerance * row_norm(problem, k) {
+            // Beyond the tolerance, or not even a finite number: never
+            // "redundant" (satisfied anyway) unless it is.
+            if !r.is_finite() {
+                report.warnings.push(format!(
+                    "hard constraint {index} is conflicting and its residual overflows a double (its coefficients or target are near the limit of the number range)"
+                ));
+            }
             conflicting.push(Conflict {
                 index,
                 residual: r * unit,
@@ -384,9 +391,7 @@ fn row_norm(problem: &crate::problem::LseProblem, k: usize) -> f64 {
     let b = problem.b();
     b.val()[b.symbolic().row_range(k)]
         .iter()
-        .map(|v| v * v)
-        .sum::<f64>()
-        .sqrt()
+        .fold(0.0, |n, v| n.hypot(*v))
 }
 
 /// The first vertex with a non-finite coordinate in `x`, if any.

@@ -487,3 +487,58 @@ proptest! {
         check_lse(&lse)?;
     }
 }
+
+/// Fixed case: an edge constraint with `t = 1e308` on an edge whose ends
+/// are both pinned depends on the two position rows, and its target (the
+/// origin) is far from `(1 − t)·p₀ + t·p₁ = 1e308·(0.25, 0, 0)`: it must be
+/// conflicting, with that residual (2.5e307, by hand). Its row's norm
+/// (`√2·1e308`) and residual overflow when squared; it used to be reported
+/// "redundant" (satisfied anyway), with exit code 0.
+#[test]
+fn an_edge_with_t_near_the_largest_double_is_conflicting_not_redundant() {
+    use lse_deform::constraints::{Constraint, ConstraintKind};
+    let mesh = lse_deform::mesh::generate::grid(4, 4).unwrap();
+    let p = mesh.positions().to_vec();
+    assert_eq!((p[0], p[1]), ([0.0; 3], [0.25, 0.0, 0.0]));
+    let mut cs = ConstraintSet::new();
+    for v in [0, 1, 24] {
+        cs.push(Constraint::hard(ConstraintKind::Position {
+            vertex: v,
+            target: p[v],
+        }))
+        .unwrap();
+    }
+    cs.push(Constraint::hard(ConstraintKind::Edge {
+        vertices: [0, 1],
+        t: 1e308,
+        target: [0.0; 3],
+    }))
+    .unwrap();
+    for qr in [QrKind::SparseGivens, QrKind::DenseHouseholder] {
+        let method = (Method::NullSpaceQr, qr);
+        let mut deformer =
+            Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone()).unwrap();
+        deformer
+            .precompute(formulation(method.0, method.1).as_ref())
+            .unwrap();
+        let report = deformer.solve().unwrap().report;
+        assert!(
+            report.redundant.is_empty(),
+            "{method:?}: {:?}",
+            report.redundant
+        );
+        let conflicts: Vec<(usize, f64)> = report
+            .conflicting
+            .iter()
+            .map(|c| (c.index, c.residual))
+            .collect();
+        assert_eq!(conflicts.len(), 1, "{method:?}: {conflicts:?}");
+        assert_eq!(conflicts[0].0, 3);
+        let expected = 2.5e307;
+        assert!(
+            (conflicts[0].1 - expected).abs() <= 1e-12 * expected,
+            "{method:?}: residual {:e}",
+            conflicts[0].1
+        );
+    }
+}
