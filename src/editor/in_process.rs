@@ -6,6 +6,7 @@
 //! errors) without the cost of a connection per request.
 
 use std::net::SocketAddr;
+use std::sync::OnceLock;
 
 pub use axum::body::{Body, Bytes};
 pub use axum::http;
@@ -36,10 +37,31 @@ pub struct Answer {
 /// An editor session served in process. `answer` may be called from
 /// several threads at once: requests then run concurrently, as on a real
 /// server (handlers on the calling threads, builds on the blocking pool).
+/// Every in-process editor shares one runtime, so that a new session (a
+/// fuzz input, a property-test case) costs no threads.
 pub struct InProcessEditor {
     service: TowerToHyperService<axum::Router>,
-    runtime: tokio::runtime::Runtime,
     token: String,
+}
+
+/// The runtime of every in-process editor, built on first use.
+fn runtime() -> Result<&'static tokio::runtime::Runtime, Error> {
+    static RUNTIME: OnceLock<Result<tokio::runtime::Runtime, String>> = OnceLock::new();
+    RUNTIME
+        .get_or_init(|| {
+            tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(1)
+                .enable_all()
+                .build()
+                .map_err(|e| e.to_string())
+        })
+        .as_ref()
+        .map_err(|e| {
+            Error::io(
+                "the in-process editor's runtime",
+                std::io::Error::other(e.clone()),
+            )
+        })
 }
 
 impl InProcessEditor {
@@ -61,14 +83,9 @@ impl InProcessEditor {
         }
         let address: SocketAddr = ADDRESS.parse().expect("a socket address");
         let guard = guard::Guard::new(address, "127.0.0.1", token.clone(), PUBLIC);
-        let runtime = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .enable_all()
-            .build()
-            .map_err(|e| Error::io("the in-process editor's runtime", e))?;
+        runtime()?;
         Ok(InProcessEditor {
             service: TowerToHyperService::new(router(app, guard)),
-            runtime,
             token,
         })
     }
@@ -80,7 +97,8 @@ impl InProcessEditor {
 
     /// The answer to `request`, body collected.
     pub fn answer(&self, request: Request<Body>) -> Answer {
-        self.runtime.block_on(async {
+        let runtime = runtime().expect("built by InProcessEditor::new");
+        runtime.block_on(async {
             let response = match self.service.call(request).await {
                 Ok(r) => r,
                 Err(never) => match never {},
