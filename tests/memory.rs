@@ -188,8 +188,8 @@ fn many_groups(groups: usize) -> Vec<u8> {
     cs.to_json().into_bytes()
 }
 
-/// A refused change: 413 `too-large` with `words` in the message, answered
-/// at once (the bound is generous; the time is printed), and the editor
+/// A refused change: 413 `too-large` with `words` in the message (the time
+/// it took is printed, not tested: speed belongs to the experiments), and the editor
 /// unchanged and answering: progress idle, the same constraints, a drag of
 /// the handle on the basis path.
 fn assert_refused_and_unchanged(s: &Server, body: &[u8], words: &[&str]) {
@@ -206,7 +206,6 @@ fn assert_refused_and_unchanged(s: &Server, body: &[u8], words: &[&str]) {
     for w in words {
         assert!(message.contains(w), "expected {w:?} in: {message}");
     }
-    assert!(seconds < 10.0, "refused after {seconds} s");
     let (status, progress) = request(s, "GET", "/api/progress", b"");
     assert_eq!(status, 200);
     assert_eq!(json(&progress)["busy"], false);
