@@ -140,7 +140,7 @@ impl LseSolver {
     /// warnings).
     pub fn solve(&mut self) -> Result<Mat<f64>, Error> {
         let mut x = Mat::zeros(self.problem.n(), self.problem.n_rhs());
-        self.solve_refined(x.as_mut(), true)?;
+        self.solve_refined(x.as_mut(), self.refine_mode(), true)?;
         self.diagnose(x.as_ref());
         Ok(x)
     }
@@ -159,12 +159,52 @@ impl LseSolver {
     /// ([`NumericalError::NonFiniteSolution`], naming the row of `X`). On
     /// error the contents of `x` are unspecified.
     pub fn solve_into(&mut self, x: MatMut<'_, f64>) -> Result<(), Error> {
-        self.solve_refined(x, false)
+        self.solve_refined(x, self.refine_mode(), false)
     }
 
-    /// The solve and, when refinement is on or `estimate` asks for it, the
-    /// refine phase (timed apart, `timings_s.refine`).
-    fn solve_refined(&mut self, mut x: MatMut<'_, f64>, estimate: bool) -> Result<(), Error> {
+    /// One solve into `x` without refinement, whatever the mode: an
+    /// iteration of a method that solves afresh at every step (ARAP's
+    /// global step, whose next local step absorbs the error of this solve),
+    /// refined once at its end with [`LseSolver::refine_solution`].
+    pub fn solve_unrefined_into(&mut self, x: MatMut<'_, f64>) -> Result<(), Error> {
+        self.solve_refined(x, Refine::Off, false)
+    }
+
+    /// Refines `x` (the unrefined solution of the current right-hand
+    /// sides, n × 3) as [`LseSolver::refine_mode`] says (with
+    /// [`Refine::Off`] one correction is computed for the forward-error
+    /// estimate and not applied), times it (`timings_s.refine`) and keeps
+    /// the refinement for [`LseSolver::diagnose`]'s estimate and warnings.
+    pub fn refine_solution(&mut self, x: &mut Mat<f64>) -> Result<&Refinement, Error> {
+        let mode = self.refine_mode();
+        let system = self
+            .system
+            .as_mut()
+            .ok_or_else(|| ProblemError::BadUpdate {
+                message: "refinement called before precompute".into(),
+            })?;
+        check_finite(x.as_ref())?;
+        let t = Instant::now();
+        let refinement = refine(system.as_mut(), &self.problem, x, mode)?;
+        self.report.timings_s.refine = t.elapsed().as_secs_f64();
+        Ok(self.last_refinement.insert(refinement))
+    }
+
+    /// The energy rows of `C` (all but the soft rows), for a caller that
+    /// rewrites them between solves (ARAP's rotations): the matrices and
+    /// the factor stay.
+    pub(crate) fn energy_rhs_mut(&mut self) -> MatMut<'_, f64> {
+        self.problem.energy_rhs_mut()
+    }
+
+    /// The solve and, when refinement (`mode`) is on or `estimate` asks for
+    /// it, the refine phase (timed apart, `timings_s.refine`).
+    fn solve_refined(
+        &mut self,
+        mut x: MatMut<'_, f64>,
+        mode: Refine,
+        estimate: bool,
+    ) -> Result<(), Error> {
         let (n, k) = (self.problem.n(), self.problem.n_rhs());
         if x.nrows() != n || x.ncols() != k {
             return Err(ProblemError::Dimensions {
@@ -176,7 +216,6 @@ impl LseSolver {
             }
             .into());
         }
-        let mode = self.refine_mode();
         let refining = mode != Refine::Off || estimate;
         let system = self
             .system

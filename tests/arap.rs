@@ -411,3 +411,66 @@ fn covariance_blocks_and_energy_from_covariance_match_the_direct_sums() {
         }
     }
 }
+
+/// ARAP goes through the crate's one solver driver: its report carries the
+/// same refinement warnings as the Laplacian path. A penalty weight of 1e4
+/// (relative to the problem's scale) on a scene with edge and relative
+/// rows, unrefined, leaves a forward error above the warning threshold
+/// (1e-8 of the length scale): `deform` on the same mesh and
+/// constraints warns about it, and so must ARAP's report, in the same
+/// words; once refined, neither warns. (ARAP used to keep its own factor
+/// and refinement, and reported no such warning.)
+#[test]
+fn arap_warns_about_its_forward_error_like_the_laplacian_path() {
+    use lse_deform::formulation::{FormulationChoice, Method, Refine};
+    use lse_deform::{Deformer, LaplacianKind};
+    let (nx, ny) = (8, 8);
+    let mesh = generate::grid(nx, ny).unwrap();
+    let constraints = bend_scene(&mesh, nx, ny);
+    let penalty = || {
+        FormulationChoice {
+            weight: Some(1e4),
+            ..FormulationChoice::new(Method::Penalty)
+        }
+        .build()
+        .unwrap()
+    };
+    let forward_error_warnings = |warnings: &[String]| -> Vec<String> {
+        warnings
+            .iter()
+            .filter(|w| w.contains("estimated forward error"))
+            .cloned()
+            .collect()
+    };
+    for refine in [Refine::Off, Refine::Auto] {
+        let mut laplacian =
+            Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone()).unwrap();
+        laplacian.set_refine(Some(refine));
+        laplacian.precompute(penalty().as_ref()).unwrap();
+        let deform = forward_error_warnings(&laplacian.solve().unwrap().report.warnings);
+
+        let mut arap =
+            ArapDeformer::new(mesh.clone(), constraints.clone(), ArapEnergy::SpokesAndRims)
+                .unwrap();
+        arap.set_refine(Some(refine));
+        arap.precompute(penalty().as_ref()).unwrap();
+        arap.initialize(ArapInit::Rest).unwrap();
+        arap.run(3, 0.0).unwrap();
+        let report = arap.finish().unwrap();
+        let arap_warnings = forward_error_warnings(&report.warnings);
+        assert_eq!(
+            deform.is_empty(),
+            refine == Refine::Auto,
+            "{refine:?}: {deform:?}"
+        );
+        assert_eq!(
+            arap_warnings.is_empty(),
+            refine == Refine::Auto,
+            "{refine:?}: {arap_warnings:?}"
+        );
+        for w in &arap_warnings {
+            assert!(w.starts_with("penalty: estimated forward error"), "{w}");
+            assert!(w.contains("refinement is off"), "{w}");
+        }
+    }
+}

@@ -75,13 +75,11 @@ use rayon::prelude::*;
 use crate::constraints::{ConstraintKind, ConstraintSet};
 use crate::cpu::clear_upper_vector_state;
 use crate::error::{Error, NumericalError, ProblemError};
-use crate::formulation::{Formulation, Prepared, Refine, refine};
+use crate::formulation::{Formulation, Refine};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
-use crate::report::{
-    ArapReport, ConflictSources, Report, conflict_warnings, fill_solution_diagnostics,
-    first_non_finite,
-};
+use crate::report::{ArapReport, Report, first_non_finite};
+use crate::solver::LseSolver;
 
 pub mod energy;
 pub mod rotations;
@@ -157,8 +155,11 @@ pub struct ArapDeformer {
     unit_constraints: ConstraintSet,
     /// The rest geometry in the problem's units.
     triangles: ArapTriangles,
-    problem: LseProblem,
-    system: Option<Box<dyn Prepared>>,
+    /// The global step's problem and factor: the driver every solve of the
+    /// crate goes through (its refinement rule, diagnostics and warnings).
+    solver: LseSolver,
+    /// The solver's report of the last precompute or
+    /// [`ArapDeformer::finish`], with the ARAP history.
     report: Report,
     /// Current positions (n × 3), in the problem's units.
     x: Mat<f64>,
@@ -173,15 +174,6 @@ pub struct ArapDeformer {
     vertex_energies: Vec<f64>,
     arap: ArapReport,
     init: ArapInit,
-    refine: Option<Refine>,
-    /// The warnings of set-up (the mesh's), which every precompute starts
-    /// from.
-    setup_warnings: Vec<String>,
-    /// The warnings of set-up and precompute ([`ArapDeformer::finish`] adds
-    /// those of the solution to a copy).
-    precompute_warnings: Vec<String>,
-    /// The earlier constraints each conflicting one contradicts.
-    conflict_sources: ConflictSources,
 }
 
 impl ArapDeformer {
@@ -230,23 +222,22 @@ impl ArapDeformer {
             soft_scale,
         )?;
         let x = Mat::from_fn(n, 3, |i, c| unit_mesh.positions()[i][c]);
-        let mesh_warnings: Vec<String> = mesh.warnings().iter().map(|w| w.to_string()).collect();
         let mut report = Report {
             laplacian: Some(format!("arap-{}", energy.name())),
-            warnings: mesh_warnings.clone(),
+            warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
             length_unit: unit,
             soft_weight_scale: Some(soft_scale.factor()),
             ..Report::default()
         };
         report.timings_s.setup = t.elapsed().as_secs_f64();
+        let solver = LseSolver::with_report(problem, report.clone());
         Ok(ArapDeformer {
             mesh,
             unit,
             constraints,
             unit_constraints,
             triangles,
-            problem,
-            system: None,
+            solver,
             report,
             x_next: x.clone(),
             x,
@@ -259,31 +250,15 @@ impl ArapDeformer {
                 ..ArapReport::default()
             },
             init: ArapInit::Rest,
-            refine: None,
-            precompute_warnings: mesh_warnings.clone(),
-            setup_warnings: mesh_warnings,
-            conflict_sources: ConflictSources::default(),
         })
     }
 
     /// Precompute: factors the global step's system with `formulation`,
     /// once for all iterations.
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
-        self.system = None;
-        let mut report = Report {
-            laplacian: self.report.laplacian.clone(),
-            warnings: self.setup_warnings.clone(),
-            length_unit: self.unit,
-            soft_weight_scale: self.report.soft_weight_scale,
-            ..Report::default()
-        };
-        report.timings_s.setup = self.report.timings_s.setup;
-        let system = formulation.precompute(&self.problem, &mut report)?;
-        self.conflict_sources = ConflictSources::new(system.skipped());
-        self.precompute_warnings = report.warnings.clone();
-        self.system = Some(system);
-        self.report = report;
-        Ok(())
+        let result = self.solver.precompute(formulation);
+        self.report = self.solver.report().clone();
+        result
     }
 
     /// Sets the initial guess (see [`ArapInit`]), fits its rotations and
@@ -407,12 +382,7 @@ impl ArapDeformer {
     /// one solve does not carry over, and the next local step absorbs it.
     pub fn finish(&mut self) -> Result<&Report, Error> {
         self.refine_last()?;
-        let prepared = self.prepared()?;
-        let (skipped, exact) = (prepared.skipped().to_vec(), prepared.exact());
-        fill_solution_diagnostics(&mut self.report, &self.problem, &self.x, &skipped, exact);
-        self.report.warnings = self.precompute_warnings.clone();
-        let conflicts = conflict_warnings(&self.report, &self.problem, &mut self.conflict_sources);
-        self.report.warnings.extend(conflicts);
+        self.report = self.solver.diagnose(self.x.as_ref()).clone();
         let mut times = self.arap.iteration_times_s.clone();
         times.sort_by(f64::total_cmp);
         self.arap.time_per_iteration_s = times.get(times.len() / 2).copied().unwrap_or(0.0);
@@ -425,28 +395,20 @@ impl ArapDeformer {
     /// [`Refine::Auto`] for the exact formulations, [`Refine::Off`] for
     /// penalty.
     pub fn set_refine(&mut self, refine: Option<Refine>) {
-        self.refine = refine;
+        self.solver.set_refine(refine);
     }
 
+    /// Refines the last global step's solution through the solver (which
+    /// keeps the refinement for the report) and keeps it when its energy
+    /// is finite.
     fn refine_last(&mut self) -> Result<(), Error> {
         if self.arap.iterations == 0 && self.init != ArapInit::Linear {
             return Ok(());
         }
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "ARAP iterations need precompute first".into(),
-            })?;
-        let mode = match self.refine {
-            Some(mode) => mode,
-            None if system.exact() => Refine::Auto,
-            None => Refine::Off,
-        };
-        let t = Instant::now();
+        self.prepared()?;
         let mut x = self.x.clone();
-        let refinement = refine(system.as_mut(), &self.problem, &mut x, mode)?;
-        if self.first_non_finite_in_mesh_units(&x).is_none() && refinement.steps > 0 {
+        let steps = self.solver.refine_solution(&mut x)?.steps;
+        if self.first_non_finite_in_mesh_units(&x).is_none() && steps > 0 {
             let (x_before, energy_before) = (std::mem::replace(&mut self.x, x), self.energy);
             let rotations_before = self.rotations.clone();
             self.local_step();
@@ -457,9 +419,6 @@ impl ArapDeformer {
                 self.rotations = rotations_before;
             }
         }
-        self.report.timings_s.refine = t.elapsed().as_secs_f64();
-        self.report.forward_error_estimate = Some(refinement.forward_error_estimate);
-        self.report.refinement = Some(refinement);
         Ok(())
     }
 
@@ -475,42 +434,38 @@ impl ArapDeformer {
             .into());
         }
         let scaled = in_unit(index, target, self.unit)?;
-        self.problem.set_rhs(index, scaled)?;
+        self.solver.set_rhs(index, scaled)?;
         self.unit_constraints.set_rhs(index, scaled)?;
         self.constraints.set_rhs(index, target)?;
         Ok(())
     }
 
-    fn prepared(&mut self) -> Result<&mut Box<dyn Prepared>, Error> {
-        self.system.as_mut().ok_or_else(|| {
-            ProblemError::BadUpdate {
+    /// An error unless the global step's system is precomputed.
+    fn prepared(&self) -> Result<(), Error> {
+        match self.solver.prepared() {
+            Some(_) => Ok(()),
+            None => Err(ProblemError::BadUpdate {
                 message: "ARAP iterations need precompute first".into(),
             }
-            .into()
-        })
+            .into()),
+        }
     }
 
     /// Global step: `C_E` from the current rotations, then the solve.
     /// `C_E` is written in place into the problem's right-hand side and
     /// the solution into the current positions: no buffer allocated.
     fn global_step(&mut self) -> Result<(), Error> {
+        self.prepared()?;
         let finite = self
             .triangles
-            .rhs_into(&self.rotations, self.problem.energy_rhs_mut());
+            .rhs_into(&self.rotations, self.solver.energy_rhs_mut());
         if !finite {
             return Err(ProblemError::BadUpdate {
                 message: "ARAP right-hand side is not finite (degenerate rest triangles?)".into(),
             }
             .into());
         }
-        let problem = &self.problem;
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "ARAP iterations need precompute first".into(),
-            })?;
-        system.solve_into(problem, self.x_next.as_mut())?;
+        self.solver.solve_unrefined_into(self.x_next.as_mut())?;
         if let Some(vertex) = self.first_non_finite_in_mesh_units(&self.x_next) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
@@ -551,11 +506,12 @@ impl ArapDeformer {
 
     /// `Σ_soft w² ‖b·X − d‖²`.
     fn soft_energy(&self) -> f64 {
-        if self.problem.soft_constraints().is_empty() {
+        let problem = self.solver.problem();
+        if problem.soft_constraints().is_empty() {
             return 0.0;
         }
         let positions = self.problem_positions();
-        self.problem
+        problem
             .soft_constraints()
             .iter()
             .map(|row| {
@@ -569,10 +525,11 @@ impl ArapDeformer {
     }
 
     fn max_constraint_residual(&self) -> f64 {
-        let skipped = self.system.as_ref().map(|s| s.skipped()).unwrap_or(&[]);
-        (0..self.problem.hard_constraints().len())
+        let skipped = self.solver.prepared().map(|s| s.skipped()).unwrap_or(&[]);
+        let problem = self.solver.problem();
+        (0..problem.hard_constraints().len())
             .filter(|k| skipped.binary_search(k).is_err())
-            .map(|k| self.problem.hard_residual(k, &self.x))
+            .map(|k| problem.hard_residual(k, &self.x))
             .fold(0.0, f64::max)
     }
 
@@ -670,7 +627,7 @@ impl ArapDeformer {
     /// The assembled global-step problem, in the problem's units (lengths
     /// divided by [`ArapDeformer::length_unit`]).
     pub fn problem(&self) -> &LseProblem {
-        &self.problem
+        self.solver.problem()
     }
 
     /// The energy rows and rest geometry, in the problem's units.
