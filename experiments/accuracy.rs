@@ -30,7 +30,7 @@ use crate::table1::{LAPLACIANS, TABLE_WEIGHT, qr_reference, sci};
 use crate::{AnyError, Summary};
 
 /// The experiment's name (results directory and section).
-const NAME: &str = "accuracy";
+pub const NAME: &str = "accuracy";
 
 /// Exponents of the 17 relative penalty weights `10⁻⁴ … 10¹²`.
 const EXPONENTS: std::ops::RangeInclusive<i32> = -4..=12;

@@ -150,7 +150,7 @@ pub(crate) fn short_error(e: &str) -> String {
 // ---------------------------------------------------------------------------
 // The experiment.
 
-const NAME: &str = "precompute-breakdown";
+pub const NAME: &str = "precompute-breakdown";
 
 /// The two formulations compared.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -26,6 +26,9 @@ use crate::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
 use crate::table1::{failure_kind, sci};
 use crate::{AnyError, Summary};
 
+/// The folder and command-line word of this experiment.
+pub const NAME: &str = "conflicts";
+
 /// Groups of the scene's constraints, in list order.
 pub const GROUPS: [&str; 5] = [
     "fixed",
@@ -199,7 +202,7 @@ pub fn conflict_mesh(ctx: &Context) -> Result<(String, Mesh), AnyError> {
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let started = Instant::now();
-    let dir = ctx.dir("conflicts")?;
+    let dir = ctx.dir(NAME)?;
     let (name, mesh) = conflict_mesh(ctx)?;
     let extra = 5;
     let sc = scene(&mesh, extra)?;
@@ -405,7 +408,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         fmt_time(seconds),
         ctx.machine.cpu
     );
-    ctx.write_section("conflicts", &s)?;
+    ctx.write_section(NAME, &s)?;
 
     let headline = match &ns_report {
         Some(r) => format!(

@@ -18,13 +18,13 @@ use crate::breakdown::{
     PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backend, qr_backends, short_error, spd_backend,
     spd_backends,
 };
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
+use crate::context::{Context, fmt_time, markdown_table, median, percentile};
 use crate::plot::{
     self, Axis, Category, LegendPosition, LineChart, Orientation, Output, Series, StackedBars,
 };
 use crate::{AnyError, Summary};
 
-const NAME: &str = "drag";
+pub const NAME: &str = "drag";
 
 /// A method and back-end configuration of the drag.
 struct Config {
@@ -166,23 +166,7 @@ struct Frames {
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let dir = ctx.dir(NAME)?;
-    let case = match ctx.main_mesh("bunny-35k-stanford.obj")? {
-        Some(c) => c,
-        None => {
-            let target = if ctx.quick { 10_000 } else { 35_000 };
-            let kind = lse_deform::mesh::generate::GeneratedKind::BumpySphere;
-            let mesh = lse_deform::mesh::generate::with_about_vertices(kind, target, ctx.seed)?;
-            MeshCase {
-                name: "bumpy-sphere".into(),
-                source: format!(
-                    "generated {kind}, {} vertices, seed {}",
-                    mesh.n_vertices(),
-                    ctx.seed
-                ),
-                mesh,
-            }
-        }
-    };
+    let case = ctx.fallback_mesh("bunny-35k-stanford.obj", 35_000, 10_000)?;
     let frames = if ctx.quick { 60 } else { 300 };
     let mesh = &case.mesh;
     let scene = FixedAndHandle::paper_default(mesh);

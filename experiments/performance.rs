@@ -41,6 +41,9 @@ use crate::context::{Context, fmt_time, markdown_table, median};
 use crate::plot::{self, LegendPosition, Output, ScatterFits, Series};
 use crate::{AnyError, Summary};
 
+/// The folder and command-line word of this experiment.
+pub const NAME: &str = "performance";
+
 /// The reference the targets compare against, when it is compiled in.
 #[cfg(feature = "suitesparse")]
 fn reference_backend() -> Option<Arc<dyn SpdBackend>> {
@@ -372,7 +375,7 @@ pub fn memory_probe(mesh_path: &Path) -> Result<(), AnyError> {
 fn run_probe(mesh_path: &Path) -> Result<MemoryProbe, AnyError> {
     let exe = std::env::current_exe()?;
     let out = std::process::Command::new(exe)
-        .arg("performance")
+        .arg(NAME)
         .arg("--memory-probe")
         .arg(mesh_path)
         .output()?;
@@ -421,7 +424,7 @@ fn mib(b: f64) -> String {
 /// Runs the performance experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let started = Instant::now();
-    let dir = ctx.dir("performance")?;
+    let dir = ctx.dir(NAME)?;
     let quick = ctx.quick;
     let reps = if quick { 3 } else { 7 };
     let solves = if quick { 9 } else { 41 };
@@ -883,7 +886,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         md,
         "Regenerate: `{command}` (without `--mesh-dir` the main case is a generated 35k-vertex bumpy sphere and the large case a generated 250k one; without `--features suitesparse` the CHOLMOD rows are missing)."
     );
-    ctx.write_section("performance", &md)?;
+    ctx.write_section(NAME, &md)?;
     let mut page = format!("# Performance\n\n{}\n\n", ctx.machine.one_line());
     page.push_str(&md.replace("](performance/", "]("));
     std::fs::write(dir.join("README.md"), &page)?;

@@ -24,14 +24,14 @@ use crate::breakdown::{
     PHASES, link, median_index, note_drawn, precompute_phase_values, qr_backend, qr_backends,
     short_error,
 };
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median};
+use crate::context::{Context, fmt_time, markdown_table, median};
 use crate::plot::{
     self, Axis, Category, LegendPosition, LineChart, Orientation, Output, ReferenceLine, Series,
     StackedBars,
 };
 use crate::{AnyError, Summary};
 
-const NAME: &str = "relative-constraints";
+pub const NAME: &str = "relative-constraints";
 
 /// A compared method.
 struct Method {
@@ -129,23 +129,7 @@ struct Row {
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let dir = ctx.dir(NAME)?;
-    let case = match ctx.main_mesh("bunny-35k-stanford.obj")? {
-        Some(c) => c,
-        None => {
-            let target = if ctx.quick { 10_000 } else { 35_000 };
-            let kind = lse_deform::mesh::generate::GeneratedKind::BumpySphere;
-            let mesh = lse_deform::mesh::generate::with_about_vertices(kind, target, ctx.seed)?;
-            MeshCase {
-                name: "bumpy-sphere".into(),
-                source: format!(
-                    "generated {kind}, {} vertices, seed {}",
-                    mesh.n_vertices(),
-                    ctx.seed
-                ),
-                mesh,
-            }
-        }
-    };
+    let case = ctx.fallback_mesh("bunny-35k-stanford.obj", 35_000, 10_000)?;
     let ks: Vec<usize> = if ctx.quick {
         vec![0, 100, 300, 1000]
     } else {

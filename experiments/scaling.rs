@@ -25,7 +25,7 @@ use crate::context::{Context, MeshCase, fmt_time, markdown_table, median};
 use crate::plot::{self, LegendPosition, Output, ScatterFits, Series, fit_power_law};
 use crate::{AnyError, Summary};
 
-const NAME: &str = "scaling";
+pub const NAME: &str = "scaling";
 
 /// Assumed growth exponent of the precompute for the budget prediction
 /// (nested-dissection Cholesky of a surface mesh is `O(n^1.5)` at worst).

@@ -35,6 +35,9 @@ use crate::plot::{FONT, PALETTE, ensure_fonts};
 use crate::text::GoodText;
 use crate::{AnyError, Summary};
 
+/// The folder and command-line word of this experiment.
+pub const NAME: &str = "table1";
+
 /// The penalty weight of the "soft only" column (see the section text for
 /// why this one).
 pub const TABLE_WEIGHT: f64 = 1e8;
@@ -502,9 +505,9 @@ fn kappa_cell(r: &Row) -> String {
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let started = Instant::now();
-    let dir = ctx.dir("table1")?;
+    let dir = ctx.dir(NAME)?;
     let meshes = ctx.evaluation_meshes()?;
-    let bar = ctx.bar(meshes.len() * LAPLACIANS.len(), "table1");
+    let bar = ctx.bar(meshes.len() * LAPLACIANS.len(), NAME);
     let mut rows = Vec::new();
     for case in &meshes {
         for kind in LAPLACIANS {
@@ -549,7 +552,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
 
     let seconds = started.elapsed().as_secs_f64();
     let section = section_markdown(ctx, &meshes, &rows, seconds);
-    ctx.write_section("table1", &section)?;
+    ctx.write_section(NAME, &section)?;
 
     let failed: Vec<String> = rows
         .iter()
