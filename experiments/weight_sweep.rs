@@ -297,7 +297,10 @@ fn scenes(ctx: &Context, case: &MeshCase, user: bool) -> Result<Vec<Scene>, AnyE
     ];
     if let (true, Some(path)) = (user, &ctx.constraints) {
         out.push(Scene {
-            name: file_name(path),
+            name: path.file_stem().map_or_else(
+                || "constraints".into(),
+                |n| n.to_string_lossy().into_owned(),
+            ),
             constraints: read_constraints(path, case.mesh.n_vertices())?,
         });
     }
@@ -487,19 +490,24 @@ fn penalty_series(
 /// The error and κ figures of one mesh and scene; returns their stems.
 fn draw(dir: &Path, rows: &[&Row]) -> Result<[String; 2], AnyError> {
     let (mesh, scene) = (&rows[0].mesh, &rows[0].scene);
-    let exact = |value: fn(&Row) -> Option<f64>, refined: Option<bool>| -> Vec<ReferenceLine> {
+    let exact = |what: &str, value: fn(&Row) -> Option<f64>, refined: Option<bool>| {
         rows.iter()
             .filter(|r| {
                 r.method != Method::Penalty.name() && refined.is_none_or(|f| r.refined == f)
             })
             .filter_map(|r| {
-                let y = value(r)?.max(FLOOR);
+                let v = value(r)?;
+                let shown = if v == 0.0 {
+                    "0: X* itself".into()
+                } else {
+                    sci(v)
+                };
                 Some(ReferenceLine {
-                    y,
-                    label: format!("{} ({})", exact_label(r), sci(y)),
+                    y: v.max(FLOOR),
+                    label: format!("{what}{} ({shown})", exact_label(r)),
                 })
             })
-            .collect()
+            .collect::<Vec<_>>()
     };
     let error = LineChart {
         title: format!("{mesh}, {scene} scene: error against the refined exact solution"),
@@ -509,7 +517,7 @@ fn draw(dir: &Path, rows: &[&Row]) -> Result<[String; 2], AnyError> {
             penalty_series(rows, "penalty", false, |r| r.error),
             penalty_series(rows, "penalty + multiplier refinement", true, |r| r.error),
         ],
-        reference_lines: exact(|r| r.error, None),
+        reference_lines: exact("", |r| r.error, None),
         legend: LegendPosition::Auto,
     };
     let kappa = LineChart {
@@ -523,8 +531,8 @@ fn draw(dir: &Path, rows: &[&Row]) -> Result<[String; 2], AnyError> {
             }),
         ],
         reference_lines: [
-            exact(|r| r.kappa_least_squares, Some(false)),
-            exact(|r| r.kappa_equilibrated, Some(false)),
+            exact("κ₂(AQ₂), ", |r| r.kappa_least_squares, Some(false)),
+            exact("κ₂(AQ₂ D), ", |r| r.kappa_equilibrated, Some(false)),
         ]
         .concat(),
         legend: LegendPosition::Auto,
