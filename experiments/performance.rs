@@ -540,14 +540,17 @@ fn scaling_points(ctx: &Context) -> Result<Vec<ScalingPoint>, AnyError> {
     sizes.iter().map(|&n| scaling_point(ctx, n)).collect()
 }
 
+/// A point's `(x, y)` for a fit or a series.
+type Xy = fn(&ScalingPoint) -> (f64, f64);
+
 /// `(x, y)` of the scaling points.
-fn scaling_xy(scaling: &[ScalingPoint], f: fn(&ScalingPoint) -> (f64, f64)) -> Vec<(f64, f64)> {
+fn scaling_xy(scaling: &[ScalingPoint], f: Xy) -> Vec<(f64, f64)> {
     scaling.iter().map(f).collect()
 }
 
 /// Fitted log–log slopes (name, slope, R²) of the scaling points.
 fn slopes(scaling: &[ScalingPoint]) -> Vec<(String, f64, f64)> {
-    let pairs: [(&str, fn(&ScalingPoint) -> (f64, f64)); 4] = [
+    let pairs: [(&str, Xy); 4] = [
         ("precompute vs vertices", |p| {
             (p.vertices as f64, p.precompute_s)
         }),
