@@ -28,7 +28,7 @@ use lse_deform::{
 };
 use serde::Serialize;
 
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median};
+use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::plot::{self, Category, Drawn, LegendPosition, Orientation, Output, StackedBars};
 use crate::{AnyError, Summary};
 
@@ -57,6 +57,26 @@ pub(crate) fn phase_values(t: &Timings) -> Vec<f64> {
         t.symbolic,
         t.numeric,
     ]
+}
+
+/// The CSV columns of [`phase_cells`].
+pub(crate) const PHASE_COLUMNS: [&str; 5] = [
+    "qr_s",
+    "preparation_s",
+    "normal_matrix_s",
+    "symbolic_s",
+    "numeric_s",
+];
+
+/// CSV cells (`{:.6e}`, empty without timings) of the phases after the
+/// set-up: QR, preparation, normal matrix, symbolic, numeric.
+pub(crate) fn phase_cells(t: Option<&Timings>) -> [String; 5] {
+    let v = t.map(phase_values);
+    [1, 2, 3, 4, 5].map(|i| {
+        v.as_ref()
+            .map(|v| format!("{:.6e}", v[i]))
+            .unwrap_or_default()
+    })
 }
 
 /// [`phase_values`] without the set-up (the precompute phases only; zero in
@@ -328,57 +348,56 @@ fn measure_case(
 /// `breakdown.csv` (timings flattened) and `breakdown.json`.
 fn write_data(ctx: &Context, dir: &Path, rows: &[Row]) -> Result<(), AnyError> {
     let header = [
-        "mesh",
-        "vertices",
-        "method",
-        "formulation",
-        "qr_backend",
-        "spd_backend",
-        "penalty_weight",
-        "repetitions",
-        "setup_s",
-        "qr_s",
-        "preparation_s",
-        "normal_matrix_s",
-        "symbolic_s",
-        "numeric_s",
-        "precompute_s",
-        "precompute_median_s",
-        "total_median_s",
-        "nnz_normal",
-        "nnz_factor",
-        "constraint_residual_relative",
-        "status",
-    ];
-    let opt = |v: Option<f64>| v.map(|x| format!("{x:.6e}")).unwrap_or_default();
+        &[
+            "mesh",
+            "vertices",
+            "method",
+            "formulation",
+            "qr_backend",
+            "spd_backend",
+            "penalty_weight",
+            "repetitions",
+            "setup_s",
+        ][..],
+        &PHASE_COLUMNS,
+        &[
+            "precompute_s",
+            "precompute_median_s",
+            "total_median_s",
+            "nnz_normal",
+            "nnz_factor",
+            "constraint_residual_relative",
+            "status",
+        ],
+    ]
+    .concat();
     let csv_rows: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
             let t = r.timings.as_ref();
-            let f = |g: fn(&Timings) -> f64| opt(t.map(g));
-            vec![
+            let f = |g: fn(&Timings) -> f64| cell_f(t.map(g));
+            let mut cells = vec![
                 r.mesh.clone(),
                 r.vertices.to_string(),
                 r.method.into(),
                 r.formulation.clone(),
                 r.qr_backend.clone(),
                 r.spd_backend.clone(),
-                opt(r.penalty_weight),
+                cell_f(r.penalty_weight),
                 r.repetitions.to_string(),
                 f(|t| t.setup),
-                f(|t| t.qr),
-                f(|t| t.preparation),
-                f(|t| t.normal_matrix),
-                f(|t| t.symbolic),
-                f(|t| t.numeric),
+            ];
+            cells.extend(phase_cells(t));
+            cells.extend([
                 f(|t| t.precompute()),
-                opt(r.precompute_median_s),
-                opt(r.total_median_s),
-                r.nnz_normal.map(|v| v.to_string()).unwrap_or_default(),
-                r.nnz_factor.map(|v| v.to_string()).unwrap_or_default(),
-                opt(r.constraint_residual_relative),
+                cell_f(r.precompute_median_s),
+                cell_f(r.total_median_s),
+                cell_u(r.nnz_normal),
+                cell_u(r.nnz_factor),
+                cell_f(r.constraint_residual_relative),
                 r.status.clone(),
-            ]
+            ]);
+            cells
         })
         .collect();
     ctx.write_csv(&dir.join("breakdown.csv"), &header, &csv_rows)?;
@@ -533,11 +552,7 @@ fn section(
         spd_backends().join(", "),
         if ctx.quick { 1 } else { 5 }
     );
-    let _ = writeln!(
-        s,
-        "Regenerate this section alone:\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- {NAME}{} --out results\n```\n",
-        ctx.mesh_args()
-    );
+    s.push_str(&ctx.regenerate(NAME));
     let _ = writeln!(
         s,
         "**Table.** Precompute (QR + preparation + normal matrix + symbolic + numeric) and set-up + precompute per mesh and back end; ratio = hard + soft over soft only (set-up included, as in the paper's Fig. 7). \
@@ -571,17 +586,10 @@ fn section(
             link(NAME, stem)
         );
     }
-    if !notes.is_empty() {
-        let _ = writeln!(s, "\n**What did not work / notes.**\n");
-        for n in notes {
-            let _ = writeln!(s, "- {n}");
-        }
-    }
-    let _ = writeln!(
-        s,
-        "\nData: [`{NAME}/breakdown.csv`]({NAME}/breakdown.csv), [`{NAME}/breakdown.json`]({NAME}/breakdown.json)."
-    );
-    let _ = writeln!(s, "\n_{}_", ctx.machine.one_line());
+    s.push_str(&ctx.closing(
+        notes,
+        &format!("Data: [`{NAME}/breakdown.csv`]({NAME}/breakdown.csv), [`{NAME}/breakdown.json`]({NAME}/breakdown.json)."),
+    ));
     s
 }
 

@@ -384,6 +384,29 @@ impl Context {
         self.write_json(&stem.with_extension("json"), &rows)
     }
 
+    /// The "Regenerate this section alone" block of a section: the command
+    /// with this run's meshes and `--out results`.
+    pub fn regenerate(&self, name: &str) -> String {
+        format!(
+            "Regenerate this section alone:\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- {name}{} --out results\n```\n\n",
+            self.mesh_args()
+        )
+    }
+
+    /// The end of a section: the notes (what did not work), the sentence
+    /// naming the data files and the machine line.
+    pub fn closing(&self, notes: &[String], data: &str) -> String {
+        let mut s = String::new();
+        if !notes.is_empty() {
+            s.push_str("\n**What did not work / notes.**\n\n");
+            for n in notes {
+                let _ = writeln!(s, "- {n}");
+            }
+        }
+        let _ = writeln!(s, "\n{data}\n\n_{}_", self.machine.one_line());
+        s
+    }
+
     /// Writes a CSV file whose first line is a `#` comment with the machine
     /// description (`pandas.read_csv(path, comment="#")` reads it).
     pub fn write_csv(
@@ -561,4 +584,14 @@ pub fn fresh_out_dir(experiment: &str) -> PathBuf {
         rest / 60 % 60,
         rest % 60
     ))
+}
+
+/// A CSV cell of an optional number: `{:.6e}`, empty for `None`.
+pub fn cell_f(v: Option<f64>) -> String {
+    v.map(|x| format!("{x:.6e}")).unwrap_or_default()
+}
+
+/// A CSV cell of an optional count, empty for `None`.
+pub fn cell_u(v: Option<usize>) -> String {
+    v.map(|x| x.to_string()).unwrap_or_default()
 }

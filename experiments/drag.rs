@@ -623,11 +623,7 @@ fn section(
     notes: &[String],
 ) -> String {
     let mut s = method_text(ctx, case, drag);
-    let _ = writeln!(
-        s,
-        "Regenerate this section alone:\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- {NAME}{} --out results\n```\n",
-        ctx.mesh_args()
-    );
+    s.push_str(&ctx.regenerate(NAME));
     let _ = writeln!(
         s,
         "**Table.** One row per method and back end. Read the p50 columns for the typical frame and p99 for the hitches; \
@@ -650,17 +646,10 @@ fn section(
             link(NAME, "frame_times")
         );
     }
-    if !notes.is_empty() {
-        let _ = writeln!(s, "\n**What did not work / notes.**\n");
-        for n in notes {
-            let _ = writeln!(s, "- {n}");
-        }
-    }
-    let _ = writeln!(
-        s,
-        "\nData: [`{NAME}/drag_summary.csv`]({NAME}/drag_summary.csv) (one row per configuration), [`{NAME}/drag_frames.csv`]({NAME}/drag_frames.csv) (every frame), [`{NAME}/drag_summary.json`]({NAME}/drag_summary.json)."
-    );
-    let _ = writeln!(s, "\n_{}_", ctx.machine.one_line());
+    s.push_str(&ctx.closing(
+        notes,
+        &format!("Data: [`{NAME}/drag_summary.csv`]({NAME}/drag_summary.csv) (one row per configuration), [`{NAME}/drag_frames.csv`]({NAME}/drag_frames.csv) (every frame), [`{NAME}/drag_summary.json`]({NAME}/drag_summary.json)."),
+    ));
     s
 }
 

@@ -22,10 +22,10 @@ use lse_deform::{Deformer, Formulation, Kkt, LaplacianKind, NullSpaceQr, Report}
 use serde::Serialize;
 
 use crate::breakdown::{
-    PHASES, link, median_index, note_drawn, precompute_phase_values, qr_backend, qr_backends,
-    short_error,
+    PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells, precompute_phase_values,
+    qr_backend, qr_backends, short_error,
 };
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median};
+use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::plot::{
     self, Axis, Category, LegendPosition, LineChart, Orientation, Output, ReferenceLine, Series,
     StackedBars,
@@ -344,38 +344,37 @@ fn rows(methods: &[Method], ks: &[usize], setups: &Setups, grid: &[Vec<Cell>]) -
 /// `relative.csv` (timings flattened) and `relative.json`.
 fn write_data(ctx: &Context, dir: &Path, case: &MeshCase, rows: &[Row]) -> Result<(), AnyError> {
     let header = [
-        "method",
-        "method_key",
-        "k_requested",
-        "k_actual",
-        "hard_constraints",
-        "repetitions",
-        "setup_s",
-        "qr_s",
-        "preparation_s",
-        "normal_matrix_s",
-        "symbolic_s",
-        "numeric_s",
-        "precompute_s",
-        "precompute_median_s",
-        "ratio_to_k0",
-        "solve_median_s",
-        "rank",
-        "nnz_qr",
-        "nnz_aq2",
-        "nnz_normal",
-        "nnz_factor",
-        "constraint_residual_relative",
-        "status",
-    ];
-    let opt = |v: Option<f64>| v.map(|x| format!("{x:.6e}")).unwrap_or_default();
-    let optu = |v: Option<usize>| v.map(|x| x.to_string()).unwrap_or_default();
+        &[
+            "method",
+            "method_key",
+            "k_requested",
+            "k_actual",
+            "hard_constraints",
+            "repetitions",
+            "setup_s",
+        ][..],
+        &PHASE_COLUMNS,
+        &[
+            "precompute_s",
+            "precompute_median_s",
+            "ratio_to_k0",
+            "solve_median_s",
+            "rank",
+            "nnz_qr",
+            "nnz_aq2",
+            "nnz_normal",
+            "nnz_factor",
+            "constraint_residual_relative",
+            "status",
+        ],
+    ]
+    .concat();
     let csv_rows: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
             let t = r.timings.as_ref();
-            let f = |g: fn(&Timings) -> f64| opt(t.map(g));
-            vec![
+            let f = |g: fn(&Timings) -> f64| cell_f(t.map(g));
+            let mut cells = vec![
                 r.method.clone(),
                 r.method_key.clone(),
                 r.k_requested.to_string(),
@@ -383,23 +382,22 @@ fn write_data(ctx: &Context, dir: &Path, case: &MeshCase, rows: &[Row]) -> Resul
                 r.hard_constraints.to_string(),
                 r.repetitions.to_string(),
                 f(|t| t.setup),
-                f(|t| t.qr),
-                f(|t| t.preparation),
-                f(|t| t.normal_matrix),
-                f(|t| t.symbolic),
-                f(|t| t.numeric),
+            ];
+            cells.extend(phase_cells(t));
+            cells.extend([
                 f(|t| t.precompute()),
-                opt(r.precompute_median_s),
-                opt(r.ratio_to_k0),
-                opt(r.solve_median_s),
-                optu(r.rank),
-                optu(r.nnz_qr),
-                optu(r.nnz_aq2),
-                optu(r.nnz_normal),
-                optu(r.nnz_factor),
-                opt(r.constraint_residual_relative),
+                cell_f(r.precompute_median_s),
+                cell_f(r.ratio_to_k0),
+                cell_f(r.solve_median_s),
+                cell_u(r.rank),
+                cell_u(r.nnz_qr),
+                cell_u(r.nnz_aq2),
+                cell_u(r.nnz_normal),
+                cell_u(r.nnz_factor),
+                cell_f(r.constraint_residual_relative),
                 r.status.clone(),
-            ]
+            ]);
+            cells
         })
         .collect();
     ctx.write_csv(&dir.join("relative.csv"), &header, &csv_rows)?;
@@ -624,11 +622,7 @@ fn section(
     notes: &[String],
 ) -> String {
     let mut s = method_text(ctx, case);
-    let _ = writeln!(
-        s,
-        "Regenerate this section alone:\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- {NAME}{} --out results\n```\n",
-        ctx.mesh_args()
-    );
+    s.push_str(&ctx.regenerate(NAME));
     let _ = writeln!(
         s,
         "**Ratios to k = 0** (performance targets: ≤ 1.1× at k = 300, ≤ 1.3× at k = 2000). \
@@ -666,17 +660,10 @@ fn section(
          relative to the bounding-box diagonal (they hold to rounding for every exact method).\n"
     );
     s.push_str(&detail_table(rows));
-    if !notes.is_empty() {
-        let _ = writeln!(s, "\n**What did not work / notes.**\n");
-        for n in notes {
-            let _ = writeln!(s, "- {n}");
-        }
-    }
-    let _ = writeln!(
-        s,
-        "\nData: [`{NAME}/relative.csv`]({NAME}/relative.csv), [`{NAME}/relative.json`]({NAME}/relative.json)."
-    );
-    let _ = writeln!(s, "\n_{}_", ctx.machine.one_line());
+    s.push_str(&ctx.closing(
+        notes,
+        &format!("Data: [`{NAME}/relative.csv`]({NAME}/relative.csv), [`{NAME}/relative.json`]({NAME}/relative.json)."),
+    ));
     s
 }
 

@@ -20,9 +20,10 @@ use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 use serde::Serialize;
 
 use crate::breakdown::{
-    link, median_index, note_drawn, null_space_with_spd, short_error, spd_backends,
+    PHASE_COLUMNS, link, median_index, note_drawn, null_space_with_spd, phase_cells, short_error,
+    spd_backends,
 };
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median};
+use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::plot::{self, LegendPosition, Output, ScatterFits, Series, fit_power_law};
 use crate::{AnyError, Summary};
 
@@ -274,37 +275,35 @@ fn measure_case(
 /// `scaling.csv` (timings flattened) and `scaling.json`.
 fn write_data(ctx: &Context, dir: &Path, rows: &[Row]) -> Result<(), AnyError> {
     let header = [
-        "mesh",
-        "kind",
-        "vertices",
-        "spd_backend",
-        "qr_backend",
-        "repetitions",
-        "setup_s",
-        "qr_s",
-        "preparation_s",
-        "normal_matrix_s",
-        "symbolic_s",
-        "numeric_s",
-        "precompute_median_s",
-        "solve_median_s",
-        "solve_count",
-        "nnz_a",
-        "nnz_normal",
-        "nnz_factor",
-        "factor_bytes",
-        "solve_ns_per_factor_nnz",
-        "constraint_residual_relative",
-        "status",
-    ];
-    let opt = |v: Option<f64>| v.map(|x| format!("{x:.6e}")).unwrap_or_default();
-    let optu = |v: Option<usize>| v.map(|x| x.to_string()).unwrap_or_default();
+        &[
+            "mesh",
+            "kind",
+            "vertices",
+            "spd_backend",
+            "qr_backend",
+            "repetitions",
+            "setup_s",
+        ][..],
+        &PHASE_COLUMNS,
+        &[
+            "precompute_median_s",
+            "solve_median_s",
+            "solve_count",
+            "nnz_a",
+            "nnz_normal",
+            "nnz_factor",
+            "factor_bytes",
+            "solve_ns_per_factor_nnz",
+            "constraint_residual_relative",
+            "status",
+        ],
+    ]
+    .concat();
     let csv_rows: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
             let t = r.timings.as_ref();
-            let f = |g: fn(&Timings) -> f64| opt(t.map(g));
-            vec![
+            let mut cells = vec![
                 r.mesh.clone(),
                 r.kind.into(),
                 r.vertices.to_string(),
@@ -312,22 +311,21 @@ fn write_data(ctx: &Context, dir: &Path, rows: &[Row]) -> Result<(), AnyError> {
                 r.qr_backend.clone(),
                 r.repetitions.to_string(),
                 format!("{:.6e}", r.setup_s),
-                f(|t| t.qr),
-                f(|t| t.preparation),
-                f(|t| t.normal_matrix),
-                f(|t| t.symbolic),
-                f(|t| t.numeric),
-                opt(r.precompute_median_s),
-                opt(r.solve_median_s),
+            ];
+            cells.extend(phase_cells(t));
+            cells.extend([
+                cell_f(r.precompute_median_s),
+                cell_f(r.solve_median_s),
                 r.solve_count.to_string(),
-                optu(r.nnz_a),
-                optu(r.nnz_normal),
-                optu(r.nnz_factor),
-                optu(r.factor_bytes),
-                opt(r.solve_ns_per_factor_nnz),
-                opt(r.constraint_residual_relative),
+                cell_u(r.nnz_a),
+                cell_u(r.nnz_normal),
+                cell_u(r.nnz_factor),
+                cell_u(r.factor_bytes),
+                cell_f(r.solve_ns_per_factor_nnz),
+                cell_f(r.constraint_residual_relative),
                 r.status.clone(),
-            ]
+            ]);
+            cells
         })
         .collect();
     ctx.write_csv(&dir.join("scaling.csv"), &header, &csv_rows)?;
@@ -592,11 +590,7 @@ fn method_text(ctx: &Context, rows: &[Row]) -> String {
 /// The section, from the rows, figures and notes.
 fn section(ctx: &Context, rows: &[Row], figures: &[Figure], notes: &[String]) -> String {
     let mut s = method_text(ctx, rows);
-    let _ = writeln!(
-        s,
-        "Regenerate this section alone:\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- {NAME}{} --out results\n```\n",
-        ctx.mesh_args()
-    );
+    s.push_str(&ctx.regenerate(NAME));
     let _ = writeln!(
         s,
         "**Fitted slopes** of log time against log n (and of log solve time against log nnz(L)); R² and the number of points in brackets. \
@@ -628,17 +622,10 @@ fn section(ctx: &Context, rows: &[Row], figures: &[Figure], notes: &[String]) ->
          MB is the factor's memory (values and row indices); ns/nnz is the solve time per factor entry (3 right-hand sides, two triangular solves — constant if the solve is linear in nnz(L)).\n"
     );
     s.push_str(&detail_table(rows));
-    if !notes.is_empty() {
-        let _ = writeln!(s, "\n**What did not work / notes.**\n");
-        for n in notes {
-            let _ = writeln!(s, "- {n}");
-        }
-    }
-    let _ = writeln!(
-        s,
-        "\nData: [`{NAME}/scaling.csv`]({NAME}/scaling.csv), [`{NAME}/scaling.json`]({NAME}/scaling.json)."
-    );
-    let _ = writeln!(s, "\n_{}_", ctx.machine.one_line());
+    s.push_str(&ctx.closing(
+        notes,
+        &format!("Data: [`{NAME}/scaling.csv`]({NAME}/scaling.csv), [`{NAME}/scaling.json`]({NAME}/scaling.json)."),
+    ));
     s
 }
 
