@@ -14,14 +14,11 @@ use faer::Mat;
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::mesh::Mesh;
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{
-    Deformer, Elimination, Formulation, Kkt, LaplacianKind, Method, NullSpaceQr, Penalty,
-};
+use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method};
 use serde::Serialize;
 
 use crate::breakdown::{
-    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backend, qr_backends, short_error, spd_backend,
-    spd_backends,
+    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
 };
 use crate::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
 use crate::plot::{
@@ -35,10 +32,18 @@ pub const NAME: &str = "drag";
 struct Config {
     /// Label for tables and figures.
     label: String,
-    method: &'static str,
-    qr: Option<String>,
-    spd: String,
+    choice: FormulationChoice,
     formulation: Box<dyn Formulation>,
+}
+
+impl Config {
+    fn new(label: String, choice: FormulationChoice) -> Result<Config, AnyError> {
+        Ok(Config {
+            label,
+            formulation: choice.build()?,
+            choice,
+        })
+    }
 }
 
 /// The configurations, the library default (null-space QR with the default
@@ -54,10 +59,9 @@ struct Config {
 /// slower per frame; left out of the run on generated meshes to keep it
 /// within its budget).
 fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
-    let default = NullSpaceQr::default();
-    let default_qr = default.qr.name().to_string();
-    let default_spd = default.spd.name().to_string();
-    let mut spds: Vec<&str> = vec![default_spd.as_str()];
+    let default = FormulationChoice::new(Method::NullSpaceQr);
+    let (default_qr, default_spd) = (default.qr.name(), default.spd.name());
+    let mut spds: Vec<&str> = vec![default_spd];
     spds.extend(spd_backends().into_iter().filter(|&s| {
         s != default_spd
             && s != "faer-supernodal"
@@ -65,53 +69,37 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
     }));
     let mut out = Vec::new();
     for &s in &spds {
-        out.push(Config {
-            label: format!("null-space {default_qr} + {s}"),
-            method: "nullspace-qr",
-            qr: Some(default_qr.clone()),
-            spd: s.into(),
-            formulation: Box::new(NullSpaceQr {
-                spd: spd_backend(s)?,
-                ..default.clone()
-            }),
-        });
+        let choice = FormulationChoice {
+            spd: s.parse()?,
+            ..default
+        };
+        out.push(Config::new(
+            format!("null-space {default_qr} + {s}"),
+            choice,
+        )?);
     }
-    for q in qr_backends() {
-        if q == default_qr {
-            continue;
-        }
-        out.push(Config {
-            label: format!("null-space {q} + {default_spd}"),
-            method: "nullspace-qr",
-            qr: Some(q.into()),
-            spd: default_spd.clone(),
-            formulation: Box::new(NullSpaceQr {
-                qr: qr_backend(q)?,
-                ..default.clone()
-            }),
-        });
+    for q in qr_backends().into_iter().filter(|&q| q != default_qr) {
+        let choice = FormulationChoice {
+            qr: q.parse()?,
+            ..default
+        };
+        out.push(Config::new(
+            format!("null-space {q} + {default_spd}"),
+            choice,
+        )?);
     }
-    out.push(Config {
-        label: format!("penalty + {default_spd}"),
-        method: "penalty",
-        qr: None,
-        spd: default_spd.clone(),
-        formulation: Box::new(Penalty::with_backend(weight, spd_backend(&default_spd)?)),
-    });
-    out.push(Config {
-        label: "KKT LDLᵀ faer-auto".into(),
-        method: "kkt",
-        qr: None,
-        spd: "faer-auto".into(),
-        formulation: Box::new(Kkt::default()),
-    });
-    out.push(Config {
-        label: format!("elimination + {default_spd}"),
-        method: "eliminate",
-        qr: None,
-        spd: default_spd.clone(),
-        formulation: Box::new(Elimination::new(spd_backend(&default_spd)?)),
-    });
+    let penalty = FormulationChoice {
+        weight: Some(weight),
+        ..FormulationChoice::new(Method::Penalty)
+    };
+    out.push(Config::new(format!("penalty + {default_spd}"), penalty)?);
+    let kkt = FormulationChoice::new(Method::Kkt);
+    out.push(Config::new("KKT LDLᵀ faer-auto".into(), kkt)?);
+    let eliminate = FormulationChoice::new(Method::Eliminate);
+    out.push(Config::new(
+        format!("elimination + {default_spd}"),
+        eliminate,
+    )?);
     Ok(out)
 }
 
@@ -330,9 +318,10 @@ fn rows(configs: &[Config], slots: &mut [Slot], diag: f64, notes: &mut Vec<Strin
     for (c, slot) in configs.iter().zip(slots.iter_mut()) {
         let mut row = Row {
             label: c.label.clone(),
-            method: c.method,
-            qr_backend: c.qr.clone(),
-            spd_backend: c.spd.clone(),
+            method: c.choice.method.name(),
+            qr_backend: (c.choice.method == Method::NullSpaceQr)
+                .then(|| c.choice.qr.name().to_string()),
+            spd_backend: c.choice.spd.name().to_string(),
             precompute_s: slot.precompute,
             frames: slot.rec.frame.len(),
             nnz_factor: slot.nnz_factor,
@@ -708,9 +697,9 @@ mod tests {
     #[test]
     fn configs_cover_every_method() {
         let c = configs(1.0, true).unwrap();
-        for m in ["nullspace-qr", "penalty", "kkt", "eliminate"] {
-            assert!(c.iter().any(|c| c.method == m), "{m}");
+        for m in Method::ALL {
+            assert!(c.iter().any(|c| c.choice.method == m), "{m}");
         }
-        assert_eq!(c[0].method, "nullspace-qr");
+        assert_eq!(c[0].choice.method, Method::NullSpaceQr);
     }
 }
