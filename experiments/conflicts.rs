@@ -18,9 +18,10 @@ use std::path::Path;
 use std::time::Instant;
 
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
+use lse_deform::error::Error;
 use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, Formulation, Kkt, LaplacianKind, NullSpaceQr, Penalty, Report};
+use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method, Report};
 
 use crate::context::{Context, fmt_time, markdown_table};
 use crate::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
@@ -153,40 +154,46 @@ pub struct Solved {
 /// (w = [`SOFT_WEIGHT`]), penalty (w = [`PENALTY_WEIGHT`]), KKT, null-space
 /// QR; cotangent Laplacian.
 pub fn solve_all(mesh: &Mesh, sc: &Scene) -> Result<Vec<Solved>, AnyError> {
-    let mut out = Vec::new();
-    let soft = all_soft(&sc.constraints, SOFT_WEIGHT)?;
-    let mut soft_deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, soft)?;
+    let penalty = |w: f64| FormulationChoice {
+        weight: Some(w),
+        ..FormulationChoice::new(Method::Penalty)
+    };
     let solve =
-        |d: &mut Deformer, f: &dyn Formulation| -> Result<(Vec<[f64; 3]>, Report), String> {
-            d.precompute(f)
+        |d: &mut Deformer, c: FormulationChoice| -> Result<(Vec<[f64; 3]>, Report), String> {
+            c.build()
+                .map_err(Error::from)
+                .and_then(|f| d.precompute(f.as_ref()))
                 .and_then(|_| d.solve())
                 .map(|s| (s.positions, s.report))
                 .map_err(|e| format!("{} — {e}", failure_kind(&e)))
         };
-    out.push(Solved {
-        label: format!("all soft (w = {})", sci(SOFT_WEIGHT)),
-        // No hard rows: the penalty formulation's normal equations are
-        // those of the plain least-squares problem (its weight is unused).
-        result: solve(&mut soft_deformer, &Penalty::new(1.0)),
-    });
+    let soft = all_soft(&sc.constraints, SOFT_WEIGHT)?;
+    let mut soft_deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, soft)?;
     let mut d = Deformer::new(
         mesh.clone(),
         LaplacianKind::Cotangent,
         sc.constraints.clone(),
     )?;
-    out.push(Solved {
-        label: format!("penalty (w = {})", sci(PENALTY_WEIGHT)),
-        result: solve(&mut d, &Penalty::new(PENALTY_WEIGHT)),
-    });
-    out.push(Solved {
-        label: "KKT".into(),
-        result: solve(&mut d, &Kkt::default()),
-    });
-    out.push(Solved {
-        label: "null-space QR (detect and remove)".into(),
-        result: solve(&mut d, &NullSpaceQr::default()),
-    });
-    Ok(out)
+    Ok(vec![
+        Solved {
+            label: format!("all soft (w = {})", sci(SOFT_WEIGHT)),
+            // No hard rows: the penalty formulation's normal equations are
+            // those of the plain least-squares problem (its weight is unused).
+            result: solve(&mut soft_deformer, penalty(1.0)),
+        },
+        Solved {
+            label: format!("penalty (w = {})", sci(PENALTY_WEIGHT)),
+            result: solve(&mut d, penalty(PENALTY_WEIGHT)),
+        },
+        Solved {
+            label: "KKT".into(),
+            result: solve(&mut d, FormulationChoice::new(Method::Kkt)),
+        },
+        Solved {
+            label: "null-space QR (detect and remove)".into(),
+            result: solve(&mut d, FormulationChoice::new(Method::NullSpaceQr)),
+        },
+    ])
 }
 
 /// The mesh of the experiment: the 3.5k-vertex bunny with a mesh directory,
