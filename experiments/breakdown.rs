@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use std::sync::Arc;
 
-use lse_deform::backend::qr::{QrBackend, QrKind};
+use lse_deform::backend::qr::QrKind;
 use lse_deform::backend::spd::{SpdBackend, SpdKind};
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
@@ -104,11 +104,6 @@ pub(crate) fn spd_backend(name: &str) -> Result<Arc<dyn SpdBackend>, AnyError> {
 /// The QR back ends of this build (SPQR only with `--features suitesparse`).
 pub(crate) fn qr_backends() -> Vec<&'static str> {
     QrKind::available().into_iter().map(QrKind::name).collect()
-}
-
-/// The QR back end called `name` (one of [`qr_backends`]).
-pub(crate) fn qr_backend(name: &str) -> Result<Arc<dyn QrBackend>, AnyError> {
-    Ok(name.parse::<QrKind>()?.backend()?)
 }
 
 /// The null-space method with the library's default QR back end and the

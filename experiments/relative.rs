@@ -18,12 +18,12 @@ use std::time::Instant;
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, Formulation, Kkt, LaplacianKind, NullSpaceQr, Report};
+use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method, Report};
 use serde::Serialize;
 
 use crate::breakdown::{
     PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells, precompute_phase_values,
-    qr_backend, qr_backends, short_error,
+    qr_backends, short_error,
 };
 use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::plot::{
@@ -34,8 +34,8 @@ use crate::{AnyError, Summary};
 
 pub const NAME: &str = "relative-constraints";
 
-/// A compared method.
-struct Method {
+/// A compared method and back end.
+struct Config {
     /// Legend label.
     label: String,
     /// Short key for the CSV.
@@ -50,8 +50,8 @@ struct Method {
 
 /// The methods: null-space QR with each QR back end (the library's default
 /// SPD back end), and KKT.
-fn methods() -> Result<Vec<Method>, AnyError> {
-    let default = NullSpaceQr::default();
+fn methods() -> Result<Vec<Config>, AnyError> {
+    let default = FormulationChoice::new(Method::NullSpaceQr);
     let default_qr = default.qr.name();
     let mut out = Vec::new();
     for name in qr_backends() {
@@ -61,25 +61,26 @@ fn methods() -> Result<Vec<Method>, AnyError> {
             "spqr" => ("null-space, one global SPQR", 2.0),
             _ => ("null-space", 2.0),
         };
-        out.push(Method {
+        out.push(Config {
             label: if name == default_qr {
                 format!("{label} (default)")
             } else {
                 label.to_string()
             },
             key: format!("nullspace-qr/{name}"),
-            formulation: Box::new(NullSpaceQr {
-                qr: qr_backend(name)?,
-                ..default.clone()
-            }),
+            formulation: FormulationChoice {
+                qr: name.parse()?,
+                ..default
+            }
+            .build()?,
             growth,
             is_default: name == default_qr,
         });
     }
-    out.push(Method {
+    out.push(Config {
         label: "KKT (faer LDLᵀ)".into(),
         key: "kkt".into(),
-        formulation: Box::new(Kkt::default()),
+        formulation: FormulationChoice::new(Method::Kkt).build()?,
         growth: 2.0,
         is_default: false,
     });
@@ -192,7 +193,7 @@ struct Cell {
 fn first_run(
     ctx: &Context,
     d: &mut Deformer,
-    m: &Method,
+    m: &Config,
     k: usize,
     cell: &mut Cell,
     notes: &mut Vec<String>,
@@ -233,7 +234,7 @@ fn first_run(
 /// budget predicts too slow (`t(k) ≈ t(0) + (t(k') − t(0)) (k / k')^p`).
 fn first_pass(
     ctx: &Context,
-    methods: &[Method],
+    methods: &[Config],
     ks: &[usize],
     deformers: &mut [Deformer],
     notes: &mut Vec<String>,
@@ -274,7 +275,7 @@ fn first_pass(
 
 /// Further repetitions, interleaved over k and methods so that each ratio
 /// to k = 0 is measured side by side.
-fn repetitions(methods: &[Method], deformers: &mut [Deformer], grid: &mut [Vec<Cell>]) {
+fn repetitions(methods: &[Config], deformers: &mut [Deformer], grid: &mut [Vec<Cell>]) {
     let max_reps = grid.iter().flatten().map(|c| c.reps).max().unwrap_or(1);
     for rep in 1..max_reps {
         for (ki, d) in deformers.iter_mut().enumerate() {
@@ -295,7 +296,7 @@ fn repetitions(methods: &[Method], deformers: &mut [Deformer], grid: &mut [Vec<C
 }
 
 /// One row per method and k: the median run.
-fn rows(methods: &[Method], ks: &[usize], setups: &Setups, grid: &[Vec<Cell>]) -> Vec<Row> {
+fn rows(methods: &[Config], ks: &[usize], setups: &Setups, grid: &[Vec<Cell>]) -> Vec<Row> {
     let mut rows = Vec::new();
     for (mi, m) in methods.iter().enumerate() {
         let mut t0: Option<f64> = None;
@@ -417,7 +418,7 @@ fn write_data(ctx: &Context, dir: &Path, case: &MeshCase, rows: &[Row]) -> Resul
 fn figures(
     dir: &Path,
     case: &MeshCase,
-    methods: &[Method],
+    methods: &[Config],
     rows: &[Row],
     notes: &mut Vec<String>,
 ) -> Result<(), AnyError> {
@@ -491,7 +492,7 @@ fn figures(
 
 /// The ratios at k = 300 and 2000 per method (table rows) and the
 /// headline's parts.
-fn ratio_table(methods: &[Method], rows: &[Row]) -> (Vec<Vec<String>>, Vec<String>) {
+fn ratio_table(methods: &[Config], rows: &[Row]) -> (Vec<Vec<String>>, Vec<String>) {
     let ratio_at = |key: &str, k: usize| {
         rows.iter()
             .find(|r| r.method_key == key && r.k_requested == k)
