@@ -661,3 +661,38 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         headline: findings_text(&findings),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The full symmetric 2 × 2 matrix `[a b; b a]`.
+    fn two_by_two(a: f64, b: f64) -> SparseColMat<usize, f64> {
+        let t = [(0, 0, a), (1, 0, b), (0, 1, b), (1, 1, a)].map(|(i, j, v)| Triplet::new(i, j, v));
+        SparseColMat::try_new_from_triplets(2, 2, &t).unwrap()
+    }
+
+    #[test]
+    fn equilibration_absorbs_a_weight_on_one_column_only() {
+        // A position row of weight w on vertex 0: M = diag(1 + w², 1),
+        // κ(M) = 1 + w², but D M D = I.
+        let w2 = 1e8;
+        let t = [(0, 0, 1.0 + w2), (1, 1, 1.0)].map(|(i, j, v)| Triplet::new(i, j, v));
+        let position = SparseColMat::try_new_from_triplets(2, 2, &t).unwrap();
+        let k = equilibrated_condition(&position).unwrap();
+        assert!((k - 1.0).abs() < 1e-6, "{k}");
+        // A relative row x₀ − x₁ of weight w: M = I + w² [1 −1; −1 1],
+        // eigenvalues 1 and 1 + 2w²; D M D keeps the ratio (1 + 2w²)/1,
+        // so √κ ≈ √2 w.
+        let coupled = two_by_two(1.0 + w2, -w2);
+        let k = equilibrated_condition(&coupled).unwrap();
+        let expected = (1.0 + 2.0 * w2).sqrt();
+        assert!((k / expected - 1.0).abs() < 1e-3, "{k} vs {expected}");
+    }
+
+    #[test]
+    fn equilibration_refuses_an_indefinite_diagonal() {
+        // A KKT matrix has zeros on its multiplier block.
+        assert!(equilibrated_condition(&two_by_two(0.0, 1.0)).is_none());
+    }
+}
