@@ -20,7 +20,7 @@ use lse_deform::backend::spd::FaerLlt;
 use lse_deform::formulation::{FORWARD_ERROR_WARNING, Refine};
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{
-    Deformer, Elimination, Formulation, Kkt, LaplacianKind, NullSpaceQr, Penalty, PenaltySweep,
+    Deformer, Formulation, FormulationChoice, LaplacianKind, Method, NullSpaceQr, PenaltySweep,
 };
 use serde::Serialize;
 
@@ -30,7 +30,7 @@ use crate::table1::{LAPLACIANS, TABLE_WEIGHT, qr_reference, sci};
 use crate::{AnyError, Summary};
 
 /// The experiment's name (results directory and section).
-const NAME: &str = "accuracy";
+pub const NAME: &str = "accuracy";
 
 /// Exponents of the 17 relative penalty weights `10⁻⁴ … 10¹²`.
 const EXPONENTS: std::ops::RangeInclusive<i32> = -4..=12;
@@ -39,7 +39,12 @@ const EXPONENTS: std::ops::RangeInclusive<i32> = -4..=12;
 const FLOOR: f64 = 1e-17;
 
 /// The formulations compared (penalty at the Table 1 relative weight).
-const FORMULATIONS: [&str; 4] = ["nullspace-qr", "kkt", "elimination", "penalty"];
+const FORMULATIONS: [Method; 4] = [
+    Method::NullSpaceQr,
+    Method::Kkt,
+    Method::Eliminate,
+    Method::Penalty,
+];
 
 /// One formulation, refinement mode, mesh and Laplacian.
 #[derive(Debug, Clone, Serialize)]
@@ -102,13 +107,14 @@ fn vertex_error(x: &Mat<f64>, y: &Mat<f64>, diag: f64) -> f64 {
     worst.sqrt() / diag
 }
 
-fn formulation(name: &str) -> Box<dyn Formulation> {
-    match name {
-        "nullspace-qr" => Box::new(NullSpaceQr::default()),
-        "kkt" => Box::new(Kkt::default()),
-        "elimination" => Box::new(Elimination::default()),
-        _ => Box::new(Penalty::new(TABLE_WEIGHT)),
-    }
+/// The formulation of `m`: the library's defaults, penalty at the Table 1
+/// relative weight.
+fn formulation(m: Method) -> Result<Box<dyn Formulation>, AnyError> {
+    let choice = FormulationChoice {
+        weight: (m == Method::Penalty).then_some(TABLE_WEIGHT),
+        ..FormulationChoice::new(m)
+    };
+    Ok(choice.build()?)
 }
 
 /// Everything measured on one mesh and Laplacian.
@@ -133,7 +139,8 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
             .map(|xq| vertex_error(&xq, &x_star, diag)),
     };
     let mut rows = Vec::new();
-    for name in FORMULATIONS {
+    for m in FORMULATIONS {
+        let name = m.name();
         let mut base = Row {
             mesh: case.name.clone(),
             vertices: case.mesh.n_vertices(),
@@ -150,7 +157,7 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
             refine_s: None,
             failure: None,
         };
-        if let Err(e) = deformer.precompute(formulation(name).as_ref()) {
+        if let Err(e) = deformer.precompute(formulation(m)?.as_ref()) {
             for mode in [Refine::Off, Refine::Auto] {
                 rows.push(Row {
                     refine: mode.to_string(),
@@ -329,7 +336,7 @@ fn draw(ctx: &Context, rows: &[Row], weights: &[WeightPoint]) -> Result<Vec<Stri
     let dir = ctx.dir(NAME)?;
     let mut files = Vec::new();
     let mut series = Vec::new();
-    for name in FORMULATIONS {
+    for name in FORMULATIONS.map(Method::name) {
         for mode in ["off", "auto"] {
             let points: Vec<(f64, f64)> = rows
                 .iter()
@@ -406,7 +413,7 @@ fn median_of(v: impl Iterator<Item = f64>) -> f64 {
 /// The findings, stated from the data.
 fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String {
     let mut s = String::new();
-    for name in FORMULATIONS {
+    for name in FORMULATIONS.map(Method::name) {
         let pick = |mode: &str| -> Vec<&Row> {
             rows.iter()
                 .filter(|r| r.formulation == name && r.refine == mode && r.error.is_some())

@@ -31,7 +31,7 @@ use crate::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
 use crate::render::{self, Camera, Layout, Panel, RenderMesh, Style};
 use crate::{AnyError, Summary};
 
-const NAME: &str = "arap";
+pub const NAME: &str = "arap";
 
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
@@ -211,18 +211,8 @@ fn scene_mesh(ctx: &Context) -> Result<MeshCase, AnyError> {
     if let Some(case) = ctx.real_mesh("bunny-35k-stanford.obj")? {
         return Ok(case);
     }
-    let kind = generate::GeneratedKind::BumpySphere;
-    let mesh =
-        generate::with_about_vertices(kind, if ctx.quick { 3_000 } else { 20_000 }, ctx.seed)?;
-    Ok(MeshCase {
-        name: "bumpy-sphere".into(),
-        source: format!(
-            "generated {kind}, {} vertices, seed {}",
-            mesh.n_vertices(),
-            ctx.seed
-        ),
-        mesh,
-    })
+    let size = if ctx.quick { 3_000 } else { 20_000 };
+    ctx.generated("bumpy-sphere", generate::GeneratedKind::BumpySphere, size)
 }
 
 fn matrix(x: &[[f64; 3]]) -> Mat<f64> {

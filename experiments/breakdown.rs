@@ -13,19 +13,22 @@
 //! penalty weight, the phase list and the median run.
 
 use std::fmt::Write as _;
+use std::path::Path;
 use std::time::Instant;
 
 use std::sync::Arc;
 
-use lse_deform::backend::qr::{QrBackend, QrKind};
+use lse_deform::backend::qr::QrKind;
 use lse_deform::backend::spd::{SpdBackend, SpdKind};
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, Formulation, LaplacianKind, Mesh, NullSpaceQr, Penalty, Report};
+use lse_deform::{
+    Deformer, Formulation, FormulationChoice, LaplacianKind, Mesh, Method, NullSpaceQr, Report,
+};
 use serde::Serialize;
 
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median};
+use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::plot::{self, Category, Drawn, LegendPosition, Orientation, Output, StackedBars};
 use crate::{AnyError, Summary};
 
@@ -56,6 +59,26 @@ pub(crate) fn phase_values(t: &Timings) -> Vec<f64> {
     ]
 }
 
+/// The CSV columns of [`phase_cells`].
+pub(crate) const PHASE_COLUMNS: [&str; 5] = [
+    "qr_s",
+    "preparation_s",
+    "normal_matrix_s",
+    "symbolic_s",
+    "numeric_s",
+];
+
+/// CSV cells (`{:.6e}`, empty without timings) of the phases after the
+/// set-up: QR, preparation, normal matrix, symbolic, numeric.
+pub(crate) fn phase_cells(t: Option<&Timings>) -> [String; 5] {
+    let v = t.map(phase_values);
+    [1, 2, 3, 4, 5].map(|i| {
+        v.as_ref()
+            .map(|v| format!("{:.6e}", v[i]))
+            .unwrap_or_default()
+    })
+}
+
 /// [`phase_values`] without the set-up (the precompute phases only; zero in
 /// the set-up slot so that colours still match [`PHASES`]).
 pub(crate) fn precompute_phase_values(t: &Timings) -> Vec<f64> {
@@ -81,11 +104,6 @@ pub(crate) fn spd_backend(name: &str) -> Result<Arc<dyn SpdBackend>, AnyError> {
 /// The QR back ends of this build (SPQR only with `--features suitesparse`).
 pub(crate) fn qr_backends() -> Vec<&'static str> {
     QrKind::available().into_iter().map(QrKind::name).collect()
-}
-
-/// The QR back end called `name` (one of [`qr_backends`]).
-pub(crate) fn qr_backend(name: &str) -> Result<Arc<dyn QrBackend>, AnyError> {
-    Ok(name.parse::<QrKind>()?.backend()?)
 }
 
 /// The null-space method with the library's default QR back end and the
@@ -150,25 +168,7 @@ pub(crate) fn short_error(e: &str) -> String {
 // ---------------------------------------------------------------------------
 // The experiment.
 
-const NAME: &str = "precompute-breakdown";
-
-/// The two formulations compared.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Method {
-    /// Null-space QR: positions hard, Laplacian soft.
-    HardSoft,
-    /// Penalty: everything soft.
-    SoftOnly,
-}
-
-impl Method {
-    fn label(self) -> &'static str {
-        match self {
-            Method::HardSoft => "hard + soft",
-            Method::SoftOnly => "soft only",
-        }
-    }
-}
+pub const NAME: &str = "precompute-breakdown";
 
 /// One row of the CSV: a (mesh, SPD back end, method) configuration.
 #[derive(Debug, Clone, Serialize)]
@@ -196,168 +196,217 @@ struct Row {
     status: String,
 }
 
-/// Runs the experiment.
-pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
-    let dir = ctx.dir(NAME)?;
-    let meshes = ctx.evaluation_meshes()?;
-    let backends = spd_backends();
-    let default_qr = NullSpaceQr::default().qr.name().to_string();
-    let reps_wanted = if ctx.quick { 1 } else { 5 };
-    let mut rows: Vec<Row> = Vec::new();
-    let mut notes: Vec<String> = Vec::new();
-    let bar = ctx.bar(meshes.len() * backends.len(), NAME);
-    for case in &meshes {
-        let MeshCase { name, mesh, .. } = case;
-        let scene = FixedAndHandle::paper_default(mesh);
-        let constraints = scene.constraints(mesh)?;
-        // One set-up to find the penalty weight (relative to L).
-        let probe = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone())?;
-        let weight = PENALTY_RELATIVE_WEIGHT;
-        drop(probe);
-        for &spd_name in &backends {
-            bar.set_message(format!("{NAME}: {name} / {spd_name}"));
-            let hard: Box<dyn Formulation> = Box::new(null_space_with_spd(spd_name)?);
-            let soft: Box<dyn Formulation> =
-                Box::new(Penalty::with_backend(weight, spd_backend(spd_name)?));
-            let methods = [(Method::HardSoft, hard), (Method::SoftOnly, soft)];
-            let mut reports: Vec<Vec<Report>> = vec![Vec::new(); 2];
-            let mut errors: Vec<Option<String>> = vec![None; 2];
-            let mut residuals: Vec<Option<f64>> = vec![None; 2];
-            let mut reps = reps_wanted;
-            let mut rep = 0;
-            while rep < reps {
-                for (i, (_, f)) in methods.iter().enumerate() {
-                    if errors[i].is_some() {
-                        continue;
-                    }
-                    let t = Instant::now();
-                    match setup_and_precompute(mesh, &constraints, f.as_ref()) {
-                        Ok(mut d) => {
-                            reports[i].push(d.report().clone());
-                            if rep == 0 {
-                                // One solve: the constraints really hold (or,
-                                // for penalty, how far off they are).
-                                match d.solve_matrix() {
-                                    Ok(_) => {
-                                        residuals[i] =
-                                            Some(d.report().max_constraint_residual_relative)
-                                    }
-                                    Err(e) => errors[i] = Some(format!("solve failed: {e}")),
-                                }
-                            }
+/// The two formulations compared: null-space QR (positions hard, Laplacian
+/// soft) and penalty (everything soft), on the SPD back end `spd_name`.
+fn choices(spd_name: &str) -> Result<[FormulationChoice; 2], AnyError> {
+    let spd: SpdKind = spd_name.parse()?;
+    Ok([
+        FormulationChoice {
+            spd,
+            ..FormulationChoice::new(Method::NullSpaceQr)
+        },
+        FormulationChoice {
+            spd,
+            weight: Some(PENALTY_RELATIVE_WEIGHT),
+            ..FormulationChoice::new(Method::Penalty)
+        },
+    ])
+}
+
+/// The table's words for a formulation.
+fn label(m: Method) -> &'static str {
+    match m {
+        Method::Penalty => "soft only",
+        _ => "hard + soft",
+    }
+}
+
+/// The runs of one formulation.
+#[derive(Default)]
+struct Runs {
+    reports: Vec<Report>,
+    error: Option<String>,
+    residual: Option<f64>,
+}
+
+/// Up to `reps_wanted` set-ups and precomputes from scratch of both
+/// formulations, alternately so that their ratio is measured side by side
+/// (slow configurations get at most 3); one solve after the first.
+fn measure_pair(
+    mesh: &Mesh,
+    constraints: &ConstraintSet,
+    formulations: &[Box<dyn Formulation>; 2],
+    reps_wanted: usize,
+) -> [Runs; 2] {
+    let mut runs = [Runs::default(), Runs::default()];
+    let mut reps = reps_wanted;
+    let mut rep = 0;
+    while rep < reps {
+        for (r, f) in runs.iter_mut().zip(formulations) {
+            if r.error.is_some() {
+                continue;
+            }
+            let t = Instant::now();
+            match setup_and_precompute(mesh, constraints, f.as_ref()) {
+                Ok(mut d) => {
+                    r.reports.push(d.report().clone());
+                    // One solve: the constraints really hold (or, for
+                    // penalty, how far off they are).
+                    if rep == 0 {
+                        match d.solve_matrix() {
+                            Ok(_) => r.residual = Some(d.report().max_constraint_residual_relative),
+                            Err(e) => r.error = Some(format!("solve failed: {e}")),
                         }
-                        Err(e) => errors[i] = Some(e.to_string()),
-                    }
-                    // Slow configurations get fewer repetitions.
-                    if rep == 0 && t.elapsed().as_secs_f64() > 3.0 {
-                        reps = reps.min(3);
                     }
                 }
-                rep += 1;
+                Err(e) => r.error = Some(e.to_string()),
             }
-            for (i, (method, f)) in methods.iter().enumerate() {
-                let runs = &reports[i];
-                let totals: Vec<f64> = runs
-                    .iter()
-                    .map(|r| r.timings_s.setup + r.timings_s.precompute())
-                    .collect();
-                let pre: Vec<f64> = runs.iter().map(|r| r.timings_s.precompute()).collect();
-                let chosen = (!runs.is_empty()).then(|| &runs[median_index(&totals)]);
-                let status = match &errors[i] {
-                    Some(e) => {
-                        notes.push(format!("{name} / {} / {spd_name}: {e}", method.label()));
-                        format!("failed: {}", short_error(e))
-                    }
-                    None => "ok".into(),
-                };
-                rows.push(Row {
-                    mesh: name.clone(),
-                    vertices: mesh.n_vertices(),
-                    method: method.label(),
-                    formulation: f.name(),
-                    qr_backend: if *method == Method::HardSoft {
-                        default_qr.clone()
-                    } else {
-                        "—".into()
-                    },
-                    spd_backend: spd_name.into(),
-                    penalty_weight: (*method == Method::SoftOnly).then_some(weight),
-                    repetitions: runs.len(),
-                    timings: chosen.map(|r| r.timings_s.clone()),
-                    total_median_s: (!totals.is_empty()).then(|| median(&totals)),
-                    precompute_median_s: (!pre.is_empty()).then(|| median(&pre)),
-                    nnz_normal: chosen.and_then(|r| r.nnz.normal),
-                    nnz_factor: chosen.and_then(|r| r.nnz.factor),
-                    constraint_residual_relative: residuals[i],
-                    status,
-                });
+            if rep == 0 && t.elapsed().as_secs_f64() > 3.0 {
+                reps = reps.min(3);
             }
-            bar.inc(1);
+        }
+        rep += 1;
+    }
+    runs
+}
+
+/// The row of one formulation's runs (the median total's phases).
+fn row_of(
+    case: &MeshCase,
+    spd_name: &str,
+    choice: &FormulationChoice,
+    f: &dyn Formulation,
+    runs: &Runs,
+    notes: &mut Vec<String>,
+) -> Row {
+    let totals: Vec<f64> = runs
+        .reports
+        .iter()
+        .map(|r| r.timings_s.setup + r.timings_s.precompute())
+        .collect();
+    let pre: Vec<f64> = runs
+        .reports
+        .iter()
+        .map(|r| r.timings_s.precompute())
+        .collect();
+    let chosen = (!runs.reports.is_empty()).then(|| &runs.reports[median_index(&totals)]);
+    let method = label(choice.method);
+    let status = match &runs.error {
+        Some(e) => {
+            notes.push(format!("{} / {method} / {spd_name}: {e}", case.name));
+            format!("failed: {}", short_error(e))
+        }
+        None => "ok".into(),
+    };
+    Row {
+        mesh: case.name.clone(),
+        vertices: case.mesh.n_vertices(),
+        method,
+        formulation: f.name(),
+        qr_backend: match choice.method {
+            Method::NullSpaceQr => choice.qr.name().to_string(),
+            _ => "—".into(),
+        },
+        spd_backend: spd_name.into(),
+        penalty_weight: choice.weight,
+        repetitions: runs.reports.len(),
+        timings: chosen.map(|r| r.timings_s.clone()),
+        total_median_s: (!totals.is_empty()).then(|| median(&totals)),
+        precompute_median_s: (!pre.is_empty()).then(|| median(&pre)),
+        nnz_normal: chosen.and_then(|r| r.nnz.normal),
+        nnz_factor: chosen.and_then(|r| r.nnz.factor),
+        constraint_residual_relative: runs.residual,
+        status,
+    }
+}
+
+/// Both formulations on every SPD back end, on one mesh.
+fn measure_case(
+    ctx: &Context,
+    case: &MeshCase,
+    rows: &mut Vec<Row>,
+    notes: &mut Vec<String>,
+) -> Result<(), AnyError> {
+    let constraints = FixedAndHandle::paper_default(&case.mesh).constraints(&case.mesh)?;
+    for spd_name in spd_backends() {
+        let choices = choices(spd_name)?;
+        let formulations = [choices[0].build()?, choices[1].build()?];
+        let reps = if ctx.quick { 1 } else { 5 };
+        let runs = measure_pair(&case.mesh, &constraints, &formulations, reps);
+        for ((c, f), r) in choices.iter().zip(&formulations).zip(&runs) {
+            rows.push(row_of(case, spd_name, c, f.as_ref(), r, notes));
         }
     }
-    bar.finish_and_clear();
+    Ok(())
+}
 
-    // Data.
+/// `breakdown.csv` (timings flattened) and `breakdown.json`.
+fn write_data(ctx: &Context, dir: &Path, rows: &[Row]) -> Result<(), AnyError> {
     let header = [
-        "mesh",
-        "vertices",
-        "method",
-        "formulation",
-        "qr_backend",
-        "spd_backend",
-        "penalty_weight",
-        "repetitions",
-        "setup_s",
-        "qr_s",
-        "preparation_s",
-        "normal_matrix_s",
-        "symbolic_s",
-        "numeric_s",
-        "precompute_s",
-        "precompute_median_s",
-        "total_median_s",
-        "nnz_normal",
-        "nnz_factor",
-        "constraint_residual_relative",
-        "status",
-    ];
-    let opt = |v: Option<f64>| v.map(|x| format!("{x:.6e}")).unwrap_or_default();
+        &[
+            "mesh",
+            "vertices",
+            "method",
+            "formulation",
+            "qr_backend",
+            "spd_backend",
+            "penalty_weight",
+            "repetitions",
+            "setup_s",
+        ][..],
+        &PHASE_COLUMNS,
+        &[
+            "precompute_s",
+            "precompute_median_s",
+            "total_median_s",
+            "nnz_normal",
+            "nnz_factor",
+            "constraint_residual_relative",
+            "status",
+        ],
+    ]
+    .concat();
     let csv_rows: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
             let t = r.timings.as_ref();
-            let f = |g: fn(&Timings) -> f64| opt(t.map(g));
-            vec![
+            let f = |g: fn(&Timings) -> f64| cell_f(t.map(g));
+            let mut cells = vec![
                 r.mesh.clone(),
                 r.vertices.to_string(),
                 r.method.into(),
                 r.formulation.clone(),
                 r.qr_backend.clone(),
                 r.spd_backend.clone(),
-                opt(r.penalty_weight),
+                cell_f(r.penalty_weight),
                 r.repetitions.to_string(),
                 f(|t| t.setup),
-                f(|t| t.qr),
-                f(|t| t.preparation),
-                f(|t| t.normal_matrix),
-                f(|t| t.symbolic),
-                f(|t| t.numeric),
+            ];
+            cells.extend(phase_cells(t));
+            cells.extend([
                 f(|t| t.precompute()),
-                opt(r.precompute_median_s),
-                opt(r.total_median_s),
-                r.nnz_normal.map(|v| v.to_string()).unwrap_or_default(),
-                r.nnz_factor.map(|v| v.to_string()).unwrap_or_default(),
-                opt(r.constraint_residual_relative),
+                cell_f(r.precompute_median_s),
+                cell_f(r.total_median_s),
+                cell_u(r.nnz_normal),
+                cell_u(r.nnz_factor),
+                cell_f(r.constraint_residual_relative),
                 r.status.clone(),
-            ]
+            ]);
+            cells
         })
         .collect();
     ctx.write_csv(&dir.join("breakdown.csv"), &header, &csv_rows)?;
-    ctx.write_json(&dir.join("breakdown.json"), &rows)?;
+    ctx.write_json(&dir.join("breakdown.json"), &rows)
+}
 
-    // Figures: one per SPD back end, bars = mesh × method.
+/// One figure per SPD back end, bars = mesh × method: (back end, stem).
+fn figures(
+    dir: &Path,
+    rows: &[Row],
+    notes: &mut Vec<String>,
+) -> Result<Vec<(&'static str, String)>, AnyError> {
     let mut figures = Vec::new();
-    for &spd_name in &backends {
+    for spd_name in spd_backends() {
         let categories: Vec<Category> = rows
             .iter()
             .filter(|r| r.spd_backend == spd_name)
@@ -384,125 +433,147 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         };
         let stem = format!("breakdown_{spd_name}");
         let out = Output::new(dir.join(&stem)).with_size(960, 200 + 44 * n_bars);
-        let drawn = plot::stacked_bars(&spec, &out)?;
-        note_drawn(&drawn, &mut notes);
+        note_drawn(&plot::stacked_bars(&spec, &out)?, notes);
         figures.push((spd_name, stem));
     }
+    Ok(figures)
+}
 
-    // Ratio table: hard + soft over soft only, per mesh and back end.
+/// A total cell: the time, flagged when the solve failed.
+fn total_cell(r: Option<&Row>) -> String {
+    match r {
+        Some(r) if r.total_median_s.is_some() => {
+            let mut c = fmt_time(r.total_median_s.unwrap_or(f64::NAN));
+            if r.status != "ok" {
+                c.push_str(" (solve failed)");
+            }
+            c
+        }
+        Some(r) => r.status.clone(),
+        None => "—".into(),
+    }
+}
+
+/// The table's row of one mesh and back end, and its ratio.
+fn ratio_row(
+    case_label: String,
+    spd_name: &str,
+    h: Option<&Row>,
+    s: Option<&Row>,
+) -> (Vec<String>, Option<f64>) {
+    let dash = || "—".to_string();
+    let pre = |r: Option<&Row>| {
+        r.and_then(|r| r.precompute_median_s)
+            .map_or_else(dash, fmt_time)
+    };
+    let nnz = |r: Option<&Row>| {
+        r.and_then(|r| r.nnz_factor)
+            .map_or_else(dash, |v| format!("{:.2}M", v as f64 / 1e6))
+    };
+    let res = |r: Option<&Row>| {
+        r.and_then(|r| r.constraint_residual_relative)
+            .map_or_else(dash, |v| format!("{v:.1e}"))
+    };
+    let ratio = match (
+        h.and_then(|r| r.total_median_s),
+        s.and_then(|r| r.total_median_s),
+    ) {
+        (Some(a), Some(b)) if b > 0.0 => Some(a / b),
+        _ => None,
+    };
+    let cells = vec![
+        case_label,
+        spd_name.to_string(),
+        pre(h),
+        total_cell(h),
+        pre(s),
+        total_cell(s),
+        ratio.map_or_else(dash, |r| format!("{r:.2}")),
+        format!("{} / {}", nnz(h), nnz(s)),
+        format!("{} / {}", res(h), res(s)),
+    ];
+    (cells, ratio)
+}
+
+/// Hard + soft over soft only, per mesh and back end: table rows, ratios.
+fn ratio_table(meshes: &[MeshCase], rows: &[Row]) -> (Vec<Vec<String>>, Vec<f64>) {
     let find = |mesh: &str, spd_name: &str, m: Method| {
         rows.iter()
-            .find(|r| r.mesh == mesh && r.spd_backend == spd_name && r.method == m.label())
+            .find(|r| r.mesh == mesh && r.spd_backend == spd_name && r.method == label(m))
     };
-    let mut ratio_rows = Vec::new();
+    let mut table = Vec::new();
     let mut ratios = Vec::new();
-    for case in &meshes {
-        for &spd_name in &backends {
-            let h = find(&case.name, spd_name, Method::HardSoft);
-            let s = find(&case.name, spd_name, Method::SoftOnly);
-            let cell = |r: Option<&Row>| match r {
-                Some(r) if r.total_median_s.is_some() => {
-                    let mut c = fmt_time(r.total_median_s.unwrap_or(f64::NAN));
-                    if r.status != "ok" {
-                        c.push_str(" (solve failed)");
-                    }
-                    c
-                }
-                Some(r) => r.status.clone(),
-                None => "—".into(),
-            };
-            let pre = |r: Option<&Row>| {
-                r.and_then(|r| r.precompute_median_s)
-                    .map(fmt_time)
-                    .unwrap_or_else(|| "—".into())
-            };
-            let ratio = match (
-                h.and_then(|r| r.total_median_s),
-                s.and_then(|r| r.total_median_s),
-            ) {
-                (Some(a), Some(b)) if b > 0.0 => {
-                    ratios.push(a / b);
-                    format!("{:.2}", a / b)
-                }
-                _ => "—".into(),
-            };
-            let nnz = |r: Option<&Row>| {
-                r.and_then(|r| r.nnz_factor)
-                    .map(|v| format!("{:.2}M", v as f64 / 1e6))
-                    .unwrap_or_else(|| "—".into())
-            };
-            let res = |r: Option<&Row>| {
-                r.and_then(|r| r.constraint_residual_relative)
-                    .map(|v| format!("{v:.1e}"))
-                    .unwrap_or_else(|| "—".into())
-            };
-            ratio_rows.push(vec![
+    for case in meshes {
+        for spd_name in spd_backends() {
+            let (cells, ratio) = ratio_row(
                 format!("{} ({})", case.name, case.mesh.n_vertices()),
-                spd_name.to_string(),
-                pre(h),
-                cell(h),
-                pre(s),
-                cell(s),
-                ratio,
-                format!("{} / {}", nnz(h), nnz(s)),
-                format!("{} / {}", res(h), res(s)),
-            ]);
+                spd_name,
+                find(&case.name, spd_name, Method::NullSpaceQr),
+                find(&case.name, spd_name, Method::Penalty),
+            );
+            table.push(cells);
+            ratios.extend(ratio);
         }
     }
+    (table, ratios)
+}
 
-    // Section.
-    let command = format!(
-        "cargo run --release --features suitesparse --bin experiments -- {NAME}{}",
-        if ctx.has_user_meshes() {
-            " --mesh-dir ../shared/meshes"
-        } else {
-            ""
-        }
-    );
+/// The range and median of the ratios, as "a to b (median c)".
+fn ratio_range(ratios: &[f64]) -> (f64, f64, f64) {
+    (
+        ratios.iter().copied().fold(f64::INFINITY, f64::min),
+        ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        median(ratios),
+    )
+}
+
+/// The section, from the tables, figures and notes.
+fn section(
+    ctx: &Context,
+    table: &[Vec<String>],
+    ratios: &[f64],
+    figures: &[(&str, String)],
+    notes: &[String],
+) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
         "Set-up and precompute time of the paper's scene (`FixedAndHandle::paper_default`: lowest 20 % of the vertices fixed, a 2 % handle; cotangent Laplacian) \
-         with the positions **hard** (null-space QR, QR back end `{default_qr}` = the library default) against **soft only** \
+         with the positions **hard** (null-space QR, QR back end `{}` = the library default) against **soft only** \
          (penalty: every hard row a soft row of relative weight w = {PENALTY_RELATIVE_WEIGHT}, i.e. w × the largest column norm of A, the paper's conversion), on every SPD back end of this build ({}). \
-         Each entry is the median of up to {reps_wanted} repetitions from scratch, hard and soft run alternately so that the ratio is measured side by side; \
+         Each entry is the median of up to {} repetitions from scratch, hard and soft run alternately so that the ratio is measured side by side; \
          the bars show the run with the median total.\n",
-        backends.join(", ")
+        FormulationChoice::new(Method::NullSpaceQr).qr.name(),
+        spd_backends().join(", "),
+        if ctx.quick { 1 } else { 5 }
     );
-    let _ = writeln!(
-        s,
-        "Regenerate this section alone:\n\n```sh\n{command}\n```\n"
-    );
+    s.push_str(&ctx.regenerate(NAME));
     let _ = writeln!(
         s,
         "**Table.** Precompute (QR + preparation + normal matrix + symbolic + numeric) and set-up + precompute per mesh and back end; ratio = hard + soft over soft only (set-up included, as in the paper's Fig. 7). \
          A ratio near 1 is the paper's claim (\"as fast as the method with only soft constraints\"); below 1, the hard constraints make the problem smaller (fixed vertices leave the system). \
          The last columns give the factor's nnz and the max residual of the constraints after one solve, relative to the bounding-box diagonal (hard: rounding; soft: the penalty's approximation).\n"
     );
-    s.push_str(&markdown_table(
-        &[
-            "mesh (vertices)",
-            "SPD back end",
-            "hard + soft precompute",
-            "hard + soft total",
-            "soft only precompute",
-            "soft only total",
-            "ratio (total)",
-            "nnz(L) hard / soft",
-            "residual hard / soft",
-        ],
-        &ratio_rows,
-    ));
+    let header = [
+        "mesh (vertices)",
+        "SPD back end",
+        "hard + soft precompute",
+        "hard + soft total",
+        "soft only precompute",
+        "soft only total",
+        "ratio (total)",
+        "nnz(L) hard / soft",
+        "residual hard / soft",
+    ];
+    s.push_str(&markdown_table(&header, table));
     if !ratios.is_empty() {
+        let (lo, hi, med) = ratio_range(ratios);
         let _ = writeln!(
             s,
-            "\nOver all meshes and back ends the ratio hard + soft / soft only ranges from {:.2} to {:.2} (median {:.2}).",
-            ratios.iter().copied().fold(f64::INFINITY, f64::min),
-            ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-            median(&ratios)
+            "\nOver all meshes and back ends the ratio hard + soft / soft only ranges from {lo:.2} to {hi:.2} (median {med:.2})."
         );
     }
-    for (spd_name, stem) in &figures {
+    for (spd_name, stem) in figures {
         let _ = writeln!(
             s,
             "\n**Figure ({spd_name}).** One bar per mesh and method, stacked by phase (set-up first); the number at the end is the total. \
@@ -510,27 +581,36 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             link(NAME, stem)
         );
     }
-    if !notes.is_empty() {
-        let _ = writeln!(s, "\n**What did not work / notes.**\n");
-        for n in &notes {
-            let _ = writeln!(s, "- {n}");
-        }
-    }
-    let _ = writeln!(
-        s,
-        "\nData: [`{NAME}/breakdown.csv`]({NAME}/breakdown.csv), [`{NAME}/breakdown.json`]({NAME}/breakdown.json)."
-    );
-    let _ = writeln!(s, "\n_{}_", ctx.machine.one_line());
-    ctx.write_section(NAME, &s)?;
+    s.push_str(&ctx.closing(
+        notes,
+        &format!("Data: [`{NAME}/breakdown.csv`]({NAME}/breakdown.csv), [`{NAME}/breakdown.json`]({NAME}/breakdown.json)."),
+    ));
+    s
+}
 
+/// Runs the experiment.
+pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
+    let dir = ctx.dir(NAME)?;
+    let meshes = ctx.evaluation_meshes()?;
+    let mut rows: Vec<Row> = Vec::new();
+    let mut notes: Vec<String> = Vec::new();
+    let bar = ctx.bar(meshes.len(), NAME);
+    for case in &meshes {
+        bar.set_message(format!("{NAME}: {}", case.name));
+        measure_case(ctx, case, &mut rows, &mut notes)?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    write_data(ctx, &dir, &rows)?;
+    let figures = figures(&dir, &rows, &mut notes)?;
+    let (table, ratios) = ratio_table(&meshes, &rows);
+    ctx.write_section(NAME, &section(ctx, &table, &ratios, &figures, &notes))?;
     let headline = if ratios.is_empty() {
         "no ratio could be measured".to_string()
     } else {
+        let (lo, hi, med) = ratio_range(&ratios);
         format!(
-            "hard+soft / soft-only set-up+precompute: median ratio {:.2} (range {:.2}–{:.2}) over {} mesh × back-end pairs",
-            median(&ratios),
-            ratios.iter().copied().fold(f64::INFINITY, f64::min),
-            ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            "hard+soft / soft-only set-up+precompute: median ratio {med:.2} (range {lo:.2}–{hi:.2}) over {} mesh × back-end pairs",
             ratios.len()
         )
     };

@@ -14,17 +14,22 @@
 //! difference of two rows already present).
 
 use std::fmt::Write as _;
+use std::path::Path;
 use std::time::Instant;
 
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
+use lse_deform::error::Error;
 use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, Formulation, Kkt, LaplacianKind, NullSpaceQr, Penalty, Report};
+use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method, Report};
 
 use crate::context::{Context, fmt_time, markdown_table};
 use crate::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
 use crate::table1::{failure_kind, sci};
 use crate::{AnyError, Summary};
+
+/// The folder and command-line word of this experiment.
+pub const NAME: &str = "conflicts";
 
 /// Groups of the scene's constraints, in list order.
 pub const GROUPS: [&str; 5] = [
@@ -149,40 +154,46 @@ pub struct Solved {
 /// (w = [`SOFT_WEIGHT`]), penalty (w = [`PENALTY_WEIGHT`]), KKT, null-space
 /// QR; cotangent Laplacian.
 pub fn solve_all(mesh: &Mesh, sc: &Scene) -> Result<Vec<Solved>, AnyError> {
-    let mut out = Vec::new();
-    let soft = all_soft(&sc.constraints, SOFT_WEIGHT)?;
-    let mut soft_deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, soft)?;
+    let penalty = |w: f64| FormulationChoice {
+        weight: Some(w),
+        ..FormulationChoice::new(Method::Penalty)
+    };
     let solve =
-        |d: &mut Deformer, f: &dyn Formulation| -> Result<(Vec<[f64; 3]>, Report), String> {
-            d.precompute(f)
+        |d: &mut Deformer, c: FormulationChoice| -> Result<(Vec<[f64; 3]>, Report), String> {
+            c.build()
+                .map_err(Error::from)
+                .and_then(|f| d.precompute(f.as_ref()))
                 .and_then(|_| d.solve())
                 .map(|s| (s.positions, s.report))
                 .map_err(|e| format!("{} — {e}", failure_kind(&e)))
         };
-    out.push(Solved {
-        label: format!("all soft (w = {})", sci(SOFT_WEIGHT)),
-        // No hard rows: the penalty formulation's normal equations are
-        // those of the plain least-squares problem (its weight is unused).
-        result: solve(&mut soft_deformer, &Penalty::new(1.0)),
-    });
+    let soft = all_soft(&sc.constraints, SOFT_WEIGHT)?;
+    let mut soft_deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, soft)?;
     let mut d = Deformer::new(
         mesh.clone(),
         LaplacianKind::Cotangent,
         sc.constraints.clone(),
     )?;
-    out.push(Solved {
-        label: format!("penalty (w = {})", sci(PENALTY_WEIGHT)),
-        result: solve(&mut d, &Penalty::new(PENALTY_WEIGHT)),
-    });
-    out.push(Solved {
-        label: "KKT".into(),
-        result: solve(&mut d, &Kkt::default()),
-    });
-    out.push(Solved {
-        label: "null-space QR (detect and remove)".into(),
-        result: solve(&mut d, &NullSpaceQr::default()),
-    });
-    Ok(out)
+    Ok(vec![
+        Solved {
+            label: format!("all soft (w = {})", sci(SOFT_WEIGHT)),
+            // No hard rows: the penalty formulation's normal equations are
+            // those of the plain least-squares problem (its weight is unused).
+            result: solve(&mut soft_deformer, penalty(1.0)),
+        },
+        Solved {
+            label: format!("penalty (w = {})", sci(PENALTY_WEIGHT)),
+            result: solve(&mut d, penalty(PENALTY_WEIGHT)),
+        },
+        Solved {
+            label: "KKT".into(),
+            result: solve(&mut d, FormulationChoice::new(Method::Kkt)),
+        },
+        Solved {
+            label: "null-space QR (detect and remove)".into(),
+            result: solve(&mut d, FormulationChoice::new(Method::NullSpaceQr)),
+        },
+    ])
 }
 
 /// The mesh of the experiment: the 3.5k-vertex bunny with a mesh directory,
@@ -196,133 +207,213 @@ pub fn conflict_mesh(ctx: &Context) -> Result<(String, Mesh), AnyError> {
     Ok(("bumpy-sphere".into(), mesh))
 }
 
-/// Runs the experiment.
-pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
-    let started = Instant::now();
-    let dir = ctx.dir("conflicts")?;
-    let (name, mesh) = conflict_mesh(ctx)?;
-    let extra = 5;
-    let sc = scene(&mesh, extra)?;
-    let diag = mesh.bbox_diagonal();
-    let solved = solve_all(&mesh, &sc)?;
+/// The solves of the scene and what is derived from them.
+struct Outcome<'a> {
+    sc: &'a Scene,
+    solved: Vec<Solved>,
+    /// Per method, the residual of every constraint (absolute).
+    per_method: Vec<Option<Vec<f64>>>,
+    /// The null-space method's report (the last method).
+    ns_report: Option<Report>,
+    diag: f64,
+}
 
-    // Per-constraint CSV.
-    let per_method: Vec<Option<Vec<f64>>> = solved
-        .iter()
-        .map(|s| {
-            s.result
-                .as_ref()
-                .ok()
-                .map(|(x, _)| residuals(&sc.constraints, x))
+impl Outcome<'_> {
+    fn new<'a>(mesh: &Mesh, sc: &'a Scene) -> Result<Outcome<'a>, AnyError> {
+        let solved = solve_all(mesh, sc)?;
+        let per_method = solved
+            .iter()
+            .map(|s| {
+                s.result
+                    .as_ref()
+                    .ok()
+                    .map(|(x, _)| residuals(&sc.constraints, x))
+            })
+            .collect();
+        let ns_report = solved
+            .last()
+            .and_then(|s| s.result.as_ref().ok().map(|(_, r)| r.clone()));
+        Ok(Outcome {
+            sc,
+            solved,
+            per_method,
+            ns_report,
+            diag: mesh.bbox_diagonal(),
         })
-        .collect();
-    let ns_report = solved
-        .last()
-        .and_then(|s| s.result.as_ref().ok().map(|(_, r)| r.clone()));
-    let status_of = |i: usize| -> String {
-        match &ns_report {
+    }
+
+    /// What the null-space method did with constraint `i`.
+    fn status_of(&self, i: usize) -> String {
+        match &self.ns_report {
             Some(r) if r.redundant.contains(&i) => "redundant (dropped)".into(),
             Some(r) if r.conflicting.iter().any(|c| c.index == i) => "conflicting (dropped)".into(),
             Some(_) => "kept".into(),
             None => String::new(),
         }
-    };
-    let mut header = vec![
-        "index".to_string(),
-        "group".into(),
-        "kind".into(),
-        "vertices".into(),
-        "nullspace_status".into(),
-    ];
-    for s in &solved {
-        header.push(format!("residual_relative[{}]", s.label));
     }
-    let header_refs: Vec<&str> = header.iter().map(|s| s.as_str()).collect();
-    let rows: Vec<Vec<String>> = sc
-        .constraints
-        .as_slice()
-        .iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let mut row = vec![
-                i.to_string(),
-                GROUPS[sc.group[i]].to_string(),
-                c.kind.name().to_string(),
-                c.kind
-                    .vertices()
-                    .iter()
-                    .map(|v| v.to_string())
-                    .collect::<Vec<_>>()
-                    .join(" "),
-                status_of(i),
-            ];
-            for r in &per_method {
-                row.push(
-                    r.as_ref()
-                        .map(|r| format!("{:e}", r[i] / diag))
-                        .unwrap_or_default(),
-                );
+
+    /// `conflicts.csv`: one row per constraint, a residual column per method.
+    fn write_data(&self, ctx: &Context, dir: &Path) -> Result<(), AnyError> {
+        let mut header: Vec<String> = ["index", "group", "kind", "vertices", "nullspace_status"]
+            .map(String::from)
+            .to_vec();
+        for s in &self.solved {
+            header.push(format!("residual_relative[{}]", s.label));
+        }
+        let header_refs: Vec<&str> = header.iter().map(|s| s.as_str()).collect();
+        let rows: Vec<Vec<String>> = (self.sc.constraints.as_slice().iter().enumerate())
+            .map(|(i, c)| {
+                let vertices: Vec<String> =
+                    c.kind.vertices().iter().map(|v| v.to_string()).collect();
+                let mut row = vec![
+                    i.to_string(),
+                    GROUPS[self.sc.group[i]].to_string(),
+                    c.kind.name().to_string(),
+                    vertices.join(" "),
+                    self.status_of(i),
+                ];
+                for r in &self.per_method {
+                    row.push(
+                        r.as_ref()
+                            .map(|r| format!("{:e}", r[i] / self.diag))
+                            .unwrap_or_default(),
+                    );
+                }
+                row
+            })
+            .collect();
+        ctx.write_csv(&dir.join("conflicts.csv"), &header_refs, &rows)
+    }
+
+    /// Max residual / diagonal per group and method, and what null-space QR
+    /// dropped.
+    fn group_table(&self) -> String {
+        let mut table = Vec::new();
+        for (g, gname) in GROUPS.iter().enumerate() {
+            let idx: Vec<usize> = (0..self.sc.group.len())
+                .filter(|&i| self.sc.group[i] == g)
+                .collect();
+            let mut row = vec![gname.to_string(), idx.len().to_string()];
+            for r in &self.per_method {
+                row.push(match r {
+                    Some(r) => sci(idx.iter().map(|&i| r[i]).fold(0.0, f64::max) / self.diag),
+                    None => "–".into(),
+                });
             }
-            row
-        })
-        .collect();
-    ctx.write_csv(&dir.join("conflicts.csv"), &header_refs, &rows)?;
-
-    // Group table: max residual/diagonal per group and method.
-    let mut table = Vec::new();
-    for (g, gname) in GROUPS.iter().enumerate() {
-        let idx: Vec<usize> = (0..sc.group.len()).filter(|&i| sc.group[i] == g).collect();
-        let mut row = vec![gname.to_string(), idx.len().to_string()];
-        for r in &per_method {
-            row.push(match r {
-                Some(r) => sci(idx.iter().map(|&i| r[i]).fold(0.0, f64::max) / diag),
-                None => "–".into(),
-            });
+            let dropped = idx.iter().filter(|&&i| self.status_of(i) != "kept").count();
+            row.push(format!("{dropped} of {}", idx.len()));
+            table.push(row);
         }
-        let dropped = idx.iter().filter(|&&i| status_of(i) != "kept").count();
-        row.push(format!("{dropped} of {}", idx.len()));
-        table.push(row);
-    }
-    let mut t_header = vec!["group".to_string(), "constraints".into()];
-    for s in &solved {
-        t_header.push(format!("max res / diag: {}", s.label));
-    }
-    t_header.push("dropped by null-space QR".into());
-    let t_refs: Vec<&str> = t_header.iter().map(|s| s.as_str()).collect();
-
-    // Plot: residual of every constraint, one series per method.
-    let floor = 1e-17;
-    let mut series = Vec::new();
-    for (s, r) in solved.iter().zip(&per_method) {
-        if let Some(r) = r {
-            series.push(Series::new(
-                s.label.clone(),
-                r.iter()
-                    .enumerate()
-                    .map(|(i, v)| (i as f64, (v / diag).max(floor)))
-                    .collect(),
-            ));
+        let mut header = vec!["group".to_string(), "constraints".into()];
+        for s in &self.solved {
+            header.push(format!("max res / diag: {}", s.label));
         }
+        header.push("dropped by null-space QR".into());
+        let refs: Vec<&str> = header.iter().map(|s| s.as_str()).collect();
+        markdown_table(&refs, &table)
     }
-    let first_extra = sc.group.iter().position(|&g| g >= 2).unwrap_or(0);
-    if !series.is_empty() {
+
+    /// The index of the first appended constraint.
+    fn first_extra(&self) -> usize {
+        self.sc.group.iter().position(|&g| g >= 2).unwrap_or(0)
+    }
+
+    /// The residual of every constraint, one series per method.
+    fn figure(&self, dir: &Path, name: &str) -> Result<(), AnyError> {
+        let floor = 1e-17;
+        let series: Vec<Series> = self
+            .solved
+            .iter()
+            .zip(&self.per_method)
+            .filter_map(|(s, r)| {
+                let points = r.as_ref()?.iter().enumerate();
+                let points = points.map(|(i, v)| (i as f64, (v / self.diag).max(floor)));
+                Some(Series::new(s.label.clone(), points.collect()))
+            })
+            .collect();
+        if series.is_empty() {
+            return Ok(());
+        }
+        let chart = LineChart {
+            title: format!(
+                "Conflicting constraints on {name}: residual of each constraint (appended groups from index {})",
+                self.first_extra()
+            ),
+            x: Axis::linear("constraint index (list order = priority)"),
+            y: Axis::log10("‖b_k X − d_k‖ / diagonal (≥ 1e-17)"),
+            series,
+            reference_lines: Vec::new(),
+            legend: LegendPosition::Auto,
+        };
         plot::line_chart(
-            &LineChart {
-                title: format!(
-                    "Conflicting constraints on {name}: residual of each constraint (appended groups from index {first_extra})"
-                ),
-                x: Axis::linear("constraint index (list order = priority)"),
-                y: Axis::log10("‖b_k X − d_k‖ / diagonal (≥ 1e-17)"),
-                series,
-                reference_lines: Vec::new(),
-                legend: LegendPosition::Auto,
-            },
+            &chart,
             &Output::new(dir.join("conflicts")).with_size(1100, 640),
         )?;
+        Ok(())
     }
 
-    // Section.
-    let seconds = started.elapsed().as_secs_f64();
+    /// What null-space QR kept and dropped, for its outcome line.
+    fn null_space_detail(&self, r: &Report) -> String {
+        let conflicting: Vec<String> = r
+            .conflicting
+            .iter()
+            .map(|c| format!("#{} (residual {})", c.index, sci(c.residual / self.diag)))
+            .collect();
+        format!(
+            "; rank {} of {} hard rows; redundant (dropped, satisfied anyway): {:?}; conflicting (dropped): {}",
+            r.rank.map(|k| k.to_string()).unwrap_or_default(),
+            r.hard_constraints,
+            r.redundant,
+            conflicting.join(", ")
+        )
+    }
+
+    /// One line per method: solved (residuals) or failed.
+    fn outcome_text(&self) -> String {
+        let mut s = String::new();
+        let n = self.sc.constraints.len();
+        for (i, (sv, res)) in self.solved.iter().zip(&self.per_method).enumerate() {
+            let (_, r) = match &sv.result {
+                Ok(ok) => ok,
+                Err(e) => {
+                    let _ = writeln!(s, "- {}: **failed** — {e}", sv.label);
+                    continue;
+                }
+            };
+            let all = res
+                .as_ref()
+                .map_or(f64::NAN, |v| v.iter().fold(0.0, |a: f64, &b| a.max(b)));
+            let kept = if r.hard_constraints == 0 {
+                "– (none: all soft)".to_string()
+            } else {
+                sci(r.max_constraint_residual_relative)
+            };
+            // The null-space method is the last one.
+            let detail = if i + 1 == self.solved.len() {
+                self.null_space_detail(r)
+            } else {
+                String::new()
+            };
+            let _ = writeln!(
+                s,
+                "- {}: solved; max residual over all {n} constraints {} of the diagonal, over the hard constraints it keeps {kept}{detail}",
+                sv.label,
+                sci(all / self.diag),
+            );
+        }
+        s
+    }
+}
+
+/// The section, from the outcome.
+fn section(
+    ctx: &Context,
+    name: &str,
+    mesh: &Mesh,
+    extra: usize,
+    o: &Outcome,
+    seconds: f64,
+) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -331,59 +422,16 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
          original position (conflict of size 0.15·diagonal), and {extra} relative constraints between a handle and a fixed vertex keeping their \
          original difference (a conflict that is a combination of two earlier rows). {} constraints in all.\n",
         mesh.n_vertices(),
-        sc.fixed.len(),
-        sc.handle.len(),
-        sc.constraints.len()
+        o.sc.fixed.len(),
+        o.sc.handle.len(),
+        o.sc.constraints.len()
     );
-    let _ = writeln!(s, "**Outcome per method.**\n");
-    for (sv, res) in solved.iter().zip(&per_method) {
-        match &sv.result {
-            Ok((_, r)) => {
-                let _ = writeln!(
-                    s,
-                    "- {}: solved; max residual over all {} constraints {} of the diagonal, over the hard constraints it keeps {}{}",
-                    sv.label,
-                    sc.constraints.len(),
-                    sci(res
-                        .as_ref()
-                        .map_or(f64::NAN, |v| v.iter().fold(0.0, |a: f64, &b| a.max(b)))
-                        / diag),
-                    if r.hard_constraints == 0 {
-                        "– (none: all soft)".to_string()
-                    } else {
-                        sci(r.max_constraint_residual_relative)
-                    },
-                    if r.method == "nullspace-qr" {
-                        format!(
-                            "; rank {} of {} hard rows; redundant (dropped, satisfied anyway): {:?}; conflicting (dropped): {}",
-                            r.rank.map(|k| k.to_string()).unwrap_or_default(),
-                            r.hard_constraints,
-                            r.redundant,
-                            r.conflicting
-                                .iter()
-                                .map(|c| format!(
-                                    "#{} (residual {})",
-                                    c.index,
-                                    sci(c.residual / diag)
-                                ))
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        )
-                    } else {
-                        String::new()
-                    }
-                );
-            }
-            Err(e) => {
-                let _ = writeln!(s, "- {}: **failed** — {e}", sv.label);
-            }
-        }
-    }
+    let _ = writeln!(s, "**Outcome per method.**\n\n{}", o.outcome_text());
     let _ = writeln!(
         s,
-        "\n**Maximum residual per group** (‖b_k X − d_k‖ / diagonal; the conflicting groups cannot all be met, so some residual there is unavoidable):\n"
+        "**Maximum residual per group** (‖b_k X − d_k‖ / diagonal; the conflicting groups cannot all be met, so some residual there is unavoidable):\n"
     );
-    s.push_str(&markdown_table(&t_refs, &table));
+    s.push_str(&o.group_table());
     let _ = writeln!(
         s,
         "\nHow to read it: a soft compromise spreads the contradiction over both partners of each conflicting pair — the handle no longer reaches \
@@ -394,27 +442,42 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let _ = writeln!(
         s,
         "![residual per constraint](conflicts/conflicts.png)\n\n\
-         How to read the figure: x is the constraint's position in the list (fixed, handle, then the appended groups from index {first_extra}); \
+         How to read the figure: x is the constraint's position in the list (fixed, handle, then the appended groups from index {}); \
          y its residual over the diagonal on a log axis (exact zeros drawn at 1e-17). The null-space line stays at rounding level except at \
-         the dropped conflicting constraints; the soft lines are high everywhere near the conflicts. Renders: see the Renders section.\n"
+         the dropped conflicting constraints; the soft lines are high everywhere near the conflicts. Renders: see the Renders section.\n",
+        o.first_extra()
     );
     let _ = writeln!(
         s,
         "Data: [`conflicts/conflicts.csv`](conflicts/conflicts.csv) (one row per constraint, with the null-space status). \
-         Regenerate: `cargo run --release --bin experiments -- conflicts` ({} on {}).",
+         Regenerate: `cargo run --release --bin experiments -- {NAME}{} --out results` ({} on {}).",
+        ctx.mesh_args(),
         fmt_time(seconds),
         ctx.machine.cpu
     );
-    ctx.write_section("conflicts", &s)?;
+    s
+}
 
-    let headline = match &ns_report {
+/// Runs the experiment.
+pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
+    let started = Instant::now();
+    let dir = ctx.dir(NAME)?;
+    let (name, mesh) = conflict_mesh(ctx)?;
+    let extra = 5;
+    let sc = scene(&mesh, extra)?;
+    let o = Outcome::new(&mesh, &sc)?;
+    o.write_data(ctx, &dir)?;
+    o.figure(&dir, &name)?;
+    let seconds = started.elapsed().as_secs_f64();
+    ctx.write_section(NAME, &section(ctx, &name, &mesh, extra, &o, seconds))?;
+    let headline = match &o.ns_report {
         Some(r) => format!(
             "null-space QR dropped {} redundant + {} conflicting of {} appended; kept rows at {}; KKT {}",
             r.redundant.len(),
             r.conflicting.len(),
             3 * extra,
             sci(r.max_constraint_residual_relative),
-            if solved[2].result.is_ok() {
+            if o.solved[2].result.is_ok() {
                 "solved"
             } else {
                 "failed"

@@ -96,7 +96,12 @@ impl Machine {
                 "release"
             }
             .into(),
-            command: std::env::args().collect::<Vec<_>>().join(" "),
+            // The program as `experiments`, not the path it was started
+            // from (which names a machine's directories).
+            command: std::iter::once("experiments".to_string())
+                .chain(std::env::args().skip(1))
+                .collect::<Vec<_>>()
+                .join(" "),
             seed,
             meshes: meshes
                 .map(str::to_string)
@@ -145,6 +150,8 @@ pub struct Context {
     pub mesh_dir: Option<PathBuf>,
     /// The meshes named one by one (`--mesh`).
     pub mesh_paths: Vec<PathBuf>,
+    /// The user's constraint file for the `--mesh` files (`-c`).
+    pub constraints: Option<PathBuf>,
     /// Every user mesh file: the `--mesh` paths, then the mesh files of
     /// `--mesh-dir` sorted by name (see [`mesh_files_in`]).
     pub mesh_files: Vec<PathBuf>,
@@ -166,9 +173,19 @@ impl Context {
         out: PathBuf,
         mesh_paths: Vec<PathBuf>,
         mesh_dir: Option<PathBuf>,
+        constraints: Option<PathBuf>,
         quick: bool,
         seed: u64,
     ) -> Result<Context, AnyError> {
+        if let Some(c) = &constraints
+            && (mesh_paths.is_empty() || !c.is_file())
+        {
+            return Err(format!(
+                "-c {}: needs an existing file and the --mesh it belongs to",
+                c.display()
+            )
+            .into());
+        }
         let mut mesh_files = Vec::new();
         for p in &mesh_paths {
             if !p.is_file() {
@@ -204,6 +221,7 @@ impl Context {
             out,
             mesh_dir,
             mesh_paths,
+            constraints,
             mesh_files,
             quick,
             seed,
@@ -308,18 +326,85 @@ impl Context {
             ("unsymmetric-grid", generate::GeneratedKind::UnsymmetricGrid),
             ("sliver", generate::GeneratedKind::Sliver),
         ] {
-            let mesh = generate::with_about_vertices(kind, size, self.seed)?;
-            cases.push(MeshCase {
-                name: name.into(),
-                source: format!(
-                    "generated {kind}, {} vertices, seed {}",
-                    mesh.n_vertices(),
-                    self.seed
-                ),
-                mesh,
-            });
+            cases.push(self.generated(name, kind, size)?);
         }
         Ok(cases)
+    }
+
+    /// The mesh of a single-mesh experiment: the user's mesh named like
+    /// `preferred` (e.g. `"bunny-35k-stanford.obj"`), else the user's first
+    /// mesh, else a generated bumpy sphere of about `vertices` vertices
+    /// (`quick_vertices` with `--quick`).
+    pub fn fallback_mesh(
+        &self,
+        preferred: &str,
+        vertices: usize,
+        quick_vertices: usize,
+    ) -> Result<MeshCase, AnyError> {
+        if let Some(case) = self.main_mesh(preferred)? {
+            return Ok(case);
+        }
+        let size = if self.quick { quick_vertices } else { vertices };
+        self.generated("bumpy-sphere", generate::GeneratedKind::BumpySphere, size)
+    }
+
+    /// A generated mesh of about `vertices` vertices, named `name`.
+    pub fn generated(
+        &self,
+        name: &str,
+        kind: generate::GeneratedKind,
+        vertices: usize,
+    ) -> Result<MeshCase, AnyError> {
+        let mesh = generate::with_about_vertices(kind, vertices, self.seed)?;
+        Ok(MeshCase {
+            name: name.into(),
+            source: format!(
+                "generated {kind}, {} vertices, seed {}",
+                mesh.n_vertices(),
+                self.seed
+            ),
+            mesh,
+        })
+    }
+
+    /// Writes serialisable rows as `stem.csv` (a `#` machine line, a header
+    /// from the field names, one line a row; `None` an empty cell) and as
+    /// `stem.json` (`{"machine": …, "data": [rows]}`). The rows must be
+    /// flat structs (no nested structs or sequences: CSV has no place for
+    /// them).
+    pub fn write_rows<T: Serialize>(&self, stem: &Path, rows: &[T]) -> Result<(), AnyError> {
+        let mut w = csv::WriterBuilder::new().from_writer(Vec::new());
+        for r in rows {
+            w.serialize(r)?;
+        }
+        let body = w.into_inner().map_err(|e| e.to_string())?;
+        let mut s = format!("# {}\n", self.machine.one_line());
+        s.push_str(std::str::from_utf8(&body)?);
+        std::fs::write(stem.with_extension("csv"), s)?;
+        self.write_json(&stem.with_extension("json"), &rows)
+    }
+
+    /// The "Regenerate this section alone" block of a section: the command
+    /// with this run's meshes and `--out results`.
+    pub fn regenerate(&self, name: &str) -> String {
+        format!(
+            "Regenerate this section alone:\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- {name}{} --out results\n```\n\n",
+            self.mesh_args()
+        )
+    }
+
+    /// The end of a section: the notes (what did not work), the sentence
+    /// naming the data files and the machine line.
+    pub fn closing(&self, notes: &[String], data: &str) -> String {
+        let mut s = String::new();
+        if !notes.is_empty() {
+            s.push_str("\n**What did not work / notes.**\n\n");
+            for n in notes {
+                let _ = writeln!(s, "- {n}");
+            }
+        }
+        let _ = writeln!(s, "\n{data}\n\n_{}_", self.machine.one_line());
+        s
     }
 
     /// Writes a CSV file whose first line is a `#` comment with the machine
@@ -475,102 +560,38 @@ pub fn markdown_table(header: &[&str], rows: &[Vec<String>]) -> String {
     s
 }
 
-/// The order of the sections in `results/README.md`.
-pub const SECTIONS: &[(&str, &str)] = &[
-    (
-        "table1",
-        "Table 1 — stability of soft-only, hard + soft, KKT and elimination",
-    ),
-    ("weight-sweep", "Penalty weight sweep"),
-    (
-        "accuracy",
-        "Accuracy — digits lost without and with refinement",
-    ),
-    (
-        "precompute-breakdown",
-        "Precompute breakdown (paper Fig. 7 and 8)",
-    ),
-    (
-        "relative-constraints",
-        "Relative constraints (paper Fig. 9 and 11)",
-    ),
-    ("conflicts", "Conflicting constraints (paper Fig. 6)"),
-    ("scaling", "Scaling with mesh size"),
-    ("drag", "Interactive drag"),
-    ("renders", "Renders"),
-    (
-        "performance",
-        "Performance against CHOLMOD and the bandwidth floor",
-    ),
-    ("arap", "As-rigid-as-possible deformation (ARAP)"),
-];
-
-/// The git revision in a section's machine line (`… (git REV, …`), if any.
-fn section_revision(section: &str) -> Option<String> {
-    let start = section.find("(git ")? + 5;
-    let rest = &section[start..];
-    let end = rest.find([',', ')'])?;
-    Some(rest[..end].to_string())
+/// A fresh output directory for a run of `experiment`:
+/// `target/experiments/<experiment>-<UTC date>-<time>`.
+pub fn fresh_out_dir(experiment: &str) -> PathBuf {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let (days, rest) = (secs / 86_400, secs % 86_400);
+    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
+    let z = days as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    PathBuf::from("target").join("experiments").join(format!(
+        "{experiment}-{year:04}{month:02}{day:02}-{:02}{:02}{:02}",
+        rest / 3600,
+        rest / 60 % 60,
+        rest % 60
+    ))
 }
 
-/// Joins the sections present under `out` into `out/README.md`.
-pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
-    let mut s = String::from("# Results\n\n");
-    let _ = writeln!(
-        s,
-        "Everything in this directory is written by the `experiments` program; nothing is edited by hand. \
-         Regenerate all of it with\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- all --mesh-dir ../shared/meshes\n```\n\n\
-         (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out). \
-         Each section names the command that regenerates it alone. CSV files start with a `#` line describing the machine and build.\n"
-    );
-    let mut toc = String::new();
-    let mut body = String::new();
-    // The git revision each section was written at (from its machine
-    // line), so that the header states the sections' revisions, not this
-    // run's.
-    let mut revisions: Vec<(String, Vec<&str>)> = Vec::new();
-    for (name, title) in SECTIONS {
-        let path = out.join(name).join("section.md");
-        if let Ok(section) = std::fs::read_to_string(&path) {
-            let rev = section_revision(&section).unwrap_or_else(|| "not recorded".into());
-            match revisions.iter_mut().find(|(r, _)| *r == rev) {
-                Some((_, names)) => names.push(name),
-                None => revisions.push((rev, vec![name])),
-            }
-            let anchor: String = title
-                .to_lowercase()
-                .chars()
-                .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-')
-                .collect::<String>()
-                .replace(' ', "-");
-            let _ = writeln!(toc, "- [{title}](#{anchor})");
-            let _ = writeln!(body, "## {title}\n\n{}\n", section.trim_end());
-        }
-    }
-    match revisions.as_slice() {
-        [(rev, _)] => {
-            let _ = writeln!(
-                s,
-                "Every section below was written at git {rev}; this assembly: {}\n",
-                machine.one_line()
-            );
-        }
-        _ => {
-            let list: Vec<String> = revisions
-                .iter()
-                .map(|(rev, names)| format!("git {rev}: {}", names.join(", ")))
-                .collect();
-            let _ = writeln!(
-                s,
-                "The sections were written at different git revisions ({}); this assembly: {}\n",
-                list.join("; "),
-                machine.one_line()
-            );
-        }
-    }
-    s.push_str(&toc);
-    s.push('\n');
-    s.push_str(&body);
-    std::fs::write(out.join("README.md"), s)?;
-    Ok(())
+/// A CSV cell of an optional number: `{:.6e}`, empty for `None`.
+pub fn cell_f(v: Option<f64>) -> String {
+    v.map(|x| format!("{x:.6e}")).unwrap_or_default()
+}
+
+/// A CSV cell of an optional count, empty for `None`.
+pub fn cell_u(v: Option<usize>) -> String {
+    v.map(|x| x.to_string()).unwrap_or_default()
 }

@@ -7,16 +7,18 @@
 
 use std::f64::consts::PI;
 use std::fmt::Write as _;
+use std::path::Path;
 use std::time::Instant;
 
 use faer::Mat;
+use lse_deform::constraints::ConstraintSet;
+use lse_deform::mesh::Mesh;
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, Elimination, Formulation, Kkt, LaplacianKind, NullSpaceQr, Penalty};
+use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method};
 use serde::Serialize;
 
 use crate::breakdown::{
-    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backend, qr_backends, short_error, spd_backend,
-    spd_backends,
+    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
 };
 use crate::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
 use crate::plot::{
@@ -24,16 +26,24 @@ use crate::plot::{
 };
 use crate::{AnyError, Summary};
 
-const NAME: &str = "drag";
+pub const NAME: &str = "drag";
 
 /// A method and back-end configuration of the drag.
 struct Config {
     /// Label for tables and figures.
     label: String,
-    method: &'static str,
-    qr: Option<String>,
-    spd: String,
+    choice: FormulationChoice,
     formulation: Box<dyn Formulation>,
+}
+
+impl Config {
+    fn new(label: String, choice: FormulationChoice) -> Result<Config, AnyError> {
+        Ok(Config {
+            label,
+            formulation: choice.build()?,
+            choice,
+        })
+    }
 }
 
 /// The configurations, the library default (null-space QR with the default
@@ -49,10 +59,9 @@ struct Config {
 /// slower per frame; left out of the run on generated meshes to keep it
 /// within its budget).
 fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
-    let default = NullSpaceQr::default();
-    let default_qr = default.qr.name().to_string();
-    let default_spd = default.spd.name().to_string();
-    let mut spds: Vec<&str> = vec![default_spd.as_str()];
+    let default = FormulationChoice::new(Method::NullSpaceQr);
+    let (default_qr, default_spd) = (default.qr.name(), default.spd.name());
+    let mut spds: Vec<&str> = vec![default_spd];
     spds.extend(spd_backends().into_iter().filter(|&s| {
         s != default_spd
             && s != "faer-supernodal"
@@ -60,53 +69,37 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
     }));
     let mut out = Vec::new();
     for &s in &spds {
-        out.push(Config {
-            label: format!("null-space {default_qr} + {s}"),
-            method: "nullspace-qr",
-            qr: Some(default_qr.clone()),
-            spd: s.into(),
-            formulation: Box::new(NullSpaceQr {
-                spd: spd_backend(s)?,
-                ..default.clone()
-            }),
-        });
+        let choice = FormulationChoice {
+            spd: s.parse()?,
+            ..default
+        };
+        out.push(Config::new(
+            format!("null-space {default_qr} + {s}"),
+            choice,
+        )?);
     }
-    for q in qr_backends() {
-        if q == default_qr {
-            continue;
-        }
-        out.push(Config {
-            label: format!("null-space {q} + {default_spd}"),
-            method: "nullspace-qr",
-            qr: Some(q.into()),
-            spd: default_spd.clone(),
-            formulation: Box::new(NullSpaceQr {
-                qr: qr_backend(q)?,
-                ..default.clone()
-            }),
-        });
+    for q in qr_backends().into_iter().filter(|&q| q != default_qr) {
+        let choice = FormulationChoice {
+            qr: q.parse()?,
+            ..default
+        };
+        out.push(Config::new(
+            format!("null-space {q} + {default_spd}"),
+            choice,
+        )?);
     }
-    out.push(Config {
-        label: format!("penalty + {default_spd}"),
-        method: "penalty",
-        qr: None,
-        spd: default_spd.clone(),
-        formulation: Box::new(Penalty::with_backend(weight, spd_backend(&default_spd)?)),
-    });
-    out.push(Config {
-        label: "KKT LDLᵀ faer-auto".into(),
-        method: "kkt",
-        qr: None,
-        spd: "faer-auto".into(),
-        formulation: Box::new(Kkt::default()),
-    });
-    out.push(Config {
-        label: format!("elimination + {default_spd}"),
-        method: "eliminate",
-        qr: None,
-        spd: default_spd.clone(),
-        formulation: Box::new(Elimination::new(spd_backend(&default_spd)?)),
-    });
+    let penalty = FormulationChoice {
+        weight: Some(weight),
+        ..FormulationChoice::new(Method::Penalty)
+    };
+    out.push(Config::new(format!("penalty + {default_spd}"), penalty)?);
+    let kkt = FormulationChoice::new(Method::Kkt);
+    out.push(Config::new("KKT LDLᵀ faer-auto".into(), kkt)?);
+    let eliminate = FormulationChoice::new(Method::Eliminate);
+    out.push(Config::new(
+        format!("elimination + {default_spd}"),
+        eliminate,
+    )?);
     Ok(out)
 }
 
@@ -121,7 +114,7 @@ fn path(t: f64, axis: usize, amplitude: f64) -> [f64; 3] {
 }
 
 /// Summary of one configuration's drag.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Default, Serialize)]
 struct Row {
     label: String,
     method: &'static str,
@@ -152,6 +145,17 @@ struct Row {
     status: String,
 }
 
+/// One frame of one configuration (`drag_frames.csv`).
+#[derive(Debug, Clone, Serialize)]
+struct FrameRow {
+    label: String,
+    frame: usize,
+    set_target_s: f64,
+    solve_s: f64,
+    diagnostics_s: f64,
+    frame_s: f64,
+}
+
 /// Per-frame timings of one configuration.
 #[derive(Debug, Clone, Default)]
 struct Frames {
@@ -163,273 +167,239 @@ struct Frames {
     middle: Option<Mat<f64>>,
 }
 
-/// Runs the experiment.
-pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
-    let dir = ctx.dir(NAME)?;
-    let case = match ctx.main_mesh("bunny-35k-stanford.obj")? {
-        Some(c) => c,
-        None => {
-            let target = if ctx.quick { 10_000 } else { 35_000 };
-            let kind = lse_deform::mesh::generate::GeneratedKind::BumpySphere;
-            let mesh = lse_deform::mesh::generate::with_about_vertices(kind, target, ctx.seed)?;
-            MeshCase {
-                name: "bumpy-sphere".into(),
-                source: format!(
-                    "generated {kind}, {} vertices, seed {}",
-                    mesh.n_vertices(),
-                    ctx.seed
-                ),
-                mesh,
-            }
-        }
-    };
-    let frames = if ctx.quick { 60 } else { 300 };
-    let mesh = &case.mesh;
-    let scene = FixedAndHandle::paper_default(mesh);
-    let (fixed, handle) = scene.regions(mesh)?;
-    let constraints = scene.constraints(mesh)?;
-    let amplitude = 0.15 * mesh.bbox_diagonal();
-    let diag = mesh.bbox_diagonal();
-    let original = mesh.positions().to_vec();
-    let probe = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone())?;
-    let weight = PENALTY_RELATIVE_WEIGHT;
-    drop(probe);
-    let configs = configs(weight, ctx.has_user_meshes())?;
+/// The drag's scene: the regions, constraints and path.
+struct Drag {
+    axis: usize,
+    fixed: Vec<usize>,
+    handle: Vec<usize>,
+    constraints: ConstraintSet,
+    amplitude: f64,
+    original: Vec<[f64; 3]>,
+    frames: usize,
+}
 
-    // One deformer per configuration, all precomputed first; then the
-    // frames run round-robin over the configurations (frame f of every
-    // configuration before frame f + 1 of any), so that the load of this
-    // shared machine falls on all of them alike.
-    let mut notes: Vec<String> = Vec::new();
-    let mut recs: Vec<Frames> = vec![Frames::default(); configs.len()];
-    let mut errors: Vec<Option<String>> = vec![None; configs.len()];
-    let mut precomputes: Vec<Option<f64>> = vec![None; configs.len()];
-    let mut nnz_factor: Vec<Option<usize>> = vec![None; configs.len()];
-    let mut deformers: Vec<Option<Deformer>> = Vec::new();
-    let bar = ctx.bar(configs.len(), &format!("{NAME}: precompute"));
-    for (i, c) in configs.iter().enumerate() {
-        bar.set_message(format!("{NAME}: precompute {}", c.label));
-        let outcome = (|| -> Result<Deformer, AnyError> {
-            let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone())?;
-            d.precompute(c.formulation.as_ref())?;
-            precomputes[i] = Some(d.report().timings_s.precompute());
-            nnz_factor[i] = d.report().nnz.factor;
-            // Warm-up solve (not counted): caches, and penalty's one-off
-            // accuracy check.
-            d.solve_matrix()?;
-            Ok(d)
-        })();
-        match outcome {
-            Ok(d) => deformers.push(Some(d)),
-            Err(e) => {
-                errors[i] = Some(e.to_string());
-                deformers.push(None);
-            }
-        }
-        bar.inc(1);
+impl Drag {
+    fn new(ctx: &Context, mesh: &Mesh) -> Result<Drag, AnyError> {
+        let scene = FixedAndHandle::paper_default(mesh);
+        let (fixed, handle) = scene.regions(mesh)?;
+        Ok(Drag {
+            axis: scene.axis,
+            fixed,
+            handle,
+            constraints: scene.constraints(mesh)?,
+            amplitude: 0.15 * mesh.bbox_diagonal(),
+            original: mesh.positions().to_vec(),
+            frames: if ctx.quick { 60 } else { 300 },
+        })
     }
-    bar.finish_and_clear();
-    let bar = ctx.bar(frames, &format!("{NAME}: frames"));
-    for f in 0..frames {
-        let t = (f + 1) as f64 / frames as f64;
-        let d = path(t, scene.axis, amplitude);
-        for (i, slot) in deformers.iter_mut().enumerate() {
-            let Some(deformer) = slot else { continue };
-            let rec = &mut recs[i];
-            let outcome = (|| -> Result<(), AnyError> {
-                let start = Instant::now();
-                for (j, &v) in handle.iter().enumerate() {
-                    let p = original[v];
-                    deformer
-                        .set_target(fixed.len() + j, [p[0] + d[0], p[1] + d[1], p[2] + d[2]])?;
-                }
-                let set = start.elapsed().as_secs_f64();
-                let x = deformer.solve_matrix()?;
-                let frame = start.elapsed().as_secs_f64();
-                let r = deformer.report();
-                rec.set_target.push(set);
-                rec.solve.push(r.timings_s.solve);
-                rec.diagnostics.push(r.timings_s.diagnostics);
-                rec.frame.push(frame);
-                rec.max_residual = rec.max_residual.max(r.max_constraint_residual_relative);
-                if f + 1 == frames / 2 {
-                    rec.middle = Some(x);
-                }
-                Ok(())
+}
+
+/// One configuration's deformer (dropped when it fails) and record.
+#[derive(Default)]
+struct Slot {
+    deformer: Option<Deformer>,
+    rec: Frames,
+    error: Option<String>,
+    precompute: Option<f64>,
+    nnz_factor: Option<usize>,
+}
+
+/// One deformer per configuration, precomputed, with a warm-up solve (not
+/// counted: caches, and penalty's one-off accuracy check).
+fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
+    configs
+        .iter()
+        .map(|c| {
+            let mut slot = Slot::default();
+            let outcome = (|| -> Result<Deformer, AnyError> {
+                let mut d = Deformer::new(
+                    mesh.clone(),
+                    LaplacianKind::Cotangent,
+                    drag.constraints.clone(),
+                )?;
+                d.precompute(c.formulation.as_ref())?;
+                slot.precompute = Some(d.report().timings_s.precompute());
+                slot.nnz_factor = d.report().nnz.factor;
+                d.solve_matrix()?;
+                Ok(d)
             })();
-            if let Err(e) = outcome {
-                errors[i] = Some(e.to_string());
-                *slot = None;
+            match outcome {
+                Ok(d) => slot.deformer = Some(d),
+                Err(e) => slot.error = Some(e.to_string()),
+            }
+            slot
+        })
+        .collect()
+}
+
+/// Frame `f`: the handle's targets moved along the path, then a solve.
+fn frame(deformer: &mut Deformer, drag: &Drag, f: usize, rec: &mut Frames) -> Result<(), AnyError> {
+    let d = path(
+        (f + 1) as f64 / drag.frames as f64,
+        drag.axis,
+        drag.amplitude,
+    );
+    let start = Instant::now();
+    for (j, &v) in drag.handle.iter().enumerate() {
+        let p = drag.original[v];
+        deformer.set_target(
+            drag.fixed.len() + j,
+            [p[0] + d[0], p[1] + d[1], p[2] + d[2]],
+        )?;
+    }
+    let set = start.elapsed().as_secs_f64();
+    let x = deformer.solve_matrix()?;
+    let frame = start.elapsed().as_secs_f64();
+    let r = deformer.report();
+    rec.set_target.push(set);
+    rec.solve.push(r.timings_s.solve);
+    rec.diagnostics.push(r.timings_s.diagnostics);
+    rec.frame.push(frame);
+    rec.max_residual = rec.max_residual.max(r.max_constraint_residual_relative);
+    if f + 1 == drag.frames / 2 {
+        rec.middle = Some(x);
+    }
+    Ok(())
+}
+
+/// The frames, round-robin over the configurations (frame f of every
+/// configuration before frame f + 1 of any), so that the load of this
+/// shared machine falls on all of them alike.
+fn run_frames(ctx: &Context, drag: &Drag, slots: &mut [Slot]) {
+    let bar = ctx.bar(drag.frames, &format!("{NAME}: frames"));
+    for f in 0..drag.frames {
+        for slot in slots.iter_mut() {
+            let Some(deformer) = slot.deformer.as_mut() else {
+                continue;
+            };
+            if let Err(e) = frame(deformer, drag, f, &mut slot.rec) {
+                slot.error = Some(e.to_string());
+                slot.deformer = None;
             }
         }
         bar.inc(1);
     }
     bar.finish_and_clear();
-    drop(deformers);
+    for slot in slots.iter_mut() {
+        slot.deformer = None;
+    }
+}
 
+/// Max vertex distance between two shapes over `diag`.
+fn deviation(a: &Mat<f64>, b: &Mat<f64>, diag: f64) -> f64 {
+    let mut worst = 0.0f64;
+    for i in 0..a.nrows() {
+        let d2: f64 = (0..3).map(|k| (a[(i, k)] - b[(i, k)]).powi(2)).sum();
+        worst = worst.max(d2.sqrt());
+    }
+    worst / diag
+}
+
+/// The statistics of a completed drag, into `row`.
+fn summarise(row: &mut Row, rec: &Frames) {
+    row.solve_p50_s = Some(median(&rec.solve));
+    row.solve_p99_s = Some(percentile(&rec.solve, 0.99));
+    row.solve_max_s = Some(percentile(&rec.solve, 1.0));
+    row.frame_p50_s = Some(median(&rec.frame));
+    row.frame_p99_s = Some(percentile(&rec.frame, 0.99));
+    row.set_target_p50_s = Some(median(&rec.set_target));
+    row.diagnostics_p50_s = Some(median(&rec.diagnostics));
+    row.fps_p50 = row.frame_p50_s.map(|t| 1.0 / t);
+    row.fps_p99 = row.frame_p99_s.map(|t| 1.0 / t);
+    row.solve_fps_p50 = row.solve_p50_s.map(|t| 1.0 / t);
+    row.max_constraint_residual_relative = Some(rec.max_residual);
+}
+
+/// One row per configuration; the mid-drag shapes compared with the first
+/// configuration's.
+fn rows(configs: &[Config], slots: &mut [Slot], diag: f64, notes: &mut Vec<String>) -> Vec<Row> {
     let mut rows: Vec<Row> = Vec::new();
     let mut reference: Option<Mat<f64>> = None;
-    for (i, c) in configs.iter().enumerate() {
-        let rec = &mut recs[i];
+    for (c, slot) in configs.iter().zip(slots.iter_mut()) {
         let mut row = Row {
             label: c.label.clone(),
-            method: c.method,
-            qr_backend: c.qr.clone(),
-            spd_backend: c.spd.clone(),
-            precompute_s: precomputes[i],
-            frames: rec.frame.len(),
-            solve_p50_s: None,
-            solve_p99_s: None,
-            solve_max_s: None,
-            frame_p50_s: None,
-            frame_p99_s: None,
-            set_target_p50_s: None,
-            diagnostics_p50_s: None,
-            fps_p50: None,
-            fps_p99: None,
-            solve_fps_p50: None,
-            nnz_factor: nnz_factor[i],
-            max_constraint_residual_relative: None,
-            deviation_from_reference: None,
+            method: c.choice.method.name(),
+            qr_backend: (c.choice.method == Method::NullSpaceQr)
+                .then(|| c.choice.qr.name().to_string()),
+            spd_backend: c.choice.spd.name().to_string(),
+            precompute_s: slot.precompute,
+            frames: slot.rec.frame.len(),
+            nnz_factor: slot.nnz_factor,
             status: "ok".into(),
+            ..Row::default()
         };
-        match &errors[i] {
+        match &slot.error {
             None => {
-                row.solve_p50_s = Some(median(&rec.solve));
-                row.solve_p99_s = Some(percentile(&rec.solve, 0.99));
-                row.solve_max_s = Some(percentile(&rec.solve, 1.0));
-                row.frame_p50_s = Some(median(&rec.frame));
-                row.frame_p99_s = Some(percentile(&rec.frame, 0.99));
-                row.set_target_p50_s = Some(median(&rec.set_target));
-                row.diagnostics_p50_s = Some(median(&rec.diagnostics));
-                row.fps_p50 = row.frame_p50_s.map(|t| 1.0 / t);
-                row.fps_p99 = row.frame_p99_s.map(|t| 1.0 / t);
-                row.solve_fps_p50 = row.solve_p50_s.map(|t| 1.0 / t);
-                row.max_constraint_residual_relative = Some(rec.max_residual);
-                if let Some(mid) = &rec.middle {
-                    match &reference {
-                        None => {
-                            reference = Some(mid.clone());
-                            row.deviation_from_reference = Some(0.0);
-                        }
-                        Some(r) => {
-                            let mut worst = 0.0f64;
-                            for i in 0..mid.nrows() {
-                                let d2: f64 =
-                                    (0..3).map(|k| (mid[(i, k)] - r[(i, k)]).powi(2)).sum();
-                                worst = worst.max(d2.sqrt());
-                            }
-                            row.deviation_from_reference = Some(worst / diag);
-                        }
-                    }
+                summarise(&mut row, &slot.rec);
+                if let Some(mid) = slot.rec.middle.take() {
+                    row.deviation_from_reference =
+                        Some(reference.as_ref().map_or(0.0, |r| deviation(&mid, r, diag)));
+                    reference.get_or_insert(mid);
                 }
             }
             Some(e) => {
                 notes.push(format!("{}: {e}", c.label));
                 row.status = format!(
                     "failed after {} frames: {}",
-                    rec.frame.len(),
+                    slot.rec.frame.len(),
                     short_error(e)
                 );
             }
         }
-        rec.middle = None;
         rows.push(row);
     }
-    let all_frames = recs;
+    rows
+}
 
-    // Data.
-    let opt = |v: Option<f64>| v.map(|x| format!("{x:.6e}")).unwrap_or_default();
-    let header = [
-        "label",
-        "method",
-        "qr_backend",
-        "spd_backend",
-        "precompute_s",
-        "frames",
-        "solve_p50_s",
-        "solve_p99_s",
-        "solve_max_s",
-        "frame_p50_s",
-        "frame_p99_s",
-        "set_target_p50_s",
-        "diagnostics_p50_s",
-        "fps_p50",
-        "fps_p99",
-        "solve_fps_p50",
-        "nnz_factor",
-        "max_constraint_residual_relative",
-        "deviation_from_reference",
-        "status",
-    ];
-    let csv_rows: Vec<Vec<String>> = rows
+/// `drag_summary.csv`, `drag_frames.csv` and `drag_summary.json`.
+fn write_data(
+    ctx: &Context,
+    dir: &Path,
+    case: &MeshCase,
+    drag: &Drag,
+    rows: &[Row],
+    slots: &[Slot],
+) -> Result<(), AnyError> {
+    ctx.write_rows(&dir.join("drag_summary"), rows)?;
+    let frame_rows: Vec<FrameRow> = rows
         .iter()
-        .map(|r| {
-            vec![
-                r.label.clone(),
-                r.method.into(),
-                r.qr_backend.clone().unwrap_or_default(),
-                r.spd_backend.clone(),
-                opt(r.precompute_s),
-                r.frames.to_string(),
-                opt(r.solve_p50_s),
-                opt(r.solve_p99_s),
-                opt(r.solve_max_s),
-                opt(r.frame_p50_s),
-                opt(r.frame_p99_s),
-                opt(r.set_target_p50_s),
-                opt(r.diagnostics_p50_s),
-                opt(r.fps_p50),
-                opt(r.fps_p99),
-                opt(r.solve_fps_p50),
-                r.nnz_factor.map(|v| v.to_string()).unwrap_or_default(),
-                opt(r.max_constraint_residual_relative),
-                opt(r.deviation_from_reference),
-                r.status.clone(),
-            ]
+        .zip(slots)
+        .flat_map(|(r, s)| {
+            let rec = &s.rec;
+            (0..rec.frame.len()).map(move |f| FrameRow {
+                label: r.label.clone(),
+                frame: f + 1,
+                set_target_s: rec.set_target[f],
+                solve_s: rec.solve[f],
+                diagnostics_s: rec.diagnostics[f],
+                frame_s: rec.frame[f],
+            })
         })
         .collect();
-    ctx.write_csv(&dir.join("drag_summary.csv"), &header, &csv_rows)?;
-    let mut frame_rows = Vec::new();
-    for (r, rec) in rows.iter().zip(&all_frames) {
-        for f in 0..rec.frame.len() {
-            frame_rows.push(vec![
-                r.label.clone(),
-                (f + 1).to_string(),
-                format!("{:.6e}", rec.set_target[f]),
-                format!("{:.6e}", rec.solve[f]),
-                format!("{:.6e}", rec.diagnostics[f]),
-                format!("{:.6e}", rec.frame[f]),
-            ]);
-        }
-    }
-    ctx.write_csv(
-        &dir.join("drag_frames.csv"),
-        &[
-            "label",
-            "frame",
-            "set_target_s",
-            "solve_s",
-            "diagnostics_s",
-            "frame_s",
-        ],
-        &frame_rows,
-    )?;
+    ctx.write_rows(&dir.join("drag_frames"), &frame_rows)?;
     ctx.write_json(
         &dir.join("drag_summary.json"),
         &serde_json::json!({
             "mesh": case.name,
             "source": case.source,
-            "vertices": mesh.n_vertices(),
-            "fixed": fixed.len(),
-            "handle": handle.len(),
-            "frames": frames,
-            "penalty_weight": weight,
+            "vertices": case.mesh.n_vertices(),
+            "fixed": drag.fixed.len(),
+            "handle": drag.handle.len(),
+            "frames": drag.frames,
+            "penalty_weight": PENALTY_RELATIVE_WEIGHT,
             "rows": rows,
         }),
-    )?;
+    )
+}
 
-    // Figure: latency bars.
+/// Figure: latency bars (solve p50, rest of the frame p50, p99 − p50).
+fn latency_figure(
+    dir: &Path,
+    case: &MeshCase,
+    frames: usize,
+    rows: &[Row],
+    notes: &mut Vec<String>,
+) -> Result<(), AnyError> {
     let categories: Vec<Category> = rows
         .iter()
         .filter_map(|r| {
@@ -444,159 +414,102 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             })
         })
         .collect();
-    if !categories.is_empty() {
-        let n_bars = categories.len() as u32;
-        let spec = StackedBars {
-            title: format!(
-                "Per-frame latency over {frames} frames of a drag — {} ({} vertices)",
-                case.name,
-                mesh.n_vertices()
-            ),
-            value_label: "milliseconds".into(),
-            segments: vec![
-                "solve phase, p50".into(),
-                "rest of the frame (targets, diagnostics), p50".into(),
-                "frame p99 − frame p50".into(),
-            ],
-            categories,
-            orientation: Orientation::Horizontal,
-            total_suffix: Some(" ms".into()),
-            legend: LegendPosition::Auto,
-        };
-        let drawn = plot::stacked_bars(
-            &spec,
-            &Output::new(dir.join("latency")).with_size(1000, 200 + 34 * n_bars),
-        )?;
-        note_drawn(&drawn, &mut notes);
+    if categories.is_empty() {
+        return Ok(());
     }
-    // Figure: latency per frame for the first configuration of each method.
+    let n_bars = categories.len() as u32;
+    let spec = StackedBars {
+        title: format!(
+            "Per-frame latency over {frames} frames of a drag — {} ({} vertices)",
+            case.name,
+            case.mesh.n_vertices()
+        ),
+        value_label: "milliseconds".into(),
+        segments: vec![
+            "solve phase, p50".into(),
+            "rest of the frame (targets, diagnostics), p50".into(),
+            "frame p99 − frame p50".into(),
+        ],
+        categories,
+        orientation: Orientation::Horizontal,
+        total_suffix: Some(" ms".into()),
+        legend: LegendPosition::Auto,
+    };
+    let out = Output::new(dir.join("latency")).with_size(1000, 200 + 34 * n_bars);
+    note_drawn(&plot::stacked_bars(&spec, &out)?, notes);
+    Ok(())
+}
+
+/// Figure: the frame time of every frame for the first configuration of
+/// each method; `false` when there is nothing to draw.
+fn frames_figure(
+    dir: &Path,
+    case: &MeshCase,
+    rows: &[Row],
+    slots: &[Slot],
+    notes: &mut Vec<String>,
+) -> Result<bool, AnyError> {
     let mut series = Vec::new();
-    for method in ["nullspace-qr", "penalty", "kkt", "eliminate"] {
-        if let Some((r, rec)) = rows
+    for method in Method::ALL {
+        if let Some((r, s)) = rows
             .iter()
-            .zip(&all_frames)
-            .find(|(r, rec)| r.method == method && !rec.frame.is_empty())
+            .zip(slots)
+            .find(|(r, s)| r.method == method.name() && !s.rec.frame.is_empty())
         {
+            let points = s.rec.frame.iter().enumerate();
             series.push(Series::new(
                 r.label.clone(),
-                rec.frame
-                    .iter()
-                    .enumerate()
-                    .map(|(f, &t)| ((f + 1) as f64, t * 1e3))
-                    .collect(),
+                points.map(|(f, &t)| ((f + 1) as f64, t * 1e3)).collect(),
             ));
         }
     }
-    let mut have_frames_figure = false;
-    if !series.is_empty() {
-        let chart = LineChart {
-            title: format!("Frame time along the drag — {}", case.name),
-            x: Axis::linear("frame"),
-            y: Axis::log10("frame time (ms): targets + solve + diagnostics"),
-            series,
-            reference_lines: vec![],
-            legend: LegendPosition::Auto,
-        };
-        let drawn = plot::line_chart(&chart, &Output::new(dir.join("frame_times")))?;
-        note_drawn(&drawn, &mut notes);
-        have_frames_figure = true;
+    if series.is_empty() {
+        return Ok(false);
     }
-
-    // Tables.
-    let ms = |v: Option<f64>| {
-        v.map(|t| format!("{:.2}", t * 1e3))
-            .unwrap_or_else(|| "—".into())
+    let chart = LineChart {
+        title: format!("Frame time along the drag — {}", case.name),
+        x: Axis::linear("frame"),
+        y: Axis::log10("frame time (ms): targets + solve + diagnostics"),
+        series,
+        reference_lines: vec![],
+        legend: LegendPosition::Auto,
     };
+    note_drawn(
+        &plot::line_chart(&chart, &Output::new(dir.join("frame_times")))?,
+        notes,
+    );
+    Ok(true)
+}
+
+/// Milliseconds with two decimals, or a dash.
+fn ms(v: Option<f64>) -> String {
+    v.map_or_else(|| "—".into(), |t| format!("{:.2}", t * 1e3))
+}
+
+/// The table of every configuration.
+fn table(rows: &[Row]) -> String {
+    let dash = || "—".to_string();
+    let fmt = |v: Option<f64>, f: fn(f64) -> String| v.map_or_else(dash, f);
     let table_rows: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
             vec![
                 r.label.clone(),
-                r.precompute_s.map(fmt_time).unwrap_or_else(|| "—".into()),
+                fmt(r.precompute_s, fmt_time),
                 ms(r.solve_p50_s),
                 ms(r.solve_p99_s),
                 ms(r.frame_p50_s),
                 ms(r.frame_p99_s),
-                r.fps_p50
-                    .map(|v| format!("{v:.0}"))
-                    .unwrap_or_else(|| "—".into()),
-                r.fps_p99
-                    .map(|v| format!("{v:.0}"))
-                    .unwrap_or_else(|| "—".into()),
-                r.solve_fps_p50
-                    .map(|v| format!("{v:.0}"))
-                    .unwrap_or_else(|| "—".into()),
-                r.max_constraint_residual_relative
-                    .map(|v| format!("{v:.0e}"))
-                    .unwrap_or_else(|| "—".into()),
-                r.deviation_from_reference
-                    .map(|v| format!("{v:.0e}"))
-                    .unwrap_or_else(|| "—".into()),
+                fmt(r.fps_p50, |v| format!("{v:.0}")),
+                fmt(r.fps_p99, |v| format!("{v:.0}")),
+                fmt(r.solve_fps_p50, |v| format!("{v:.0}")),
+                fmt(r.max_constraint_residual_relative, |v| format!("{v:.0e}")),
+                fmt(r.deviation_from_reference, |v| format!("{v:.0e}")),
                 r.status.clone(),
             ]
         })
         .collect();
-    let best = rows
-        .iter()
-        .filter(|r| r.frame_p50_s.is_some())
-        .min_by(|a, b| {
-            a.frame_p50_s
-                .unwrap_or(f64::INFINITY)
-                .total_cmp(&b.frame_p50_s.unwrap_or(f64::INFINITY))
-        });
-    // The library default is the first configuration.
-    let default_row = rows.first();
-    let diag_share: Vec<f64> = rows
-        .iter()
-        .filter_map(|r| Some(r.diagnostics_p50_s? / r.frame_p50_s?))
-        .collect();
-
-    // Section.
-    let command = format!(
-        "cargo run --release --features suitesparse --bin experiments -- {NAME}{}",
-        if ctx.has_user_meshes() {
-            " --mesh-dir ../shared/meshes"
-        } else {
-            ""
-        }
-    );
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "Mesh: {} ({} vertices; {}). Scene: the paper's default (cotangent Laplacian, {} fixed vertices, a hard handle of {} vertices). \
-         After one precompute per configuration and one warm-up solve, the handle is moved rigidly along a closed loop \
-         (sideways by {:.0} % of the bounding-box diagonal × sin 2πt, along the long axis by the same × (1 − cos 2πt)/2) for {frames} frames: \
-         each frame calls `set_target` for every handle constraint, then `solve`. \
-         All configurations are precomputed first and the frames run round-robin (frame f of every configuration before frame f + 1 of any), \
-         so that the load of this shared machine falls on all of them alike. \
-         Configurations: the library default first; null-space QR on every SPD back end but faer-supernodal (what faer-auto selects at this size{}) and with every QR back end; \
-         penalty, KKT and elimination on the default SPD back end only (their solve phase is that back end's; `scaling` compares the back ends). \
-         **Solve** is the library's solve phase (`report.timings_s.solve`); **frame** is the wall time of the targets + solve call, which includes the \
-         diagnostics the library computes after every solve (constraint residuals, ‖AX − C‖). fps = 1 / latency. \
-         Penalty weight w = {weight:.3e} (100 × median |L_ii|).\n",
-        case.name,
-        mesh.n_vertices(),
-        case.source,
-        fixed.len(),
-        handle.len(),
-        15.0,
-        if ctx.has_user_meshes() {
-            ""
-        } else {
-            "; faer-simplicial and nalgebra, 2–4× slower per solve, only in the run with --mesh-dir"
-        }
-    );
-    let _ = writeln!(
-        s,
-        "Regenerate this section alone:\n\n```sh\n{command}\n```\n"
-    );
-    let _ = writeln!(
-        s,
-        "**Table.** One row per method and back end. Read the p50 columns for the typical frame and p99 for the hitches; \
-         \"residual\" is the largest hard-constraint residual over all frames relative to the bounding-box diagonal (penalty: its approximation error), \
-         \"deviation\" the largest distance of the mid-drag shape from the first row's, relative to the diagonal (all methods solve the same problem).\n"
-    );
-    s.push_str(&markdown_table(
+    markdown_table(
         &[
             "configuration",
             "precompute",
@@ -612,8 +525,54 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             "status",
         ],
         &table_rows,
-    ));
-    if let (Some(b), Some(d)) = (best, default_row) {
+    )
+}
+
+/// The configuration with the fastest frame (p50).
+fn fastest(rows: &[Row]) -> Option<&Row> {
+    rows.iter()
+        .filter(|r| r.frame_p50_s.is_some())
+        .min_by(|a, b| {
+            let key = |r: &Row| r.frame_p50_s.unwrap_or(f64::INFINITY);
+            key(a).total_cmp(&key(b))
+        })
+}
+
+/// The section's first paragraph: the mesh, the scene and the method.
+fn method_text(ctx: &Context, case: &MeshCase, drag: &Drag) -> String {
+    format!(
+        "Mesh: {} ({} vertices; {}). Scene: the paper's default (cotangent Laplacian, {} fixed vertices, a hard handle of {} vertices). \
+         After one precompute per configuration and one warm-up solve, the handle is moved rigidly along a closed loop \
+         (sideways by {:.0} % of the bounding-box diagonal × sin 2πt, along the long axis by the same × (1 − cos 2πt)/2) for {} frames: \
+         each frame calls `set_target` for every handle constraint, then `solve`. \
+         All configurations are precomputed first and the frames run round-robin (frame f of every configuration before frame f + 1 of any), \
+         so that the load of this shared machine falls on all of them alike. \
+         Configurations: the library default first; null-space QR on every SPD back end but faer-supernodal (what faer-auto selects at this size{}) and with every QR back end; \
+         penalty, KKT and elimination on the default SPD back end only (their solve phase is that back end's; `scaling` compares the back ends). \
+         **Solve** is the library's solve phase (`report.timings_s.solve`); **frame** is the wall time of the targets + solve call, which includes the \
+         diagnostics the library computes after every solve (constraint residuals, ‖AX − C‖). fps = 1 / latency. \
+         Penalty weight w = {:.3e} (100 × median |L_ii|).\n",
+        case.name,
+        case.mesh.n_vertices(),
+        case.source,
+        drag.fixed.len(),
+        drag.handle.len(),
+        15.0,
+        drag.frames,
+        if ctx.has_user_meshes() {
+            ""
+        } else {
+            "; faer-simplicial and nalgebra, 2–4× slower per solve, only in the run with --mesh-dir"
+        },
+        PENALTY_RELATIVE_WEIGHT
+    )
+}
+
+/// The sentences computed from the rows: fastest, default, diagnostics.
+fn findings(rows: &[Row]) -> String {
+    let mut s = String::new();
+    // The library default is the first configuration.
+    if let (Some(b), Some(d)) = (fastest(rows), rows.first()) {
         let _ = writeln!(
             s,
             "\nFastest frame (p50): **{}** at {} ms ({:.0} fps). The library default ({}) runs at {} ms p50 / {} ms p99 per frame ({:.0} / {:.0} fps).",
@@ -627,6 +586,10 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             d.fps_p99.unwrap_or(f64::NAN),
         );
     }
+    let diag_share: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| Some(r.diagnostics_p50_s? / r.frame_p50_s?))
+        .collect();
     if !diag_share.is_empty() {
         let _ = writeln!(
             s,
@@ -636,6 +599,28 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             100.0 * median(&diag_share)
         );
     }
+    s
+}
+
+/// The section, from the rows and notes.
+fn section(
+    ctx: &Context,
+    case: &MeshCase,
+    drag: &Drag,
+    rows: &[Row],
+    have_frames_figure: bool,
+    notes: &[String],
+) -> String {
+    let mut s = method_text(ctx, case, drag);
+    s.push_str(&ctx.regenerate(NAME));
+    let _ = writeln!(
+        s,
+        "**Table.** One row per method and back end. Read the p50 columns for the typical frame and p99 for the hitches; \
+         \"residual\" is the largest hard-constraint residual over all frames relative to the bounding-box diagonal (penalty: its approximation error), \
+         \"deviation\" the largest distance of the mid-drag shape from the first row's, relative to the diagonal (all methods solve the same problem).\n"
+    );
+    s.push_str(&table(rows));
+    s.push_str(&findings(rows));
     let _ = writeln!(
         s,
         "\n**Figure: latency.** One bar per configuration: the first segment is the solve phase (p50), the first two the whole frame (p50), \
@@ -650,25 +635,35 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             link(NAME, "frame_times")
         );
     }
-    if !notes.is_empty() {
-        let _ = writeln!(s, "\n**What did not work / notes.**\n");
-        for n in &notes {
-            let _ = writeln!(s, "- {n}");
-        }
-    }
-    let _ = writeln!(
-        s,
-        "\nData: [`{NAME}/drag_summary.csv`]({NAME}/drag_summary.csv) (one row per configuration), [`{NAME}/drag_frames.csv`]({NAME}/drag_frames.csv) (every frame), [`{NAME}/drag_summary.json`]({NAME}/drag_summary.json)."
-    );
-    let _ = writeln!(s, "\n_{}_", ctx.machine.one_line());
-    ctx.write_section(NAME, &s)?;
+    s.push_str(&ctx.closing(
+        notes,
+        &format!("Data: [`{NAME}/drag_summary.csv`]({NAME}/drag_summary.csv) (one row per configuration), [`{NAME}/drag_frames.csv`]({NAME}/drag_frames.csv) (every frame), [`{NAME}/drag_summary.json`]({NAME}/drag_summary.json)."),
+    ));
+    s
+}
 
-    let headline = match default_row {
+/// Runs the experiment.
+pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
+    let dir = ctx.dir(NAME)?;
+    let case = ctx.fallback_mesh("bunny-35k-stanford.obj", 35_000, 10_000)?;
+    let drag = Drag::new(ctx, &case.mesh)?;
+    let configs = configs(PENALTY_RELATIVE_WEIGHT, ctx.has_user_meshes())?;
+    let mut slots = precompute_all(&case.mesh, &drag, &configs);
+    run_frames(ctx, &drag, &mut slots);
+    let mut notes: Vec<String> = Vec::new();
+    let rows = rows(&configs, &mut slots, case.mesh.bbox_diagonal(), &mut notes);
+    write_data(ctx, &dir, &case, &drag, &rows, &slots)?;
+    latency_figure(&dir, &case, drag.frames, &rows, &mut notes)?;
+    let have_frames_figure = frames_figure(&dir, &case, &rows, &slots, &mut notes)?;
+    let s = section(ctx, &case, &drag, &rows, have_frames_figure, &notes);
+    ctx.write_section(NAME, &s)?;
+    let best = fastest(&rows);
+    let headline = match rows.first() {
         Some(d) if d.frame_p50_s.is_some() => format!(
             "{} on {} ({} vertices): frame p50 {} ms / p99 {} ms ({:.0} fps); fastest {} {} ms",
             d.label,
             case.name,
-            mesh.n_vertices(),
+            case.mesh.n_vertices(),
             ms(d.frame_p50_s),
             ms(d.frame_p99_s),
             d.fps_p50.unwrap_or(f64::NAN),
@@ -702,9 +697,9 @@ mod tests {
     #[test]
     fn configs_cover_every_method() {
         let c = configs(1.0, true).unwrap();
-        for m in ["nullspace-qr", "penalty", "kkt", "eliminate"] {
-            assert!(c.iter().any(|c| c.method == m), "{m}");
+        for m in Method::ALL {
+            assert!(c.iter().any(|c| c.choice.method == m), "{m}");
         }
-        assert_eq!(c[0].method, "nullspace-qr");
+        assert_eq!(c[0].choice.method, Method::NullSpaceQr);
     }
 }

@@ -5,10 +5,15 @@
 //! `results/README.md`.
 //!
 //! ```sh
-//! cargo run --release --bin experiments -- all                       # generated meshes
-//! cargo run --release --bin experiments -- all --mesh-dir ../shared/meshes
+//! cargo run --release --bin experiments -- all                       # generated meshes, into target/experiments/
+//! cargo run --release --bin experiments -- all --mesh-dir ../shared/meshes --out results
 //! cargo run --release --bin experiments -- table1 --mesh-dir ../shared/meshes
+//! cargo run --release --bin experiments -- weight-sweep --mesh my.obj -c my.json
 //! ```
+//!
+//! The experiments are listed once, in [`harness::EXPERIMENTS`]. Without
+//! `--out` a run writes to a fresh directory under `target/experiments/`;
+//! the committed `results/` is written only with `--out results`.
 
 mod accuracy;
 mod arap;
@@ -17,6 +22,7 @@ mod conflicts;
 mod context;
 mod demo;
 mod drag;
+mod harness;
 mod performance;
 mod plot;
 mod relative;
@@ -31,9 +37,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use clap::{Parser, ValueEnum};
+use clap::Parser;
+use clap::builder::{PossibleValue, PossibleValuesParser};
 
-use context::{Context, assemble_readme, markdown_table};
+use context::{Context, markdown_table};
+use harness::{EXPERIMENTS, assemble_readme};
 
 /// Any failure of an experiment, as one line.
 pub type AnyError = Box<dyn std::error::Error>;
@@ -44,6 +52,23 @@ pub struct Summary {
     pub headline: String,
 }
 
+/// Every experiment first (in the order of `all`), then `all` and
+/// `viz-demo`: the words the command line accepts.
+fn experiment_words() -> PossibleValuesParser {
+    let mut words: Vec<PossibleValue> = EXPERIMENTS
+        .iter()
+        .map(|e| {
+            let inputs: Vec<&str> = e.inputs.iter().map(|i| i.describe()).collect();
+            PossibleValue::new(e.name).help(format!("{} ({})", e.title, inputs.join(", ")))
+        })
+        .collect();
+    words.push(PossibleValue::new("all").help("Every experiment above, in order, then README.md"));
+    words.push(
+        PossibleValue::new("viz-demo").help("Development aid: one plot of each kind and a render"),
+    );
+    PossibleValuesParser::new(words)
+}
+
 /// Command line of the experiments program.
 #[derive(Parser)]
 #[command(
@@ -52,8 +77,8 @@ pub struct Summary {
 )]
 struct Cli {
     /// Which experiment(s) to run.
-    #[arg(value_enum)]
-    experiment: Experiment,
+    #[arg(value_parser = experiment_words())]
+    experiment: String,
     /// A directory of meshes (e.g. ../shared/meshes): every .obj, .ply and
     /// .off file in it (optionally .gz) is used, named by its file stem; a
     /// directory without any is an error. Without --mesh-dir and --mesh the
@@ -64,9 +89,15 @@ struct Cli {
     /// its meshes and first).
     #[arg(long = "mesh", value_name = "PATH")]
     meshes: Vec<PathBuf>,
-    /// Output directory.
-    #[arg(long, default_value = "results")]
-    out: PathBuf,
+    /// A constraint file (JSON, as `lse-deform scene` writes) for the
+    /// --mesh files: weight-sweep sweeps it besides its built-in scenes.
+    #[arg(short = 'c', long = "constraints", value_name = "FILE")]
+    constraints: Option<PathBuf>,
+    /// Output directory. Default: a fresh directory
+    /// target/experiments/NAME-YYYYMMDD-HHMMSS; the committed results are
+    /// written only with `--out results`.
+    #[arg(long)]
+    out: Option<PathBuf>,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -83,126 +114,77 @@ struct Cli {
     demo_out: PathBuf,
 }
 
-/// The experiments.
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum Experiment {
-    /// Every experiment below, in order, then results/README.md.
-    All,
-    /// The paper's Table 1.
-    Table1,
-    /// Penalty relative weight 10⁻⁴ … 10¹² against the null-space method.
-    WeightSweep,
-    /// Digits lost without and with refinement against the condition
-    /// number; penalty with and without multiplier updates.
-    Accuracy,
-    /// The paper's Fig. 7 and 8: precompute time by phase.
-    PrecomputeBreakdown,
-    /// The paper's Fig. 9 and 11: many relative constraints.
-    RelativeConstraints,
-    /// The paper's Fig. 6: conflicting constraints.
-    Conflicts,
-    /// Precompute and solve time against vertex count.
-    Scaling,
-    /// 300 frames of an interactive drag.
-    Drag,
-    /// Renders of the table1, conflicts and relative-constraint scenes.
-    Renders,
-    /// Ours against CHOLMOD and the memory-bandwidth floor.
-    Performance,
-    /// ARAP: bend and twist, ours against libigl, exact general constraints.
-    Arap,
-    /// Development aid: one plot of each kind and a render.
-    VizDemo,
+/// Exit code 1 with the error on stderr, or success.
+fn exit(outcome: Result<(), AnyError>) -> ExitCode {
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
 }
 
-type Runner = fn(&Context) -> Result<Summary, AnyError>;
-
-const ORDER: &[(Experiment, &str, Runner)] = &[
-    (Experiment::Table1, "table1", table1::run),
-    (Experiment::WeightSweep, "weight-sweep", weight_sweep::run),
-    (Experiment::Accuracy, "accuracy", accuracy::run),
-    (
-        Experiment::PrecomputeBreakdown,
-        "precompute-breakdown",
-        breakdown::run,
-    ),
-    (
-        Experiment::RelativeConstraints,
-        "relative-constraints",
-        relative::run,
-    ),
-    (Experiment::Conflicts, "conflicts", conflicts::run),
-    (Experiment::Scaling, "scaling", scaling::run),
-    (Experiment::Drag, "drag", drag::run),
-    (Experiment::Renders, "renders", renders::run),
-    (Experiment::Performance, "performance", performance::run),
-    (Experiment::Arap, "arap", arap::run),
-];
-
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    if let (Experiment::Performance, Some(mesh)) = (cli.experiment, &cli.memory_probe) {
-        return match performance::memory_probe(mesh) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("error: {e}");
-                ExitCode::FAILURE
-            }
-        };
-    }
-    if cli.experiment == Experiment::VizDemo {
-        return match demo::viz_demo(&cli.demo_out) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("error: {e}");
-                ExitCode::FAILURE
-            }
-        };
-    }
+/// The context of the run, from the command line.
+fn context(cli: &Cli) -> Result<Context, AnyError> {
     if let Some(dir) = &cli.mesh_dir
         && !dir.is_dir()
     {
-        eprintln!("error: --mesh-dir {} is not a directory", dir.display());
-        return ExitCode::from(2);
+        return Err(format!("--mesh-dir {} is not a directory", dir.display()).into());
     }
-    let ctx = match Context::new(
-        cli.out.clone(),
+    let out = cli
+        .out
+        .clone()
+        .unwrap_or_else(|| context::fresh_out_dir(&cli.experiment));
+    let ctx = Context::new(
+        out,
         cli.meshes.clone(),
         cli.mesh_dir.clone(),
+        cli.constraints.clone(),
         cli.quick,
         cli.seed,
-    ) {
+    )?;
+    std::fs::create_dir_all(&ctx.out)
+        .map_err(|e| format!("cannot create {}: {e}", ctx.out.display()))?;
+    Ok(ctx)
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    if let (performance::NAME, Some(mesh)) = (cli.experiment.as_str(), &cli.memory_probe) {
+        return exit(performance::memory_probe(mesh));
+    }
+    if cli.experiment == "viz-demo" {
+        return exit(demo::viz_demo(&cli.demo_out));
+    }
+    let ctx = match context(&cli) {
         Ok(ctx) => ctx,
         Err(e) => {
             eprintln!("error: {e}");
             return ExitCode::from(2);
         }
     };
-    if let Err(e) = std::fs::create_dir_all(&ctx.out) {
-        eprintln!("error: cannot create {}: {e}", ctx.out.display());
-        return ExitCode::from(2);
-    }
     eprintln!("{}", ctx.machine.one_line());
+    eprintln!("writing to {}", ctx.out.display());
     let started = Instant::now();
     let mut rows = Vec::new();
     let mut failed = false;
-    for &(which, name, run) in ORDER {
-        if cli.experiment != Experiment::All && cli.experiment != which {
+    for e in EXPERIMENTS {
+        if cli.experiment != "all" && cli.experiment != e.name {
             continue;
         }
         let t = Instant::now();
-        let outcome = run(&ctx);
-        let seconds = t.elapsed().as_secs_f64();
-        let (status, headline) = match outcome {
+        let (status, headline) = match (e.run)(&ctx) {
             Ok(s) => ("ok".to_string(), s.headline),
-            Err(e) => {
+            Err(err) => {
                 failed = true;
-                ("FAILED".to_string(), e.to_string())
+                ("FAILED".to_string(), err.to_string())
             }
         };
-        eprintln!("{name}: {status} in {seconds:.1} s — {headline}");
+        let seconds = t.elapsed().as_secs_f64();
+        eprintln!("{}: {status} in {seconds:.1} s — {headline}", e.name);
         rows.push(vec![
-            name.to_string(),
+            e.name.to_string(),
             status,
             format!("{seconds:.1}"),
             headline,

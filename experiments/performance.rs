@@ -21,7 +21,7 @@
 //! 7. precompute and solve against vertex count, with fitted slopes.
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -40,6 +40,9 @@ use serde::Serialize;
 use crate::context::{Context, fmt_time, markdown_table, median};
 use crate::plot::{self, LegendPosition, Output, ScatterFits, Series};
 use crate::{AnyError, Summary};
+
+/// The folder and command-line word of this experiment.
+pub const NAME: &str = "performance";
 
 /// The reference the targets compare against, when it is compiled in.
 #[cfg(feature = "suitesparse")]
@@ -372,7 +375,7 @@ pub fn memory_probe(mesh_path: &Path) -> Result<(), AnyError> {
 fn run_probe(mesh_path: &Path) -> Result<MemoryProbe, AnyError> {
     let exe = std::env::current_exe()?;
     let out = std::process::Command::new(exe)
-        .arg("performance")
+        .arg(NAME)
         .arg("--memory-probe")
         .arg(mesh_path)
         .output()?;
@@ -418,35 +421,25 @@ fn mib(b: f64) -> String {
     format!("{:.0} MiB", b / (1u64 << 20) as f64)
 }
 
-/// Runs the performance experiment.
-pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
-    let started = Instant::now();
-    let dir = ctx.dir("performance")?;
-    let quick = ctx.quick;
-    let reps = if quick { 3 } else { 7 };
-    let solves = if quick { 9 } else { 41 };
-    let bar = ctx.bar(7, "performance: bandwidth");
-    let bandwidth = read_bandwidth(if quick { 3 } else { 9 });
-    bar.inc(1);
-
-    // The main case: Bunny, or a generated bumpy sphere of the same size.
-    bar.set_message("performance: precompute and solve, side by side");
-    let (main_name, main_mesh) = match ctx.main_mesh("bunny-35k-stanford.obj")? {
+/// The main case: Bunny, or a generated bumpy sphere of the same size.
+fn main_case(ctx: &Context) -> Result<(String, Mesh), AnyError> {
+    Ok(match ctx.main_mesh("bunny-35k-stanford.obj")? {
         Some(case) => (case.name, case.mesh),
         None => {
-            let n = if quick { 5_000 } else { 35_000 };
+            let n = if ctx.quick { 5_000 } else { 35_000 };
             let m =
                 generate::with_about_vertices(generate::GeneratedKind::BumpySphere, n, ctx.seed)?;
             (format!("bumpy-sphere-{}k", m.n_vertices() / 1000), m)
         }
-    };
-    let base = FixedAndHandle::paper_default(&main_mesh);
-    let cs = base.constraints(&main_mesh)?;
-    let main = side_by_side(&main_name, &main_mesh, &cs, reps, solves)?;
-    bar.inc(1);
+    })
+}
 
-    // Relative constraints.
-    bar.set_message("performance: relative constraints");
+/// Precompute medians with 0, 300 and 2000 relative constraints.
+fn relative_medians(
+    mesh: &Mesh,
+    base: &FixedAndHandle,
+    reps: usize,
+) -> Result<Vec<(usize, f64)>, AnyError> {
     let counts = [0usize, 300, 2000];
     let sets = counts
         .iter()
@@ -459,149 +452,125 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                 duplicate: false,
                 conflict: false,
             }
-            .constraints(&main_mesh)
+            .constraints(mesh)
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let rel_times = precompute_medians(&main_mesh, &sets, reps)?;
-    let relative: Vec<(usize, f64)> = counts
-        .iter()
-        .copied()
-        .zip(rel_times.iter().copied())
-        .collect();
-    bar.inc(1);
+    let times = precompute_medians(mesh, &sets, reps)?;
+    Ok(counts.iter().copied().zip(times.iter().copied()).collect())
+}
 
-    bar.set_message("performance: weight sweep");
-    let sweep = weight_sweep(&main_mesh, &cs, if quick { 1 } else { 3 })?;
-    bar.inc(1);
+/// Set-up (read, L, A, B) of one mesh file: median of 3, with the mesh.
+fn timed_setup_from_file(path: &Path) -> Result<(Mesh, f64), AnyError> {
+    let mut times = Vec::new();
+    let mut mesh = None;
+    for _ in 0..3 {
+        let t = Instant::now();
+        let m = read_mesh(path)?.mesh;
+        let cs = FixedAndHandle::paper_default(&m).constraints(&m)?;
+        let d = Deformer::new(m.clone(), LaplacianKind::Cotangent, cs)?;
+        times.push(t.elapsed().as_secs_f64());
+        std::hint::black_box(&d);
+        mesh = Some(m);
+    }
+    Ok((mesh.ok_or("no mesh")?, median(&times)))
+}
 
-    // The large mesh.
-    bar.set_message("performance: large mesh");
-    let large_file = "igea-537k-subdiv.obj.gz";
-    let large_path = ctx.mesh_file(large_file).map(Path::to_path_buf);
-    let (large_name, large_mesh, large_setup_s) = match &large_path {
-        Some(path) => {
-            let mut times = Vec::new();
-            let mut mesh = None;
-            for _ in 0..3 {
-                let t = Instant::now();
-                let m = read_mesh(path)?.mesh;
-                let cs = FixedAndHandle::paper_default(&m).constraints(&m)?;
-                let d = Deformer::new(m.clone(), LaplacianKind::Cotangent, cs)?;
-                times.push(t.elapsed().as_secs_f64());
-                std::hint::black_box(&d);
-                mesh = Some(m);
-            }
-            let mesh = mesh.ok_or("no mesh")?;
-            ("igea-537k".to_string(), mesh, median(&times))
-        }
-        None => {
-            let n = if quick { 20_000 } else { 250_000 };
-            let t = Instant::now();
-            let m =
-                generate::with_about_vertices(generate::GeneratedKind::BumpySphere, n, ctx.seed)?;
-            let cs = FixedAndHandle::paper_default(&m).constraints(&m)?;
-            let d = Deformer::new(m.clone(), LaplacianKind::Cotangent, cs)?;
-            std::hint::black_box(&d);
-            let setup = t.elapsed().as_secs_f64();
-            (
-                format!("bumpy-sphere-{}k (generated)", m.n_vertices() / 1000),
-                m,
-                setup,
-            )
-        }
-    };
-    let large_cs = FixedAndHandle::paper_default(&large_mesh).constraints(&large_mesh)?;
-    let large = side_by_side(
-        &large_name,
-        &large_mesh,
-        &large_cs,
-        if quick { 1 } else { 3 },
-        if quick { 3 } else { 11 },
-    )?;
-    drop(large_mesh);
-    let large_memory = match &large_path {
-        Some(p) => Some(run_probe(p)?),
-        None => None,
-    };
-    bar.inc(1);
+/// The large case: the subdivided Igea, or a generated 250k-vertex bumpy
+/// sphere; its name, mesh, set-up time and file.
+fn large_case(ctx: &Context) -> Result<(String, Mesh, f64, Option<PathBuf>), AnyError> {
+    let path = ctx
+        .mesh_file("igea-537k-subdiv.obj.gz")
+        .map(Path::to_path_buf);
+    if let Some(path) = path {
+        let (mesh, setup) = timed_setup_from_file(&path)?;
+        return Ok(("igea-537k".to_string(), mesh, setup, Some(path)));
+    }
+    let n = if ctx.quick { 20_000 } else { 250_000 };
+    let t = Instant::now();
+    let m = generate::with_about_vertices(generate::GeneratedKind::BumpySphere, n, ctx.seed)?;
+    let cs = FixedAndHandle::paper_default(&m).constraints(&m)?;
+    let d = Deformer::new(m.clone(), LaplacianKind::Cotangent, cs)?;
+    std::hint::black_box(&d);
+    let setup = t.elapsed().as_secs_f64();
+    let name = format!("bumpy-sphere-{}k (generated)", m.n_vertices() / 1000);
+    Ok((name, m, setup, None))
+}
 
-    // Scaling.
-    bar.set_message("performance: scaling");
-    let sizes: &[usize] = if quick {
+/// One generated mesh of about `n` vertices: set-up, precompute, solve.
+fn scaling_point(ctx: &Context, n: usize) -> Result<ScalingPoint, AnyError> {
+    let mesh = generate::with_about_vertices(generate::GeneratedKind::BumpySphere, n, ctx.seed)?;
+    let cs = FixedAndHandle::paper_default(&mesh).constraints(&mesh)?;
+    let r = if n >= 200_000 { 1 } else { 3 };
+    let t = Instant::now();
+    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs)?;
+    let setup = t.elapsed().as_secs_f64();
+    let f = ours();
+    let mut pre = Vec::new();
+    for _ in 0..r {
+        d.precompute(&f)?;
+        pre.push(precompute_total(&d.report().timings_s));
+    }
+    let mut ts = Vec::new();
+    for _ in 0..if n >= 200_000 { 5 } else { 21 } {
+        let t = Instant::now();
+        std::hint::black_box(d.solve_matrix()?);
+        ts.push(t.elapsed().as_secs_f64());
+    }
+    let nnz = d.report().nnz.factor.unwrap_or(0);
+    let solve = median(&ts);
+    Ok(ScalingPoint {
+        vertices: mesh.n_vertices(),
+        setup_s: setup,
+        precompute_s: median(&pre),
+        solve_s: solve,
+        factor_nnz: nnz,
+        solve_ns_per_factor_entry: solve * 1e9 / nnz.max(1) as f64,
+    })
+}
+
+/// The scaling points on generated meshes.
+fn scaling_points(ctx: &Context) -> Result<Vec<ScalingPoint>, AnyError> {
+    let sizes: &[usize] = if ctx.quick {
         &[1_000, 4_000, 16_000]
     } else if ctx.has_user_meshes() {
         &[1_000, 4_000, 16_000, 64_000, 256_000, 1_000_000]
     } else {
         &[1_000, 4_000, 16_000, 64_000, 256_000]
     };
-    let mut scaling = Vec::new();
-    for &n in sizes {
-        let mesh =
-            generate::with_about_vertices(generate::GeneratedKind::BumpySphere, n, ctx.seed)?;
-        let cs = FixedAndHandle::paper_default(&mesh).constraints(&mesh)?;
-        let r = if n >= 200_000 { 1 } else { 3 };
-        let t = Instant::now();
-        let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs)?;
-        let setup = t.elapsed().as_secs_f64();
-        let f = ours();
-        let mut pre = Vec::new();
-        for _ in 0..r {
-            d.precompute(&f)?;
-            pre.push(precompute_total(&d.report().timings_s));
-        }
-        let mut ts = Vec::new();
-        for _ in 0..if n >= 200_000 { 5 } else { 21 } {
-            let t = Instant::now();
-            std::hint::black_box(d.solve_matrix()?);
-            ts.push(t.elapsed().as_secs_f64());
-        }
-        let nnz = d.report().nnz.factor.unwrap_or(0);
-        let solve = median(&ts);
-        scaling.push(ScalingPoint {
-            vertices: mesh.n_vertices(),
-            setup_s: setup,
-            precompute_s: median(&pre),
-            solve_s: solve,
-            factor_nnz: nnz,
-            solve_ns_per_factor_entry: solve * 1e9 / nnz.max(1) as f64,
-        });
-    }
-    let fit = |pts: Vec<(f64, f64)>| plot::fit_power_law(&pts).map(|f| (f.slope, f.r_squared));
-    let mut slopes = Vec::new();
-    for (name, pts) in [
-        (
-            "precompute vs vertices",
-            scaling
-                .iter()
-                .map(|p| (p.vertices as f64, p.precompute_s))
-                .collect::<Vec<_>>(),
-        ),
-        (
-            "solve vs vertices",
-            scaling
-                .iter()
-                .map(|p| (p.vertices as f64, p.solve_s))
-                .collect(),
-        ),
-        (
-            "factor nnz vs vertices",
-            scaling
-                .iter()
-                .map(|p| (p.vertices as f64, p.factor_nnz as f64))
-                .collect(),
-        ),
-        (
-            "solve vs factor nnz",
-            scaling
-                .iter()
-                .map(|p| (p.factor_nnz as f64, p.solve_s))
-                .collect(),
-        ),
-    ] {
-        if let Ok((s, r2)) = fit(pts) {
-            slopes.push((name.to_string(), s, r2));
-        }
-    }
+    sizes.iter().map(|&n| scaling_point(ctx, n)).collect()
+}
+
+/// A point's `(x, y)` for a fit or a series.
+type Xy = fn(&ScalingPoint) -> (f64, f64);
+
+/// `(x, y)` of the scaling points.
+fn scaling_xy(scaling: &[ScalingPoint], f: Xy) -> Vec<(f64, f64)> {
+    scaling.iter().map(f).collect()
+}
+
+/// Fitted log–log slopes (name, slope, R²) of the scaling points.
+fn slopes(scaling: &[ScalingPoint]) -> Vec<(String, f64, f64)> {
+    let pairs: [(&str, Xy); 4] = [
+        ("precompute vs vertices", |p| {
+            (p.vertices as f64, p.precompute_s)
+        }),
+        ("solve vs vertices", |p| (p.vertices as f64, p.solve_s)),
+        ("factor nnz vs vertices", |p| {
+            (p.vertices as f64, p.factor_nnz as f64)
+        }),
+        ("solve vs factor nnz", |p| (p.factor_nnz as f64, p.solve_s)),
+    ];
+    pairs
+        .into_iter()
+        .filter_map(|(name, f)| {
+            let fit = plot::fit_power_law(&scaling_xy(scaling, f)).ok()?;
+            Some((name.to_string(), fit.slope, fit.r_squared))
+        })
+        .collect()
+}
+
+/// The scaling figure.
+fn scaling_figure(dir: &Path, scaling: &[ScalingPoint]) -> Result<(), AnyError> {
     let spec = ScatterFits {
         title: "Precompute and per-frame solve against vertex count (generated bumpy spheres)"
             .into(),
@@ -610,35 +579,33 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         series: vec![
             Series::new(
                 "precompute",
-                scaling
-                    .iter()
-                    .map(|p| (p.vertices as f64, p.precompute_s))
-                    .collect(),
+                scaling_xy(scaling, |p| (p.vertices as f64, p.precompute_s)),
             ),
             Series::new(
                 "solve (3 rhs)",
-                scaling
-                    .iter()
-                    .map(|p| (p.vertices as f64, p.solve_s))
-                    .collect(),
+                scaling_xy(scaling, |p| (p.vertices as f64, p.solve_s)),
             ),
             Series::new(
                 "set-up",
-                scaling
-                    .iter()
-                    .map(|p| (p.vertices as f64, p.setup_s))
-                    .collect(),
+                scaling_xy(scaling, |p| (p.vertices as f64, p.setup_s)),
             ),
         ],
         legend: LegendPosition::UpperLeft,
     };
     plot::scatter_loglog_with_fits(&spec, &Output::new(dir.join("scaling")))?;
-    bar.inc(1);
+    Ok(())
+}
 
-    // The targets table.
+/// The bandwidth floor of a solve reading a factor of `bytes` twice.
+fn floor(all: &Everything, bytes: usize) -> f64 {
+    2.0 * bytes as f64 / all.bandwidth_bytes_per_s
+}
+
+/// Targets 1–4: the main case against CHOLMOD and the floor, relative
+/// constraints, the weight sweep.
+fn main_targets(all: &Everything) -> Vec<TargetRow> {
+    let (main, relative, sweep) = (&all.main, &all.relative, &all.sweep);
     let mut targets = Vec::new();
-    let floor = |bytes: usize| 2.0 * bytes as f64 / bandwidth;
-    let main_floor = floor(main.ours_factor_bytes);
     match &main.reference {
         Some(r) => {
             targets.push(row(
@@ -660,7 +627,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             targets.push(row(
                 "2 solve vs CHOLMOD solve",
                 &main.case,
-                solve_cell(&main),
+                solve_cell(main),
                 ms(r.solve_s),
                 Some(main.ours_solve_s / r.solve_s),
                 1.0,
@@ -676,15 +643,16 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             met: None,
         }),
     }
+    let main_floor = floor(all, main.ours_factor_bytes);
     targets.push(row(
         "2 solve vs bandwidth floor",
         &main.case,
-        solve_cell(&main),
+        solve_cell(main),
         format!(
             "{} ({} factor, {:.1} GB/s)",
             ms(main_floor),
             mib(main.ours_factor_bytes as f64),
-            bandwidth / 1e9
+            all.bandwidth_bytes_per_s / 1e9
         ),
         Some(main.ours_solve_s / main_floor),
         2.0,
@@ -714,6 +682,13 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         Some(sweep.total_s / bound),
         1.0,
     ));
+    targets
+}
+
+/// Targets 5–6: the large case.
+fn large_targets(all: &Everything) -> Vec<TargetRow> {
+    let large = &all.large;
+    let mut targets = Vec::new();
     if let Some(r) = &large.reference {
         targets.push(row(
             "5 precompute vs CHOLMOD factorise",
@@ -726,17 +701,17 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         targets.push(row(
             "5 solve vs CHOLMOD solve",
             &large.case,
-            solve_cell(&large),
+            solve_cell(large),
             ms(r.solve_s),
             Some(large.ours_solve_s / r.solve_s),
             1.0,
         ));
     }
-    let large_floor = floor(large.ours_factor_bytes);
+    let large_floor = floor(all, large.ours_factor_bytes);
     targets.push(row(
         "5 solve vs bandwidth floor",
         &large.case,
-        solve_cell(&large),
+        solve_cell(large),
         format!(
             "{} ({} factor)",
             ms(large_floor),
@@ -745,7 +720,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         Some(large.ours_solve_s / large_floor),
         2.0,
     ));
-    if let Some(m) = &large_memory {
+    if let Some(m) = &all.large_memory {
         let budget = 2.5 * m.factor_bytes as f64 + m.mesh_bytes as f64;
         targets.push(row(
             "5 peak memory vs 2.5 × factor + mesh",
@@ -764,19 +739,26 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     targets.push(row(
         "6 set-up (read + L + A) vs 1 s",
         &large.case,
-        ms(large_setup_s),
+        ms(all.large_setup_s),
         "1 s".into(),
-        Some(large_setup_s),
+        Some(all.large_setup_s),
         1.0,
     ));
-    for (name, slope, r2) in &slopes {
-        targets.push(TargetRow {
+    targets
+}
+
+/// Target 7: the fitted slopes.
+fn slope_targets(all: &Everything) -> Vec<TargetRow> {
+    let range = format!(
+        "generated, {}–{} vertices",
+        all.scaling.first().map_or(0, |p| p.vertices),
+        all.scaling.last().map_or(0, |p| p.vertices)
+    );
+    all.slopes
+        .iter()
+        .map(|(name, slope, r2)| TargetRow {
             target: format!("7 slope: {name}"),
-            case: format!(
-                "generated, {}–{} vertices",
-                scaling.first().map_or(0, |p| p.vertices),
-                scaling.last().map_or(0, |p| p.vertices)
-            ),
+            case: range.clone(),
             ours: format!("{slope:.2} (R² {r2:.3})"),
             reference: if name == "solve vs factor nnz" {
                 "1 (linear)".into()
@@ -786,35 +768,26 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             ratio: None,
             limit: "—".into(),
             met: None,
-        });
-    }
-    bar.inc(1);
-    bar.finish_and_clear();
+        })
+        .collect()
+}
 
-    let all = Everything {
-        bandwidth_bytes_per_s: bandwidth,
-        main,
-        relative,
-        sweep,
-        large,
-        large_setup_s,
-        large_memory,
-        scaling,
-        slopes,
-        targets,
-    };
-    ctx.write_json(&dir.join("performance.json"), &all)?;
-    let header = [
-        "target",
-        "case",
-        "ours",
-        "reference",
-        "ratio",
-        "limit",
-        "status",
-    ];
+/// The columns of `targets.csv` and of the section's table.
+const TARGET_HEADER: [&str; 7] = [
+    "target",
+    "case",
+    "ours",
+    "reference",
+    "ratio",
+    "limit",
+    "status",
+];
+
+/// `performance.json`, `targets.csv` and `scaling.csv`.
+fn write_data(ctx: &Context, dir: &Path, all: &Everything) -> Result<(), AnyError> {
+    ctx.write_json(&dir.join("performance.json"), all)?;
     let rows: Vec<Vec<String>> = all.targets.iter().map(TargetRow::cells).collect();
-    ctx.write_csv(&dir.join("targets.csv"), &header, &rows)?;
+    ctx.write_csv(&dir.join("targets.csv"), &TARGET_HEADER, &rows)?;
     let scaling_rows: Vec<Vec<String>> = all
         .scaling
         .iter()
@@ -840,10 +813,12 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             "solve_ns_per_factor_entry",
         ],
         &scaling_rows,
-    )?;
+    )
+}
 
+/// The section (also `performance/README.md` and `performance.md`).
+fn section(ctx: &Context, all: &Everything, reps: usize, solves: usize) -> String {
     let mut md = String::new();
-    let command = "cargo run --release --features suitesparse --bin experiments -- performance --mesh-dir ../shared/meshes";
     let _ = writeln!(
         md,
         "Ours (the paper's method: SparseGivens QR × faer supernodal Cholesky with our own supernodal triangular solve) against CHOLMOD \
@@ -852,18 +827,20 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
          `report.timings_s.solve`); the whole `solve_matrix` call adds the checks and diagnostics the library computes after every solve (constraint residuals, ‖AX − C‖), given in brackets. \
          The numeric factorisation runs on one thread below 50 M factor values and on two above; the triangular solves on one. \
          The bandwidth floor is 2 × the factor's bytes / the single-thread read bandwidth measured in the same run ({:.1} GB/s).\n",
-        bandwidth / 1e9
+        all.bandwidth_bytes_per_s / 1e9
     );
-    md.push_str(&markdown_table(&header, &rows));
+    let rows: Vec<Vec<String>> = all.targets.iter().map(TargetRow::cells).collect();
+    md.push_str(&markdown_table(&TARGET_HEADER, &rows));
+    let p = &all.main.ours_phases_s;
     let _ = writeln!(
         md,
         "\nOur precompute by phase on {} (median s): QR {:.4}, preparation {:.4}, normal matrix {:.4}, symbolic {:.4}, numeric {:.4}; factor nnz {} ({}).\n",
         all.main.case,
-        all.main.ours_phases_s[0],
-        all.main.ours_phases_s[1],
-        all.main.ours_phases_s[2],
-        all.main.ours_phases_s[3],
-        all.main.ours_phases_s[4],
+        p[0],
+        p[1],
+        p[2],
+        p[3],
+        p[4],
         all.main.ours_factor_nnz,
         mib(all.main.ours_factor_bytes as f64)
     );
@@ -881,9 +858,15 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     );
     let _ = writeln!(
         md,
-        "Regenerate: `{command}` (without `--mesh-dir` the main case is a generated 35k-vertex bumpy sphere and the large case a generated 250k one; without `--features suitesparse` the CHOLMOD rows are missing)."
+        "Regenerate: `cargo run --release --features suitesparse --bin experiments -- {NAME}{} --out results` (without `--mesh-dir` the main case is a generated 35k-vertex bumpy sphere and the large case a generated 250k one; without `--features suitesparse` the CHOLMOD rows are missing).",
+        ctx.mesh_args()
     );
-    ctx.write_section("performance", &md)?;
+    md
+}
+
+/// The section, `performance/README.md` and `performance.md`.
+fn write_pages(ctx: &Context, dir: &Path, md: &str) -> Result<(), AnyError> {
+    ctx.write_section(NAME, md)?;
     let mut page = format!("# Performance\n\n{}\n\n", ctx.machine.one_line());
     page.push_str(&md.replace("](performance/", "]("));
     std::fs::write(dir.join("README.md"), &page)?;
@@ -891,7 +874,51 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         ctx.out.join("performance.md"),
         page.replace("](scaling", "](performance/scaling"),
     )?;
+    Ok(())
+}
 
+/// Runs the performance experiment.
+pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
+    let started = Instant::now();
+    let dir = ctx.dir(NAME)?;
+    let quick = ctx.quick;
+    let (reps, solves) = if quick { (3, 9) } else { (7, 41) };
+    let bandwidth = read_bandwidth(if quick { 3 } else { 9 });
+    let (main_name, main_mesh) = main_case(ctx)?;
+    let base = FixedAndHandle::paper_default(&main_mesh);
+    let cs = base.constraints(&main_mesh)?;
+    let main = side_by_side(&main_name, &main_mesh, &cs, reps, solves)?;
+    let relative = relative_medians(&main_mesh, &base, reps)?;
+    let sweep = weight_sweep(&main_mesh, &cs, if quick { 1 } else { 3 })?;
+    let (large_name, large_mesh, large_setup_s, large_path) = large_case(ctx)?;
+    let large_cs = FixedAndHandle::paper_default(&large_mesh).constraints(&large_mesh)?;
+    let (large_reps, large_solves) = if quick { (1, 3) } else { (3, 11) };
+    let large = side_by_side(
+        &large_name,
+        &large_mesh,
+        &large_cs,
+        large_reps,
+        large_solves,
+    )?;
+    drop(large_mesh);
+    let large_memory = large_path.as_deref().map(run_probe).transpose()?;
+    let scaling = scaling_points(ctx)?;
+    scaling_figure(&dir, &scaling)?;
+    let mut all = Everything {
+        bandwidth_bytes_per_s: bandwidth,
+        main,
+        relative,
+        sweep,
+        large,
+        large_setup_s,
+        large_memory,
+        slopes: slopes(&scaling),
+        scaling,
+        targets: Vec::new(),
+    };
+    all.targets = [main_targets(&all), large_targets(&all), slope_targets(&all)].concat();
+    write_data(ctx, &dir, &all)?;
+    write_pages(ctx, &dir, &section(ctx, &all, reps, solves))?;
     let missed: Vec<&str> = all
         .targets
         .iter()
@@ -909,7 +936,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                 format!(" ({})", missed.join("; "))
             },
             ms(all.main.ours_solve_s),
-            ms(main_floor),
+            ms(floor(&all, all.main.ours_factor_bytes)),
             started.elapsed().as_secs_f64()
         ),
     })

@@ -12,29 +12,30 @@
 //! reported as such.
 
 use std::fmt::Write as _;
+use std::path::Path;
 use std::time::Instant;
 
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, Formulation, Kkt, LaplacianKind, NullSpaceQr, Report};
+use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method, Report};
 use serde::Serialize;
 
 use crate::breakdown::{
-    PHASES, link, median_index, note_drawn, precompute_phase_values, qr_backend, qr_backends,
-    short_error,
+    PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells, precompute_phase_values,
+    qr_backends, short_error,
 };
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median};
+use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::plot::{
     self, Axis, Category, LegendPosition, LineChart, Orientation, Output, ReferenceLine, Series,
     StackedBars,
 };
 use crate::{AnyError, Summary};
 
-const NAME: &str = "relative-constraints";
+pub const NAME: &str = "relative-constraints";
 
-/// A compared method.
-struct Method {
+/// A compared method and back end.
+struct Config {
     /// Legend label.
     label: String,
     /// Short key for the CSV.
@@ -49,8 +50,8 @@ struct Method {
 
 /// The methods: null-space QR with each QR back end (the library's default
 /// SPD back end), and KKT.
-fn methods() -> Result<Vec<Method>, AnyError> {
-    let default = NullSpaceQr::default();
+fn methods() -> Result<Vec<Config>, AnyError> {
+    let default = FormulationChoice::new(Method::NullSpaceQr);
     let default_qr = default.qr.name();
     let mut out = Vec::new();
     for name in qr_backends() {
@@ -60,25 +61,26 @@ fn methods() -> Result<Vec<Method>, AnyError> {
             "spqr" => ("null-space, one global SPQR", 2.0),
             _ => ("null-space", 2.0),
         };
-        out.push(Method {
+        out.push(Config {
             label: if name == default_qr {
                 format!("{label} (default)")
             } else {
                 label.to_string()
             },
             key: format!("nullspace-qr/{name}"),
-            formulation: Box::new(NullSpaceQr {
-                qr: qr_backend(name)?,
-                ..default.clone()
-            }),
+            formulation: FormulationChoice {
+                qr: name.parse()?,
+                ..default
+            }
+            .build()?,
             growth,
             is_default: name == default_qr,
         });
     }
-    out.push(Method {
+    out.push(Config {
         label: "KKT (faer LDLᵀ)".into(),
         key: "kkt".into(),
-        formulation: Box::new(Kkt::default()),
+        formulation: FormulationChoice::new(Method::Kkt).build()?,
         growth: 2.0,
         is_default: false,
     });
@@ -126,77 +128,123 @@ struct Row {
     status: String,
 }
 
-/// Runs the experiment.
-pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
-    let dir = ctx.dir(NAME)?;
-    let case = match ctx.main_mesh("bunny-35k-stanford.obj")? {
-        Some(c) => c,
-        None => {
-            let target = if ctx.quick { 10_000 } else { 35_000 };
-            let kind = lse_deform::mesh::generate::GeneratedKind::BumpySphere;
-            let mesh = lse_deform::mesh::generate::with_about_vertices(kind, target, ctx.seed)?;
-            MeshCase {
-                name: "bumpy-sphere".into(),
-                source: format!(
-                    "generated {kind}, {} vertices, seed {}",
-                    mesh.n_vertices(),
-                    ctx.seed
-                ),
-                mesh,
-            }
-        }
-    };
-    let ks: Vec<usize> = if ctx.quick {
+/// The numbers of relative constraints.
+fn ks(quick: bool) -> Vec<usize> {
+    if quick {
         vec![0, 100, 300, 1000]
     } else {
         vec![0, 100, 300, 1000, 2000, 5000]
-    };
-    // Budget of one precompute (seconds): a configuration predicted to take
-    // longer is skipped.
-    let budget = if ctx.quick {
+    }
+}
+
+/// Budget of one precompute (seconds): a configuration predicted to take
+/// longer is skipped.
+fn budget(ctx: &Context) -> f64 {
+    if ctx.quick {
         5.0
     } else if ctx.has_user_meshes() {
         60.0
     } else {
         20.0
-    };
-    let methods = methods()?;
-    let mesh = &case.mesh;
-
-    // Set-up per k (the deformer is shared by the methods: each precompute
-    // replaces the previous system).
-    let bar = ctx.bar(ks.len(), &format!("{NAME}: set-up"));
-    let mut deformers = Vec::new();
-    let mut k_actual = Vec::new();
-    let mut setup = Vec::new();
-    for &k in &ks {
-        let (set, added) = scene(mesh, k)?;
-        let t = Instant::now();
-        let d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set)?;
-        setup.push(t.elapsed().as_secs_f64());
-        deformers.push(d);
-        k_actual.push(added);
-        bar.inc(1);
     }
-    bar.finish_and_clear();
+}
 
-    let nm = methods.len();
-    let nk = ks.len();
-    let mut runs: Vec<Vec<Vec<Report>>> = vec![vec![Vec::new(); nk]; nm];
-    let mut status: Vec<Vec<Option<String>>> = vec![vec![None; nk]; nm];
-    let mut reps: Vec<Vec<usize>> = vec![vec![0; nk]; nm];
-    let mut notes: Vec<String> = Vec::new();
-    let mut solves: Vec<Vec<Option<f64>>> = vec![vec![None; nk]; nm];
-    let mut residuals: Vec<Vec<Option<f64>>> = vec![vec![None; nk]; nm];
-    let mut solve_error: Vec<Vec<Option<String>>> = vec![vec![None; nk]; nm];
+/// The deformer of each k (shared by the methods: each precompute replaces
+/// the previous system), the relative constraints the patch allowed and the
+/// set-up time.
+struct Setups {
+    deformers: Vec<Deformer>,
+    k_actual: Vec<usize>,
+    seconds: Vec<f64>,
+}
 
-    // Pass 1, per method in increasing k, with the budget.
-    let bar = ctx.bar(nm * nk, &format!("{NAME}: first pass"));
+fn setups(case: &MeshCase, ks: &[usize]) -> Result<Setups, AnyError> {
+    let mut out = Setups {
+        deformers: Vec::new(),
+        k_actual: Vec::new(),
+        seconds: Vec::new(),
+    };
+    for &k in ks {
+        let (set, added) = scene(&case.mesh, k)?;
+        let t = Instant::now();
+        let d = Deformer::new(case.mesh.clone(), LaplacianKind::Cotangent, set)?;
+        out.seconds.push(t.elapsed().as_secs_f64());
+        out.deformers.push(d);
+        out.k_actual.push(added);
+    }
+    Ok(out)
+}
+
+/// The measurements of one method and k.
+#[derive(Clone, Default)]
+struct Cell {
+    runs: Vec<Report>,
+    /// Skipped or failed precompute.
+    status: Option<String>,
+    /// Repetitions wanted.
+    reps: usize,
+    solve: Option<f64>,
+    residual: Option<f64>,
+    solve_error: Option<String>,
+}
+
+/// The first precompute of `m` on `d` and 5 solves on it, into `cell`;
+/// the precompute time.
+fn first_run(
+    ctx: &Context,
+    d: &mut Deformer,
+    m: &Config,
+    k: usize,
+    cell: &mut Cell,
+    notes: &mut Vec<String>,
+) -> Option<f64> {
+    if let Err(e) = d.precompute(m.formulation.as_ref()) {
+        notes.push(format!("{}, k = {k}: {e}", m.label));
+        cell.status = Some(format!("failed: {}", short_error(&e.to_string())));
+        return None;
+    }
+    let t = d.report().timings_s.precompute();
+    cell.runs.push(d.report().clone());
+    let mut times = Vec::new();
+    for _ in 0..5 {
+        match d.solve_matrix() {
+            Ok(_) => times.push(d.report().timings_s.solve),
+            Err(e) => {
+                notes.push(format!("{}, k = {k}: solve: {e}", m.label));
+                cell.solve_error = Some(format!("solve failed: {}", short_error(&e.to_string())));
+                break;
+            }
+        }
+    }
+    if !times.is_empty() {
+        cell.solve = Some(median(&times));
+        cell.residual = Some(d.report().max_constraint_residual_relative);
+    }
+    cell.reps = if t < 0.5 {
+        if ctx.quick { 2 } else { 7 }
+    } else if t < 3.0 {
+        3
+    } else {
+        1
+    };
+    Some(t)
+}
+
+/// Pass 1, per method in increasing k: one run each, skipping what the
+/// budget predicts too slow (`t(k) ≈ t(0) + (t(k') − t(0)) (k / k')^p`).
+fn first_pass(
+    ctx: &Context,
+    methods: &[Config],
+    ks: &[usize],
+    deformers: &mut [Deformer],
+    notes: &mut Vec<String>,
+) -> Vec<Vec<Cell>> {
+    let budget = budget(ctx);
+    let mut grid = vec![vec![Cell::default(); ks.len()]; methods.len()];
     for (mi, m) in methods.iter().enumerate() {
         let mut t0: Option<f64> = None;
         let mut last: Option<(usize, f64)> = None;
         for (ki, &k) in ks.iter().enumerate() {
-            bar.set_message(format!("{NAME}: {} k = {k}", m.key));
             if let (Some(t0), Some((k_prev, t_prev))) = (t0, last)
                 && k_prev > 0
             {
@@ -210,104 +258,68 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                         m.growth
                     );
                     notes.push(format!("{}, k = {k}: {msg}", m.label));
-                    status[mi][ki] = Some(msg);
-                    bar.inc(1);
+                    grid[mi][ki].status = Some(msg);
                     continue;
                 }
             }
-            let d = &mut deformers[ki];
-            match d.precompute(m.formulation.as_ref()) {
-                Ok(()) => {
-                    let t = d.report().timings_s.precompute();
-                    runs[mi][ki].push(d.report().clone());
-                    // Solves on this factorisation: time and residual.
-                    let mut times = Vec::new();
-                    for _ in 0..5 {
-                        match d.solve_matrix() {
-                            Ok(_) => times.push(d.report().timings_s.solve),
-                            Err(e) => {
-                                notes.push(format!("{}, k = {k}: solve: {e}", m.label));
-                                solve_error[mi][ki] =
-                                    Some(format!("solve failed: {}", short_error(&e.to_string())));
-                                break;
-                            }
-                        }
-                    }
-                    if !times.is_empty() {
-                        solves[mi][ki] = Some(median(&times));
-                        residuals[mi][ki] = Some(d.report().max_constraint_residual_relative);
-                    }
-                    if k == 0 {
-                        t0 = Some(t);
-                    }
-                    last = Some((k, t));
-                    reps[mi][ki] = if t < 0.5 {
-                        if ctx.quick { 2 } else { 7 }
-                    } else if t < 3.0 {
-                        3
-                    } else {
-                        1
-                    };
+            if let Some(t) = first_run(ctx, &mut deformers[ki], m, k, &mut grid[mi][ki], notes) {
+                if k == 0 {
+                    t0 = Some(t);
                 }
-                Err(e) => {
-                    notes.push(format!("{}, k = {k}: {e}", m.label));
-                    status[mi][ki] = Some(format!("failed: {}", short_error(&e.to_string())));
-                }
+                last = Some((k, t));
             }
-            bar.inc(1);
         }
     }
-    bar.finish_and_clear();
+    grid
+}
 
-    // Further repetitions, interleaved over k and methods so that each
-    // ratio to k = 0 is measured side by side.
-    let max_reps = reps.iter().flatten().copied().max().unwrap_or(1);
-    let extra: usize = reps.iter().flatten().map(|r| r.saturating_sub(1)).sum();
-    let bar = ctx.bar(extra, &format!("{NAME}: repetitions"));
+/// Further repetitions, interleaved over k and methods so that each ratio
+/// to k = 0 is measured side by side.
+fn repetitions(methods: &[Config], deformers: &mut [Deformer], grid: &mut [Vec<Cell>]) {
+    let max_reps = grid.iter().flatten().map(|c| c.reps).max().unwrap_or(1);
     for rep in 1..max_reps {
-        for ki in 0..nk {
+        for (ki, d) in deformers.iter_mut().enumerate() {
             for (mi, m) in methods.iter().enumerate() {
-                if rep >= reps[mi][ki] || status[mi][ki].is_some() {
+                let cell = &mut grid[mi][ki];
+                if rep >= cell.reps || cell.status.is_some() {
                     continue;
                 }
-                let d = &mut deformers[ki];
                 match d.precompute(m.formulation.as_ref()) {
-                    Ok(()) => runs[mi][ki].push(d.report().clone()),
+                    Ok(()) => cell.runs.push(d.report().clone()),
                     Err(e) => {
-                        status[mi][ki] = Some(format!("failed: {}", short_error(&e.to_string())))
+                        cell.status = Some(format!("failed: {}", short_error(&e.to_string())))
                     }
                 }
-                bar.inc(1);
             }
         }
     }
-    bar.finish_and_clear();
+}
 
-    let mut rows: Vec<Row> = Vec::new();
+/// One row per method and k: the median run.
+fn rows(methods: &[Config], ks: &[usize], setups: &Setups, grid: &[Vec<Cell>]) -> Vec<Row> {
+    let mut rows = Vec::new();
     for (mi, m) in methods.iter().enumerate() {
         let mut t0: Option<f64> = None;
         for (ki, &k) in ks.iter().enumerate() {
-            let list = &runs[mi][ki];
-            let pre: Vec<f64> = list.iter().map(|r| r.timings_s.precompute()).collect();
-            let chosen = (!list.is_empty()).then(|| {
-                let mut r = list[median_index(&pre)].clone();
-                r.timings_s.setup = setup[ki];
+            let cell = &grid[mi][ki];
+            let pre: Vec<f64> = cell.runs.iter().map(|r| r.timings_s.precompute()).collect();
+            let chosen = (!cell.runs.is_empty()).then(|| {
+                let mut r = cell.runs[median_index(&pre)].clone();
+                r.timings_s.setup = setups.seconds[ki];
                 r
             });
             let med = (!pre.is_empty()).then(|| median(&pre));
             if k == 0 {
                 t0 = med;
             }
-            let st = status[mi][ki]
-                .clone()
-                .or_else(|| solve_error[mi][ki].clone());
+            let nnz = chosen.as_ref().map(|r| r.nnz.clone());
             rows.push(Row {
                 method: m.label.clone(),
                 method_key: m.key.clone(),
                 k_requested: k,
-                k_actual: k_actual[ki],
-                hard_constraints: deformers[ki].problem().hard_constraints().len(),
-                repetitions: list.len(),
+                k_actual: setups.k_actual[ki],
+                hard_constraints: setups.deformers[ki].problem().hard_constraints().len(),
+                repetitions: cell.runs.len(),
                 timings: chosen.as_ref().map(|r| r.timings_s.clone()),
                 precompute_median_s: med,
                 precompute_all_s: pre.clone(),
@@ -315,60 +327,55 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                     (Some(a), Some(b)) if b > 0.0 => Some(a / b),
                     _ => None,
                 },
-                solve_median_s: solves[mi][ki],
+                solve_median_s: cell.solve,
                 rank: chosen.as_ref().and_then(|r| r.rank),
-                nnz_qr: chosen.as_ref().and_then(|r| r.nnz.qr),
-                nnz_aq2: chosen.as_ref().and_then(|r| r.nnz.aq2),
-                nnz_normal: chosen.as_ref().and_then(|r| r.nnz.normal),
-                nnz_factor: chosen.as_ref().and_then(|r| r.nnz.factor),
-                constraint_residual_relative: residuals[mi][ki],
-                status: st.unwrap_or_else(|| "ok".into()),
+                nnz_qr: nnz.as_ref().and_then(|n| n.qr),
+                nnz_aq2: nnz.as_ref().and_then(|n| n.aq2),
+                nnz_normal: nnz.as_ref().and_then(|n| n.normal),
+                nnz_factor: nnz.as_ref().and_then(|n| n.factor),
+                constraint_residual_relative: cell.residual,
+                status: (cell.status.clone().or_else(|| cell.solve_error.clone()))
+                    .unwrap_or_else(|| "ok".into()),
             });
         }
     }
-    for (ki, &k) in ks.iter().enumerate() {
-        if k_actual[ki] != k {
-            notes.push(format!(
-                "k = {k}: the patch only allowed {} relative constraints",
-                k_actual[ki]
-            ));
-        }
-    }
+    rows
+}
 
-    // Data.
+/// `relative.csv` (timings flattened) and `relative.json`.
+fn write_data(ctx: &Context, dir: &Path, case: &MeshCase, rows: &[Row]) -> Result<(), AnyError> {
     let header = [
-        "method",
-        "method_key",
-        "k_requested",
-        "k_actual",
-        "hard_constraints",
-        "repetitions",
-        "setup_s",
-        "qr_s",
-        "preparation_s",
-        "normal_matrix_s",
-        "symbolic_s",
-        "numeric_s",
-        "precompute_s",
-        "precompute_median_s",
-        "ratio_to_k0",
-        "solve_median_s",
-        "rank",
-        "nnz_qr",
-        "nnz_aq2",
-        "nnz_normal",
-        "nnz_factor",
-        "constraint_residual_relative",
-        "status",
-    ];
-    let opt = |v: Option<f64>| v.map(|x| format!("{x:.6e}")).unwrap_or_default();
-    let optu = |v: Option<usize>| v.map(|x| x.to_string()).unwrap_or_default();
+        &[
+            "method",
+            "method_key",
+            "k_requested",
+            "k_actual",
+            "hard_constraints",
+            "repetitions",
+            "setup_s",
+        ][..],
+        &PHASE_COLUMNS,
+        &[
+            "precompute_s",
+            "precompute_median_s",
+            "ratio_to_k0",
+            "solve_median_s",
+            "rank",
+            "nnz_qr",
+            "nnz_aq2",
+            "nnz_normal",
+            "nnz_factor",
+            "constraint_residual_relative",
+            "status",
+        ],
+    ]
+    .concat();
     let csv_rows: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
             let t = r.timings.as_ref();
-            let f = |g: fn(&Timings) -> f64| opt(t.map(g));
-            vec![
+            let f = |g: fn(&Timings) -> f64| cell_f(t.map(g));
+            let mut cells = vec![
                 r.method.clone(),
                 r.method_key.clone(),
                 r.k_requested.to_string(),
@@ -376,23 +383,22 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                 r.hard_constraints.to_string(),
                 r.repetitions.to_string(),
                 f(|t| t.setup),
-                f(|t| t.qr),
-                f(|t| t.preparation),
-                f(|t| t.normal_matrix),
-                f(|t| t.symbolic),
-                f(|t| t.numeric),
+            ];
+            cells.extend(phase_cells(t));
+            cells.extend([
                 f(|t| t.precompute()),
-                opt(r.precompute_median_s),
-                opt(r.ratio_to_k0),
-                opt(r.solve_median_s),
-                optu(r.rank),
-                optu(r.nnz_qr),
-                optu(r.nnz_aq2),
-                optu(r.nnz_normal),
-                optu(r.nnz_factor),
-                opt(r.constraint_residual_relative),
+                cell_f(r.precompute_median_s),
+                cell_f(r.ratio_to_k0),
+                cell_f(r.solve_median_s),
+                cell_u(r.rank),
+                cell_u(r.nnz_qr),
+                cell_u(r.nnz_aq2),
+                cell_u(r.nnz_normal),
+                cell_u(r.nnz_factor),
+                cell_f(r.constraint_residual_relative),
                 r.status.clone(),
-            ]
+            ]);
+            cells
         })
         .collect();
     ctx.write_csv(&dir.join("relative.csv"), &header, &csv_rows)?;
@@ -401,14 +407,21 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         &serde_json::json!({
             "mesh": case.name,
             "source": case.source,
-            "vertices": mesh.n_vertices(),
-            "budget_s": budget,
+            "vertices": case.mesh.n_vertices(),
+            "budget_s": budget(ctx),
             "rows": rows,
         }),
-    )?;
+    )
+}
 
-    // Figures.
-    let mut figure_notes = Vec::new();
+/// The three figures: precompute and its ratio against k, the breakdown.
+fn figures(
+    dir: &Path,
+    case: &MeshCase,
+    methods: &[Config],
+    rows: &[Row],
+    notes: &mut Vec<String>,
+) -> Result<(), AnyError> {
     let series_of = |value: fn(&Row) -> Option<f64>| -> Vec<Series> {
         methods
             .iter()
@@ -423,7 +436,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             .filter(|s| !s.points.is_empty())
             .collect()
     };
-    let title_mesh = format!("{} ({} vertices)", case.name, mesh.n_vertices());
+    let title_mesh = format!("{} ({} vertices)", case.name, case.mesh.n_vertices());
     let time_chart = LineChart {
         title: format!("Precompute vs relative constraints — {title_mesh}"),
         x: Axis::linear("relative constraints k (one connected feature patch)"),
@@ -432,36 +445,33 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         reference_lines: vec![],
         legend: LegendPosition::UpperLeft,
     };
-    let drawn = plot::line_chart(&time_chart, &Output::new(dir.join("precompute_vs_k")))?;
-    note_drawn(&drawn, &mut figure_notes);
+    note_drawn(
+        &plot::line_chart(&time_chart, &Output::new(dir.join("precompute_vs_k")))?,
+        notes,
+    );
+    let target = |y: f64, k: usize| ReferenceLine {
+        y,
+        label: format!("target at k = {k}: {y}×"),
+    };
     let ratio_chart = LineChart {
         title: format!("Precompute time relative to k = 0 — {title_mesh}"),
         x: Axis::linear("relative constraints k"),
         y: Axis::log10("precompute(k) / precompute(0)"),
         series: series_of(|r| r.ratio_to_k0),
-        reference_lines: vec![
-            ReferenceLine {
-                y: 1.1,
-                label: "target at k = 300: 1.1×".into(),
-            },
-            ReferenceLine {
-                y: 1.3,
-                label: "target at k = 2000: 1.3×".into(),
-            },
-        ],
+        reference_lines: vec![target(1.1, 300), target(1.3, 2000)],
         legend: LegendPosition::UpperLeft,
     };
-    let drawn = plot::line_chart(&ratio_chart, &Output::new(dir.join("ratio_vs_k")))?;
-    note_drawn(&drawn, &mut figure_notes);
+    note_drawn(
+        &plot::line_chart(&ratio_chart, &Output::new(dir.join("ratio_vs_k")))?,
+        notes,
+    );
+    // The set-up is the same for every method: left out of the bars.
     let categories: Vec<Category> = rows
         .iter()
         .filter_map(|r| {
-            r.timings.as_ref().map(|t| {
-                // The set-up is the same for every method: left out.
-                Category {
-                    name: format!("{}, k = {}", short_label(&r.method), r.k_actual),
-                    values: precompute_phase_values(t),
-                }
+            r.timings.as_ref().map(|t| Category {
+                name: format!("{}, k = {}", short_label(&r.method), r.k_actual),
+                values: precompute_phase_values(t),
             })
         })
         .collect();
@@ -475,29 +485,29 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         total_suffix: Some(" s".into()),
         legend: LegendPosition::Auto,
     };
-    let drawn = plot::stacked_bars(
-        &bars,
-        &Output::new(dir.join("breakdown_vs_k")).with_size(1000, 200 + 34 * n_bars),
-    )?;
-    note_drawn(&drawn, &mut figure_notes);
-    notes.extend(figure_notes);
+    let out = Output::new(dir.join("breakdown_vs_k")).with_size(1000, 200 + 34 * n_bars);
+    note_drawn(&plot::stacked_bars(&bars, &out)?, notes);
+    Ok(())
+}
 
-    // Ratios at k = 300 and 2000.
+/// The ratios at k = 300 and 2000 per method (table rows) and the
+/// headline's parts.
+fn ratio_table(methods: &[Config], rows: &[Row]) -> (Vec<Vec<String>>, Vec<String>) {
     let ratio_at = |key: &str, k: usize| {
         rows.iter()
             .find(|r| r.method_key == key && r.k_requested == k)
             .and_then(|r| r.ratio_to_k0)
     };
-    let mut ratio_rows = Vec::new();
-    let mut headline_parts = Vec::new();
-    for m in &methods {
-        let r300 = ratio_at(&m.key, 300);
-        let r2000 = ratio_at(&m.key, 2000);
-        let verdict = |r: Option<f64>, target: f64| match r {
-            Some(v) if v <= target => format!("{v:.2}× ✓"),
-            Some(v) => format!("{v:.2}× ✗"),
-            None => "not measured".into(),
-        };
+    let verdict = |r: Option<f64>, target: f64| match r {
+        Some(v) if v <= target => format!("{v:.2}× ✓"),
+        Some(v) => format!("{v:.2}× ✗"),
+        None => "not measured".into(),
+    };
+    let times = |r: Option<f64>| r.map_or_else(|| "—".into(), |v| format!("{v:.2}×"));
+    let mut table = Vec::new();
+    let mut headline = Vec::new();
+    for m in methods {
+        let (r300, r2000) = (ratio_at(&m.key, 300), ratio_at(&m.key, 2000));
         let t0 = rows
             .iter()
             .find(|r| r.method_key == m.key && r.k_requested == 0)
@@ -506,76 +516,86 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             .iter()
             .filter(|r| r.method_key == m.key && r.precompute_median_s.is_some())
             .max_by_key(|r| r.k_requested);
-        ratio_rows.push(vec![
+        table.push(vec![
             m.label.clone(),
-            t0.map(fmt_time).unwrap_or_else(|| "—".into()),
+            t0.map_or_else(|| "—".into(), fmt_time),
             verdict(r300, 1.1),
             verdict(r2000, 1.3),
-            tmax.map(|r| {
-                format!(
-                    "{} at k = {} ({:.1}×)",
-                    fmt_time(r.precompute_median_s.unwrap_or(f64::NAN)),
-                    r.k_actual,
-                    r.ratio_to_k0.unwrap_or(f64::NAN)
-                )
-            })
-            .unwrap_or_else(|| "—".into()),
+            tmax.map_or_else(
+                || "—".into(),
+                |r| {
+                    format!(
+                        "{} at k = {} ({:.1}×)",
+                        fmt_time(r.precompute_median_s.unwrap_or(f64::NAN)),
+                        r.k_actual,
+                        r.ratio_to_k0.unwrap_or(f64::NAN)
+                    )
+                },
+            ),
         ]);
-        {
-            headline_parts.push(format!(
-                "{}{}: {} @300, {} @2000",
-                short_label(&m.label),
-                if m.is_default { " (default)" } else { "" },
-                r300.map(|v| format!("{v:.2}×"))
-                    .unwrap_or_else(|| "—".into()),
-                r2000
-                    .map(|v| format!("{v:.2}×"))
-                    .unwrap_or_else(|| "—".into())
-            ));
-        }
+        headline.push(format!(
+            "{}{}: {} @300, {} @2000",
+            short_label(&m.label),
+            if m.is_default { " (default)" } else { "" },
+            times(r300),
+            times(r2000)
+        ));
     }
-    let mut detail_rows = Vec::new();
-    for r in &rows {
-        let t = r.timings.as_ref();
-        let cell = |g: fn(&Timings) -> f64| t.map(|t| fmt_time(g(t))).unwrap_or_else(|| "—".into());
-        detail_rows.push(vec![
-            short_label(&r.method).to_string(),
-            r.k_actual.to_string(),
-            cell(|t| t.qr),
-            cell(|t| t.preparation),
-            cell(|t| t.normal_matrix),
-            cell(|t| t.symbolic),
-            cell(|t| t.numeric),
-            r.precompute_median_s
-                .map(fmt_time)
-                .unwrap_or_else(|| "—".into()),
-            r.solve_median_s.map(fmt_time).unwrap_or_else(|| "—".into()),
-            r.nnz_factor
-                .map(|v| format!("{:.2}M", v as f64 / 1e6))
-                .unwrap_or_else(|| "—".into()),
-            r.constraint_residual_relative
-                .map(|v| format!("{v:.0e}"))
-                .unwrap_or_else(|| "—".into()),
-            if r.status == "ok" {
-                format!("ok ({} runs)", r.repetitions)
-            } else {
-                r.status.clone()
-            },
-        ]);
-    }
+    (table, headline)
+}
 
-    // Section.
-    let command = format!(
-        "cargo run --release --features suitesparse --bin experiments -- {NAME}{}",
-        if ctx.has_user_meshes() {
-            " --mesh-dir ../shared/meshes"
-        } else {
-            ""
-        }
-    );
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
+/// The table of every configuration.
+fn detail_table(rows: &[Row]) -> String {
+    let dash = || "—".to_string();
+    let detail: Vec<Vec<String>> = rows
+        .iter()
+        .map(|r| {
+            let t = r.timings.as_ref();
+            let cell = |g: fn(&Timings) -> f64| t.map_or_else(dash, |t| fmt_time(g(t)));
+            vec![
+                short_label(&r.method).to_string(),
+                r.k_actual.to_string(),
+                cell(|t| t.qr),
+                cell(|t| t.preparation),
+                cell(|t| t.normal_matrix),
+                cell(|t| t.symbolic),
+                cell(|t| t.numeric),
+                r.precompute_median_s.map_or_else(dash, fmt_time),
+                r.solve_median_s.map_or_else(dash, fmt_time),
+                r.nnz_factor
+                    .map_or_else(dash, |v| format!("{:.2}M", v as f64 / 1e6)),
+                r.constraint_residual_relative
+                    .map_or_else(dash, |v| format!("{v:.0e}")),
+                if r.status == "ok" {
+                    format!("ok ({} runs)", r.repetitions)
+                } else {
+                    r.status.clone()
+                },
+            ]
+        })
+        .collect();
+    markdown_table(
+        &[
+            "method",
+            "k",
+            "QR",
+            "preparation",
+            "normal",
+            "symbolic",
+            "numeric",
+            "precompute (median)",
+            "solve",
+            "nnz(L)",
+            "residual",
+            "status",
+        ],
+        &detail,
+    )
+}
+
+/// The section's first paragraph: the mesh, the scene and the method.
+fn method_text(ctx: &Context, case: &MeshCase) -> String {
+    format!(
         "Mesh: {} ({} vertices; {}). Scene: the paper's fixed region and hard handle plus k hard **relative** constraints `p_u − p_v = v_uv` on the edges of a \
          breadth-first spanning tree of a k + 1-vertex feature patch (`MixedScene`), k = {}. The patch is one connected block of `Bᵀ`: \
          the per-block dense Householder QR works on a dense (k+1) × k block, cubic in k — the paper's Fig. 9 growth; a global sparse QR (Givens, SPQR) keeps the sparsity; \
@@ -583,33 +603,40 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
          Each point is the median of up to 7 runs (fewer for slow ones), repetitions interleaved over k so that the ratios to k = 0 are measured side by side. \
          Budget: a configuration predicted to take more than {} is skipped.\n",
         case.name,
-        mesh.n_vertices(),
+        case.mesh.n_vertices(),
         case.source,
-        ks.iter()
+        ks(ctx.quick)
+            .iter()
             .map(|k| k.to_string())
             .collect::<Vec<_>>()
             .join(", "),
-        fmt_time(budget)
-    );
-    let _ = writeln!(
-        s,
-        "Regenerate this section alone:\n\n```sh\n{command}\n```\n"
-    );
+        fmt_time(budget(ctx))
+    )
+}
+
+/// The section, from the tables and notes.
+fn section(
+    ctx: &Context,
+    case: &MeshCase,
+    ratio_rows: &[Vec<String>],
+    rows: &[Row],
+    notes: &[String],
+) -> String {
+    let mut s = method_text(ctx, case);
+    s.push_str(&ctx.regenerate(NAME));
     let _ = writeln!(
         s,
         "**Ratios to k = 0** (performance targets: ≤ 1.1× at k = 300, ≤ 1.3× at k = 2000). \
          Read across: the first column is the base precompute, the next two the growth the targets bound, the last the largest k measured.\n"
     );
-    s.push_str(&markdown_table(
-        &[
-            "method",
-            "precompute at k = 0",
-            "k = 300 / k = 0",
-            "k = 2000 / k = 0",
-            "largest k measured",
-        ],
-        &ratio_rows,
-    ));
+    let header = [
+        "method",
+        "precompute at k = 0",
+        "k = 300 / k = 0",
+        "k = 2000 / k = 0",
+        "largest k measured",
+    ];
+    s.push_str(&markdown_table(&header, ratio_rows));
     let _ = writeln!(
         s,
         "\n**Figure: precompute against k.** One line per method, log time axis: a flat line is a precompute that does not care about relative constraints; \
@@ -633,41 +660,44 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         "**Table: every configuration.** Phases of the median run, the solve time (median of 5 solves), the factor's nnz and the max hard-constraint residual \
          relative to the bounding-box diagonal (they hold to rounding for every exact method).\n"
     );
-    s.push_str(&markdown_table(
-        &[
-            "method",
-            "k",
-            "QR",
-            "preparation",
-            "normal",
-            "symbolic",
-            "numeric",
-            "precompute (median)",
-            "solve",
-            "nnz(L)",
-            "residual",
-            "status",
-        ],
-        &detail_rows,
+    s.push_str(&detail_table(rows));
+    s.push_str(&ctx.closing(
+        notes,
+        &format!("Data: [`{NAME}/relative.csv`]({NAME}/relative.csv), [`{NAME}/relative.json`]({NAME}/relative.json)."),
     ));
-    if !notes.is_empty() {
-        let _ = writeln!(s, "\n**What did not work / notes.**\n");
-        for n in &notes {
-            let _ = writeln!(s, "- {n}");
+    s
+}
+
+/// Runs the experiment.
+pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
+    let dir = ctx.dir(NAME)?;
+    let case = ctx.fallback_mesh("bunny-35k-stanford.obj", 35_000, 10_000)?;
+    let ks = ks(ctx.quick);
+    let methods = methods()?;
+    let mut setups = setups(&case, &ks)?;
+    let mut notes: Vec<String> = Vec::new();
+    let bar = ctx.bar(1, &format!("{NAME}: measuring"));
+    let mut grid = first_pass(ctx, &methods, &ks, &mut setups.deformers, &mut notes);
+    repetitions(&methods, &mut setups.deformers, &mut grid);
+    bar.finish_and_clear();
+    let rows = rows(&methods, &ks, &setups, &grid);
+    for (ki, &k) in ks.iter().enumerate() {
+        if setups.k_actual[ki] != k {
+            notes.push(format!(
+                "k = {k}: the patch only allowed {} relative constraints",
+                setups.k_actual[ki]
+            ));
         }
     }
-    let _ = writeln!(
-        s,
-        "\nData: [`{NAME}/relative.csv`]({NAME}/relative.csv), [`{NAME}/relative.json`]({NAME}/relative.json)."
-    );
-    let _ = writeln!(s, "\n_{}_", ctx.machine.one_line());
-    ctx.write_section(NAME, &s)?;
-
+    write_data(ctx, &dir, &case, &rows)?;
+    figures(&dir, &case, &methods, &rows, &mut notes)?;
+    let (ratio_rows, headline) = ratio_table(&methods, &rows);
+    ctx.write_section(NAME, &section(ctx, &case, &ratio_rows, &rows, &notes))?;
     Ok(Summary {
         headline: format!(
             "precompute(k)/precompute(0) on {} — {}",
             case.name,
-            headline_parts.join("; ")
+            headline.join("; ")
         ),
     })
 }

@@ -19,6 +19,9 @@ use crate::render::{
 };
 use crate::{AnyError, Summary, conflicts};
 
+/// The folder and command-line word of this experiment.
+pub const NAME: &str = "renders";
+
 const RED: [u8; 3] = [215, 35, 30];
 const BLUE: [u8; 3] = [40, 90, 210];
 const GREY: [u8; 3] = [200, 200, 196];
@@ -347,12 +350,12 @@ fn relative_figure(ctx: &Context, dir: &Path) -> Result<Figure, AnyError> {
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let started = Instant::now();
-    let dir = ctx.dir("renders")?;
+    let dir = ctx.dir(NAME)?;
     // The first three evaluation meshes (with a mesh directory: Bunny,
     // Armadillo, Dragon).
     let mut meshes = ctx.evaluation_meshes()?;
     meshes.truncate(3);
-    let bar = ctx.bar(meshes.len() + 2, "renders");
+    let bar = ctx.bar(meshes.len() + 2, NAME);
     let mut images = Vec::new();
     for case in &meshes {
         bar.set_message(format!("renders: table1 {}", case.name));
@@ -401,5 +404,5 @@ fn write_section(ctx: &Context, images: &[(String, String)], seconds: f64) -> Re
         fmt_time(seconds),
         ctx.machine.cpu
     );
-    ctx.write_section("renders", &s)
+    ctx.write_section(NAME, &s)
 }

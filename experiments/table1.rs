@@ -22,9 +22,7 @@ use lse_deform::condition::ConditionEstimate;
 use lse_deform::formulation::{FORWARD_ERROR_WARNING, PenaltySweep};
 use lse_deform::problem::LseProblem;
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{
-    Deformer, Elimination, Error, Formulation, Kkt, LaplacianKind, NullSpaceQr, Penalty,
-};
+use lse_deform::{Deformer, Error, Formulation, FormulationChoice, LaplacianKind, Method};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
@@ -34,6 +32,9 @@ use crate::context::{Context, MeshCase, fmt_time, markdown_table};
 use crate::plot::{FONT, PALETTE, ensure_fonts};
 use crate::text::GoodText;
 use crate::{AnyError, Summary};
+
+/// The folder and command-line word of this experiment.
+pub const NAME: &str = "table1";
 
 /// The penalty weight of the "soft only" column (see the section text for
 /// why this one).
@@ -46,48 +47,39 @@ pub const LAPLACIANS: [LaplacianKind; 3] = [
     LaplacianKind::IntrinsicDelaunay,
 ];
 
-/// The columns of the table.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Method {
-    /// Soft only: every hard row as a penalty row of weight `w`.
-    Penalty,
-    /// Soft + hard: the paper's null-space QR.
-    NullSpace,
-    /// Lagrange multipliers.
-    Kkt,
-    /// Dropping the columns of the fixed vertices.
-    Elimination,
+/// The columns of the table, in order: soft only (every hard row a
+/// penalty row of weight [`TABLE_WEIGHT`]), soft + hard (the paper's
+/// null-space QR), Lagrange multipliers (KKT), dropping the columns of the
+/// fixed vertices (elimination).
+pub const COLUMNS: [Method; 4] = [
+    Method::Penalty,
+    Method::NullSpaceQr,
+    Method::Kkt,
+    Method::Eliminate,
+];
+
+/// The formulation of a column: the library's defaults, penalty with
+/// [`TABLE_WEIGHT`].
+fn choice(m: Method) -> FormulationChoice {
+    FormulationChoice {
+        weight: (m == Method::Penalty).then_some(TABLE_WEIGHT),
+        ..FormulationChoice::new(m)
+    }
 }
 
-impl Method {
-    /// All columns, in table order.
-    pub const ALL: [Method; 4] = [
-        Method::Penalty,
-        Method::NullSpace,
-        Method::Kkt,
-        Method::Elimination,
-    ];
-
-    /// Short name for CSV files.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Penalty => "penalty",
-            Method::NullSpace => "nullspace-qr",
-            Method::Kkt => "kkt",
-            Method::Elimination => "elimination",
-        }
+/// Column title.
+pub fn title(m: Method) -> String {
+    match m {
+        Method::Penalty => format!("soft only (penalty, w = {})", sci(TABLE_WEIGHT)),
+        Method::NullSpaceQr => "soft + hard (null-space QR, the paper)".into(),
+        Method::Kkt => "KKT (LDLᵀ)".into(),
+        Method::Eliminate => "elimination".into(),
     }
+}
 
-    /// Column title.
-    pub fn title(self) -> String {
-        match self {
-            Method::Penalty => format!("soft only (penalty, w = {})", sci(TABLE_WEIGHT)),
-            Method::NullSpace => "soft + hard (null-space QR, the paper)".into(),
-            Method::Kkt => "KKT (LDLᵀ)".into(),
-            Method::Elimination => "elimination".into(),
-        }
-    }
+/// A method as its CLI word in CSV and JSON.
+fn method_word<S: serde::Serializer>(m: &Method, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(m.name())
 }
 
 // ---------------------------------------------------------------------------
@@ -258,6 +250,7 @@ pub struct Row {
     /// Laplacian name.
     pub laplacian: &'static str,
     /// Method.
+    #[serde(serialize_with = "method_word")]
     pub method: Method,
     /// What `X*` (the exact solution of the gaps) is: `sparse-qr`
     /// ([`qr_reference`]) or `nullspace-qr`.
@@ -327,12 +320,12 @@ fn run_formulation(deformer: &mut Deformer, formulation: &dyn Formulation) -> Ou
     out
 }
 
-/// The penalty column: the library's [`Penalty`] (which returns every
+/// The penalty column: the library's `Penalty` (which returns every
 /// finite solution, with a warning when its forward-error estimate against
 /// the constrained solution exceeds [`FORWARD_ERROR_WARNING`]); if it
 /// fails, the solution from [`PenaltySweep`] so that its accuracy is shown.
-fn run_penalty(deformer: &mut Deformer, weight: f64) -> Outcome {
-    let mut out = run_formulation(deformer, &Penalty::new(weight));
+fn run_penalty(deformer: &mut Deformer, penalty: &dyn Formulation, weight: f64) -> Outcome {
+    let mut out = run_formulation(deformer, penalty);
     if out.x.is_none()
         && let Ok(sweep) = PenaltySweep::new(deformer.problem(), &FaerLlt::auto())
         && let Ok(s) = sweep.solve(deformer.problem(), weight)
@@ -350,12 +343,11 @@ fn run_case(case: &MeshCase, kind: LaplacianKind) -> Result<Vec<Row>, AnyError> 
     let diag = case.mesh.bbox_diagonal();
 
     let mut outcomes = Vec::new();
-    for method in Method::ALL {
+    for method in COLUMNS {
+        let formulation = choice(method).build()?;
         let outcome = match method {
-            Method::Penalty => run_penalty(&mut deformer, TABLE_WEIGHT),
-            Method::NullSpace => run_formulation(&mut deformer, &NullSpaceQr::default()),
-            Method::Kkt => run_formulation(&mut deformer, &Kkt::default()),
-            Method::Elimination => run_formulation(&mut deformer, &Elimination::default()),
+            Method::Penalty => run_penalty(&mut deformer, formulation.as_ref(), TABLE_WEIGHT),
+            _ => run_formulation(&mut deformer, formulation.as_ref()),
         };
         outcomes.push((method, outcome));
     }
@@ -367,7 +359,7 @@ fn run_case(case: &MeshCase, kind: LaplacianKind) -> Result<Vec<Row>, AnyError> 
         None => (
             outcomes
                 .iter()
-                .find(|(m, o)| *m == Method::NullSpace && o.error.is_none())
+                .find(|(m, o)| *m == Method::NullSpaceQr && o.error.is_none())
                 .and_then(|(_, o)| o.x.clone()),
             "nullspace-qr",
         ),
@@ -502,9 +494,9 @@ fn kappa_cell(r: &Row) -> String {
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let started = Instant::now();
-    let dir = ctx.dir("table1")?;
+    let dir = ctx.dir(NAME)?;
     let meshes = ctx.evaluation_meshes()?;
-    let bar = ctx.bar(meshes.len() * LAPLACIANS.len(), "table1");
+    let bar = ctx.bar(meshes.len() * LAPLACIANS.len(), NAME);
     let mut rows = Vec::new();
     for case in &meshes {
         for kind in LAPLACIANS {
@@ -514,7 +506,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                 Err(e) => {
                     // Set-up failed (e.g. intrinsic Delaunay on a non-manifold
                     // mesh): one failed row per method, said in the table.
-                    for method in Method::ALL {
+                    for method in COLUMNS {
                         rows.push(Row {
                             mesh: case.name.clone(),
                             vertices: case.mesh.n_vertices(),
@@ -549,7 +541,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
 
     let seconds = started.elapsed().as_secs_f64();
     let section = section_markdown(ctx, &meshes, &rows, seconds);
-    ctx.write_section("table1", &section)?;
+    ctx.write_section(NAME, &section)?;
 
     let failed: Vec<String> = rows
         .iter()
@@ -583,7 +575,7 @@ fn find<'a>(rows: &'a [Row], mesh: &str, lap: &str, method: Method) -> Option<&'
 fn findings(rows: &[Row]) -> String {
     let mut s = String::from("\n**Findings.**\n\n");
     let fmax = |it: &mut dyn Iterator<Item = f64>| it.fold(0.0f64, f64::max);
-    let exact = [Method::NullSpace, Method::Kkt, Method::Elimination];
+    let exact = [Method::NullSpaceQr, Method::Kkt, Method::Eliminate];
     let exact_failed: Vec<&Row> = rows
         .iter()
         .filter(|r| exact.contains(&r.method) && !r.success)
@@ -659,7 +651,7 @@ fn findings(rows: &[Row]) -> String {
             warned
                 .iter()
                 .map(|r| {
-                    let ns = find(rows, &r.mesh, r.laplacian, Method::NullSpace);
+                    let ns = find(rows, &r.mesh, r.laplacian, Method::NullSpaceQr);
                     format!(
                         "{}/{} (estimate {}, its real ‖X − X*‖/‖X*‖ = {}, null-space QR's = {}, κ of the reduced matrix {})",
                         r.mesh,
@@ -692,7 +684,7 @@ fn findings(rows: &[Row]) -> String {
     }
     let worst_ns = rows
         .iter()
-        .filter(|r| r.method == Method::NullSpace)
+        .filter(|r| r.method == Method::NullSpaceQr)
         .filter_map(|r| r.x_error.map(|v| (v, r)))
         .max_by(|a, b| a.0.total_cmp(&b.0));
     if let Some((v, r)) = worst_ns {
@@ -741,7 +733,7 @@ fn section_markdown(ctx: &Context, meshes: &[MeshCase], rows: &[Row], seconds: f
     );
     let header: Vec<String> = std::iter::once("mesh".to_string())
         .chain(std::iter::once("Laplacian".to_string()))
-        .chain(Method::ALL.iter().map(|m| m.title()))
+        .chain(COLUMNS.iter().map(|&m| title(m)))
         .collect();
     let header_refs: Vec<&str> = header.iter().map(|s| s.as_str()).collect();
     let mut table = Vec::new();
@@ -750,7 +742,7 @@ fn section_markdown(ctx: &Context, meshes: &[MeshCase], rows: &[Row], seconds: f
         for kind in LAPLACIANS {
             let mut row = vec![m.name.clone(), kind.name().to_string()];
             let mut krow = vec![m.name.clone(), kind.name().to_string()];
-            for method in Method::ALL {
+            for method in COLUMNS {
                 match find(rows, &m.name, kind.name(), method) {
                     Some(r) => {
                         row.push(cell(r));
@@ -821,7 +813,7 @@ fn draw_figure(rows: &[Row], stem: &Path) -> Result<(), AnyError> {
         categories
             .iter()
             .map(|(m, l)| {
-                Method::ALL
+                COLUMNS
                     .iter()
                     .map(|&method| find(rows, m, l, method).and_then(f))
                     .collect()
@@ -843,7 +835,7 @@ fn draw_figure(rows: &[Row], stem: &Path) -> Result<(), AnyError> {
     let success: Vec<Vec<bool>> = categories
         .iter()
         .map(|(m, l)| {
-            Method::ALL
+            COLUMNS
                 .iter()
                 .map(|&method| find(rows, m, l, method).is_some_and(|r| r.success))
                 .collect()
@@ -905,10 +897,10 @@ where
     let (legend_area, plots) = rest.split_vertically(legend_h);
     // Legend: one marker per method.
     let mut x = 90i32;
-    for (k, method) in Method::ALL.iter().enumerate() {
+    for (k, method) in COLUMNS.iter().enumerate() {
         let c = PALETTE[k];
         draw_marker(&legend_area, k, (x, legend_h as i32 / 2), c)?;
-        let name = method.title();
+        let name = title(*method);
         legend_area.draw_text(
             &name,
             &(FONT, 15.0)
@@ -1057,6 +1049,7 @@ where
 mod tests {
     use super::*;
     use lse_deform::mesh::generate;
+    use lse_deform::{Kkt, NullSpaceQr};
 
     fn grid_problem() -> (Deformer, Mat<f64>) {
         let mesh = generate::grid(12, 12).unwrap();

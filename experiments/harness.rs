@@ -1,0 +1,209 @@
+//! The single list of experiments: each one's name (the command-line word
+//! and the folder under `--out`), its section title in `results/README.md`,
+//! the inputs it needs and its `run` function. `main.rs` takes the
+//! command-line choices and `results/README.md` takes its sections from
+//! [`EXPERIMENTS`] and from nowhere else.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::context::{Context, Machine};
+use crate::{
+    AnyError, Summary, accuracy, arap, breakdown, conflicts, drag, performance, relative, renders,
+    scaling, table1, weight_sweep,
+};
+
+/// What an experiment reads besides the library.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Input {
+    /// Every mesh of the evaluation (`--mesh`, `--mesh-dir`, else generated
+    /// stand-ins).
+    Meshes,
+    /// One mesh: the Bunny of `--mesh-dir` if present, else a generated
+    /// bumpy sphere (see [`Context::fallback_mesh`]).
+    OneMesh,
+    /// Optionally the user's constraint file (`-c`).
+    Constraints,
+    /// Optionally the SuiteSparse feature (its columns are left out
+    /// without it).
+    SuiteSparse,
+    /// A Python environment with libigl (found or created as the section
+    /// says; the comparison is left out without it).
+    Python,
+}
+
+impl Input {
+    /// A few words for `--help`.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Input::Meshes => "meshes",
+            Input::OneMesh => "one mesh",
+            Input::Constraints => "optional -c constraints",
+            Input::SuiteSparse => "optional suitesparse feature",
+            Input::Python => "optional Python with libigl",
+        }
+    }
+}
+
+/// An experiment's entry point: measures, writes its rows, figures and
+/// `section.md` under `ctx.out/<name>/`, and returns its headline.
+pub type Runner = fn(&Context) -> Result<Summary, AnyError>;
+
+/// One experiment of the list.
+pub struct Experiment {
+    /// Command-line word and folder name.
+    pub name: &'static str,
+    /// Section title in `results/README.md`.
+    pub title: &'static str,
+    /// What it reads.
+    pub inputs: &'static [Input],
+    /// Runs it.
+    pub run: Runner,
+}
+
+/// Every experiment, in the order of `all` and of `results/README.md`.
+pub const EXPERIMENTS: &[Experiment] = &[
+    Experiment {
+        name: table1::NAME,
+        title: "Table 1 — stability of soft-only, hard + soft, KKT and elimination",
+        inputs: &[Input::Meshes],
+        run: table1::run,
+    },
+    Experiment {
+        name: weight_sweep::NAME,
+        title: "Penalty weight sweep",
+        inputs: &[Input::Meshes, Input::Constraints],
+        run: weight_sweep::run,
+    },
+    Experiment {
+        name: accuracy::NAME,
+        title: "Accuracy — digits lost without and with refinement",
+        inputs: &[Input::Meshes],
+        run: accuracy::run,
+    },
+    Experiment {
+        name: breakdown::NAME,
+        title: "Precompute breakdown (paper Fig. 7 and 8)",
+        inputs: &[Input::Meshes, Input::SuiteSparse],
+        run: breakdown::run,
+    },
+    Experiment {
+        name: relative::NAME,
+        title: "Relative constraints (paper Fig. 9 and 11)",
+        inputs: &[Input::OneMesh],
+        run: relative::run,
+    },
+    Experiment {
+        name: conflicts::NAME,
+        title: "Conflicting constraints (paper Fig. 6)",
+        inputs: &[Input::Meshes],
+        run: conflicts::run,
+    },
+    Experiment {
+        name: scaling::NAME,
+        title: "Scaling with mesh size",
+        inputs: &[Input::Meshes, Input::SuiteSparse],
+        run: scaling::run,
+    },
+    Experiment {
+        name: drag::NAME,
+        title: "Interactive drag",
+        inputs: &[Input::OneMesh],
+        run: drag::run,
+    },
+    Experiment {
+        name: renders::NAME,
+        title: "Renders",
+        inputs: &[Input::Meshes],
+        run: renders::run,
+    },
+    Experiment {
+        name: performance::NAME,
+        title: "Performance against CHOLMOD and the bandwidth floor",
+        inputs: &[Input::Meshes, Input::SuiteSparse],
+        run: performance::run,
+    },
+    Experiment {
+        name: arap::NAME,
+        title: "As-rigid-as-possible deformation (ARAP)",
+        inputs: &[Input::OneMesh, Input::Python],
+        run: arap::run,
+    },
+];
+
+/// The git revision in a section's machine line (`… (git REV, …`), if any.
+fn section_revision(section: &str) -> Option<String> {
+    let start = section.find("(git ")? + 5;
+    let rest = &section[start..];
+    let end = rest.find([',', ')'])?;
+    Some(rest[..end].to_string())
+}
+
+/// The anchor GitHub gives a heading.
+fn anchor(title: &str) -> String {
+    title
+        .to_lowercase()
+        .chars()
+        .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-')
+        .collect::<String>()
+        .replace(' ', "-")
+}
+
+/// The header line naming the revisions the sections were written at.
+fn revisions_line(revisions: &[(String, Vec<&str>)], machine: &Machine) -> String {
+    match revisions {
+        [(rev, _)] => format!(
+            "Every section below was written at git {rev}; this assembly: {}\n",
+            machine.one_line()
+        ),
+        _ => {
+            let list: Vec<String> = revisions
+                .iter()
+                .map(|(rev, names)| format!("git {rev}: {}", names.join(", ")))
+                .collect();
+            format!(
+                "The sections were written at different git revisions ({}); this assembly: {}\n",
+                list.join("; "),
+                machine.one_line()
+            )
+        }
+    }
+}
+
+/// Joins the sections present under `out` into `out/README.md`, in the
+/// order of [`EXPERIMENTS`].
+pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
+    let mut s = String::from("# Results\n\n");
+    let _ = writeln!(
+        s,
+        "Everything in this directory is written by the `experiments` program; nothing is edited by hand. \
+         Regenerate all of it with\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- all --mesh-dir ../shared/meshes --out results\n```\n\n\
+         (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out; \
+         without `--out results` it writes to a fresh directory under `target/experiments/`). \
+         Each section names the command that regenerates it alone. CSV files start with a `#` line describing the machine and build.\n"
+    );
+    let mut toc = String::new();
+    let mut body = String::new();
+    // The git revision each section was written at (from its machine
+    // line), so that the header states the sections' revisions, not this
+    // run's.
+    let mut revisions: Vec<(String, Vec<&str>)> = Vec::new();
+    for e in EXPERIMENTS {
+        let Ok(section) = std::fs::read_to_string(out.join(e.name).join("section.md")) else {
+            continue;
+        };
+        let rev = section_revision(&section).unwrap_or_else(|| "not recorded".into());
+        match revisions.iter_mut().find(|(r, _)| *r == rev) {
+            Some((_, names)) => names.push(e.name),
+            None => revisions.push((rev, vec![e.name])),
+        }
+        let _ = writeln!(toc, "- [{}](#{})", e.title, anchor(e.title));
+        let _ = writeln!(body, "## {}\n\n{}\n", e.title, section.trim_end());
+    }
+    let _ = writeln!(s, "{}", revisions_line(&revisions, machine));
+    s.push_str(&toc);
+    s.push('\n');
+    s.push_str(&body);
+    std::fs::write(out.join("README.md"), s)?;
+    Ok(())
+}
