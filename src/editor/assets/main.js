@@ -320,13 +320,22 @@ function countFrame() {
 // Client path (the basis on the GPU): each frame uploads the transforms and
 // draws, and the final transform is POSTed at the end (the release).
 // Server path: each frame POSTs the transform and waits for the positions
-// (f32). With `render: false` nothing is drawn: on the server path the
+// (f32). Each drawn frame waits for one pixel read back (the frame
+// finished). With `render: false` nothing is drawn: on the server path the
 // frame rate of the server and the transfer alone, on the client path the
 // page's own work per frame. Returns the frame rate, the medians of each
 // phase (ms) and the HTTP body bytes per frame.
 window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1, { render = true } = {}) => {
   const tr = transformOf(group);
   const client = clientPath(group);
+  // One pixel read back: returns when the GPU (or SwiftShader, which
+  // returns from finish() at once) has drawn the frame.
+  const pixel = new Uint8Array(4);
+  const drawn = () => view.gl.readPixels(0, 0, 1, 1, view.gl.RGBA, view.gl.UNSIGNED_BYTE, pixel);
+  // The page yields to the event loop between frames, as a drag does.
+  const channel = new MessageChannel();
+  const yieldNow = () => new Promise((r) => { channel.port1.onmessage = r; channel.port2.postMessage(0); });
+  if (render) { view.render(); drawn(); } // shader compile and texture upload before the clock
   const sent0 = traffic.sent, received0 = traffic.received;
   const t0 = performance.now();
   // Per frame: the page's synchronous JavaScript (matrices, upload, draw
@@ -355,18 +364,21 @@ window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1, { 
     const t4 = performance.now();
     if (render) view.render();
     const t5 = performance.now();
-    if (render) view.gl.finish();
+    if (render) drawn();
     const t6 = performance.now();
     phases.upload.push(t4 - t3);
     phases.js.push(t5 - t3);
     phases.render.push(t6 - t3);
     countFrame();
+    if (client) await yieldNow();
   }
   if (client) await send('POST', '/api/transform', { group, matrix: matrixOf(tr) });
   const seconds = (performance.now() - t0) / 1000;
   const bytes = { sent: traffic.sent - sent0, received: traffic.received - received0 };
   await refreshReport();
   const median = (xs) => (xs.length ? [...xs].sort((a, b) => a - b)[xs.length >> 1] : null);
+  // performance.now() is coarse (0.1 ms in Chromium): the means too.
+  const mean = (xs) => (xs.length ? xs.reduce((a, b) => a + b, 0) / xs.length : null);
   return {
     frames,
     path: client ? 'client' : 'server',
@@ -376,6 +388,9 @@ window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1, { 
     bytesPerFrame: (bytes.sent + bytes.received) / frames,
     bytes,
     jsMedianMs: median(phases.js),
+    jsMeanMs: mean(phases.js),
+    uploadMeanMs: mean(phases.upload),
+    renderMeanMs: mean(phases.render),
     uploadMedianMs: median(phases.upload),
     renderMedianMs: median(phases.render),
     serverFrameMedianMs: median(phases.server),
