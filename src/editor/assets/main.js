@@ -400,6 +400,9 @@ window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1, { 
   };
 };
 
+// The 3 × 4 transform of group `name` as the page holds it (tests).
+window.editor.matrixOf = (name) => matrixOf(transformOf(name));
+
 // The positions the page displays (f32, n × 3): on the client path read
 // back from the vertex shader (transform feedback), else the server's.
 window.editor.displayedPositions = () => (state.basisGroups ? view.readBack() : view.positions);
