@@ -120,6 +120,7 @@ async function applyConstraints() {
 async function loadPositions() {
   view.setPositions(await getF32('/api/positions?format=f32'));
   state.basisGroups = null;
+  showPath();
   await syncBasis();
   view.render();
 }
@@ -135,6 +136,14 @@ async function syncBasis() {
   view.setBasis(texels, head.groups.length);
   state.basisGroups = head.groups;
   view.setTransforms(basisMatrices());
+  renderReport();
+  showPath();
+}
+
+// The HUD's line: frames per second, the path, what is displayed and saved.
+function showPath() {
+  const where = state.basisGroups ? 'client: f32 basis in the shader' : `server: f32 positions ${window.editor.stats.serverFrameMs.at(-1)?.toFixed(2) ?? '–'} ms`;
+  $('hud').textContent = `${window.editor.stats.fps.toFixed(1)} fps · ${where} · saved mesh exact f64`;
 }
 
 // The transforms of the basis groups, in its order (identity if unmoved).
@@ -296,7 +305,7 @@ async function sendFrame(name) {
     const answer = await send('POST', '/api/transform', { group: name, matrix });
     window.editor.stats.serverFrameMs.push(1e3 * answer.compute_s);
     view.setPositions(await getF32('/api/positions?format=f32'));
-    state.basisGroups = null;
+    if (state.basisGroups) { state.basisGroups = null; renderReport(); }
     view.render();
     countFrame();
   } catch (e) { showError(e); } finally {
@@ -311,8 +320,7 @@ function countFrame() {
   while (state.frames.length && state.frames[0] < now - 1000) state.frames.shift();
   window.editor.stats.framesShown += 1;
   window.editor.stats.fps = state.frames.length > 1 ? (1000 * (state.frames.length - 1)) / (now - state.frames[0]) : 0;
-  const where = state.basisGroups ? 'client f32 (GPU basis)' : `server ${window.editor.stats.serverFrameMs.at(-1)?.toFixed(2) ?? '–'} ms`;
-  $('hud').textContent = `${window.editor.stats.fps.toFixed(1)} fps · ${where} · saved mesh exact f64`;
+  showPath();
 }
 
 // A scripted drag of `frames` frames (tests, figures): translates `group`
