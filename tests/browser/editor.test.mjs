@@ -212,6 +212,22 @@ try {
   assert.equal(rebound.status(), 403, 'a page under a foreign Host');
   await evil.close();
 
+  // The server path: asked for with ?mode=server, and taken by the penalty
+  // method (not exact) in the default mode; each frame then downloads the
+  // positions.
+  const serverPage = await browser.newPage();
+  await serverPage.goto(`${url}&mode=server`);
+  await serverPage.waitForFunction(() => window.editor && window.editor.ready, null, { timeout: 120000 });
+  const onServer = await serverPage.evaluate(() => window.editor.scriptedDrag('handle 1', 3, 0.1, 1, { render: false }));
+  assert.equal(onServer.path, 'server', '?mode=server');
+  assert.ok(onServer.bytes.received >= 3 * 12 * n, `${onServer.bytes.received} bytes received in 3 server frames`);
+  await serverPage.close();
+  await page.selectOption('#method', 'penalty');
+  await page.waitForFunction(() => window.editor.state.report?.method === 'penalty' && document.getElementById('progress').style.display === 'none', null, { timeout: 120000 });
+  await page.waitForTimeout(300);
+  const penalty = await page.evaluate(() => window.editor.scriptedDrag('handle 1', 2, 0.1, 1, { render: false }));
+  assert.equal(penalty.path, 'server', 'the penalty method');
+
   if (dragFrames > 0) {
     const figure = await page.evaluate((f) => window.editor.scriptedDrag('handle 1', f), dragFrames);
     console.log(JSON.stringify({ scriptedDrag: figure }));
