@@ -173,6 +173,21 @@ impl HandleBasis {
         self.forward_error_estimate
     }
 
+    /// One stored number, in the mesh's units: column `j` of vertex `v`,
+    /// where columns `0..3` are `X₀`'s coordinates and `3 + 4g + k` is
+    /// column `k` of `R_g` (`k = 3`: the response to the translation).
+    /// What a client that evaluates the basis itself (the editor's page)
+    /// is sent. Panics when `v` or `j` is out of range.
+    pub fn entry(&self, v: usize, j: usize) -> f64 {
+        let columns = 3 + 4 * self.groups.len();
+        assert!(
+            v < self.n && j < columns,
+            "entry ({v}, {j}) of a basis of {} × {columns}",
+            self.n
+        );
+        self.blocks[(v / LANES) * columns * LANES + j * LANES + v % LANES]
+    }
+
     /// `out = X₀ + Σ_g R_g M_gᵀ` (positions in the mesh's units) for the
     /// transforms `m[g]` of [`HandleBasis::groups`] (the identity leaves a
     /// group at its rest targets). Allocates nothing; parallel over

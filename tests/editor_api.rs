@@ -1299,3 +1299,144 @@ fn a_conflict_is_among_the_report_warnings() {
     let report = json(&request(&server.client, "GET", "/api/report", b"").1);
     assert!(has(&report), "{report}");
 }
+
+/// `GET /api/basis` decoded: (the JSON head, per vertex `1 + G` texels of
+/// four numbers).
+fn basis_of(body: &[u8]) -> (Value, Vec<Vec<[f32; 4]>>) {
+    let h = u32::from_le_bytes(body[0..4].try_into().unwrap()) as usize;
+    assert_eq!(h % 4, 0, "the head is padded to a multiple of 4 bytes");
+    let head = json(&body[4..4 + h]);
+    let per_vertex = head["texels_per_vertex"].as_u64().unwrap() as usize;
+    let n = head["vertices"].as_u64().unwrap() as usize;
+    let floats: Vec<f32> = body[4 + h..]
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    assert_eq!(floats.len(), n * per_vertex * 4, "the body's length");
+    let texels = floats
+        .chunks_exact(4 * per_vertex)
+        .map(|v| v.chunks_exact(4).map(|t| t.try_into().unwrap()).collect())
+        .collect();
+    (head, texels)
+}
+
+/// `X₀ + Σ_g M_g r_g` per vertex from the decoded basis, as the page's
+/// vertex shader evaluates it (here in f64 from the f32 numbers).
+fn evaluate_basis(texels: &[Vec<[f32; 4]>], m: &[[[f64; 4]; 3]]) -> Vec<[f64; 3]> {
+    texels
+        .iter()
+        .map(|v| {
+            [0, 1, 2].map(|c| {
+                let mut x = f64::from(v[0][c]);
+                for (g, mg) in m.iter().enumerate() {
+                    x += (0..4)
+                        .map(|k| mg[c][k] * f64::from(v[1 + g][k]))
+                        .sum::<f64>();
+                }
+                x
+            })
+        })
+        .collect()
+}
+
+/// The basis route: its layout evaluated at the identity and after a move
+/// gives the positions of `GET /api/positions` to f32 rounding; it needs
+/// the token; it answers 409 when no basis describes the positions (ARAP,
+/// a moved group outside the basis) and its length is the budgeted one.
+#[test]
+fn the_basis_route_reproduces_the_positions_and_needs_the_token() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    let n = (NX + 1) * (NX + 1);
+    let diag = server.mesh.bbox_diagonal();
+    let (status, body) = request(c, "GET", "/api/basis", b"");
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let (head, texels) = basis_of(&body);
+    assert_eq!(head["groups"], serde_json::json!(["handle"]));
+    assert_eq!(head["vertices"], n);
+    assert_eq!(texels.len(), n);
+    let h = u32::from_le_bytes(body[0..4].try_into().unwrap()) as u64;
+    assert_eq!(
+        body.len() as u64,
+        4 + h + lse_deform::editor::basis_response_bytes(n, 1)
+    );
+    let report = json(&request(c, "GET", "/api/report", b"").1);
+    assert_eq!(head["generation"], report["editor"]["generation"]);
+    let close = |got: &[[f64; 3]], want: &[[f64; 3]], what: &str| {
+        let worst = got
+            .iter()
+            .zip(want)
+            .flat_map(|(g, w)| (0..3).map(move |k| (g[k] - w[k]).abs()))
+            .fold(0.0, f64::max);
+        assert!(worst <= 1e-6 * diag, "{what}: {worst:e} of the diagonal");
+    };
+    let identity = rotation_x(0.0, [0.0; 3]);
+    close(
+        &evaluate_basis(&texels, &[identity]),
+        &positions_f64(c),
+        "at rest",
+    );
+    let m = rotation_x(0.7, [0.1, 0.2, 0.5]);
+    let (status, _) = request(c, "POST", "/api/transform", &transform_body("handle", m));
+    assert_eq!(status, 200);
+    close(&evaluate_basis(&texels, &[m]), &positions_f64(c), "moved");
+    // The token, as for every API route.
+    let a = request_with(c, "GET", "/api/basis", &[("Authorization", "")], b"");
+    assert_eq!(assert_json_error(&a, 401, "no token"), "unauthorized");
+    let a = request_with(
+        c,
+        "GET",
+        &format!("/api/basis?token={}", c.token),
+        &[("Authorization", "")],
+        b"",
+    );
+    assert_eq!(a.status, 200);
+    assert_eq!(a.body, body, "the basis does not change with a transform");
+    // A moved group outside the basis: the basis no longer describes the
+    // positions.
+    let lift = rotation_x(0.0, [0.0, 0.0, 0.1]);
+    let (status, _) = request(c, "POST", "/api/transform", &transform_body("fixed", lift));
+    assert_eq!(status, 200);
+    let a = request_with(c, "GET", "/api/basis", &[], b"");
+    assert_eq!(assert_json_error(&a, 409, "stale"), "no-basis");
+    let (status, _) = request(
+        c,
+        "POST",
+        "/api/transform",
+        &transform_body("fixed", identity),
+    );
+    assert_eq!(status, 200);
+    assert_eq!(request(c, "GET", "/api/basis", b"").0, 200);
+    // ARAP has no basis.
+    let (status, _) = request(c, "PUT", "/api/settings", br#"{"energy": "arap"}"#);
+    assert_eq!(status, 200);
+    let a = request_with(c, "GET", "/api/basis", &[], b"");
+    assert_eq!(assert_json_error(&a, 409, "arap"), "no-basis");
+}
+
+/// Under a memory budget too small for the response basis, the change is
+/// refused (413) and the basis route has nothing to send (409).
+#[test]
+fn the_basis_route_under_a_small_memory_budget() {
+    let server = start_with(1 << 20, &[], &[("LSE_MEMORY_LIMIT", "1M")]);
+    let c = &server.client;
+    // The start's scene fits; a handle of many groups does not.
+    let mut cs = server.constraints.clone();
+    let p = server.mesh.positions();
+    for (v, &target) in p.iter().enumerate().take(NX * (NX + 1)).skip(NX + 1) {
+        let mut k = Constraint::hard(ConstraintKind::Position { vertex: v, target });
+        k.group = Some(format!("g{v}"));
+        cs.push(k).unwrap();
+    }
+    let a = request_with(c, "PUT", "/api/constraints", &[], cs.to_json().as_bytes());
+    assert_eq!(assert_json_error(&a, 413, "many groups"), "too-large");
+    assert_eq!(
+        request(c, "GET", "/api/basis", b"").0,
+        200,
+        "the old basis stays"
+    );
+    let (status, _) = request(c, "PUT", "/api/constraints", br#"{"constraints": []}"#);
+    assert_eq!(status, 200);
+    let a = request_with(c, "GET", "/api/basis", &[], b"");
+    assert_eq!(assert_json_error(&a, 409, "no constraints"), "no-basis");
+}

@@ -41,7 +41,19 @@
 //! /api/rest-positions` (f32), `GET /api/constraints`, `GET
 //! /api/deformed.obj`, `PUT /api/settings` (any of the [`Settings`]
 //! fields), `POST /api/iterate` (`{"iterations": n}`, ARAP), `GET
-//! /api/progress`.
+//! /api/progress`, `GET /api/basis` (below).
+//!
+//! `GET /api/basis` (binary, little-endian): the response basis
+//! `X = X₀ + Σ_g R_g M_gᵀ` once, in f32, for a page that evaluates frames
+//! itself. A u32 `h`, then `h` bytes of UTF-8 JSON (padded with spaces to
+//! a multiple of 4: `{"vertices": n, "groups": [names, in the order of
+//! the texels], "generation", "texels_per_vertex": 1 + G}`), then
+//! `n × (1 + G)` texels of four f32: per vertex `(X₀x, X₀y, X₀z, 0)` and,
+//! per group `g`, the four columns of row `v` of `R_g` (n × 4), so that
+//! vertex `v`'s position is `X₀ + Σ_g M_g r_g` with `M_g` the group's 3 × 4
+//! transform as `POST /api/transform` takes it. 409 (`kind` `no-basis`)
+//! when no basis describes the positions (ARAP, no movable group, a group
+//! outside the basis moved); 413 beyond the memory budget.
 
 pub mod conn;
 pub mod guard;
@@ -67,7 +79,9 @@ use serde_json::{Map, Value, json};
 use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
 use crate::deform::Affine;
 use crate::error::{ConstraintError, Error, MeshError, ProblemError};
+use crate::handle::HandleBasis;
 use crate::mesh::{self, Mesh};
+use session::Engine;
 pub use session::{FrameError, Session, Settings};
 
 /// Default cap on a request body: 256 MiB (a constraint on every vertex of
@@ -337,6 +351,7 @@ fn router(app: App, guard: guard::Guard) -> Router {
         .route("/api/transform", post(post_transform))
         .route("/api/iterate", post(post_iterate))
         .route("/api/positions", get(get_positions))
+        .route("/api/basis", get(get_basis))
         .route("/api/rest-positions", get(get_rest_positions))
         .route("/api/faces", get(get_faces))
         .route("/api/report", get(get_report))
@@ -679,6 +694,86 @@ async fn get_positions(
     blocking(move || {
         let s = lock(&app.session);
         Ok(binary(encode(&s.positions, q.format.as_deref())?))
+    })
+    .await
+}
+
+/// Bytes of the `GET /api/basis` body for `n` vertices and `groups`
+/// groups besides its JSON head: `16 n (1 + groups)` (one RGBA32F texel
+/// for `X₀` and one per group for `R_g`), held once while it is built.
+pub fn basis_response_bytes(n: usize, groups: usize) -> u64 {
+    16u64
+        .saturating_mul(n as u64)
+        .saturating_mul(1 + groups as u64)
+}
+
+/// The body of `GET /api/basis` (layout in the module documentation and
+/// the README): the u32 length `h` of a JSON head padded with spaces to a
+/// multiple of 4 bytes, the head, then per vertex `(X₀, 0)` and each
+/// group's four columns of `R_g` as f32, little-endian. The size is checked
+/// against the memory budget first (413); an entry beyond f32 is refused
+/// (422) rather than sent as `inf`.
+fn encode_basis(basis: &HandleBasis, generation: u64) -> ApiResult<Vec<u8>> {
+    let (n, groups) = (basis.n_vertices(), basis.groups().len());
+    let bytes = basis_response_bytes(n, groups);
+    crate::limits::check(bytes, || {
+        format!("the f32 response basis of {groups} group(s) on {n} vertices would need")
+    })
+    .map_err(|detail| Error::from(ProblemError::TooLarge { detail }))?;
+    let mut head = json!({
+        "vertices": n,
+        "groups": basis.groups(),
+        "generation": generation,
+        "texels_per_vertex": 1 + groups,
+    })
+    .to_string();
+    while !head.len().is_multiple_of(4) {
+        head.push(' ');
+    }
+    let mut out = Vec::with_capacity(4 + head.len() + bytes as usize);
+    out.extend_from_slice(&(head.len() as u32).to_le_bytes());
+    out.extend_from_slice(head.as_bytes());
+    let columns = 3 + 4 * groups;
+    for v in 0..n {
+        for j in (0..3).chain(std::iter::once(usize::MAX)).chain(3..columns) {
+            let x = if j == usize::MAX {
+                0.0
+            } else {
+                basis.entry(v, j) as f32
+            };
+            if !x.is_finite() {
+                return Err(ApiError::new(
+                    StatusCode::UNPROCESSABLE_ENTITY,
+                    "not-representable",
+                    format!(
+                        "the response basis at vertex {v}, column {j}, is not finite in f32 (beyond ±3.4e38): use the positions"
+                    ),
+                ));
+            }
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    Ok(out)
+}
+
+/// `GET /api/basis`: 409 (`kind` `no-basis`) when the session has no
+/// response basis (ARAP, no movable group, no constraints) or a group
+/// outside it has moved (the basis no longer describes the positions).
+async fn get_basis(State(app): State<App>) -> ApiResult<Response> {
+    blocking(move || {
+        let s = lock(&app.session);
+        match &s.engine {
+            Some(Engine::Linear {
+                basis: Some(basis),
+                basis_stale: false,
+                ..
+            }) => Ok(binary(encode_basis(basis, s.generation)?)),
+            _ => Err(ApiError::new(
+                StatusCode::CONFLICT,
+                "no-basis",
+                "no response basis describes the positions now (ARAP energy, no movable group, or a group outside the basis moved): use POST /api/transform and GET /api/positions".into(),
+            )),
+        }
     })
     .await
 }

@@ -19,7 +19,9 @@ const browser = await chromium.launch({
 try {
   const page = await browser.newPage({ viewport: { width: 1200, height: 800 } });
   page.on('pageerror', (e) => console.error('page error:', e.message));
-  await page.goto(url);
+  // The server path, whose figure this is (experiments/editor_frames.mjs
+  // compares it with the client path).
+  await page.goto(`${url}&mode=server`);
   await page.waitForFunction(() => window.editor && window.editor.ready, null, { timeout: 600000 });
   await page.screenshot({ path: `${prefix}-rest.png` });
   // The same drag without drawing: what the server and the transfer allow.

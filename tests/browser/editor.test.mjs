@@ -4,6 +4,13 @@
 // tool, and check through GET /api/positions that the handle moved and the
 // fixed region did not; saves a screenshot.
 //
+// The drag takes the client path (the page's default when the server has a
+// response basis): the positions the vertex shader displayed, read back,
+// put every hard-constrained vertex within f32 rounding (1e-6 of the
+// bounding-box diagonal) of its target, and the saved mesh ("save deformed
+// mesh") equals the server's f64 positions exactly and `lse-deform deform`'s
+// full solve of the moved targets to 1e-9 of the diagonal.
+//
 // The server prints `listening on http://HOST:PORT/?token=T`: the page
 // takes the token from its URL (and drops it from the address bar), node's
 // own requests send `Authorization: Bearer T`.
@@ -15,7 +22,7 @@
 // JSON — the figure of results/editor/README.md).
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
-import { mkdtempSync, mkdirSync, readFileSync } from 'node:fs';
+import { mkdtempSync, mkdirSync, readFileSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -51,6 +58,44 @@ const api = (path) => fetch(new URL(path, base), { headers: { authorization: `Be
 async function positions() {
   const b = await (await api('api/positions?format=f64')).arrayBuffer();
   return new Float64Array(b);
+}
+
+// The vertex shader's positions against the targets (f32 rounding), the
+// saved mesh against the server's f64 positions (exact) and a full solve.
+async function checkClientPath(page, groups, serverF64) {
+  const { shown, matrix, rest } = await page.evaluate(() => ({
+    shown: Array.from(window.editor.displayedPositions()),
+    matrix: window.editor.matrixOf('handle 1'),
+    rest: Array.from(window.editor.state.restF64),
+  }));
+  const diag = (await (await api('api/mesh')).json()).diagonal;
+  const moved = (v) => matrix.map((row) => row[0] * rest[3 * v] + row[1] * rest[3 * v + 1] + row[2] * rest[3 * v + 2] + row[3]);
+  let worst = 0;
+  for (const [group, target] of [['fixed', (v) => rest.slice(3 * v, 3 * v + 3)], ['handle 1', moved]]) {
+    for (const v of groups[group]) {
+      const t = target(v);
+      worst = Math.max(worst, ...[0, 1, 2].map((c) => Math.abs(shown[3 * v + c] - t[c]) / diag));
+    }
+  }
+  console.log(JSON.stringify({ shaderVsTargets: worst }));
+  assert.ok(worst <= 1e-6, `a hard-constrained vertex is ${worst} of the diagonal from its target in the shader`);
+  const [saved] = await Promise.all([page.waitForEvent('download'), page.click('#savemesh')]);
+  const obj = readFileSync(await saved.path(), 'utf8').split('\n').filter((l) => l.startsWith('v '))
+    .flatMap((l) => l.trim().split(/\s+/).slice(1, 4).map(Number));
+  assert.deepEqual(obj, Array.from(serverF64), 'the saved mesh is the server\'s f64 positions');
+  // An independent full solve of the moved targets.
+  const dir = mkdtempSync(join(tmpdir(), 'lse-solve-'));
+  const constraints = [];
+  for (const v of groups.fixed) constraints.push({ type: 'position', vertex: v, target: rest.slice(3 * v, 3 * v + 3) });
+  for (const v of groups['handle 1']) constraints.push({ type: 'position', vertex: v, target: moved(v) });
+  writeFileSync(join(dir, 'moved.json'), JSON.stringify({ constraints }));
+  execFileSync(bin, ['deform', mesh, '-c', join(dir, 'moved.json'), '-o', join(dir, 'solved.obj')]);
+  const solved = readFileSync(join(dir, 'solved.obj'), 'utf8').split('\n').filter((l) => l.startsWith('v '))
+    .flatMap((l) => l.trim().split(/\s+/).slice(1, 4).map(Number));
+  let gap = 0;
+  for (let i = 0; i < solved.length; i++) gap = Math.max(gap, Math.abs(solved[i] - obj[i]) / diag);
+  console.log(JSON.stringify({ savedVsFullSolve: gap }));
+  assert.ok(gap <= 1e-9, `the saved mesh is ${gap} of the diagonal from lse-deform deform's solve`);
 }
 
 const browser = await chromium.launch({
@@ -108,6 +153,8 @@ try {
   await applied(groups.fixed.length + groups['handle 1'].length);
   const before = await positions();
 
+  assert.ok(await page.evaluate(() => window.editor.state.basisGroups?.includes('handle 1')), 'the page took the client path');
+  const sentBefore = await page.evaluate(() => window.editor.traffic.requests);
   await page.click('button[data-tool=move]');
   await page.mouse.move(high.x, high.y);
   await page.mouse.down();
@@ -116,6 +163,10 @@ try {
   await page.waitForFunction(() => !window.editor.state.inflight);
   await page.waitForTimeout(300);
   const after = await positions();
+  // The drag's 20 frames: one request (the transform on release) and the report.
+  const sentDuring = (await page.evaluate(() => window.editor.traffic.requests)) - sentBefore;
+  assert.ok(sentDuring <= 2, `${sentDuring} requests during a client-path drag`);
+  await checkClientPath(page, groups, after);
 
   const moved = (v) => Math.hypot(...[0, 1, 2].map((c) => after[3 * v + c] - before[3 * v + c]));
   const diag = (await (await api('api/mesh')).json()).diagonal;
@@ -160,6 +211,22 @@ try {
   const rebound = await evil.goto(`http://evil.example:${port}/?token=${token}`);
   assert.equal(rebound.status(), 403, 'a page under a foreign Host');
   await evil.close();
+
+  // The server path: asked for with ?mode=server, and taken by the penalty
+  // method (not exact) in the default mode; each frame then downloads the
+  // positions.
+  const serverPage = await browser.newPage();
+  await serverPage.goto(`${url}&mode=server`);
+  await serverPage.waitForFunction(() => window.editor && window.editor.ready, null, { timeout: 120000 });
+  const onServer = await serverPage.evaluate(() => window.editor.scriptedDrag('handle 1', 3, 0.1, 1, { render: false }));
+  assert.equal(onServer.path, 'server', '?mode=server');
+  assert.ok(onServer.bytes.received >= 3 * 12 * n, `${onServer.bytes.received} bytes received in 3 server frames`);
+  await serverPage.close();
+  await page.selectOption('#method', 'penalty');
+  await page.waitForFunction(() => window.editor.state.report?.method === 'penalty' && document.getElementById('progress').style.display === 'none', null, { timeout: 120000 });
+  await page.waitForTimeout(300);
+  const penalty = await page.evaluate(() => window.editor.scriptedDrag('handle 1', 2, 0.1, 1, { render: false }));
+  assert.equal(penalty.path, 'server', 'the penalty method');
 
   if (dragFrames > 0) {
     const figure = await page.evaluate((f) => window.editor.scriptedDrag('handle 1', f), dragFrames);

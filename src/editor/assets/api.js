@@ -34,8 +34,16 @@ async function check(response) {
   return response;
 }
 
+// HTTP body bytes sent and received (Content-Length) since the page
+// loaded: the experiments' bytes per frame.
+export const traffic = { sent: 0, received: 0, requests: 0 };
+
 export async function request(path, init) {
-  return check(await fetch(path, authorised(init)));
+  const response = await check(await fetch(path, authorised(init)));
+  traffic.requests += 1;
+  traffic.sent += init && typeof init.body === 'string' ? new TextEncoder().encode(init.body).length : 0;
+  traffic.received += Number(response.headers.get('content-length') || 0);
+  return response;
 }
 
 export async function getJson(path) {
@@ -71,4 +79,13 @@ export async function download(path, name) {
   a.click();
   a.remove();
   setTimeout(() => URL.revokeObjectURL(url), 10000);
+}
+
+// GET /api/basis: its JSON head and the n × (1 + G) RGBA f32 texels (the
+// layout in the README's editor API section).
+export async function getBasis() {
+  const buffer = await (await request('/api/basis')).arrayBuffer();
+  const h = new DataView(buffer).getUint32(0, true);
+  const head = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 4, h)));
+  return { head, texels: new Float32Array(buffer, 4 + h) };
 }

@@ -1,7 +1,16 @@
 // The editor page: selection (brush, lasso) into named groups, dragging a
-// group (move, rotate), switches, report. Positions are computed by the
-// server (POST /api/transform, then GET /api/positions as f32).
-import { getJson, send, getF32, getF64, getU32, download, hasToken } from '/api.js';
+// group (move, rotate), switches, report.
+//
+// Two paths for a drag. Client (`?mode=client`, the default when the
+// server has a response basis: Laplacian energy, an exact method): the
+// page downloads X₀ and the basis once (GET /api/basis), evaluates every
+// frame in the vertex shader in f32 and tells the server the group's
+// transform on release (POST /api/transform), after which the server holds
+// the exact f64 positions (GET /api/positions, "save deformed mesh").
+// Server (`?mode=server`, ARAP, the penalty method, a group outside the
+// basis): every frame POSTs the transform and downloads the positions as
+// f32.
+import { getJson, send, getF32, getF64, getU32, getBasis, download, hasToken, traffic } from '/api.js';
 import { View } from '/view.js';
 
 const $ = (id) => document.getElementById(id);
@@ -18,8 +27,10 @@ const state = {
   transforms: new Map(), // name -> {t: [3], angle, axis, centre}
   report: null, conflicting: new Set(),
   frames: [], inflight: false, pending: null,
+  mode: new URLSearchParams(location.search).get('mode') === 'server' ? 'server' : 'client',
+  basisGroups: null,   // the groups of the basis the view evaluates, or null
 };
-window.editor = { state, view, stats: { framesShown: 0, fps: 0, serverFrameMs: [] } };
+window.editor = { state, view, traffic, stats: { framesShown: 0, fps: 0, serverFrameMs: [] } };
 
 function showError(e) { $('error').textContent = e ? String(e.message || e) : ''; }
 
@@ -108,7 +119,41 @@ async function applyConstraints() {
 
 async function loadPositions() {
   view.setPositions(await getF32('/api/positions?format=f32'));
+  state.basisGroups = null;
+  showPath();
+  await syncBasis();
   view.render();
+}
+
+// Client mode: the basis downloaded once per precompute when the server
+// has one that describes the positions and the method is exact.
+async function syncBasis() {
+  const r = state.report || {}, e = r.editor || {}, b = e.basis;
+  const exact = e.settings && e.settings.energy === 'laplacian' && e.settings.method !== 'penalty';
+  if (state.mode !== 'client' || !b || b.stale || !exact) return;
+  const { head, texels } = await getBasis();
+  if (head.generation !== e.generation) return; // changed meanwhile: stay on the server path
+  view.setBasis(texels, head.groups.length);
+  state.basisGroups = head.groups;
+  view.setTransforms(basisMatrices());
+  renderReport();
+  showPath();
+}
+
+// The HUD's line: frames per second, the path, what is displayed and saved.
+function showPath() {
+  const where = state.basisGroups ? 'client: f32 basis in the shader' : `server: f32 positions ${window.editor.stats.serverFrameMs.at(-1)?.toFixed(2) ?? '–'} ms`;
+  $('hud').textContent = `${window.editor.stats.fps.toFixed(1)} fps · ${where} · saved mesh exact f64`;
+}
+
+// The transforms of the basis groups, in its order (identity if unmoved).
+function basisMatrices() {
+  return state.basisGroups.map((g) => (state.transforms.has(g) ? matrixOf(state.transforms.get(g)) : [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]));
+}
+
+// Whether a drag of `name` is drawn by the page alone.
+function clientPath(name) {
+  return state.basisGroups !== null && state.basisGroups.includes(name) && !state.report?.editor?.basis?.stale;
 }
 
 function setReport(report) {
@@ -145,6 +190,10 @@ function renderReport() {
     `basis       ${fmt(t.basis_s)} s`,
     `frame (server, median) ${e.frame_median_s ? (1e3 * e.frame_median_s).toFixed(2) + ' ms' : '–'}`,
     `frames shown/s ${window.editor.stats.fps.toFixed(1)}`,
+    ...(state.basisGroups
+      ? ['display     f32 (basis in the shader)']
+      : ['display     f32 (server positions)']),
+    'saved mesh  exact f64 (server)',
     ...(r.warnings || []).map((w) => `<span class="bad">warning: ${w.replace(/</g, '&lt;')}</span>`),
   ];
   if (r.arap) lines.push(`ARAP        ${r.arap.iterations} iterations, energy ${fmt(r.arap.energies?.at(-1))}`);
@@ -224,6 +273,28 @@ function matrixOf(tr) {
   });
 }
 
+// One frame of a drag of `name`: drawn from the basis on the client path,
+// else sent to the server.
+function dragFrame(name) {
+  if (!clientPath(name)) { sendFrame(name); return; }
+  view.setTransforms(basisMatrices());
+  view.render();
+  countFrame();
+}
+
+// The end of a drag: the server is told the final transform (then its
+// positions are the exact f64 ones) and the report refreshed.
+async function release(name) {
+  if (clientPath(name)) {
+    state.inflight = true;
+    try { await send('POST', '/api/transform', { group: name, matrix: matrixOf(transformOf(name)) }); } catch (e) { showError(e); } finally { state.inflight = false; }
+  }
+  await refreshReport();
+  // After a drag on the server path the basis is taken up again when it
+  // describes the positions once more.
+  if (state.basisGroups === null) { try { await syncBasis(); view.render(); } catch (e) { showError(e); } }
+}
+
 // Sends the group's transform; while a frame is in flight only the latest
 // request waits (frames are dropped, never queued).
 async function sendFrame(name) {
@@ -234,6 +305,7 @@ async function sendFrame(name) {
     const answer = await send('POST', '/api/transform', { group: name, matrix });
     window.editor.stats.serverFrameMs.push(1e3 * answer.compute_s);
     view.setPositions(await getF32('/api/positions?format=f32'));
+    if (state.basisGroups) { state.basisGroups = null; renderReport(); }
     view.render();
     countFrame();
   } catch (e) { showError(e); } finally {
@@ -248,58 +320,100 @@ function countFrame() {
   while (state.frames.length && state.frames[0] < now - 1000) state.frames.shift();
   window.editor.stats.framesShown += 1;
   window.editor.stats.fps = state.frames.length > 1 ? (1000 * (state.frames.length - 1)) / (now - state.frames[0]) : 0;
-  $('hud').textContent = `${window.editor.stats.fps.toFixed(1)} fps · server ${window.editor.stats.serverFrameMs.at(-1)?.toFixed(2)} ms`;
+  showPath();
 }
 
 // A scripted drag of `frames` frames (tests, figures): translates `group`
-// along `turn` of a circle of radius `amplitude` × the bounding-box radius, each frame
-// waiting for the positions and a render. Returns the page's frame rate.
-// With `render: false` the positions are fetched but not drawn: the frame
-// rate of the server and the transfer alone.
+// along `turn` of a circle of radius `amplitude` × the bounding-box radius.
+// Client path (the basis on the GPU): each frame uploads the transforms and
+// draws, and the final transform is POSTed at the end (the release).
+// Server path: each frame POSTs the transform and waits for the positions
+// (f32). Each drawn frame waits for one pixel read back (the frame
+// finished). With `render: false` nothing is drawn: on the server path the
+// frame rate of the server and the transfer alone, on the client path the
+// page's own work per frame. Returns the frame rate, the medians of each
+// phase (ms) and the HTTP body bytes per frame.
 window.editor.scriptedDrag = async (group, frames, amplitude = 0.3, turn = 1, { render = true } = {}) => {
   const tr = transformOf(group);
+  const client = clientPath(group);
+  // One pixel read back: returns when the GPU (or SwiftShader, which
+  // returns from finish() at once) has drawn the frame.
+  const pixel = new Uint8Array(4);
+  const drawn = () => view.gl.readPixels(0, 0, 1, 1, view.gl.RGBA, view.gl.UNSIGNED_BYTE, pixel);
+  // The page yields to the event loop between frames, as a drag does.
+  const channel = new MessageChannel();
+  const yieldNow = () => new Promise((r) => { channel.port1.onmessage = r; channel.port2.postMessage(0); });
+  if (render) { view.render(); drawn(); } // shader compile and texture upload before the clock
+  const sent0 = traffic.sent, received0 = traffic.received;
   const t0 = performance.now();
-  // Per frame: the server's compute (its own clock), the POST round trip,
-  // the positions' download, and the upload + draw until the GPU (or
-  // SwiftShader) is done.
-  const phases = { server: [], request: [], post: [], download: [], render: [] };
+  // Per frame: the page's synchronous JavaScript (matrices, upload, draw
+  // call), the upload alone, and until the GPU (or SwiftShader) is done;
+  // on the server path also the server's compute (its own clock), the POST
+  // round trip and the positions' download.
+  const phases = { js: [], upload: [], render: [], server: [], request: [], post: [], download: [] };
   for (let f = 1; f <= frames; f++) {
     const a = (2 * Math.PI * turn * f) / frames;
     tr.t = [amplitude * view.radius * Math.sin(a), amplitude * view.radius * (1 - Math.cos(a)), 0];
+    let positions = null;
     const t1 = performance.now();
-    const answer = await send('POST', '/api/transform', { group, matrix: matrixOf(tr) });
-    const t2 = performance.now();
-    const positions = await getF32('/api/positions?format=f32');
-    const t3 = performance.now();
-    if (render) {
-      view.setPositions(positions);
-      view.render();
-      view.gl.finish();
+    if (!client) {
+      const answer = await send('POST', '/api/transform', { group, matrix: matrixOf(tr) });
+      phases.server.push(1e3 * answer.compute_s);
+      phases.request.push(1e3 * answer.request_s);
+      window.editor.stats.serverFrameMs.push(1e3 * answer.compute_s);
+      const t2 = performance.now();
+      positions = await getF32('/api/positions?format=f32');
+      phases.post.push(t2 - t1);
+      phases.download.push(performance.now() - t2);
     }
+    const t3 = performance.now();
+    if (client) view.setTransforms(basisMatrices());
+    else if (render) { view.setPositions(positions); state.basisGroups = null; }
     const t4 = performance.now();
-    phases.server.push(1e3 * answer.compute_s);
-    phases.request.push(1e3 * answer.request_s);
-    window.editor.stats.serverFrameMs.push(1e3 * answer.compute_s);
-    phases.post.push(t2 - t1);
-    phases.download.push(t3 - t2);
-    phases.render.push(t4 - t3);
+    if (render) view.render();
+    const t5 = performance.now();
+    if (render) drawn();
+    const t6 = performance.now();
+    phases.upload.push(t4 - t3);
+    phases.js.push(t5 - t3);
+    phases.render.push(t6 - t3);
     countFrame();
+    if (client) await yieldNow();
   }
+  if (client) await send('POST', '/api/transform', { group, matrix: matrixOf(tr) });
   const seconds = (performance.now() - t0) / 1000;
+  const bytes = { sent: traffic.sent - sent0, received: traffic.received - received0 };
   await refreshReport();
-  const median = (xs) => [...xs].sort((a, b) => a - b)[xs.length >> 1];
+  const median = (xs) => (xs.length ? [...xs].sort((a, b) => a - b)[xs.length >> 1] : null);
+  // performance.now() is coarse (0.1 ms in Chromium): the means too.
+  const mean = (xs) => (xs.length ? xs.reduce((a, b) => a + b, 0) / xs.length : null);
   return {
     frames,
+    path: client ? 'client' : 'server',
     seconds,
     fps: frames / seconds,
     rendered: render,
+    bytesPerFrame: (bytes.sent + bytes.received) / frames,
+    bytes,
+    jsMedianMs: median(phases.js),
+    jsMeanMs: mean(phases.js),
+    uploadMeanMs: mean(phases.upload),
+    renderMeanMs: mean(phases.render),
+    uploadMedianMs: median(phases.upload),
+    renderMedianMs: median(phases.render),
     serverFrameMedianMs: median(phases.server),
     serverRequestMedianMs: median(phases.request),
     postMedianMs: median(phases.post),
     downloadMedianMs: median(phases.download),
-    renderMedianMs: median(phases.render),
   };
 };
+
+// The 3 × 4 transform of group `name` as the page holds it (tests).
+window.editor.matrixOf = (name) => matrixOf(transformOf(name));
+
+// The positions the page displays (f32, n × 3): on the client path read
+// back from the vertex shader (transform feedback), else the server's.
+window.editor.displayedPositions = () => (state.basisGroups ? view.readBack() : view.positions);
 
 // --- events ----------------------------------------------------------------
 
@@ -343,11 +457,11 @@ function setupEvents() {
       const scale = (2 * view.distance * Math.tan(0.4)) / canvas.clientHeight;
       const tr = transformOf(state.group);
       tr.t = [0, 1, 2].map((c) => drag.start.t[c] + scale * (dx * r[c] - dy * u[c]));
-      sendFrame(state.group);
+      dragFrame(state.group);
     } else if (drag.tool === 'rotate') {
       const tr = transformOf(state.group);
       tr.angle = drag.start.angle + 0.01 * dx;
-      sendFrame(state.group);
+      dragFrame(state.group);
     }
   });
   canvas.addEventListener('pointerup', () => {
@@ -361,7 +475,7 @@ function setupEvents() {
     } else if (d.tool === 'brush' || d.tool === 'erase') {
       applyConstraints();
     } else if (d.tool === 'move' || d.tool === 'rotate') {
-      refreshReport();
+      release(state.group);
     }
   });
   canvas.addEventListener('wheel', (e) => {
