@@ -143,7 +143,14 @@ async function syncBasis() {
 // The HUD's line: frames per second, the path, what is displayed and saved.
 function showPath() {
   const where = state.basisGroups ? 'client: f32 basis in the shader' : `server: f32 positions ${window.editor.stats.serverFrameMs.at(-1)?.toFixed(2) ?? '–'} ms`;
-  $('hud').textContent = `${window.editor.stats.fps.toFixed(1)} fps · ${where} · saved mesh exact f64`;
+  $('hud').textContent = `${window.editor.stats.fps.toFixed(1)} fps · ${where}${arapRate()} · saved mesh exact f64`;
+}
+
+// ARAP's iterations per second on the server (the median iteration of the
+// last report), or nothing for the Laplacian energy.
+function arapRate() {
+  const t = state.report?.arap?.time_per_iteration_s;
+  return t > 0 ? ` · ARAP ${(1 / t).toFixed(0)} iterations/s` : '';
 }
 
 // The transforms of the basis groups, in its order (identity if unmoved).
@@ -196,7 +203,7 @@ function renderReport() {
     'saved mesh  exact f64 (server)',
     ...(r.warnings || []).map((w) => `<span class="bad">warning: ${w.replace(/</g, '&lt;')}</span>`),
   ];
-  if (r.arap) lines.push(`ARAP        ${r.arap.iterations} iterations, energy ${fmt(r.arap.energies?.at(-1))}`);
+  if (r.arap) lines.push(`ARAP        ${r.arap.iterations} iterations, energy ${fmt(r.arap.energies?.at(-1))},${arapRate().replace(' · ARAP', '')} (median)`);
   $('report').innerHTML = lines.join('\n');
 }
 
