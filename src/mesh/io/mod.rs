@@ -570,3 +570,127 @@ fn write_format<W: Write>(mesh: &Mesh, w: W, format: MeshFormat) -> io::Result<(
         MeshFormat::Ply => write_ply(mesh, w, PlyEncoding::BinaryLittleEndian),
     }
 }
+
+/// A reader's result with I/O failures turned into a panic: the unit tests
+/// read from memory, where only [`ReadError::Mesh`] can occur.
+#[cfg(test)]
+fn unwrap_io(result: Result<LoadedMesh, ReadError>) -> Result<LoadedMesh, MeshError> {
+    match result {
+        Ok(loaded) => Ok(loaded),
+        Err(ReadError::Mesh(e)) => Err(e),
+        Err(ReadError::Io(e)) => panic!("unexpected I/O error: {e}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every line of `bytes` as (number, text), and whether the last line
+    /// lacked its newline.
+    fn all_lines(bytes: &[u8]) -> (Vec<(usize, Vec<u8>)>, bool) {
+        let mut lines = LineReader::new(bytes, "OBJ");
+        let mut out = Vec::new();
+        while let Ok(Some((n, text))) = lines.next_line() {
+            out.push((n, text.to_vec()));
+        }
+        (out, lines.missing_final_newline)
+    }
+
+    #[test]
+    fn line_reader_strips_one_lf_or_crlf_and_numbers_from_one() {
+        let (lines, missing) = all_lines(b"a\r\nb\n\nc\r\r\n d ");
+        let expected: Vec<(usize, Vec<u8>)> = vec![
+            (1, b"a".to_vec()),
+            (2, b"b".to_vec()),
+            (3, b"".to_vec()),
+            (4, b"c\r".to_vec()),
+            (5, b" d ".to_vec()),
+        ];
+        assert_eq!(lines, expected);
+        assert!(missing);
+        let (lines, missing) = all_lines(b"x\n");
+        assert_eq!(lines, vec![(1, b"x".to_vec())]);
+        assert!(!missing);
+    }
+
+    #[test]
+    fn line_reader_refuses_a_line_longer_than_the_limit() {
+        let endless = io::BufReader::new(io::repeat(b'x'));
+        let mut lines = LineReader::new(endless, "OFF");
+        match lines.next_line() {
+            Err(ReadError::Mesh(e)) => assert_eq!(
+                e,
+                MeshError::Parse {
+                    format: "OFF",
+                    line: Some(1),
+                    message: "the line is longer than 16.0 MiB (not a text OFF file?)".into(),
+                }
+            ),
+            Err(ReadError::Io(e)) => panic!("{e}"),
+            Ok(line) => panic!("read {:?}", line.map(|(n, t)| (n, t.len()))),
+        }
+        // The limit counts the line break: MAX_LINE_BYTES bytes with it, or
+        // at the end of the data without it, are a line; one more is not.
+        let mut bytes = vec![b'y'; MAX_LINE_BYTES - 1];
+        bytes.push(b'\n');
+        let mut lines = LineReader::new(&bytes[..], "OFF");
+        assert!(matches!(lines.next_line(), Ok(Some((1, t))) if t.len() == MAX_LINE_BYTES - 1));
+        let bytes = vec![b'y'; MAX_LINE_BYTES];
+        let mut lines = LineReader::new(&bytes[..], "OFF");
+        assert!(matches!(lines.next_line(), Ok(Some((1, t))) if t.len() == MAX_LINE_BYTES));
+        let mut bytes = vec![b'y'; MAX_LINE_BYTES];
+        bytes.push(b'\n');
+        let mut lines = LineReader::new(&bytes[..], "OFF");
+        assert!(matches!(
+            lines.next_line(),
+            Err(ReadError::Mesh(MeshError::Parse { line: Some(1), .. }))
+        ));
+    }
+
+    #[test]
+    fn comments_tokens_and_shown_tokens() {
+        assert_eq!(strip_comment(b"v 1 2 3 # note # more"), b"v 1 2 3 ");
+        assert_eq!(strip_comment(b"#only"), b"");
+        let t: Vec<&[u8]> = tokens(b"\t f  1/2/3\x0b 4 ").collect();
+        assert_eq!(t, vec![&b"f"[..], b"1/2/3\x0b", b"4"]);
+        assert_eq!(show(b"abc"), "abc");
+        let long = [b'z'; 41];
+        assert_eq!(show(&long), format!("{}…", "z".repeat(40)));
+        assert_eq!(show(b"\xff1"), "\u{fffd}1");
+    }
+
+    #[test]
+    fn builder_fans_polygons_and_numbers_a_bad_corner_by_its_triangle() {
+        let mut b = Builder::default();
+        b.polygon(&[7, 8, 9], Some(1)).unwrap();
+        b.polygon(&[0, 1, 2, 3, 4], Some(2)).unwrap();
+        assert_eq!(b.faces, vec![[7, 8, 9], [0, 1, 2], [0, 2, 3], [0, 3, 4]]);
+        assert_eq!(b.face_lines, vec![1, 2, 2, 2]);
+        assert_eq!((b.polygons_split, b.triangles_from_polygons), (1, 3));
+        // With 4 faces so far, corner 4 of the next polygon would land in
+        // its third triangle: face 4 + 2 = 6. Corners 0..=2 land in the first.
+        assert_eq!(
+            b.resolve(-2, 4, Some(3)),
+            Err(MeshError::IndexOutOfRange {
+                face: 6,
+                index: -2,
+                vertex_count: 0,
+                line: Some(3),
+            })
+        );
+        assert!(matches!(
+            b.resolve(-1, 1, None),
+            Err(MeshError::IndexOutOfRange { face: 4, .. })
+        ));
+        assert_eq!(b.resolve(5, 0, None), Ok(5));
+        assert_eq!(
+            b.polygon(&[1, 2], Some(9)),
+            Err(MeshError::BadFaceSize {
+                face: 4,
+                sides: 2,
+                line: Some(9),
+            })
+        );
+    }
+}

@@ -272,3 +272,230 @@ pub fn write_off<W: Write>(mesh: &Mesh, mut w: W) -> io::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::io::unwrap_io;
+
+    /// Reads `text` as a file of known size (the size check applies).
+    fn off(text: &str) -> Result<LoadedMesh, MeshError> {
+        unwrap_io(read_off(text.as_bytes(), Some(text.len() as u64)))
+    }
+
+    fn parse_error_at(line: usize, message: &str) -> MeshError {
+        MeshError::Parse {
+            format: "OFF",
+            line: Some(line),
+            message: message.into(),
+        }
+    }
+
+    const BODY: &str = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+
+    #[test]
+    fn header_and_counts_on_one_line_or_after_comments() {
+        let expected = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        for head in [
+            "# made by hand\n\nOFF # header\n# counts next\n3 1 0\n",
+            "off 3 1\n",
+            "STOFF\n3 1 0\n",
+            "CNOFF\n3 1 0\n",
+        ] {
+            let loaded = off(&format!("{head}{BODY}")).unwrap();
+            assert_eq!(loaded.mesh.positions(), &expected, "{head:?}");
+            assert_eq!(loaded.mesh.faces(), &[[0, 1, 2]], "{head:?}");
+            assert_eq!(loaded.notes, Vec::<String>::new(), "{head:?}");
+        }
+    }
+
+    #[test]
+    fn crlf_and_a_missing_final_newline_read_without_a_note() {
+        let loaded = off("OFF\r\n3 1 0\r\n0 0 0\r\n1 0 0\r\n0 1 0\r\n3 0 1 2").unwrap();
+        assert_eq!(loaded.mesh.faces(), &[[0, 1, 2]]);
+        assert_eq!(loaded.notes, Vec::<String>::new());
+    }
+
+    #[test]
+    fn counts_line_errors() {
+        assert_eq!(
+            off("OFF\n3\n").unwrap_err(),
+            parse_error_at(
+                2,
+                "expected the counts line 'vertices faces edges', but the face count is missing"
+            )
+        );
+        assert_eq!(
+            off("OFF\n-3 1 0\n").unwrap_err(),
+            parse_error_at(
+                2,
+                "invalid vertex count '-3' (expected a non-negative integer)"
+            )
+        );
+        assert_eq!(
+            off("OFF 3 1.0 0\n").unwrap_err(),
+            parse_error_at(
+                1,
+                "invalid face count '1.0' (expected a non-negative integer)"
+            )
+        );
+        // Without a header the first line is the counts line.
+        assert_eq!(
+            off("3 0 0\n0 0 0\n").unwrap_err(),
+            MeshError::Empty {
+                vertices: 3,
+                faces: 0
+            }
+        );
+        assert_eq!(
+            off("OFF\n# nothing else\n").unwrap_err(),
+            MeshError::Empty {
+                vertices: 0,
+                faces: 0
+            }
+        );
+    }
+
+    #[test]
+    fn counts_beyond_the_file_size_are_refused_before_reading() {
+        // 3 vertices and 9 faces need at least 3·6 + 9·8 = 90 bytes; the
+        // file has 36.
+        let text = format!("OFF\n3 9 0\n{BODY}");
+        assert_eq!(text.len(), 36);
+        assert_eq!(
+            off(&text).unwrap_err(),
+            parse_error_at(
+                2,
+                "the header declares 3 vertices and 9 faces, which need at least 90 bytes, but the whole file has only 36 bytes (wrong counts or truncated file)"
+            )
+        );
+        // Of unknown size (a gzip stream), the same file is read until it
+        // ends, and the error is where it ends.
+        match read_off(text.as_bytes(), None) {
+            Err(ReadError::Mesh(e)) => assert_eq!(
+                e,
+                parse_error_at(
+                    6,
+                    "the file ends after 1 of the 9 faces declared at line 2 (truncated file or wrong count)"
+                )
+            ),
+            Err(ReadError::Io(e)) => panic!("{e}"),
+            Ok(loaded) => panic!("{loaded:?}"),
+        }
+    }
+
+    #[test]
+    fn more_faces_than_declared_is_an_error_at_the_first_extra_line() {
+        let text = format!("OFF\n3 1 0\n{BODY}\n# trailing comment\n3 0 2 1\n");
+        assert_eq!(
+            off(&text).unwrap_err(),
+            parse_error_at(
+                9,
+                "unexpected data after the last of the 1 faces declared at line 2 (wrong counts in the header?)"
+            )
+        );
+    }
+
+    #[test]
+    fn vertex_and_face_line_errors() {
+        let with_face = |face: &str| off(&format!("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n{face}\n"));
+        assert_eq!(
+            with_face("3 0 1").unwrap_err(),
+            parse_error_at(6, "face 0 declares 3 vertices but only 2 indices follow")
+        );
+        assert_eq!(
+            with_face("x 0 1 2").unwrap_err(),
+            parse_error_at(6, "invalid vertex count 'x' at the start of a face line")
+        );
+        assert_eq!(
+            with_face("3 0 1 2.0").unwrap_err(),
+            parse_error_at(6, "invalid face index '2.0'")
+        );
+        assert_eq!(
+            with_face("2 0 1").unwrap_err(),
+            MeshError::BadFaceSize {
+                face: 0,
+                sides: 2,
+                line: Some(6)
+            }
+        );
+        // OFF indices are 0-based and never relative.
+        assert_eq!(
+            with_face("3 0 -1 2").unwrap_err(),
+            MeshError::IndexOutOfRange {
+                face: 0,
+                index: -1,
+                vertex_count: 3,
+                line: Some(6)
+            }
+        );
+        assert_eq!(
+            with_face("3 0 1 3").unwrap_err(),
+            MeshError::IndexOutOfRange {
+                face: 0,
+                index: 3,
+                vertex_count: 3,
+                line: Some(6)
+            }
+        );
+        // Extra values after the k indices (a face colour) are ignored.
+        assert_eq!(
+            with_face("3 2 1 0 0.5 0.5 0.5").unwrap().mesh.faces(),
+            &[[2, 1, 0]]
+        );
+        assert_eq!(
+            off("OFF\n3 1 0\n0 0 0\n1 0\n0 1 0\n3 0 1 2\n").unwrap_err(),
+            parse_error_at(4, "expected 3 coordinates for vertex 1, found 2")
+        );
+    }
+
+    fn awkward_triangle() -> Mesh {
+        Mesh::new(
+            vec![
+                [-0.0, 0.1, 1e21],
+                [1.0, 0.30000000000000004, -3.0],
+                [1e-7, 0.0, 123456789.0],
+            ],
+            vec![[2, 0, 1]],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn writer_text_is_zero_based_with_an_edge_count_of_zero() {
+        let mut out = Vec::new();
+        write_off(&awkward_triangle(), &mut out).unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            "OFF\n3 1 0\n\
+             -0 0.1 1000000000000000000000\n\
+             1 0.30000000000000004 -3\n\
+             0.0000001 0 123456789\n\
+             3 2 0 1\n"
+        );
+    }
+
+    #[test]
+    fn write_then_read_is_bit_identical() {
+        let mut out = Vec::new();
+        write_off(&awkward_triangle(), &mut out).unwrap();
+        let back = unwrap_io(read_off(&out[..], Some(out.len() as u64))).unwrap();
+        assert_eq!(back.notes, Vec::<String>::new());
+        assert_eq!(back.mesh.faces(), &[[2, 0, 1]]);
+        let bits: Vec<[u64; 3]> = back
+            .mesh
+            .positions()
+            .iter()
+            .map(|p| p.map(f64::to_bits))
+            .collect();
+        let expected: Vec<[u64; 3]> = [
+            [-0.0, 0.1, 1e21],
+            [1.0, 0.30000000000000004, -3.0],
+            [1e-7, 0.0, 123456789.0],
+        ]
+        .iter()
+        .map(|p| p.map(f64::to_bits))
+        .collect();
+        assert_eq!(bits, expected);
+    }
+}

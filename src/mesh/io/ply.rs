@@ -471,3 +471,299 @@ pub fn write_ply<W: Write>(mesh: &Mesh, mut w: W, encoding: PlyEncoding) -> io::
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::io::unwrap_io;
+
+    fn ply(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
+        unwrap_io(read_ply(bytes))
+    }
+
+    fn parse_error(line: Option<usize>, message: &str) -> MeshError {
+        MeshError::Parse {
+            format: "PLY",
+            line,
+            message: message.into(),
+        }
+    }
+
+    fn with_payload(header: &str, payload: &[u8]) -> Vec<u8> {
+        let mut bytes = header.as_bytes().to_vec();
+        bytes.extend_from_slice(payload);
+        bytes
+    }
+
+    const SQUARE_AND_APEX: [[f64; 3]; 5] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [2.0, 0.5, 0.0],
+    ];
+
+    #[test]
+    fn ascii_faces_before_vertices_with_properties_in_any_order() {
+        // 'vertex_index' with int counts, the face element first, and the
+        // vertex element's x, y, z among an ignored list and scalar.
+        let text = "ply\nformat ascii 1.0\n\
+                    element face 2\nproperty list int int vertex_index\n\
+                    element vertex 5\nproperty double z\nproperty list uchar float extra\n\
+                    property double x\nproperty uchar red\nproperty double y\nend_header\n\
+                    4 0 1 2 3\n3 1 4 2\n\
+                    0 2 9 9 0 7 0\n0 0 1 1 0\n0 1 5 1 1 1\n0 0 0 1 1\n0 0 2 0 0.5\n";
+        let loaded = ply(text.as_bytes()).unwrap();
+        assert_eq!(loaded.mesh.positions(), &SQUARE_AND_APEX);
+        assert_eq!(loaded.mesh.faces(), &[[0, 1, 2], [0, 2, 3], [1, 4, 2]]);
+        assert_eq!(
+            loaded.notes,
+            vec![
+                "1 PLY polygon(s) with more than 3 vertices were fan-triangulated into 2 triangles"
+                    .to_string()
+            ]
+        );
+    }
+
+    const BINARY_HEADER: &str = "ply\nformat binary_little_endian 1.0\nelement vertex 3\n\
+        property float x\nproperty float y\nproperty float z\n\
+        element face 1\nproperty list uchar char vertex_indices\nend_header\n";
+
+    /// The payload of a unit right triangle in [`BINARY_HEADER`]'s layout,
+    /// with the given face bytes.
+    fn triangle_payload(face: &[u8]) -> Vec<u8> {
+        let mut payload = Vec::new();
+        for c in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            payload.extend_from_slice(&c.to_le_bytes());
+        }
+        payload.extend_from_slice(face);
+        payload
+    }
+
+    #[test]
+    fn binary_char_indices_are_signed_and_uchar_ones_are_not() {
+        let good = with_payload(BINARY_HEADER, &triangle_payload(&[3, 0, 1, 2]));
+        assert_eq!(ply(&good).unwrap().mesh.faces(), &[[0, 1, 2]]);
+        // 0xff is −1 as a char: out of range, without a line (binary).
+        let bad = with_payload(BINARY_HEADER, &triangle_payload(&[3, 0, 1, 0xff]));
+        assert_eq!(
+            ply(&bad).unwrap_err(),
+            MeshError::IndexOutOfRange {
+                face: 0,
+                index: -1,
+                vertex_count: 3,
+                line: None,
+            }
+        );
+        // As a uchar it is 255.
+        let header = BINARY_HEADER.replace("uchar char", "uchar uchar");
+        assert_eq!(
+            ply(&with_payload(&header, &triangle_payload(&[3, 0, 1, 0xff]))).unwrap_err(),
+            MeshError::IndexOutOfRange {
+                face: 0,
+                index: 255,
+                vertex_count: 3,
+                line: None,
+            }
+        );
+    }
+
+    #[test]
+    fn truncated_binary_body_errors() {
+        // 36 bytes of vertices and a face needing at least 1 + 3 = 4: a quad
+        // cut after its third index passes the size check and ends inside
+        // the face.
+        let cut = with_payload(BINARY_HEADER, &triangle_payload(&[4, 0, 1, 2]));
+        assert_eq!(
+            ply(&cut).unwrap_err(),
+            parse_error(
+                None,
+                "the data ends inside 'face' element 0 of 1 (the header's counts do not match the data, or the file is truncated)"
+            )
+        );
+        // Cut inside the vertices: refused from the header's counts, at the
+        // line declaring the vertex element (line 3).
+        let payload = triangle_payload(&[]);
+        let short = with_payload(BINARY_HEADER, &payload[..35]);
+        assert_eq!(
+            ply(&short).unwrap_err(),
+            parse_error(
+                Some(3),
+                "the header declares 3 'vertex' elements, which need at least 36 bytes, but only 35 bytes follow the header (wrong count or truncated file)"
+            )
+        );
+    }
+
+    #[test]
+    fn bytes_after_the_last_element_are_an_error_unless_whitespace() {
+        let mut payload = triangle_payload(&[3, 0, 1, 2]);
+        payload.extend_from_slice(b"\n \r\n\t");
+        assert_eq!(
+            ply(&with_payload(BINARY_HEADER, &payload))
+                .unwrap()
+                .mesh
+                .faces(),
+            &[[0, 1, 2]]
+        );
+        // Counted from the first byte that is not whitespace.
+        payload.extend_from_slice(b"xy");
+        assert_eq!(
+            ply(&with_payload(BINARY_HEADER, &payload)).unwrap_err(),
+            parse_error(
+                None,
+                "2 bytes of data follow the last element (the header's element counts do not match the data)"
+            )
+        );
+    }
+
+    #[test]
+    fn least_element_sizes_by_encoding() {
+        let header = |format: &str| {
+            format!(
+                "ply\nformat {format} 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n\
+                 element face 1\nproperty list uchar int vertex_indices\nproperty list ushort float texcoord\n\
+                 element edge 1\nproperty list uchar int vertex_indices\n\
+                 element nothing 1\nend_header\n"
+            )
+        };
+        let sizes = |format: &str| -> Vec<u128> {
+            let text = header(format);
+            let parsed = Parser::<PlyElement>::new()
+                .read_header(&mut Reader::new(text.as_bytes()))
+                .unwrap();
+            parsed
+                .elements
+                .iter()
+                .map(|(name, def)| min_element_bytes(name, def, parsed.encoding))
+                .collect()
+        };
+        // vertex 3·4 + 1; face (1 + 3·4) + 2; an index list outside 'face'
+        // may be empty: 1; no properties: still 1.
+        assert_eq!(sizes("binary_big_endian"), vec![13, 15, 1, 1]);
+        // ASCII: a character and a separator per property.
+        assert_eq!(sizes("ascii"), vec![8, 4, 2, 1]);
+    }
+
+    fn awkward_triangle() -> Mesh {
+        Mesh::new(
+            vec![
+                [0.1, -0.0, 1e21],
+                [1.0, 0.30000000000000004, -3.0],
+                [5e-324, 0.0, 123456789.0],
+            ],
+            vec![[0, 1, 2]],
+        )
+        .unwrap()
+    }
+
+    const WRITTEN_HEADER: &str = "comment written by lse-deform\nelement vertex 3\n\
+        property double x\nproperty double y\nproperty double z\nelement face 1\n\
+        property list uchar int vertex_indices\nend_header\n";
+
+    #[test]
+    fn ascii_writer_text() {
+        let mesh = Mesh::new(
+            vec![[0.1, -0.0, 1e21], [1.0, 0.5, -3.0], [1e-7, 0.0, 2.0]],
+            vec![[2, 0, 1]],
+        )
+        .unwrap();
+        let mut out = Vec::new();
+        write_ply(&mesh, &mut out, PlyEncoding::Ascii).unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            format!(
+                "ply\nformat ascii 1.0\n{WRITTEN_HEADER}\
+                 0.1 -0 1000000000000000000000\n1 0.5 -3\n0.0000001 0 2\n3 2 0 1\n"
+            )
+        );
+    }
+
+    #[test]
+    fn binary_writer_bytes_in_both_byte_orders() {
+        let mesh = Mesh::new(
+            vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -2.0]],
+            vec![[0, 1, 2]],
+        )
+        .unwrap();
+        let one_be = [0x3f, 0xf0, 0, 0, 0, 0, 0, 0];
+        let minus_two_be = [0xc0, 0, 0, 0, 0, 0, 0, 0];
+        let zero = [0u8; 8];
+        let mut big: Vec<u8> = Vec::new();
+        for c in [
+            one_be,
+            zero,
+            zero,
+            zero,
+            one_be,
+            zero,
+            zero,
+            zero,
+            minus_two_be,
+        ] {
+            big.extend_from_slice(&c);
+        }
+        big.extend_from_slice(&[3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 2]);
+        let mut little: Vec<u8> = Vec::new();
+        for mut c in [
+            one_be,
+            zero,
+            zero,
+            zero,
+            one_be,
+            zero,
+            zero,
+            zero,
+            minus_two_be,
+        ] {
+            c.reverse();
+            little.extend_from_slice(&c);
+        }
+        little.extend_from_slice(&[3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+        for (encoding, word, payload) in [
+            (PlyEncoding::BinaryBigEndian, "binary_big_endian", big),
+            (
+                PlyEncoding::BinaryLittleEndian,
+                "binary_little_endian",
+                little,
+            ),
+        ] {
+            let mut out = Vec::new();
+            write_ply(&mesh, &mut out, encoding).unwrap();
+            let expected = with_payload(
+                &format!("ply\nformat {word} 1.0\n{WRITTEN_HEADER}"),
+                &payload,
+            );
+            assert_eq!(out, expected, "{word}");
+        }
+    }
+
+    #[test]
+    fn write_then_read_is_bit_identical_in_every_encoding() {
+        let expected: Vec<[u64; 3]> = [
+            [0.1, -0.0, 1e21],
+            [1.0, 0.30000000000000004, -3.0],
+            [5e-324, 0.0, 123456789.0],
+        ]
+        .iter()
+        .map(|p| p.map(f64::to_bits))
+        .collect();
+        for encoding in [
+            PlyEncoding::Ascii,
+            PlyEncoding::BinaryLittleEndian,
+            PlyEncoding::BinaryBigEndian,
+        ] {
+            let mut out = Vec::new();
+            write_ply(&awkward_triangle(), &mut out, encoding).unwrap();
+            let back = ply(&out).unwrap();
+            assert_eq!(back.notes, Vec::<String>::new(), "{encoding:?}");
+            assert_eq!(back.mesh.faces(), &[[0, 1, 2]], "{encoding:?}");
+            let bits: Vec<[u64; 3]> = back
+                .mesh
+                .positions()
+                .iter()
+                .map(|p| p.map(f64::to_bits))
+                .collect();
+            assert_eq!(bits, expected, "{encoding:?}");
+        }
+    }
+}
