@@ -17,7 +17,7 @@ use crate::mesh::Mesh;
 pub enum PlyEncoding {
     /// `format ascii 1.0`, coordinates in shortest round-trip decimal.
     Ascii,
-    /// `format binary_little_endian 1.0` (the default of [`write_mesh`]).
+    /// `format binary_little_endian 1.0` (the default of [`write_mesh`](super::write_mesh)).
     BinaryLittleEndian,
     /// `format binary_big_endian 1.0`.
     BinaryBigEndian,
