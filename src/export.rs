@@ -95,7 +95,7 @@ pub const META_FILE: &str = "meta.json";
 ///   problem's lengths are divided by: `X` times it is the deformed
 ///   positions, see [`crate::Deformer`]), `soft_weight_scale` (the factor
 ///   `length_unitᵃ` the soft rows of `A` and `C` carry on top of their
-///   weights, docs/units.md), `constraint_of_b_row`,
+///   weights, docs/units.md §3), `constraint_of_b_row`,
 ///   `constraint_of_soft_row` and `soft_weight_of_row` (the constraint
 ///   index of each row of `B` and of each soft row of `A`, and the soft
 ///   weight as given).

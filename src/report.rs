@@ -200,7 +200,7 @@ pub struct Report {
     /// Laplacian's entries (2 for `cotan` and `intrinsic-delaunay`, 0 for
     /// `uniform` and `cotan-symmetric`): it makes the assembled problem's
     /// minimiser that of the documented energy
-    /// `‖L(X − P)‖² + Σ w²‖b·X − d‖²` in the mesh's units (docs/units.md).
+    /// `‖L(X − P)‖² + Σ w²‖b·X − d‖²` in the mesh's units (docs/units.md §3).
     /// 1 for ARAP (its rows are dimensionless: `a = 0`); `None` for a
     /// problem given as matrices.
     pub soft_weight_scale: Option<f64>,

@@ -283,7 +283,7 @@ impl MixedScene {
 
 /// Many constraints through one vertex, appended to a [`FixedAndHandle`]
 /// scene: the legal but unkind inputs whose cost must stay proportional to
-/// their size (issue 14).
+/// their size.
 ///
 /// The *hub* is the free vertex (neither fixed nor in the handle) nearest to
 /// the middle of the axis; `count` constraints follow the base scene:

@@ -21,7 +21,7 @@
 //! 1e150 (unscaled, a Bunny at 1e±100 loses every triangle's area to
 //! overflow or underflow, and its system is singular). Soft weights are
 //! used as given ([`SoftWeightScale`] with `a = 0`, the report's
-//! `soft_weight_scale` 1; docs/units.md): a row of `A_E` is
+//! `soft_weight_scale` 1; docs/units.md §4): a row of `A_E` is
 //! `√(K A_t) ∇φ`, an area's square root (a length) times a gradient (one
 //! over a length), so its entries are dimensionless (the power of length
 //! in the operator's entries is `a = 0`), and `C_E` is a length; a soft

@@ -437,7 +437,7 @@ impl Prepared for PreparedPenalty {
         Ok(x)
     }
 
-    /// One step of the method of multipliers in residual form (DESIGN §6):
+    /// One step of the method of multipliers in residual form (docs/refinement.md §4):
     /// `D̃_{k+1} = D̃_k + (D − B X_k)`,
     /// `ΔX = K⁻¹ [Aᵀ(C − A X_k) + w² Bᵀ(D̃_{k+1} − B X_k)]`, same factor.
     /// The first part of the bracket also corrects the rounding drift of the

@@ -6,7 +6,7 @@
 //! alone loses about `log10(ε κ(N))` digits. One refinement step computes the
 //! residual of the **original** rows (`C − A X`, `D − B X`, never
 //! `AᵀC − AᵀA X`), maps it through the same factor to a correction `ΔX` and
-//! adds it (DESIGN §6):
+//! adds it (docs/refinement.md §1–§4):
 //!
 //! - null-space QR: `Δy = R1⁻ᵀ (D − B X)_kept` with the residual in twice
 //!   the working precision (a kept row close to dependence amplifies the
