@@ -21,8 +21,9 @@
 //! - [`mesh`] (types, I/O, validation, generators) → [`laplacian`] →
 //!   [`constraints`] (model and JSON file) → [`problem`] (assembly of
 //!   `A, C, B, D`);
-//! - [`backend`] (QR and SPD traits and their implementations) and
-//!   [`condition`] (condition-number estimates of the factored matrix) →
+//! - [`backend`] (QR and SPD traits and their implementations),
+//!   [`condition`] (condition-number estimates of the factored matrix) and
+//!   [`refinement`] (refinement modes, stop reasons, thresholds) →
 //!   [`report`] (diagnostics of a solve) → [`formulation`] (the paper's
 //!   method and its alternatives, refinement) → [`solver`] (precompute and
 //!   solve of any problem, including general ones from their matrices);
@@ -61,6 +62,7 @@ pub mod mtx;
 pub mod problem;
 #[cfg(feature = "python")]
 pub mod python;
+pub mod refinement;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod report;

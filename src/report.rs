@@ -206,11 +206,11 @@ pub struct Report {
     pub soft_weight_scale: Option<f64>,
     /// Iterative refinement of the last solve: steps, the size of every
     /// correction, why it stopped.
-    pub refinement: Option<crate::formulation::Refinement>,
+    pub refinement: Option<crate::refinement::Refinement>,
     /// The estimated forward error of the last solution, as the largest
-    /// vertex error over the length scale (see [`crate::formulation::refine`]
-    /// for how it is estimated); a warning is issued above
-    /// [`crate::formulation::FORWARD_ERROR_WARNING`].
+    /// vertex error over the length scale (docs/refinement.md §5 for how
+    /// it is estimated); a warning is issued above
+    /// [`crate::refinement::FORWARD_ERROR_WARNING`].
     pub forward_error_estimate: Option<f64>,
     /// The tolerance that classified skipped constraints as conflicting:
     /// a skipped constraint conflicts when its residual exceeds this times
@@ -223,7 +223,7 @@ pub struct Report {
     /// Things the user should know.
     pub warnings: Vec<String>,
     /// Estimate of the 2-norm condition number of the factored matrix,
-    /// when asked for ([`crate::formulation::Prepared::estimate_condition`]:
+    /// when asked for (`Prepared::estimate_condition` of the formulation:
     /// it costs solves, so it is not computed by default).
     pub condition_estimate: Option<crate::condition::ConditionEstimate>,
     /// The relative penalty weight `w` of hard rows (penalty formulation

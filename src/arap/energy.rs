@@ -42,6 +42,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, MatMut};
 use rayon::prelude::*;
 
+use super::rotations::{IDENTITY, Mat3, fit_rotation_fast};
 use crate::cpu::clear_upper_vector_state;
 use crate::mesh::Mesh;
 
@@ -93,12 +94,6 @@ impl std::str::FromStr for ArapEnergy {
         }
     }
 }
-
-/// A 3 × 3 matrix, row-major.
-pub type Mat3 = [[f64; 3]; 3];
-
-/// The identity rotation.
-pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -320,7 +315,7 @@ impl ArapTriangles {
         (0..self.n_vertices())
             .map(|i| {
                 let m = self.vertex_covariance(i, &blocks);
-                let (r, _) = super::rotations::fit_rotation_fast(&m.cross, &IDENTITY);
+                let (r, _) = fit_rotation_fast(&m.cross, &IDENTITY);
                 self.vertex_energy_from(i, &m, &r)
             })
             .sum()

@@ -87,9 +87,9 @@ pub mod energy;
 pub mod rotations;
 
 use energy::CovarianceBlock;
-use energy::IDENTITY;
-pub use energy::{ArapEnergy, ArapTriangles, Mat3};
-use rotations::{Fit, fit_rotation_fast};
+pub use energy::{ArapEnergy, ArapTriangles};
+pub use rotations::Mat3;
+use rotations::{Fit, IDENTITY, fit_rotation_fast};
 
 /// The initial guess of the iterations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
