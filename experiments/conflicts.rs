@@ -353,7 +353,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
                     } else {
                         sci(r.max_constraint_residual_relative)
                     },
-                    if r.method == "nullspace-qr" {
+                    if r.method == lse_deform::Method::NullSpaceQr {
                         format!(
                             "; rank {} of {} hard rows; redundant (dropped, satisfied anyway): {:?}; conflicting (dropped): {}",
                             r.rank.map(|k| k.to_string()).unwrap_or_default(),

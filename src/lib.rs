@@ -15,7 +15,8 @@
 //! is in the repository's `docs/` directory.
 //!
 //! Module map, imports pointing down:
-//! - foundations: [`error`], [`limits`] (the memory budget), [`atomic`]
+//! - foundations: [`error`], [`choice`] (typed configuration words and
+//!   their one parse error), [`limits`] (the memory budget), [`atomic`]
 //!   (every output file written whole or not at all), [`sparse`] (sparse
 //!   kernels: products, normal matrices), [`mtx`] (Matrix Market I/O);
 //! - [`mesh`] (types, I/O, validation, generators) → [`laplacian`] →
@@ -29,7 +30,8 @@
 //!   solve of any problem, including general ones from their matrices);
 //! - [`deform`] (the three-phase mesh API), [`handle`] (affine handles:
 //!   per-frame positions from a precomputed response basis), [`arap`]
-//!   (as-rigid-as-possible iterations on the same formulations), [`scene`]
+//!   (as-rigid-as-possible iterations on the same formulations), [`compare`]
+//!   (every formulation and back end against one reference), [`scene`]
 //!   (generated constraint scenes), [`export`] (Matrix Market files for
 //!   MATLAB/SciPy), [`interop`] (conversions to `sprs` and
 //!   `nalgebra-sparse`);
@@ -44,6 +46,8 @@
 pub mod arap;
 pub mod atomic;
 pub mod backend;
+pub mod choice;
+pub mod compare;
 pub mod condition;
 pub mod constraints;
 pub(crate) mod cpu;

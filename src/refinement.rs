@@ -6,6 +6,8 @@
 
 use serde::Serialize;
 
+use crate::error::ParseWordError;
+
 /// Whether and how far to refine a solution (the CLI's `--refine
 /// off|auto|N`; [`Refine::Until`] is for callers with an accuracy target,
 /// such as the response basis of the `handle` module).
@@ -30,21 +32,6 @@ pub enum Refine {
 }
 
 impl Refine {
-    /// Parses `off`, `auto` or a step count (the CLI's and Python's words).
-    pub fn parse(word: &str) -> Result<Refine, crate::error::ProblemError> {
-        match word {
-            "off" => Ok(Refine::Off),
-            "auto" => Ok(Refine::Auto),
-            n => n.parse::<usize>().map(Refine::Steps).map_err(|_| {
-                crate::error::ProblemError::InvalidArgument {
-                    message: format!(
-                        "refinement '{word}' is not one of off, auto or a number of steps"
-                    ),
-                }
-            }),
-        }
-    }
-
     /// The cap on steps.
     pub(crate) fn max_steps(self) -> usize {
         match self {
@@ -52,6 +39,35 @@ impl Refine {
             Refine::Auto | Refine::Until(_) => AUTO_MAX_STEPS,
             Refine::Steps(n) => n,
         }
+    }
+}
+
+impl std::str::FromStr for Refine {
+    type Err = ParseWordError;
+    /// Parses `off`, `auto` or a step count (the CLI's and Python's words).
+    ///
+    /// Errors: [`ParseWordError`] listing them.
+    fn from_str(word: &str) -> Result<Refine, ParseWordError> {
+        match word {
+            "off" => Ok(Refine::Off),
+            "auto" => Ok(Refine::Auto),
+            n => n
+                .parse::<usize>()
+                .map(Refine::Steps)
+                .map_err(|_| ParseWordError {
+                    what: "refinement",
+                    word: word.to_string(),
+                    expected: vec!["off", "auto", "a number of steps"],
+                }),
+        }
+    }
+}
+
+/// Serialised as its word (`off`, `auto`, a step count as a string,
+/// `until 1e-9`).
+impl Serialize for Refine {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
     }
 }
 
@@ -113,8 +129,8 @@ pub enum RefineStop {
 /// What refinement did, for the report.
 #[derive(Debug, Clone, PartialEq, Serialize, Default)]
 pub struct Refinement {
-    /// The mode asked for (`off`, `auto`, or the step count).
-    pub mode: String,
+    /// The mode asked for (serialised as `off`, `auto`, or the step count).
+    pub mode: Refine,
     /// Corrections applied.
     pub steps: usize,
     /// `max_i ‖ΔX_i‖₂ / length scale` of every correction computed, in order

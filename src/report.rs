@@ -2,6 +2,10 @@
 
 use serde::{Serialize, Serializer};
 
+use crate::backend::qr::QrKind;
+use crate::backend::spd::FactorKind;
+use crate::choice::Method;
+
 mod conflicts;
 pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources, conflict_warnings};
 
@@ -150,12 +154,12 @@ impl Timings {
 /// The report of a deformation.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Report {
-    /// The formulation (e.g. `nullspace-qr`).
-    pub method: String,
+    /// The formulation (serialised as its word, e.g. `nullspace-qr`).
+    pub method: Method,
     /// The QR back end, if the method uses one.
-    pub qr_backend: Option<String>,
-    /// The SPD (or symmetric indefinite) back end.
-    pub spd_backend: Option<String>,
+    pub qr_backend: Option<QrKind>,
+    /// The SPD back end's Cholesky, or the KKT method's `LDLᵀ`.
+    pub spd_backend: Option<FactorKind>,
     /// The Laplacian kind.
     pub laplacian: Option<String>,
     /// Number of vertices (unknowns).

@@ -82,18 +82,17 @@ impl ArapEnergy {
     }
 }
 
-impl std::str::FromStr for ArapEnergy {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "spokes" => Ok(ArapEnergy::Spokes),
-            "spokes-and-rims" => Ok(ArapEnergy::SpokesAndRims),
-            other => Err(format!(
-                "unknown ARAP energy '{other}' (expected spokes or spokes-and-rims)"
-            )),
-        }
+impl crate::choice::Word for ArapEnergy {
+    const WHAT: &'static str = "ARAP energy";
+    fn all() -> &'static [Self] {
+        &[ArapEnergy::Spokes, ArapEnergy::SpokesAndRims]
+    }
+    fn name(self) -> &'static str {
+        ArapEnergy::name(self)
     }
 }
+
+crate::choice::word_traits!(ArapEnergy);
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]

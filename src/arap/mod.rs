@@ -114,18 +114,17 @@ impl ArapInit {
     }
 }
 
-impl std::str::FromStr for ArapInit {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "rest" => Ok(ArapInit::Rest),
-            "linear" => Ok(ArapInit::Linear),
-            other => Err(format!(
-                "unknown ARAP initial guess '{other}' (expected rest or linear)"
-            )),
-        }
+impl crate::choice::Word for ArapInit {
+    const WHAT: &'static str = "ARAP initial guess";
+    fn all() -> &'static [Self] {
+        &[ArapInit::Rest, ArapInit::Linear]
+    }
+    fn name(self) -> &'static str {
+        ArapInit::name(self)
     }
 }
+
+crate::choice::word_traits!(ArapInit);
 
 /// What one call of [`ArapDeformer::iterate`] did.
 #[derive(Debug, Clone, Copy, PartialEq)]

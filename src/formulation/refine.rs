@@ -97,7 +97,7 @@ pub fn refine(
 ) -> Result<Refinement, Error> {
     let scale = positive_or_one(problem.length_scale());
     let mut out = Refinement {
-        mode: mode.to_string(),
+        mode,
         ..Refinement::default()
     };
     let track_constraints = !system.exact() && problem.b().nrows() > 0;

@@ -88,6 +88,19 @@ impl LaplacianKind {
     }
 }
 
+impl crate::choice::Word for LaplacianKind {
+    const WHAT: &'static str = "Laplacian";
+    fn all() -> &'static [Self] {
+        &LaplacianKind::ALL
+    }
+    fn name(self) -> &'static str {
+        LaplacianKind::name(self)
+    }
+    fn aliases() -> &'static [(&'static str, Self)] {
+        &[("cotangent", LaplacianKind::Cotangent)]
+    }
+}
+
 impl std::fmt::Display for LaplacianKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
@@ -95,17 +108,11 @@ impl std::fmt::Display for LaplacianKind {
 }
 
 impl std::str::FromStr for LaplacianKind {
-    type Err = String;
+    type Err = crate::error::ParseWordError;
+    /// Errors: [`ParseWordError`](crate::error::ParseWordError) listing the
+    /// kinds.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "uniform" => Ok(LaplacianKind::Uniform),
-            "cotan" | "cotangent" => Ok(LaplacianKind::Cotangent),
-            "cotan-symmetric" => Ok(LaplacianKind::CotangentSymmetric),
-            "intrinsic-delaunay" => Ok(LaplacianKind::IntrinsicDelaunay),
-            other => Err(format!(
-                "unknown Laplacian '{other}' (expected uniform, cotan, cotan-symmetric or intrinsic-delaunay)"
-            )),
-        }
+        <LaplacianKind as crate::choice::Word>::parse_word(s)
     }
 }
 
