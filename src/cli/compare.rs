@@ -13,6 +13,7 @@ use lse_deform::{Deformer, Error, LaplacianKind, Method, QrKind, SpdKind};
 
 use super::{check_outputs, constraints_for, load, show_after_a_second, write_text};
 
+/// Arguments of `compare`.
 #[derive(Args)]
 pub struct CompareArgs {
     /// Input mesh.

@@ -12,6 +12,7 @@ use lse_deform::{ConstraintSet, Deformer, Error, LaplacianKind, mesh};
 use super::summary::{check_strict, check_strict_conflicts, finish_report};
 use super::{MethodArgs, check_outputs, constraints_for, load, phase, write_text};
 
+/// Arguments of `deform`.
 #[derive(Args)]
 pub struct DeformArgs {
     /// Input mesh (.obj, .ply, .off, optionally .gz).
@@ -71,6 +72,7 @@ struct EnergyArgs {
     arap_init: ArapInit,
 }
 
+/// Runs `deform`: Laplacian editing, or ARAP with `--energy arap`.
 pub fn deform(a: DeformArgs) -> Result<(), Error> {
     check_outputs(Some(&a.output), a.report.as_deref())?;
     let mesh = load(&a.mesh)?;

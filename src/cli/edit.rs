@@ -7,6 +7,7 @@ use clap::Args;
 use lse_deform::Error;
 use lse_deform::error::ProblemError;
 
+/// Arguments of `edit`.
 #[derive(Args)]
 pub struct EditArgs {
     /// Input mesh.
@@ -39,6 +40,7 @@ pub struct EditArgs {
     idle_timeout: f64,
 }
 
+/// Runs the editor's server until it is stopped.
 pub fn edit(a: EditArgs) -> Result<(), Error> {
     let seconds = |name: &str, s: f64| {
         if s.is_finite() && s > 0.0 && s <= 1e6 {

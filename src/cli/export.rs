@@ -9,6 +9,7 @@ use lse_deform::{Deformer, Error, LaplacianKind, mesh};
 
 use super::{MethodArgs, constraints_for, load};
 
+/// Arguments of `export-system`.
 #[derive(Args)]
 pub struct ExportArgs {
     /// Input mesh.
@@ -26,6 +27,7 @@ pub struct ExportArgs {
     output: PathBuf,
 }
 
+/// Runs `export-system`.
 pub fn export_system(a: ExportArgs) -> Result<(), Error> {
     // Fail fast: the directory (created now, as the export would) must take
     // files before the mesh is read and the system factored.

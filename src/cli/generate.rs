@@ -6,6 +6,7 @@ use clap::Args;
 use lse_deform::mesh::generate::{self, GeneratedKind};
 use lse_deform::{Error, mesh};
 
+/// Arguments of `generate`.
 #[derive(Args)]
 pub struct GenerateArgs {
     /// icosphere, bumpy-sphere, grid, unsymmetric-grid or sliver.
@@ -21,6 +22,7 @@ pub struct GenerateArgs {
     output: PathBuf,
 }
 
+/// Runs `generate`: the mesh of the kind nearest the vertex count asked for.
 pub fn generate(a: GenerateArgs) -> Result<(), Error> {
     let kind = a.kind;
     mesh::check_mesh_output(&a.output)?;

@@ -8,6 +8,7 @@ use lse_deform::mesh::{Quality, Topology};
 
 use super::load;
 
+/// Arguments of `info`.
 #[derive(Args)]
 pub struct InfoArgs {
     /// Input mesh.
@@ -17,6 +18,7 @@ pub struct InfoArgs {
     json: bool,
 }
 
+/// Runs `info`, as text or JSON.
 pub fn info(a: InfoArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh)?;
     let topo = Topology::of(&mesh);

@@ -90,6 +90,7 @@ fn with_flag(e: ProblemError) -> Error {
     }
 }
 
+/// Writes one line to stdout; a closed pipe ends the process quietly.
 pub fn emit(line: String) {
     use std::io::Write;
     let mut stdout = std::io::stdout().lock();
@@ -130,6 +131,7 @@ pub fn show_after_a_second(bar: &ProgressBar) {
     });
 }
 
+/// Reads a mesh with a spinner, printing its notes and warnings.
 pub fn load(path: &Path) -> Result<mesh::Mesh, Error> {
     let bar = phase(&format!("reading {}", path.display()));
     let loaded = mesh::read_mesh(path)?;

@@ -10,6 +10,7 @@ use lse_deform::scene::{FixedAndHandle, MixedScene};
 
 use super::{check_outputs, load};
 
+/// Arguments of `scene`.
 #[derive(Args)]
 pub struct SceneArgs {
     /// Input mesh.
@@ -66,6 +67,7 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
     Ok(v)
 }
 
+/// Runs `scene`.
 pub fn scene(a: SceneArgs) -> Result<(), Error> {
     check_outputs(None, Some(&a.output))?;
     let mesh = load(&a.mesh)?;

@@ -11,6 +11,7 @@ use lse_deform::{Error, LseSolver, Report, mtx};
 use super::summary::finish_report;
 use super::{MethodArgs, check_outputs, phase};
 
+/// Arguments of `solve`.
 #[derive(Args)]
 pub struct SolveArgs {
     /// Directory holding A.mtx, C.mtx, B.mtx, D.mtx (and meta.json), as
@@ -65,6 +66,7 @@ fn matrix_path(
     }
 }
 
+/// Runs `solve`.
 pub fn solve(a: SolveArgs) -> Result<(), Error> {
     // Fail fast, as `deform` does: both outputs must be writable before
     // the matrices are read and factored.
