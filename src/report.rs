@@ -393,7 +393,7 @@ fn row_norm(problem: &crate::problem::LseProblem, k: usize) -> f64 {
         .sqrt()
 }
 
-/// The first vertex with a non-finite coordinate in `x`, if any.
-pub fn first_non_finite(x: &faer::Mat<f64>) -> Option<usize> {
+/// The first vertex (row) with a non-finite coordinate in `x`, if any.
+pub fn first_non_finite(x: faer::MatRef<'_, f64>) -> Option<usize> {
     (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !x[(i, c)].is_finite()))
 }

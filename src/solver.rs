@@ -52,7 +52,9 @@ use crate::formulation::{
     FORWARD_ERROR_WARNING, Formulation, Method, Prepared, Refine, RefineStop, Refinement, refine,
 };
 use crate::problem::{LseProblem, RHS_BLOCK};
-use crate::report::{ConflictSources, Report, conflict_warnings, fill_solution_diagnostics};
+use crate::report::{
+    ConflictSources, Report, conflict_warnings, fill_solution_diagnostics, first_non_finite,
+};
 
 /// A problem with its precomputed system and the report of the last
 /// precompute and solve.
@@ -355,7 +357,7 @@ impl LseSolver {
 
 /// The first non-finite row of `x` as an error.
 fn check_finite(x: MatRef<'_, f64>) -> Result<(), Error> {
-    match (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !x[(i, c)].is_finite())) {
+    match first_non_finite(x) {
         Some(row) => Err(NumericalError::NonFiniteSolution { vertex: row }.into()),
         None => Ok(()),
     }

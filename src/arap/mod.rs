@@ -600,7 +600,7 @@ impl ArapDeformer {
     /// the mesh's units is not finite.
     fn first_non_finite_in_mesh_units(&self, x: &Mat<f64>) -> Option<usize> {
         if self.unit <= 1.0 {
-            return first_non_finite(x);
+            return first_non_finite(x.as_ref());
         }
         let unit = self.unit;
         (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !(x[(i, c)] * unit).is_finite()))

@@ -755,7 +755,7 @@ impl Prepared for PreparedKkt {
             .into());
         }
         let x = y.submatrix(0, 0, n, k).to_owned();
-        if let Some(vertex) = first_non_finite(&x) {
+        if let Some(vertex) = first_non_finite(x.as_ref()) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
         self.multipliers = y.submatrix(n, 0, m, k).to_owned();

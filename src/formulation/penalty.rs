@@ -302,7 +302,7 @@ impl PenaltySweep {
         let backward_error = backward_error(prepared.lower.as_ref(), &x, &rhs);
         let forward_error_estimate = prepared.forward_error_estimate(&x, &rhs);
         let refinement = refine(&mut prepared, problem, &mut x, mode)?;
-        if let Some(vertex) = first_non_finite(&x) {
+        if let Some(vertex) = first_non_finite(x.as_ref()) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
         let max_constraint_residual = (0..problem.b().nrows())
@@ -393,7 +393,7 @@ impl PreparedPenalty {
         );
         let mut x = rhs.clone();
         self.factor.solve_in_place(x.as_mut());
-        if let Some(vertex) = first_non_finite(&x) {
+        if let Some(vertex) = first_non_finite(x.as_ref()) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
         Ok((x, rhs))
