@@ -1,0 +1,509 @@
+//! PLY, ASCII and binary (both byte orders), through `ply_rs_bw`: vertex
+//! `x y z` of any scalar type, face index lists of any integer type.
+
+use std::io::{self, Write};
+
+use ply_rs_bw::parser::{Parser, Reader};
+use ply_rs_bw::ply::{
+    ElementDef, Encoding, PropertyAccess, PropertyAccessResult, PropertyType, ScalarType,
+};
+
+use super::{Builder, LoadedMesh, PlyEncoding, ReadError, check_declared_counts, tokens};
+use crate::error::MeshError;
+use crate::mesh::Mesh;
+
+/// Face-index list of a PLY element, in the file's integer type.
+enum IndexList {
+    I8(Vec<i8>),
+    U8(Vec<u8>),
+    I16(Vec<i16>),
+    U16(Vec<u16>),
+    I32(Vec<i32>),
+    U32(Vec<u32>),
+}
+
+impl IndexList {
+    fn to_i64(&self) -> Vec<i64> {
+        match self {
+            IndexList::I8(v) => v.iter().map(|&x| i64::from(x)).collect(),
+            IndexList::U8(v) => v.iter().map(|&x| i64::from(x)).collect(),
+            IndexList::I16(v) => v.iter().map(|&x| i64::from(x)).collect(),
+            IndexList::U16(v) => v.iter().map(|&x| i64::from(x)).collect(),
+            IndexList::I32(v) => v.iter().map(|&x| i64::from(x)).collect(),
+            IndexList::U32(v) => v.iter().map(|&x| i64::from(x)).collect(),
+        }
+    }
+}
+
+/// One decoded PLY element: the properties we use, the rest ignored.
+struct PlyElement {
+    xyz: [f64; 3],
+    indices: Option<IndexList>,
+}
+
+fn xyz_slot(name: &str) -> Option<usize> {
+    match name {
+        "x" => Some(0),
+        "y" => Some(1),
+        "z" => Some(2),
+        _ => None,
+    }
+}
+
+fn is_index_list(name: &str) -> bool {
+    name == "vertex_indices" || name == "vertex_index"
+}
+
+impl PlyElement {
+    fn scalar(&mut self, name: &str, value: f64) -> PropertyAccessResult {
+        match xyz_slot(name) {
+            Some(k) => {
+                self.xyz[k] = value;
+                PropertyAccessResult::Set
+            }
+            None => PropertyAccessResult::Ignored,
+        }
+    }
+
+    fn list(&mut self, name: &str, list: IndexList) -> PropertyAccessResult {
+        if is_index_list(name) {
+            self.indices = Some(list);
+            PropertyAccessResult::Set
+        } else {
+            PropertyAccessResult::Ignored
+        }
+    }
+}
+
+impl PropertyAccess for PlyElement {
+    fn new() -> Self {
+        PlyElement {
+            xyz: [0.0; 3],
+            indices: None,
+        }
+    }
+    fn set_char(&mut self, name: &str, v: i8) -> PropertyAccessResult {
+        self.scalar(name, f64::from(v))
+    }
+    fn set_uchar(&mut self, name: &str, v: u8) -> PropertyAccessResult {
+        self.scalar(name, f64::from(v))
+    }
+    fn set_short(&mut self, name: &str, v: i16) -> PropertyAccessResult {
+        self.scalar(name, f64::from(v))
+    }
+    fn set_ushort(&mut self, name: &str, v: u16) -> PropertyAccessResult {
+        self.scalar(name, f64::from(v))
+    }
+    fn set_int(&mut self, name: &str, v: i32) -> PropertyAccessResult {
+        self.scalar(name, f64::from(v))
+    }
+    fn set_uint(&mut self, name: &str, v: u32) -> PropertyAccessResult {
+        self.scalar(name, f64::from(v))
+    }
+    fn set_float(&mut self, name: &str, v: f32) -> PropertyAccessResult {
+        self.scalar(name, f64::from(v))
+    }
+    fn set_double(&mut self, name: &str, v: f64) -> PropertyAccessResult {
+        self.scalar(name, v)
+    }
+    fn set_list_char(&mut self, name: &str, v: Vec<i8>) -> PropertyAccessResult {
+        self.list(name, IndexList::I8(v))
+    }
+    fn set_list_uchar(&mut self, name: &str, v: Vec<u8>) -> PropertyAccessResult {
+        self.list(name, IndexList::U8(v))
+    }
+    fn set_list_short(&mut self, name: &str, v: Vec<i16>) -> PropertyAccessResult {
+        self.list(name, IndexList::I16(v))
+    }
+    fn set_list_ushort(&mut self, name: &str, v: Vec<u16>) -> PropertyAccessResult {
+        self.list(name, IndexList::U16(v))
+    }
+    fn set_list_int(&mut self, name: &str, v: Vec<i32>) -> PropertyAccessResult {
+        self.list(name, IndexList::I32(v))
+    }
+    fn set_list_uint(&mut self, name: &str, v: Vec<u32>) -> PropertyAccessResult {
+        self.list(name, IndexList::U32(v))
+    }
+}
+
+fn scalar_size(t: &ScalarType) -> u128 {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+fn is_integer(t: &ScalarType) -> bool {
+    !matches!(t, ScalarType::Float | ScalarType::Double)
+}
+
+/// Least number of payload bytes one element can take: binary, the scalar
+/// sizes plus the count of each list (lists may be empty); ASCII, one
+/// character and one separator per property. At least 1 either way. In a
+/// binary file the vertex index list of a face counts with three items: a
+/// face with fewer vertices is refused anyway, so this stays a lower bound
+/// for every file the reader accepts, and a header that overstates its
+/// vertex count is caught here instead of face bytes being misread as
+/// coordinates. (In ASCII a short face is reported with its line instead.)
+fn min_element_bytes(name: &str, def: &ElementDef, encoding: Encoding) -> u128 {
+    let is_face_indices = |prop: &str| name == "face" && is_index_list(prop);
+    let n: u128 = match encoding {
+        Encoding::Ascii => 2 * def.properties.len() as u128,
+        Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => def
+            .properties
+            .iter()
+            .map(|(prop, p)| match &p.data_type {
+                PropertyType::Scalar(t) => scalar_size(t),
+                PropertyType::List(count, item) if is_face_indices(prop) => {
+                    scalar_size(count) + 3 * scalar_size(item)
+                }
+                PropertyType::List(count, _) => scalar_size(count),
+            })
+            .sum(),
+    };
+    n.max(1)
+}
+
+/// The message of a `ply-rs-bw` error, without its line prefix.
+fn ply_message(e: &ply_rs_bw::parser::ParseError) -> String {
+    match ply_error(e) {
+        MeshError::Parse { message, .. } => message,
+        other => other.to_string(),
+    }
+}
+
+/// A `ply-rs-bw` error as a [`MeshError`]: its line kept, its message made
+/// single-line and bounded in length.
+fn ply_error(e: &ply_rs_bw::parser::ParseError) -> MeshError {
+    let mut message = e.to_string();
+    if let Some(l) = e.line() {
+        let prefix = format!("Line {l}: ");
+        if let Some(rest) = message.strip_prefix(&prefix) {
+            message = rest.to_string();
+        }
+    }
+    let mut message = message.replace("\n\t", "; ").replace('\n', " ");
+    if message.chars().count() > 300 {
+        message = format!("{}…", message.chars().take(300).collect::<String>());
+    }
+    MeshError::Parse {
+        format: "PLY",
+        line: e.line(),
+        message,
+    }
+}
+
+fn ply_header_error(line: Option<usize>, message: impl Into<String>) -> MeshError {
+    MeshError::Parse {
+        format: "PLY",
+        line,
+        message: message.into(),
+    }
+}
+
+pub(super) fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
+    const F: &str = "PLY";
+    let parser = Parser::<PlyElement>::new();
+    let mut reader = Reader::new(bytes);
+    let header = parser.read_header(&mut reader).map_err(|e| ply_error(&e))?;
+    let mut payload: &[u8] = reader.into_inner();
+    let header_bytes = bytes.get(..bytes.len() - payload.len()).unwrap_or_default();
+    let header_lines = header_bytes.iter().filter(|&&c| c == b'\n').count();
+    // 1-based header line declaring each element, for messages.
+    let element_line = |name: &str| -> Option<usize> {
+        header_bytes
+            .split(|&c| c == b'\n')
+            .position(|l| {
+                let mut t = tokens(l);
+                t.next() == Some(b"element") && t.next() == Some(name.as_bytes())
+            })
+            .map(|i| i + 1)
+    };
+
+    // The header must describe a triangle mesh we can read.
+    let vertex_def = header
+        .elements
+        .get("vertex")
+        .ok_or_else(|| ply_header_error(None, "the header declares no 'vertex' element"))?;
+    for name in ["x", "y", "z"] {
+        match vertex_def.properties.get(name).map(|p| &p.data_type) {
+            Some(PropertyType::Scalar(_)) => {}
+            Some(PropertyType::List(..)) => {
+                return Err(ply_header_error(
+                    element_line("vertex"),
+                    format!("vertex property '{name}' is a list; expected a number"),
+                )
+                .into());
+            }
+            None => {
+                return Err(ply_header_error(
+                    element_line("vertex"),
+                    format!("the 'vertex' element has no property '{name}'"),
+                )
+                .into());
+            }
+        }
+    }
+    let Some(face_def) = header.elements.get("face") else {
+        let hint = if header.elements.contains_key("tristrips") {
+            " (triangle strips, element 'tristrips', are not supported: convert them to faces)"
+        } else {
+            " (a point cloud has no triangles to deform)"
+        };
+        return Err(
+            ply_header_error(None, format!("the header declares no 'face' element{hint}")).into(),
+        );
+    };
+    let index_prop = face_def
+        .properties
+        .iter()
+        .find(|(name, _)| is_index_list(name))
+        .map(|(_, p)| p);
+    match index_prop.map(|p| &p.data_type) {
+        Some(PropertyType::List(count, item)) if is_integer(count) && is_integer(item) => {}
+        Some(t) => {
+            return Err(ply_header_error(
+                element_line("face"),
+                format!(
+                    "face property 'vertex_indices' has type {t:?}; expected a list of integers"
+                ),
+            )
+            .into());
+        }
+        None => {
+            return Err(ply_header_error(
+                element_line("face"),
+                "the 'face' element has no list property 'vertex_indices' (or 'vertex_index')",
+            )
+            .into());
+        }
+    }
+
+    // The declared counts must fit in the bytes that follow the header.
+    let mut needed: u128 = 0;
+    let mut declared: Vec<String> = Vec::new();
+    for (name, def) in &header.elements {
+        needed = needed
+            .saturating_add(def.count as u128 * min_element_bytes(name, def, header.encoding));
+        declared.push(format!("{} '{name}'", def.count));
+        let slack = u128::from(header.encoding == Encoding::Ascii);
+        if needed > payload.len() as u128 + slack {
+            return Err(ply_header_error(
+                element_line(name),
+                format!(
+                    "the header declares {} elements, which need at least {needed} bytes, but only {} bytes follow the header (wrong count or truncated file)",
+                    declared.join(" and "),
+                    payload.len()
+                ),
+            )
+            .into());
+        }
+    }
+
+    check_declared_counts(vertex_def.count, face_def.count)?;
+    let mut b = Builder::default();
+    b.positions.reserve(vertex_def.count);
+    let ascii = header.encoding == Encoding::Ascii;
+    let mut line = header_lines;
+    let mut deferred: Option<MeshError> = None;
+    for (name, def) in &header.elements {
+        let is_vertex = name == "vertex";
+        let is_face = name == "face";
+        for i in 0..def.count {
+            let element = match header.encoding {
+                Encoding::Ascii => {
+                    if payload.is_empty() {
+                        return Err(ply_header_error(
+                            Some(line),
+                            format!(
+                                "the data ends after {i} of the {} '{name}' elements (the header's counts do not match the data, or the file is truncated)",
+                                def.count
+                            ),
+                        )
+                        .into());
+                    }
+                    let end = payload
+                        .iter()
+                        .position(|&c| c == b'\n')
+                        .map_or(payload.len(), |p| p + 1);
+                    let (text, rest) = payload.split_at(end);
+                    payload = rest;
+                    line += 1;
+                    let text = std::str::from_utf8(text).map_err(|_| {
+                        ply_header_error(Some(line), "the line is not valid text (UTF-8)")
+                    })?;
+                    parser
+                        .read_ascii_element(text, def)
+                        .map_err(|e| ply_header_error(Some(line), ply_message(&e)))?
+                }
+                Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
+                    let r = if header.encoding == Encoding::BinaryLittleEndian {
+                        parser.read_little_endian_element(&mut payload, def)
+                    } else {
+                        parser.read_big_endian_element(&mut payload, def)
+                    };
+                    r.map_err(|e| {
+                        if e.kind() == io::ErrorKind::UnexpectedEof {
+                            ply_header_error(
+                                None,
+                                format!(
+                                    "the data ends inside '{name}' element {i} of {} (the header's counts do not match the data, or the file is truncated)",
+                                    def.count
+                                ),
+                            )
+                        } else {
+                            ply_header_error(
+                                None,
+                                format!("'{name}' element {i}: {}", ply_message(&e)),
+                            )
+                        }
+                    })?
+                }
+            };
+            let here = ascii.then_some(line);
+            let result = if is_vertex {
+                b.vertex(element.xyz, here)
+            } else if is_face {
+                let indices = element
+                    .indices
+                    .as_ref()
+                    .map(IndexList::to_i64)
+                    .unwrap_or_default();
+                indices
+                    .iter()
+                    .enumerate()
+                    .map(|(corner, &index)| b.resolve(index, corner, here))
+                    .collect::<Result<Vec<usize>, MeshError>>()
+                    .and_then(|poly| b.polygon(&poly, here))
+            } else {
+                Ok(())
+            };
+            if let Err(e) = result {
+                // Report it only once the data proved structurally sound: if
+                // the counts do not match the data, a garbage value here is a
+                // symptom, and the mismatch is the error to report.
+                deferred.get_or_insert(e);
+            }
+        }
+    }
+    if let Some(p) = payload.iter().position(|c| !c.is_ascii_whitespace()) {
+        let extra = payload.len() - p;
+        return Err(ply_header_error(
+            ascii.then_some(line + 1),
+            format!(
+                "{extra} bytes of data follow the last element (the header's element counts do not match the data)"
+            ),
+        )
+        .into());
+    }
+    if let Some(e) = deferred {
+        return Err(e.into());
+    }
+    Ok(b.finish(F, Vec::new())?)
+}
+
+/// Writes PLY with `property double x, y, z` and
+/// `property list uchar int vertex_indices`. Fails with
+/// `io::ErrorKind::InvalidInput` if a vertex index does not fit in a 32-bit
+/// signed `int`. Pass a buffered writer for speed.
+pub fn write_ply<W: Write>(mesh: &Mesh, mut w: W, encoding: PlyEncoding) -> io::Result<()> {
+    if i32::try_from(mesh.n_vertices()).is_err() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "{} vertices: PLY 'int' vertex indices cannot address more than {} vertices",
+                mesh.n_vertices(),
+                i32::MAX
+            ),
+        ));
+    }
+    let format = match encoding {
+        PlyEncoding::Ascii => "ascii",
+        PlyEncoding::BinaryLittleEndian => "binary_little_endian",
+        PlyEncoding::BinaryBigEndian => "binary_big_endian",
+    };
+    write!(
+        w,
+        "ply\nformat {format} 1.0\ncomment written by lse-deform\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        mesh.n_vertices(),
+        mesh.n_faces()
+    )?;
+    // Indices are < n_vertices ≤ i32::MAX (checked above).
+    let idx = |i: usize| i32::try_from(i).unwrap_or(i32::MAX);
+    match encoding {
+        PlyEncoding::Ascii => {
+            for p in mesh.positions() {
+                writeln!(w, "{} {} {}", p[0], p[1], p[2])?;
+            }
+            for f in mesh.faces() {
+                writeln!(w, "3 {} {} {}", f[0], f[1], f[2])?;
+            }
+        }
+        PlyEncoding::BinaryLittleEndian | PlyEncoding::BinaryBigEndian => {
+            let le = encoding == PlyEncoding::BinaryLittleEndian;
+            let f64_bytes = |x: f64| if le { x.to_le_bytes() } else { x.to_be_bytes() };
+            let i32_bytes = |x: i32| if le { x.to_le_bytes() } else { x.to_be_bytes() };
+            for p in mesh.positions() {
+                for &c in p {
+                    w.write_all(&f64_bytes(c))?;
+                }
+            }
+            for f in mesh.faces() {
+                w.write_all(&[3])?;
+                for &i in f {
+                    w.write_all(&i32_bytes(idx(i)))?;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{MeshFormat, read_mesh_bytes};
+    use super::*;
+
+    const ASCII: &str = "ply\nformat ascii 1.0\ncomment a square\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
+
+    #[test]
+    fn ascii_polygons_are_fanned() {
+        let m = read_mesh_bytes(ASCII.as_bytes(), MeshFormat::Ply)
+            .unwrap()
+            .mesh;
+        assert_eq!(m.n_vertices(), 4);
+        assert_eq!(m.faces(), &[[0, 1, 2], [0, 2, 3]]);
+    }
+
+    #[test]
+    fn missing_elements_and_bad_indices_are_refused() {
+        let no_faces = ASCII.replace("element face 1\n", "element face 2\n");
+        assert!(read_mesh_bytes(no_faces.as_bytes(), MeshFormat::Ply).is_err());
+        let bad = ASCII.replace("4 0 1 2 3\n", "4 0 1 2 7\n");
+        assert!(read_mesh_bytes(bad.as_bytes(), MeshFormat::Ply).is_err());
+        assert!(read_mesh_bytes(b"plx\n", MeshFormat::Ply).is_err());
+    }
+
+    #[test]
+    fn every_encoding_reads_back_bit_for_bit() {
+        let p = vec![
+            [0.1, -2.5e-300, 1e300],
+            [1.0 / 3.0, 0.0, -0.0],
+            [7.0, 8.0, 9.0],
+        ];
+        let mesh = Mesh::new(p.clone(), vec![[0, 1, 2]]).unwrap();
+        for encoding in [
+            PlyEncoding::Ascii,
+            PlyEncoding::BinaryLittleEndian,
+            PlyEncoding::BinaryBigEndian,
+        ] {
+            let mut bytes = Vec::new();
+            write_ply(&mesh, &mut bytes, encoding).unwrap();
+            let back = read_mesh_bytes(&bytes, MeshFormat::Ply).unwrap().mesh;
+            assert_eq!(back.positions(), &p[..], "{encoding:?}");
+            assert_eq!(back.faces(), mesh.faces(), "{encoding:?}");
+        }
+    }
+}
