@@ -1,6 +1,7 @@
 //! Typed configuration choices: the [`Word`] trait every word enum
 //! implements (its names, aliases and the one [`ParseWordError`]), and
-//! [`Method`] and [`Energy`], the formulation and energy choices. Front doors (CLI, Python, the
+//! the choices that reports carry: [`Method`], [`Energy`], [`ArapEnergy`],
+//! [`ArapInit`]. Front doors (CLI, Python, the
 //! editor) parse words into these types; inside the library only the types
 //! travel. The report serialises them back as the same words.
 
@@ -175,6 +176,75 @@ impl Word for Energy {
 }
 
 word_traits!(Energy);
+
+/// Which ARAP energy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum ArapEnergy {
+    /// Sorkine & Alexa 2007: each vertex's rotation applies to its spokes.
+    Spokes,
+    /// Chao et al. 2010: each vertex's rotation applies to every edge of
+    /// its incident triangles (libigl's default for triangle meshes).
+    #[default]
+    SpokesAndRims,
+}
+
+impl ArapEnergy {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            ArapEnergy::Spokes => "spokes",
+            ArapEnergy::SpokesAndRims => "spokes-and-rims",
+        }
+    }
+}
+
+impl Word for ArapEnergy {
+    const WHAT: &'static str = "ARAP energy";
+    fn all() -> &'static [Self] {
+        &[ArapEnergy::Spokes, ArapEnergy::SpokesAndRims]
+    }
+    fn name(self) -> &'static str {
+        ArapEnergy::name(self)
+    }
+}
+
+word_traits!(ArapEnergy);
+
+/// The initial guess of the iterations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum ArapInit {
+    /// The rest pose with every hard position constraint's vertex moved to
+    /// its target (libigl's tutorials; the other constraint kinds hold from
+    /// the first global step on).
+    Rest,
+    /// One global step with every rotation the identity: the linear
+    /// (gradient-domain) deformation, which is Laplacian editing with the
+    /// symmetric cotangent Laplacian `½(cot α + cot β)` and `δ = L P`.
+    #[default]
+    Linear,
+}
+
+impl ArapInit {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            ArapInit::Rest => "rest",
+            ArapInit::Linear => "linear",
+        }
+    }
+}
+
+impl Word for ArapInit {
+    const WHAT: &'static str = "ARAP initial guess";
+    fn all() -> &'static [Self] {
+        &[ArapInit::Rest, ArapInit::Linear]
+    }
+    fn name(self) -> &'static str {
+        ArapInit::name(self)
+    }
+}
+
+word_traits!(ArapInit);
 
 #[cfg(test)]
 mod tests {

@@ -4,7 +4,7 @@ use serde::{Serialize, Serializer};
 
 use crate::backend::qr::QrKind;
 use crate::backend::spd::FactorKind;
-use crate::choice::Method;
+use crate::choice::{ArapEnergy, ArapInit, Method};
 
 mod conflicts;
 pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources, conflict_warnings};
@@ -246,10 +246,10 @@ pub struct Report {
 /// What the ARAP iterations did ([`crate::arap::ArapDeformer`]).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct ArapReport {
-    /// `spokes` or `spokes-and-rims`.
-    pub energy: String,
-    /// The initial guess: `rest` or `linear`.
-    pub init: String,
+    /// The energy (serialised as `spokes` or `spokes-and-rims`).
+    pub energy: ArapEnergy,
+    /// The initial guess (serialised as `rest` or `linear`).
+    pub init: ArapInit,
     /// The objective (ARAP energy plus the soft constraints' `w²‖b·X − d‖²`)
     /// of the initial guess, with its optimal rotations.
     pub initial_energy: f64,

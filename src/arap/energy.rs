@@ -46,25 +46,9 @@ use super::rotations::{IDENTITY, Mat3, fit_rotation_fast};
 use crate::cpu::clear_upper_vector_state;
 use crate::mesh::Mesh;
 
-/// Which ARAP energy.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ArapEnergy {
-    /// Sorkine & Alexa 2007: each vertex's rotation applies to its spokes.
-    Spokes,
-    /// Chao et al. 2010: each vertex's rotation applies to every edge of
-    /// its incident triangles (libigl's default for triangle meshes).
-    SpokesAndRims,
-}
+pub use crate::choice::ArapEnergy;
 
 impl ArapEnergy {
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            ArapEnergy::Spokes => "spokes",
-            ArapEnergy::SpokesAndRims => "spokes-and-rims",
-        }
-    }
-
     /// Whether corner `corner` owns edge `edge` (opposite corner `edge`).
     fn owns(self, corner: usize, edge: usize) -> bool {
         match self {
@@ -81,18 +65,6 @@ impl ArapEnergy {
         }
     }
 }
-
-impl crate::choice::Word for ArapEnergy {
-    const WHAT: &'static str = "ARAP energy";
-    fn all() -> &'static [Self] {
-        &[ArapEnergy::Spokes, ArapEnergy::SpokesAndRims]
-    }
-    fn name(self) -> &'static str {
-        ArapEnergy::name(self)
-    }
-}
-
-crate::choice::word_traits!(ArapEnergy);
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]

@@ -86,45 +86,11 @@ use crate::report::{
 pub mod energy;
 pub mod rotations;
 
+pub use crate::choice::ArapInit;
 use energy::CovarianceBlock;
 pub use energy::{ArapEnergy, ArapTriangles};
 pub use rotations::Mat3;
 use rotations::{Fit, IDENTITY, fit_rotation_fast};
-
-/// The initial guess of the iterations.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ArapInit {
-    /// The rest pose with every hard position constraint's vertex moved to
-    /// its target (libigl's tutorials; the other constraint kinds hold from
-    /// the first global step on).
-    Rest,
-    /// One global step with every rotation the identity: the linear
-    /// (gradient-domain) deformation, which is Laplacian editing with the
-    /// symmetric cotangent Laplacian `½(cot α + cot β)` and `δ = L P`.
-    Linear,
-}
-
-impl ArapInit {
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            ArapInit::Rest => "rest",
-            ArapInit::Linear => "linear",
-        }
-    }
-}
-
-impl crate::choice::Word for ArapInit {
-    const WHAT: &'static str = "ARAP initial guess";
-    fn all() -> &'static [Self] {
-        &[ArapInit::Rest, ArapInit::Linear]
-    }
-    fn name(self) -> &'static str {
-        ArapInit::name(self)
-    }
-}
-
-crate::choice::word_traits!(ArapInit);
 
 /// What one call of [`ArapDeformer::iterate`] did.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -254,7 +220,7 @@ impl ArapDeformer {
             blocks: Vec::new(),
             vertex_energies: Vec::new(),
             arap: ArapReport {
-                energy: energy.name().into(),
+                energy,
                 ..ArapReport::default()
             },
             init: ArapInit::Rest,
@@ -315,8 +281,8 @@ impl ArapDeformer {
         let initial_energy = self.energy_checked(0)?;
         self.init = init;
         self.arap = ArapReport {
-            energy: self.triangles.energy().name().into(),
-            init: init.name().into(),
+            energy: self.triangles.energy(),
+            init,
             initial_energy,
             ..ArapReport::default()
         };
