@@ -1,4 +1,5 @@
-//! Criterion benches, one group per performance target of issue 5.
+//! Criterion benches, one group per performance target (README,
+//! "How fast").
 //!
 //! The meshes are generated (a bumpy sphere of about 35k vertices, the size
 //! of the Stanford Bunny) unless `LSE_MESH_DIR` names the mesh directory,
@@ -21,7 +22,7 @@
 //!   constraints through one vertex (one position constraint repeated;
 //!   relative constraints from one hub to 1,000 vertices in turn) on a
 //!   10k-vertex sphere: the 200k rows should take at most ~10× the 20k ones
-//!   (issue 14: cost proportional to the input).
+//!   (cost proportional to the input).
 
 use std::hint::black_box;
 use std::path::PathBuf;

@@ -1,4 +1,5 @@
-//! Constraints (paper eq. 3–6) and their JSON file format (DESIGN.md §3).
+//! Constraints (paper eq. 3–6) (docs/formulations.md §1) and their JSON file format (README,
+//! "Constraint files").
 //!
 //! Every constraint is one scalar linear row `Σ_k a_k p_{v_k} = u` shared by
 //! the x, y and z coordinates (a 3-vector right-hand side):

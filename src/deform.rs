@@ -57,7 +57,7 @@ pub struct Solution {
 /// [`Deformer::set_targets`] or [`Deformer::set_group_targets`];
 /// [`Deformer::transform_group`] moves current targets relative to it.
 ///
-/// **Units** (docs/units.md). The energy minimised is the documented one
+/// **Units** (docs/units.md §1–§3). The energy minimised is the documented one
 /// in the mesh's own units,
 /// `‖L(X − P)‖²_F + Σ_soft w²‖b·X − d‖²` with every `w` as given. For the
 /// numerics the problem is assembled on the mesh and targets divided by the

@@ -513,6 +513,16 @@ pub enum ProblemError {
         /// What is wrong.
         message: String,
     },
+    /// A solve option that cannot be used as given (a penalty without a
+    /// weight, an SPD back end the KKT method cannot use). Front doors name
+    /// `option` by their own flag or keyword.
+    #[error("invalid {}: {message}", option.describe())]
+    InvalidOption {
+        /// The option at fault.
+        option: SolveOption,
+        /// What is wrong, in the library's terms.
+        message: String,
+    },
     /// A target update refers to a constraint that does not exist or has the
     /// wrong kind.
     #[error("target update: {message}")]
@@ -520,6 +530,63 @@ pub enum ProblemError {
         /// What is wrong.
         message: String,
     },
+}
+
+/// The options of a solve, for errors that name the one at fault
+/// ([`ProblemError::InvalidOption`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolveOption {
+    /// The formulation.
+    Method,
+    /// The QR back end.
+    Qr,
+    /// The SPD back end.
+    Spd,
+    /// The penalty weight.
+    Weight,
+    /// The refinement mode.
+    Refine,
+}
+
+impl SolveOption {
+    /// The option in words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            SolveOption::Method => "method",
+            SolveOption::Qr => "QR back end",
+            SolveOption::Spd => "SPD back end",
+            SolveOption::Weight => "penalty weight",
+            SolveOption::Refine => "refinement",
+        }
+    }
+}
+
+/// A word that names none of the values of a typed choice (a method, a
+/// back end, a Laplacian, a refinement mode, ...): the one parse error of
+/// every configuration word, listing the accepted words.
+#[derive(Debug, Error, Clone, PartialEq, Eq)]
+#[error("unknown {what} '{word}' (expected one of: {})", .expected.join(", "))]
+pub struct ParseWordError {
+    /// What the word should have named (`"method"`, `"SPD back end"`).
+    pub what: &'static str,
+    /// The word given.
+    pub word: String,
+    /// The accepted words (of this build), in the order they are listed.
+    pub expected: Vec<&'static str>,
+}
+
+impl From<ParseWordError> for ProblemError {
+    fn from(e: ParseWordError) -> Self {
+        ProblemError::InvalidArgument {
+            message: e.to_string(),
+        }
+    }
+}
+
+impl From<ParseWordError> for Error {
+    fn from(e: ParseWordError) -> Self {
+        Error::Problem(e.into())
+    }
 }
 
 /// A numerical failure. Never silently compromised: the solve stops here.
@@ -585,7 +652,7 @@ pub enum NumericalError {
     /// completed: an ill-conditioned system, or a penalty weight too small
     /// to hold the hard constraints.
     #[error(
-        "{matrix}: the solution's estimated forward error {estimate:.2e} (relative to the length scale) exceeds {tolerance:.0e} (refine it with --refine auto, lower the condition number, or use the null-space method)"
+        "{matrix}: the solution's estimated forward error {estimate:.2e} (relative to the length scale) exceeds {tolerance:.0e} (refine it with refinement `auto`, lower the condition number, or use the null-space method)"
     )]
     LostAccuracy {
         /// Which matrix.

@@ -24,6 +24,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::choice::Method;
 use crate::error::Error;
 use crate::formulation::Prepared;
 use crate::interop::faer_rows_to_sprs;
@@ -95,7 +96,7 @@ pub const META_FILE: &str = "meta.json";
 ///   problem's lengths are divided by: `X` times it is the deformed
 ///   positions, see [`crate::Deformer`]), `soft_weight_scale` (the factor
 ///   `length_unitᵃ` the soft rows of `A` and `C` carry on top of their
-///   weights, docs/units.md), `constraint_of_b_row`,
+///   weights, docs/units.md §3), `constraint_of_b_row`,
 ///   `constraint_of_soft_row` and `soft_weight_of_row` (the constraint
 ///   index of each row of `B` and of each soft row of `A`, and the soft
 ///   weight as given).
@@ -110,16 +111,16 @@ pub fn export_meta(
     report: &crate::Report,
 ) -> Result<PathBuf, Error> {
     let n = problem.n();
-    let (order, list): (String, Option<Vec<usize>>) = match report.method.as_str() {
-        "nullspace-qr" => (
+    let (order, list): (String, Option<Vec<usize>>) = match report.method {
+        Method::NullSpaceQr => (
             format!(
                 "the free directions z of X = Q[y; z] ({} of them: unknowns minus the rank of B), in the QR back end's order",
                 n - report.rank.unwrap_or(0)
             ),
             None,
         ),
-        "penalty" => (format!("the unknowns 0..{n} (vertices for a mesh)"), None),
-        "elimination" => {
+        Method::Penalty => (format!("the unknowns 0..{n} (vertices for a mesh)"), None),
+        Method::Eliminate => {
             let mut fixed = vec![false; n];
             for &j in problem.b().symbolic().col_idx() {
                 fixed[j] = true;
@@ -129,14 +130,13 @@ pub fn export_meta(
                 Some((0..n).filter(|&j| !fixed[j]).collect()),
             )
         }
-        "kkt" => (
+        Method::Kkt => (
             format!(
                 "the unknowns 0..{n}, then the multipliers of the {} rows of B divided by kkt_multiplier_scale (rows and columns n.. scaled by it)",
                 problem.b().nrows()
             ),
             None,
         ),
-        other => (format!("unknown for method '{other}'"), None),
     };
     let meta = serde_json::json!({
         "format": "lse-deform export-system",

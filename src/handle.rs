@@ -1,6 +1,6 @@
 //! Affine handles: the deformed positions as an affine function of the
 //! transforms of the constraint groups, precomputed once per constraint
-//! configuration and evaluated per frame without a solve (DESIGN §6;
+//! configuration and evaluated per frame without a solve (docs/handles.md §1;
 //! Botsch & Kobbelt 2004's basis functions, here with the exact hard
 //! constraints of whichever formulation the [`Deformer`] was precomputed
 //! with).

@@ -11,19 +11,33 @@
 //! coordinates of the original positions and `B X = D` the hard constraints;
 //! `X` has three columns (x, y, z) solved together.
 //!
-//! Module map: [`mesh`] (types, I/O, validation, generators) →
-//! [`laplacian`] → [`constraints`] → [`problem`] (assembly of `A, C, B, D`)
-//! → [`formulation`] (the paper's method and its alternatives) over
-//! [`backend`] (QR and SPD traits) → [`solver`] (precompute and solve of
-//! any problem, including general ones from their matrices) → [`deform`]
-//! (the three-phase mesh API), [`handle`] (affine handles: per-frame
-//! positions from a precomputed response basis) and
-//! [`report`], and [`arap`] (as-rigid-as-possible iterations on the same
-//! formulations); [`condition`] (condition-number estimates of the factored
-//! matrix), [`export`] (Matrix Market files for MATLAB/SciPy) and
-//! [`interop`] (conversions to `sprs` and `nalgebra-sparse`), [`atomic`]
-//! (every output file written whole or not at all); with the
-//! feature `python`, `python` (the Python module, a front door).
+//! The mathematics the code cites (`docs/formulations.md §2` and the like)
+//! is in the repository's `docs/` directory.
+//!
+//! Module map, imports pointing down:
+//! - foundations: [`error`], [`choice`] (typed configuration words and
+//!   their one parse error), [`limits`] (the memory budget), [`atomic`]
+//!   (every output file written whole or not at all), [`sparse`] (sparse
+//!   kernels: products, normal matrices), [`mtx`] (Matrix Market I/O);
+//! - [`mesh`] (types, I/O, validation, generators) → [`laplacian`] →
+//!   [`constraints`] (model and JSON file) → [`problem`] (assembly of
+//!   `A, C, B, D`);
+//! - [`backend`] (QR and SPD traits and their implementations),
+//!   [`condition`] (condition-number estimates of the factored matrix) and
+//!   [`refinement`] (refinement modes, stop reasons, thresholds) →
+//!   [`report`] (diagnostics of a solve) → [`formulation`] (the paper's
+//!   method and its alternatives, refinement) → [`solver`] (precompute and
+//!   solve of any problem, including general ones from their matrices);
+//! - [`deform`] (the three-phase mesh API), [`handle`] (affine handles:
+//!   per-frame positions from a precomputed response basis), [`arap`]
+//!   (as-rigid-as-possible iterations on the same formulations), [`compare`]
+//!   (every formulation and back end against one reference), [`scene`]
+//!   (generated constraint scenes), [`export`] (Matrix Market files for
+//!   MATLAB/SciPy), [`interop`] (conversions to `sprs` and
+//!   `nalgebra-sparse`);
+//! - with features: `render` (software rasteriser for pictures of results),
+//!   `editor` (the interactive HTTP editor, a front door), `python` (the
+//!   Python module, a front door), `testing` (proptest strategies).
 #![deny(missing_docs)]
 // Numerical kernels index several arrays with one loop variable; iterator
 // chains would obscure the mathematics.
@@ -32,6 +46,8 @@
 pub mod arap;
 pub mod atomic;
 pub mod backend;
+pub mod choice;
+pub mod compare;
 pub mod condition;
 pub mod constraints;
 pub(crate) mod cpu;
@@ -50,6 +66,7 @@ pub mod mtx;
 pub mod problem;
 #[cfg(feature = "python")]
 pub mod python;
+pub mod refinement;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod report;

@@ -6,7 +6,7 @@
 //!   `C = [δ; w·D_soft]` (l × 3): the Laplacian rows first, then one row per
 //!   soft constraint scaled by its weight (times the problem's
 //!   [`SoftWeightScale`] when the mesh was divided by a length unit:
-//!   docs/units.md). `B` (m × n) and `D` (m × 3) hold
+//!   docs/units.md §3). `B` (m × n) and `D` (m × 3) hold
 //!   the hard constraints, one row each, in the constraints' list order
 //!   (their priority).
 //! - [`LseProblem::from_parts`], any sparse `A` (l × n) and `B` (m × n) with
@@ -64,7 +64,7 @@ pub struct SoftRow {
 }
 
 /// The factor `ℓᵃ` every soft weight is multiplied by when a mesh problem
-/// is assembled on the positions divided by a length `ℓ` (docs/units.md,
+/// is assembled on the positions divided by a length `ℓ` (docs/units.md §3,
 /// "Soft weights").
 ///
 /// With `X = ℓ X̂`, `P = ℓ P̂`, `d = ℓ d̂` and a Laplacian whose entries

@@ -2,6 +2,10 @@
 
 use serde::{Serialize, Serializer};
 
+use crate::backend::qr::QrKind;
+use crate::backend::spd::FactorKind;
+use crate::choice::{ArapEnergy, ArapInit, Method};
+
 mod conflicts;
 pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources, conflict_warnings};
 
@@ -150,12 +154,12 @@ impl Timings {
 /// The report of a deformation.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Report {
-    /// The formulation (e.g. `nullspace-qr`).
-    pub method: String,
+    /// The formulation (serialised as its word, e.g. `nullspace-qr`).
+    pub method: Method,
     /// The QR back end, if the method uses one.
-    pub qr_backend: Option<String>,
-    /// The SPD (or symmetric indefinite) back end.
-    pub spd_backend: Option<String>,
+    pub qr_backend: Option<QrKind>,
+    /// The SPD back end's Cholesky, or the KKT method's `LDLᵀ`.
+    pub spd_backend: Option<FactorKind>,
     /// The Laplacian kind.
     pub laplacian: Option<String>,
     /// Number of vertices (unknowns).
@@ -200,17 +204,17 @@ pub struct Report {
     /// Laplacian's entries (2 for `cotan` and `intrinsic-delaunay`, 0 for
     /// `uniform` and `cotan-symmetric`): it makes the assembled problem's
     /// minimiser that of the documented energy
-    /// `‖L(X − P)‖² + Σ w²‖b·X − d‖²` in the mesh's units (docs/units.md).
+    /// `‖L(X − P)‖² + Σ w²‖b·X − d‖²` in the mesh's units (docs/units.md §3).
     /// 1 for ARAP (its rows are dimensionless: `a = 0`); `None` for a
     /// problem given as matrices.
     pub soft_weight_scale: Option<f64>,
     /// Iterative refinement of the last solve: steps, the size of every
     /// correction, why it stopped.
-    pub refinement: Option<crate::formulation::Refinement>,
+    pub refinement: Option<crate::refinement::Refinement>,
     /// The estimated forward error of the last solution, as the largest
-    /// vertex error over the length scale (see [`crate::formulation::refine`]
-    /// for how it is estimated); a warning is issued above
-    /// [`crate::formulation::FORWARD_ERROR_WARNING`].
+    /// vertex error over the length scale (docs/refinement.md §5 for how
+    /// it is estimated); a warning is issued above
+    /// [`crate::refinement::FORWARD_ERROR_WARNING`].
     pub forward_error_estimate: Option<f64>,
     /// The tolerance that classified skipped constraints as conflicting:
     /// a skipped constraint conflicts when its residual exceeds this times
@@ -223,7 +227,7 @@ pub struct Report {
     /// Things the user should know.
     pub warnings: Vec<String>,
     /// Estimate of the 2-norm condition number of the factored matrix,
-    /// when asked for ([`crate::formulation::Prepared::estimate_condition`]:
+    /// when asked for (`Prepared::estimate_condition` of the formulation:
     /// it costs solves, so it is not computed by default).
     pub condition_estimate: Option<crate::condition::ConditionEstimate>,
     /// The relative penalty weight `w` of hard rows (penalty formulation
@@ -242,10 +246,10 @@ pub struct Report {
 /// What the ARAP iterations did ([`crate::arap::ArapDeformer`]).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct ArapReport {
-    /// `spokes` or `spokes-and-rims`.
-    pub energy: String,
-    /// The initial guess: `rest` or `linear`.
-    pub init: String,
+    /// The energy (serialised as `spokes` or `spokes-and-rims`).
+    pub energy: ArapEnergy,
+    /// The initial guess (serialised as `rest` or `linear`).
+    pub init: ArapInit,
     /// The objective (ARAP energy plus the soft constraints' `w²‖b·X − d‖²`)
     /// of the initial guess, with its optimal rotations.
     pub initial_energy: f64,
@@ -394,7 +398,7 @@ fn row_norm(problem: &crate::problem::LseProblem, k: usize) -> f64 {
         .fold(0.0, |n, v| n.hypot(*v))
 }
 
-/// The first vertex with a non-finite coordinate in `x`, if any.
-pub fn first_non_finite(x: &faer::Mat<f64>) -> Option<usize> {
+/// The first vertex (row) with a non-finite coordinate in `x`, if any.
+pub fn first_non_finite(x: faer::MatRef<'_, f64>) -> Option<usize> {
     (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !x[(i, c)].is_finite()))
 }

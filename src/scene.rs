@@ -38,15 +38,22 @@ impl FixedAndHandle {
         let axis = (0..3)
             .max_by(|&a, &b| ext[a].total_cmp(&ext[b]))
             .unwrap_or(1);
-        let mut offset = [0.0; 3];
-        offset[(axis + 1) % 3] = 0.15 * mesh.bbox_diagonal();
         FixedAndHandle {
             axis,
             fixed_fraction: 0.2,
             handle_fraction: 0.02,
-            offset,
+            offset: FixedAndHandle::default_offset(mesh, axis),
             handle_weight: None,
         }
+    }
+
+    /// The default handle offset for `axis` (0, 1 or 2): 15 % of the
+    /// bounding-box diagonal along the next axis (`(axis + 1) mod 3`),
+    /// perpendicular to it.
+    pub fn default_offset(mesh: &Mesh, axis: usize) -> [f64; 3] {
+        let mut offset = [0.0; 3];
+        offset[(axis + 1) % 3] = 0.15 * mesh.bbox_diagonal();
+        offset
     }
 
     /// The vertices of the fixed region and of the handle.
@@ -283,7 +290,7 @@ impl MixedScene {
 
 /// Many constraints through one vertex, appended to a [`FixedAndHandle`]
 /// scene: the legal but unkind inputs whose cost must stay proportional to
-/// their size (issue 14).
+/// their size.
 ///
 /// The *hub* is the free vertex (neither fixed nor in the handle) nearest to
 /// the middle of the axis; `count` constraints follow the base scene:

@@ -49,10 +49,12 @@ use faer::{Mat, MatMut, MatRef};
 use crate::condition::ConditionEstimate;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{
-    FORWARD_ERROR_WARNING, Formulation, Prepared, Refine, RefineStop, Refinement, refine,
+    FORWARD_ERROR_WARNING, Formulation, Method, Prepared, Refine, RefineStop, Refinement, refine,
 };
 use crate::problem::{LseProblem, RHS_BLOCK};
-use crate::report::{ConflictSources, Report, conflict_warnings, fill_solution_diagnostics};
+use crate::report::{
+    ConflictSources, Report, conflict_warnings, fill_solution_diagnostics, first_non_finite,
+};
 
 /// A problem with its precomputed system and the report of the last
 /// precompute and solve.
@@ -336,7 +338,7 @@ impl LseSolver {
         if let Some(r) = &self.last_refinement {
             self.report
                 .warnings
-                .extend(refinement_warnings(r, self.report.method.as_str()));
+                .extend(refinement_warnings(r, self.report.method));
         }
         self.report.forward_error_estimate = self
             .last_refinement
@@ -394,7 +396,7 @@ impl LseSolver {
 
 /// The first non-finite row of `x` as an error.
 fn check_finite(x: MatRef<'_, f64>) -> Result<(), Error> {
-    match (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !x[(i, c)].is_finite())) {
+    match first_non_finite(x) {
         Some(row) => Err(NumericalError::NonFiniteSolution { vertex: row }.into()),
         None => Ok(()),
     }
@@ -499,7 +501,7 @@ fn solve_with_rhs(
 /// The warnings a refinement outcome calls for: an estimated forward error
 /// above [`FORWARD_ERROR_WARNING`], and conflicting hard constraints found
 /// by the method of multipliers.
-pub fn refinement_warnings(r: &Refinement, method: &str) -> Vec<String> {
+pub fn refinement_warnings(r: &Refinement, method: Method) -> Vec<String> {
     let mut out = Vec::new();
     if r.stop_reason == RefineStop::ConflictingConstraints {
         out.push(format!(
@@ -512,8 +514,8 @@ pub fn refinement_warnings(r: &Refinement, method: &str) -> Vec<String> {
     if (e.is_nan() || e > FORWARD_ERROR_WARNING)
         && r.stop_reason != RefineStop::ConflictingConstraints
     {
-        let how = if r.mode == "off" {
-            "refinement is off; --refine auto would correct it"
+        let how = if r.mode == Refine::Off {
+            "refinement is off; refinement `auto` would correct it"
         } else if r.stop_reason == RefineStop::StepLimit {
             "refinement reached its step limit; allow more steps"
         } else {

@@ -322,7 +322,7 @@ fn a_rigid_motion_of_mesh_and_targets_moves_the_answer_rigidly() {
 /// weight multiplied by `s⁻ᵃ` (`a` = `kind`'s power of length): the
 /// scaling under which the documented energy
 /// `‖L(X − P)‖² + Σ w²‖b·X − d‖²` only changes by a constant factor
-/// (docs/units.md), so that the answer must be the original one scaled.
+/// (docs/units.md §6), so that the answer must be the original one scaled.
 fn scaled(mesh: &Mesh, cs: &[Constraint], s: f64, kind: LaplacianKind) -> (Mesh, Vec<Constraint>) {
     let m = [[s, 0.0, 0.0], [0.0, s, 0.0], [0.0, 0.0, s]];
     let mesh = mesh

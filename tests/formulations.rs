@@ -124,8 +124,8 @@ struct CountingSymbolic {
 }
 
 impl SpdBackend for Counting {
-    fn name(&self) -> &'static str {
-        "counting-faer"
+    fn kind(&self) -> lse_deform::SpdKind {
+        self.inner.kind()
     }
     fn analyze(
         &self,

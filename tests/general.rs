@@ -421,9 +421,12 @@ fn formulation_choices_name_themselves_and_refuse_what_they_cannot_build() {
     for method in Method::ALL {
         assert_eq!(method.name().parse::<Method>().unwrap(), method);
     }
-    let Err(ProblemError::InvalidArgument { message }) = "qr".parse::<Method>() else {
+    let Err(e) = "qr".parse::<Method>() else {
         panic!("unknown method accepted");
     };
+    let message = e.to_string();
+    // The old spelling of the elimination method is an alias.
+    assert_eq!("elimination".parse::<Method>().unwrap(), Method::Eliminate);
     assert!(
         Method::ALL.iter().all(|m| message.contains(m.name())),
         "{message}"
@@ -432,9 +435,19 @@ fn formulation_choices_name_themselves_and_refuse_what_they_cannot_build() {
     let mut penalty = FormulationChoice::new(Method::Penalty);
     penalty.weight = Some(1e4);
     assert!(penalty.build().unwrap().name().starts_with("penalty"));
+    for method in Method::ALL {
+        let choice = FormulationChoice {
+            weight: Some(1.0),
+            ..FormulationChoice::new(method)
+        };
+        assert_eq!(choice.build().unwrap().method(), method);
+    }
     let refused = |choice: FormulationChoice, needle: &str| match choice.build() {
-        Err(ProblemError::InvalidArgument { message }) => {
-            assert!(message.contains(needle), "{choice:?}: {message}")
+        Err(e @ ProblemError::InvalidOption { .. }) => {
+            let message = e.to_string();
+            assert!(message.contains(needle), "{choice:?}: {message}");
+            // The library's own terms, no command-line flag.
+            assert!(!message.contains("--"), "{choice:?}: {message}");
         }
         Err(e) => panic!("{choice:?}: {e}"),
         Ok(_) => panic!("{choice:?} built"),

@@ -42,28 +42,13 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, MatMut};
 use rayon::prelude::*;
 
+use super::rotations::{IDENTITY, Mat3, fit_rotation_fast};
 use crate::cpu::clear_upper_vector_state;
 use crate::mesh::Mesh;
 
-/// Which ARAP energy.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ArapEnergy {
-    /// Sorkine & Alexa 2007: each vertex's rotation applies to its spokes.
-    Spokes,
-    /// Chao et al. 2010: each vertex's rotation applies to every edge of
-    /// its incident triangles (libigl's default for triangle meshes).
-    SpokesAndRims,
-}
+pub use crate::choice::ArapEnergy;
 
 impl ArapEnergy {
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            ArapEnergy::Spokes => "spokes",
-            ArapEnergy::SpokesAndRims => "spokes-and-rims",
-        }
-    }
-
     /// Whether corner `corner` owns edge `edge` (opposite corner `edge`).
     fn owns(self, corner: usize, edge: usize) -> bool {
         match self {
@@ -80,25 +65,6 @@ impl ArapEnergy {
         }
     }
 }
-
-impl std::str::FromStr for ArapEnergy {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "spokes" => Ok(ArapEnergy::Spokes),
-            "spokes-and-rims" => Ok(ArapEnergy::SpokesAndRims),
-            other => Err(format!(
-                "unknown ARAP energy '{other}' (expected spokes or spokes-and-rims)"
-            )),
-        }
-    }
-}
-
-/// A 3 × 3 matrix, row-major.
-pub type Mat3 = [[f64; 3]; 3];
-
-/// The identity rotation.
-pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -320,7 +286,7 @@ impl ArapTriangles {
         (0..self.n_vertices())
             .map(|i| {
                 let m = self.vertex_covariance(i, &blocks);
-                let (r, _) = super::rotations::fit_rotation_fast(&m.cross, &IDENTITY);
+                let (r, _) = fit_rotation_fast(&m.cross, &IDENTITY);
                 self.vertex_energy_from(i, &m, &r)
             })
             .sum()

@@ -21,7 +21,7 @@
 //! 1e150 (unscaled, a Bunny at 1e±100 loses every triangle's area to
 //! overflow or underflow, and its system is singular). Soft weights are
 //! used as given ([`SoftWeightScale`] with `a = 0`, the report's
-//! `soft_weight_scale` 1; docs/units.md): a row of `A_E` is
+//! `soft_weight_scale` 1; docs/units.md §4): a row of `A_E` is
 //! `√(K A_t) ∇φ`, an area's square root (a length) times a gradient (one
 //! over a length), so its entries are dimensionless (the power of length
 //! in the operator's entries is `a = 0`), and `C_E` is a length; a soft
@@ -84,46 +84,11 @@ use crate::solver::LseSolver;
 pub mod energy;
 pub mod rotations;
 
+pub use crate::choice::ArapInit;
 use energy::CovarianceBlock;
-use energy::IDENTITY;
-pub use energy::{ArapEnergy, ArapTriangles, Mat3};
-use rotations::{Fit, fit_rotation_fast};
-
-/// The initial guess of the iterations.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ArapInit {
-    /// The rest pose with every hard position constraint's vertex moved to
-    /// its target (libigl's tutorials; the other constraint kinds hold from
-    /// the first global step on).
-    Rest,
-    /// One global step with every rotation the identity: the linear
-    /// (gradient-domain) deformation, which is Laplacian editing with the
-    /// symmetric cotangent Laplacian `½(cot α + cot β)` and `δ = L P`.
-    Linear,
-}
-
-impl ArapInit {
-    /// The name used on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            ArapInit::Rest => "rest",
-            ArapInit::Linear => "linear",
-        }
-    }
-}
-
-impl std::str::FromStr for ArapInit {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "rest" => Ok(ArapInit::Rest),
-            "linear" => Ok(ArapInit::Linear),
-            other => Err(format!(
-                "unknown ARAP initial guess '{other}' (expected rest or linear)"
-            )),
-        }
-    }
-}
+pub use energy::{ArapEnergy, ArapTriangles};
+pub use rotations::Mat3;
+use rotations::{Fit, IDENTITY, fit_rotation_fast};
 
 /// What one call of [`ArapDeformer::iterate`] did.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -246,7 +211,7 @@ impl ArapDeformer {
             blocks: Vec::new(),
             vertex_energies: Vec::new(),
             arap: ArapReport {
-                energy: energy.name().into(),
+                energy,
                 ..ArapReport::default()
             },
             init: ArapInit::Rest,
@@ -291,8 +256,8 @@ impl ArapDeformer {
         let initial_energy = self.energy_checked(0)?;
         self.init = init;
         self.arap = ArapReport {
-            energy: self.triangles.energy().name().into(),
-            init: init.name().into(),
+            energy: self.triangles.energy(),
+            init,
             initial_energy,
             ..ArapReport::default()
         };
@@ -558,7 +523,7 @@ impl ArapDeformer {
     /// the mesh's units is not finite.
     fn first_non_finite_in_mesh_units(&self, x: &Mat<f64>) -> Option<usize> {
         if self.unit <= 1.0 {
-            return first_non_finite(x);
+            return first_non_finite(x.as_ref());
         }
         let unit = self.unit;
         (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !(x[(i, c)] * unit).is_finite()))

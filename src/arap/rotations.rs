@@ -3,7 +3,11 @@
 
 use nalgebra::Matrix3;
 
-use super::energy::Mat3;
+/// A 3 × 3 matrix, row-major.
+pub type Mat3 = [[f64; 3]; 3];
+
+/// The identity rotation.
+pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// Relative size of the second singular value below which a covariance
 /// counts as rank ≤ 1: its optimal rotation is then not unique (any
@@ -179,7 +183,7 @@ mod tests {
     fn recovers_a_rotation_times_a_symmetric_positive_matrix() {
         let r = rot_z(0.7);
         let s = [[2.0, 0.3, 0.1], [0.3, 1.5, 0.2], [0.1, 0.2, 0.8]];
-        let (fit, how) = fit_rotation(&mul(&r, &s), &super::super::energy::IDENTITY);
+        let (fit, how) = fit_rotation(&mul(&r, &s), &IDENTITY);
         assert_eq!(how, Fit::Svd);
         for i in 0..3 {
             for j in 0..3 {
@@ -194,7 +198,7 @@ mod tests {
         // the best rotation negates the axis of the smallest singular
         // value (1): diag(-1, 1, -1).
         let m = [[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, -3.0]];
-        let (fit, _) = fit_rotation(&m, &super::super::energy::IDENTITY);
+        let (fit, _) = fit_rotation(&m, &IDENTITY);
         let expected = [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]];
         for i in 0..3 {
             for j in 0..3 {
@@ -233,8 +237,8 @@ mod tests {
                 std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)));
             let scale = 10f64.powi(rng.random_range(-4..2));
             let m = m.map(|row| row.map(|v| v * scale));
-            let (fast, how) = fit_rotation_fast(&m, &super::super::energy::IDENTITY);
-            let (svd, _) = fit_rotation(&m, &super::super::energy::IDENTITY);
+            let (fast, how) = fit_rotation_fast(&m, &IDENTITY);
+            let (svd, _) = fit_rotation(&m, &IDENTITY);
             newton += usize::from(how == Fit::Newton);
             for i in 0..3 {
                 for j in 0..3 {
@@ -255,7 +259,7 @@ mod tests {
         assert_eq!(polar_newton(&reflection.map(|r| r.map(|v| v / 3.0))), None);
         let flat = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1e-7]];
         assert_eq!(polar_newton(&flat), None);
-        let (r, how) = fit_rotation_fast(&flat, &super::super::energy::IDENTITY);
+        let (r, how) = fit_rotation_fast(&flat, &IDENTITY);
         assert_eq!(how, Fit::Svd);
         assert!((r[2][2] - 1.0).abs() < 1e-14);
     }

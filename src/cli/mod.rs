@@ -1,3 +1,188 @@
-//! Commands of the `lse-deform` tool that live in their own files.
+//! The `lse-deform` tool's commands, one module each, and what they share:
+//! the method options parsed into the library's types ([`MethodArgs`]),
+//! progress spinners, reading inputs and checking outputs. No numerics: the
+//! commands call the library and print what it returns.
 
+use std::path::Path;
+use std::time::Duration;
+
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use lse_deform::constraints::{ConstraintSet, read_constraints_file};
+use lse_deform::error::{ProblemError, SolveOption};
+use lse_deform::formulation::Refine;
+use lse_deform::mesh;
+use lse_deform::{Error, Formulation, FormulationChoice, Method, QrKind, SpdKind};
+
+/// `println!` that treats a closed pipe (`lse-deform info m.obj | head`) as
+/// the end of the output rather than a panic.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::cli::emit(format!($($arg)*))
+    };
+}
+
+pub mod compare;
+pub mod deform;
+#[cfg(feature = "editor")]
+pub mod edit;
+pub mod export;
+pub mod generate;
+pub mod info;
 pub mod render;
+pub mod scene;
+pub mod solve;
+pub mod summary;
+
+/// How to solve: the formulation and its back ends.
+#[derive(Args, Clone)]
+pub struct MethodArgs {
+    /// nullspace-qr (the paper), penalty, kkt or eliminate.
+    #[arg(long, default_value = "nullspace-qr")]
+    pub method: Method,
+    /// QR back end: dense-householder, sparse-givens or spqr.
+    #[arg(long, default_value = "sparse-givens")]
+    pub qr: QrKind,
+    /// SPD back end: faer-auto, faer-supernodal, faer-simplicial, nalgebra or
+    /// cholmod (for kkt: the faer LDLT variant).
+    #[arg(long, default_value = "faer-auto")]
+    pub spd: SpdKind,
+    /// Penalty weight of the hard rows (--method penalty).
+    #[arg(long)]
+    pub weight: Option<f64>,
+    /// Iterative refinement with the same factor: off, auto or a number of
+    /// steps. Default: auto for the exact methods, off for penalty (where
+    /// refinement is the method of multipliers and makes it exact).
+    #[arg(long)]
+    pub refine: Option<Refine>,
+}
+
+impl MethodArgs {
+    /// The formulation these options name.
+    pub fn formulation(&self) -> Result<Box<dyn Formulation>, Error> {
+        let choice = FormulationChoice {
+            method: self.method,
+            qr: self.qr,
+            spd: self.spd,
+            weight: self.weight,
+        };
+        choice.build().map_err(with_flag)
+    }
+}
+
+/// A library error about an option, with the option's flag in front.
+fn with_flag(e: ProblemError) -> Error {
+    match e {
+        ProblemError::InvalidOption { option, message } => {
+            let flag = match option {
+                SolveOption::Method => "--method",
+                SolveOption::Qr => "--qr",
+                SolveOption::Spd => "--spd",
+                SolveOption::Weight => "--weight",
+                SolveOption::Refine => "--refine",
+            };
+            ProblemError::InvalidArgument {
+                message: format!("{flag}: {message}"),
+            }
+            .into()
+        }
+        other => other.into(),
+    }
+}
+
+/// Writes one line to stdout; a closed pipe ends the process quietly.
+pub fn emit(line: String) {
+    use std::io::Write;
+    let mut stdout = std::io::stdout().lock();
+    if let Err(e) = writeln!(stdout, "{line}") {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: writing to standard output failed: {e}");
+        std::process::exit(2);
+    }
+}
+
+/// A spinner on stderr for one phase. It is drawn only on a terminal
+/// (indicatif's stderr target hides itself otherwise) and only once the
+/// phase has lasted a second, so quick runs and pipes print nothing extra.
+/// Several phases can share it through `set_message`.
+pub fn phase(message: &str) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
+        bar.set_style(style);
+    }
+    bar.set_message(message.to_string());
+    show_after_a_second(&bar);
+    bar
+}
+
+/// Points `bar` at stderr one second from now unless it has finished.
+pub fn show_after_a_second(bar: &ProgressBar) {
+    let weak = bar.downgrade();
+    std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_secs(1));
+        if let Some(bar) = weak.upgrade()
+            && !bar.is_finished()
+        {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+            bar.enable_steady_tick(Duration::from_millis(100));
+        }
+    });
+}
+
+/// Reads a mesh with a spinner, printing its notes and warnings.
+pub fn load(path: &Path) -> Result<mesh::Mesh, Error> {
+    let bar = phase(&format!("reading {}", path.display()));
+    let loaded = mesh::read_mesh(path)?;
+    bar.finish_and_clear();
+    for note in &loaded.notes {
+        eprintln!("note: {note}");
+    }
+    for w in loaded.mesh.warnings() {
+        eprintln!("warning: {w}");
+    }
+    Ok(loaded.mesh)
+}
+
+/// Writes `text` and a newline to `path` atomically: a failed write (a
+/// full disk) leaves a previous file as it was.
+pub fn write_text(path: &Path, text: String) -> Result<(), Error> {
+    lse_deform::atomic::write_bytes(path, (text + "\n").as_bytes()).map_err(|e| Error::io(path, e))
+}
+
+/// Fail fast: the output mesh (its format and its directory) and any other
+/// output file are checked before the input is read or anything is solved.
+pub fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result<(), Error> {
+    if let Some(path) = mesh_out {
+        mesh::check_mesh_output(path)?;
+    }
+    if let Some(path) = file_out {
+        mesh::check_writable(path)?;
+    }
+    Ok(())
+}
+
+/// Reads a constraints file for `mesh`: a `"mesh"` object in it that names
+/// another mesh is a warning, or with `strict` an error (exit code 2); then
+/// the vertex ranges are checked.
+pub fn constraints_for(
+    path: &Path,
+    mesh: &mesh::Mesh,
+    strict: bool,
+) -> Result<ConstraintSet, Error> {
+    let bar = phase(&format!("reading {}", path.display()));
+    let set = read_constraints_file(path)?;
+    bar.finish_and_clear();
+    if let Some(detail) = set.mesh_mismatch(mesh) {
+        if strict {
+            return Err(lse_deform::error::ConstraintError::MeshMismatch { detail }.into());
+        }
+        eprintln!(
+            "warning: {} was {detail} (--strict makes this an error)",
+            path.display()
+        );
+    }
+    set.check_vertices(mesh.n_vertices())?;
+    Ok(set)
+}

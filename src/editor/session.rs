@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 use crate::arap::{ArapDeformer, ArapEnergy, ArapInit};
+use crate::choice::{Energy, Method, deserialize_word};
 use crate::constraints::ConstraintSet;
 use crate::deform::{Affine, Deformer};
 use crate::error::{Error, ProblemError};
@@ -30,20 +31,24 @@ pub const FIXED_GROUP: &str = "fixed";
 /// memory budget ([`HandleBasis::estimated_bytes`]).
 pub const MAX_BASIS_GROUPS: usize = 256;
 
-/// The switches of the page (the CLI's words).
+/// The switches of the page, typed; read and written as the CLI's words.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Settings {
     /// uniform, cotan, cotan-symmetric or intrinsic-delaunay.
-    pub laplacian: String,
+    #[serde(deserialize_with = "deserialize_word")]
+    pub laplacian: LaplacianKind,
     /// nullspace-qr, penalty, kkt or eliminate.
-    pub method: String,
+    #[serde(deserialize_with = "deserialize_word")]
+    pub method: Method,
     /// The penalty weight.
     pub weight: f64,
     /// off, auto or a step count.
-    pub refine: String,
+    #[serde(deserialize_with = "deserialize_word")]
+    pub refine: Refine,
     /// laplacian or arap.
-    pub energy: String,
+    #[serde(deserialize_with = "deserialize_word")]
+    pub energy: Energy,
     /// ARAP iterations per frame during a drag.
     pub arap_iterations_per_frame: usize,
 }
@@ -51,11 +56,11 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Settings {
-            laplacian: "cotan".into(),
-            method: "nullspace-qr".into(),
+            laplacian: LaplacianKind::Cotangent,
+            method: Method::NullSpaceQr,
             weight: 1e3,
-            refine: "auto".into(),
-            energy: "laplacian".into(),
+            refine: Refine::Auto,
+            energy: Energy::Laplacian,
             arap_iterations_per_frame: 2,
         }
     }
@@ -71,13 +76,14 @@ impl Settings {
     fn formulation(&self) -> Result<Box<dyn Formulation>, Error> {
         let choice = FormulationChoice {
             weight: Some(self.weight),
-            ..FormulationChoice::new(self.method.parse()?)
+            ..FormulationChoice::new(self.method)
         };
         Ok(choice.build()?)
     }
 
     /// These settings with `fields` replaced (any of the fields above; an
-    /// unknown field or a wrong type is an error naming it).
+    /// unknown field, a wrong type or an unknown word is an error naming
+    /// it).
     pub fn with(&self, fields: serde_json::Map<String, Value>) -> Result<Settings, Error> {
         let mut current = serde_json::to_value(self).unwrap_or(Value::Null);
         for (k, v) in fields {
@@ -86,10 +92,9 @@ impl Settings {
         serde_json::from_value(current).map_err(|e| invalid(format!("settings: {e}")))
     }
 
-    /// Checks every word and number (the CLI's messages).
+    /// Checks what the types do not: the formulation can be built, and the
+    /// iteration count.
     pub fn check(&self) -> Result<(), Error> {
-        self.laplacian.parse::<LaplacianKind>().map_err(invalid)?;
-        Refine::parse(&self.refine)?;
         self.formulation()?;
         // Checked whatever the method: a weight kept for a later switch to
         // `penalty` must already be one.
@@ -97,12 +102,6 @@ impl Settings {
             return Err(invalid(format!(
                 "weight {} must be a finite positive number",
                 self.weight
-            )));
-        }
-        if self.energy != "laplacian" && self.energy != "arap" {
-            return Err(invalid(format!(
-                "unknown energy '{}' (expected laplacian or arap)",
-                self.energy
             )));
         }
         if !(1..=100).contains(&self.arap_iterations_per_frame) {
@@ -161,11 +160,11 @@ pub fn build(
     settings.check()?;
     let t0 = Instant::now();
     stage("set-up");
-    let laplacian: LaplacianKind = settings.laplacian.parse().map_err(invalid)?;
+    let laplacian = settings.laplacian;
     let mut deformer = Deformer::new(mesh.clone(), laplacian, constraints.clone())?;
     let setup_s = t0.elapsed().as_secs_f64();
     let formulation = settings.formulation()?;
-    if settings.energy == "arap" {
+    if settings.energy == Energy::Arap {
         stage("ARAP precompute");
         let t = Instant::now();
         let mut arap =
@@ -185,7 +184,7 @@ pub fn build(
             timings: json!({"setup_s": setup_s, "precompute_s": t.elapsed().as_secs_f64()}),
         });
     }
-    deformer.set_refine(Some(Refine::parse(&settings.refine)?));
+    deformer.set_refine(Some(settings.refine));
     let groups = constraints.group_names();
     let movable: Vec<&str> = groups.into_iter().filter(|g| *g != FIXED_GROUP).collect();
     check_basis_size(&deformer, movable.len())?;

@@ -24,7 +24,7 @@ use faer::sparse::SparseColMat;
 
 use super::util::{factor_normal_matrix, nothing_factored, row_kind};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
+use crate::backend::spd::{FactorKind, FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, ProblemError};
 use crate::problem::LseProblem;
@@ -62,8 +62,8 @@ struct Known {
 }
 
 impl Formulation for Elimination {
-    fn name(&self) -> String {
-        "elimination".into()
+    fn method(&self) -> super::Method {
+        super::Method::Eliminate
     }
 
     fn precompute(
@@ -71,8 +71,8 @@ impl Formulation for Elimination {
         problem: &LseProblem,
         report: &mut Report,
     ) -> Result<Box<dyn Prepared>, Error> {
-        report.method = self.name();
-        report.spd_backend = Some(self.spd.name().into());
+        report.method = self.method();
+        report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
         let n = problem.n();
         let b = problem.b().as_ref();
 

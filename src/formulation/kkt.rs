@@ -67,6 +67,7 @@ use faer::{Conj, Mat, Par, Side};
 
 use super::util::{row_kind, split_normal};
 use super::{Formulation, Prepared};
+use crate::backend::spd::{FactorKind, SpdKind};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
 use crate::mesh::topology::UnionFind;
@@ -121,6 +122,18 @@ impl Default for Kkt {
 }
 
 impl Kkt {
+    /// The KKT formulation in the `LDLᵀ` variant an SPD kind selects:
+    /// `FaerAuto`, `FaerSimplicial` or `FaerSupernodal`; `None` for the other
+    /// kinds (KKT factors with faer's `LDLᵀ` only).
+    pub fn for_spd(spd: SpdKind) -> Option<Kkt> {
+        match spd {
+            SpdKind::FaerAuto => Some(Kkt::default()),
+            SpdKind::FaerSimplicial => Some(Kkt::simplicial()),
+            SpdKind::FaerSupernodal => Some(Kkt::supernodal()),
+            SpdKind::Nalgebra | SpdKind::Cholmod => None,
+        }
+    }
+
     /// Always simplicial (column by column).
     pub fn simplicial() -> Kkt {
         Kkt {
@@ -351,8 +364,8 @@ fn soft_free_components(
 }
 
 impl Formulation for Kkt {
-    fn name(&self) -> String {
-        "kkt".into()
+    fn method(&self) -> super::Method {
+        super::Method::Kkt
     }
 
     fn precompute(
@@ -360,15 +373,12 @@ impl Formulation for Kkt {
         problem: &LseProblem,
         report: &mut Report,
     ) -> Result<Box<dyn Prepared>, Error> {
-        report.method = self.name();
-        report.spd_backend = Some(
-            match self.threshold {
-                t if t == SupernodalThreshold::FORCE_SIMPLICIAL => "faer-ldlt-simplicial",
-                t if t == SupernodalThreshold::FORCE_SUPERNODAL => "faer-ldlt-supernodal",
-                _ => "faer-ldlt-auto",
-            }
-            .into(),
-        );
+        report.method = self.method();
+        report.spd_backend = Some(FactorKind::Ldlt(match self.threshold {
+            t if t == SupernodalThreshold::FORCE_SIMPLICIAL => SpdKind::FaerSimplicial,
+            t if t == SupernodalThreshold::FORCE_SUPERNODAL => SpdKind::FaerSupernodal,
+            _ => SpdKind::FaerAuto,
+        }));
         let n = problem.n();
         let b = problem.b().as_ref();
         let m = b.nrows();
@@ -745,7 +755,7 @@ impl Prepared for PreparedKkt {
             .into());
         }
         let x = y.submatrix(0, 0, n, k).to_owned();
-        if let Some(vertex) = first_non_finite(&x) {
+        if let Some(vertex) = first_non_finite(x.as_ref()) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
         self.multipliers = y.submatrix(n, 0, m, k).to_owned();

@@ -14,8 +14,9 @@ use faer::{Mat, MatMut};
 
 use crate::backend::qr::QrKind;
 use crate::backend::spd::SpdKind;
+pub use crate::choice::Method;
 use crate::condition::ConditionEstimate;
-use crate::error::{Error, ProblemError};
+use crate::error::{Error, ProblemError, SolveOption};
 use crate::problem::LseProblem;
 use crate::report::Report;
 
@@ -38,8 +39,13 @@ pub use refine::{
 
 /// A way to solve `min ‖AX − C‖ s.t. BX = D`.
 pub trait Formulation: Send + Sync {
-    /// Short name for reports and the CLI.
-    fn name(&self) -> String;
+    /// The method this formulation implements.
+    fn method(&self) -> Method;
+
+    /// Short name for messages: the method's word.
+    fn name(&self) -> String {
+        self.method().name().into()
+    }
 
     /// The precompute phase: factor everything that depends on the matrices
     /// only. Fills the timings and sizes it knows into `report`.
@@ -131,63 +137,6 @@ pub trait Prepared: Send {
     fn factored_matrix(&self) -> Option<SparseColMat<usize, f64>>;
 }
 
-/// A formulation, as a typed choice (`FromStr` reads the CLI's and
-/// Python's names, [`Method::name`] gives them back).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Method {
-    /// [`NullSpaceQr`], the paper's method.
-    NullSpaceQr,
-    /// [`Penalty`].
-    Penalty,
-    /// [`Kkt`].
-    Kkt,
-    /// [`Elimination`].
-    Eliminate,
-}
-
-impl Method {
-    /// Every method, in the order they are listed to users.
-    pub const ALL: [Method; 4] = [
-        Method::NullSpaceQr,
-        Method::Penalty,
-        Method::Kkt,
-        Method::Eliminate,
-    ];
-
-    /// The name the CLI and Python use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::NullSpaceQr => "nullspace-qr",
-            Method::Penalty => "penalty",
-            Method::Kkt => "kkt",
-            Method::Eliminate => "eliminate",
-        }
-    }
-}
-
-impl std::fmt::Display for Method {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for Method {
-    type Err = ProblemError;
-    /// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
-    /// message lists the names).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Method::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| ProblemError::InvalidArgument {
-                message: format!(
-                    "unknown method '{s}' (expected one of: {})",
-                    Method::ALL.map(Method::name).join(", ")
-                ),
-            })
-    }
-}
-
 /// A formulation with its back ends (the CLI's `--method`, `--qr`,
 /// `--spd`, `--weight`); [`FormulationChoice::build`] makes it.
 ///
@@ -225,11 +174,13 @@ impl FormulationChoice {
 
     /// The formulation.
     ///
-    /// Errors: [`ProblemError::InvalidArgument`] for a penalty without a
-    /// finite positive weight, an SPD kind that KKT cannot use, or a back
-    /// end missing from this build.
+    /// Errors: [`ProblemError::InvalidOption`] for a penalty without a
+    /// finite positive weight or an SPD kind that KKT cannot use;
+    /// [`ProblemError::InvalidArgument`] for a back end missing from this
+    /// build.
     pub fn build(&self) -> Result<Box<dyn Formulation>, ProblemError> {
-        let invalid = |message: String| ProblemError::InvalidArgument { message };
+        let invalid =
+            |option: SolveOption, message: String| ProblemError::InvalidOption { option, message };
         match self.method {
             Method::NullSpaceQr => Ok(Box::new(NullSpaceQr::new(
                 self.qr.backend()?,
@@ -238,22 +189,27 @@ impl FormulationChoice {
             Method::Penalty => {
                 let w = self.weight.ok_or_else(|| {
                     invalid(
-                        "--method penalty needs --weight W (the weight of the former hard rows)"
-                            .into(),
+                        SolveOption::Weight,
+                        "the penalty method needs a weight (the relative weight of the former hard rows)".into(),
                     )
                 })?;
                 if !(w.is_finite() && w > 0.0) {
-                    return Err(invalid(format!("weight {w} must be finite and > 0")));
+                    return Err(invalid(
+                        SolveOption::Weight,
+                        format!("weight {w} must be finite and > 0"),
+                    ));
                 }
                 Ok(Box::new(Penalty::with_backend(w, self.spd.backend()?)))
             }
-            Method::Kkt => match self.spd {
-                SpdKind::FaerAuto => Ok(Box::new(Kkt::default())),
-                SpdKind::FaerSimplicial => Ok(Box::new(Kkt::simplicial())),
-                SpdKind::FaerSupernodal => Ok(Box::new(Kkt::supernodal())),
-                other => Err(invalid(format!(
-                    "--method kkt factors a symmetric indefinite matrix with faer's LDLᵀ; --spd must be faer-auto, faer-simplicial or faer-supernodal, not '{other}'"
-                ))),
+            Method::Kkt => match Kkt::for_spd(self.spd) {
+                Some(kkt) => Ok(Box::new(kkt)),
+                None => Err(invalid(
+                    SolveOption::Spd,
+                    format!(
+                        "the KKT method factors a symmetric indefinite matrix with faer's LDLᵀ: its SPD back end must be faer-auto, faer-simplicial or faer-supernodal, not '{}'",
+                        self.spd
+                    ),
+                )),
             },
             Method::Eliminate => Ok(Box::new(Elimination::new(self.spd.backend()?))),
         }

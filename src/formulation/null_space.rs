@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use super::util::{factor_normal_matrix, nothing_factored};
 use super::{Formulation, Prepared};
 use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
+use crate::backend::spd::{FactorKind, FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::cpu::clear_upper_vector_state;
 use crate::error::Error;
@@ -67,8 +67,8 @@ impl NullSpaceQr {
 }
 
 impl Formulation for NullSpaceQr {
-    fn name(&self) -> String {
-        "nullspace-qr".into()
+    fn method(&self) -> super::Method {
+        super::Method::NullSpaceQr
     }
 
     fn precompute(
@@ -76,9 +76,9 @@ impl Formulation for NullSpaceQr {
         problem: &LseProblem,
         report: &mut Report,
     ) -> Result<Box<dyn Prepared>, Error> {
-        report.method = self.name();
-        report.qr_backend = Some(self.qr.name().into());
-        report.spd_backend = Some(self.spd.name().into());
+        report.method = self.method();
+        report.qr_backend = Some(self.qr.kind());
+        report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
 
         let t = Instant::now();
         let qr = self.qr.factor(problem.b().as_ref(), self.tolerance)?;

@@ -35,7 +35,9 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use super::refine::{Refine, Refinement, refine};
 use super::util::{split_normal, with_context};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size};
+use crate::backend::spd::{
+    FactorKind, FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size,
+};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::problem::LseProblem;
@@ -105,8 +107,8 @@ fn matrix_name(w: f64) -> String {
 }
 
 impl Formulation for Penalty {
-    fn name(&self) -> String {
-        "penalty".into()
+    fn method(&self) -> super::Method {
+        super::Method::Penalty
     }
 
     fn precompute(
@@ -115,8 +117,8 @@ impl Formulation for Penalty {
         report: &mut Report,
     ) -> Result<Box<dyn Prepared>, Error> {
         check_weight(self.weight, 1.0)?;
-        report.method = self.name();
-        report.spd_backend = Some(self.spd.name().into());
+        report.method = self.method();
+        report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
         report.penalty_weight = Some(self.weight);
         let sweep = PenaltySweep::new(problem, self.spd.as_ref())?;
         report.penalty_weight_unit = Some(sweep.weight_unit);
@@ -130,7 +132,7 @@ impl Formulation for Penalty {
         report.nnz.factor_bytes = Some(prepared.factor.bytes());
         if problem.b().nrows() > 0 {
             report.warnings.push(format!(
-                "penalty method: the {} hard constraints are soft rows of relative weight {:e}; they hold only approximately (see max_constraint_residual) unless refined (--refine auto: the method of multipliers)",
+                "penalty method: the {} hard constraints are soft rows of relative weight {:e}; they hold only approximately (see max_constraint_residual) unless refined (refinement `auto`: the method of multipliers)",
                 problem.b().nrows(),
                 self.weight
             ));
@@ -300,7 +302,7 @@ impl PenaltySweep {
         let backward_error = backward_error(prepared.lower.as_ref(), &x, &rhs);
         let forward_error_estimate = prepared.forward_error_estimate(&x, &rhs);
         let refinement = refine(&mut prepared, problem, &mut x, mode)?;
-        if let Some(vertex) = first_non_finite(&x) {
+        if let Some(vertex) = first_non_finite(x.as_ref()) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
         let max_constraint_residual = (0..problem.b().nrows())
@@ -391,7 +393,7 @@ impl PreparedPenalty {
         );
         let mut x = rhs.clone();
         self.factor.solve_in_place(x.as_mut());
-        if let Some(vertex) = first_non_finite(&x) {
+        if let Some(vertex) = first_non_finite(x.as_ref()) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
         Ok((x, rhs))
@@ -437,7 +439,7 @@ impl Prepared for PreparedPenalty {
         Ok(x)
     }
 
-    /// One step of the method of multipliers in residual form (DESIGN §6):
+    /// One step of the method of multipliers in residual form (docs/refinement.md §4):
     /// `D̃_{k+1} = D̃_k + (D − B X_k)`,
     /// `ΔX = K⁻¹ [Aᵀ(C − A X_k) + w² Bᵀ(D̃_{k+1} − B X_k)]`, same factor.
     /// The first part of the bracket also corrects the rounding drift of the

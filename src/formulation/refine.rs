@@ -6,7 +6,7 @@
 //! alone loses about `log10(ε κ(N))` digits. One refinement step computes the
 //! residual of the **original** rows (`C − A X`, `D − B X`, never
 //! `AᵀC − AᵀA X`), maps it through the same factor to a correction `ΔX` and
-//! adds it (DESIGN §6):
+//! adds it (docs/refinement.md §1–§4):
 //!
 //! - null-space QR: `Δy = R1⁻ᵀ (D − B X)_kept` with the residual in twice
 //!   the working precision (a kept row close to dependence amplifies the
@@ -48,144 +48,20 @@
 //! result is returned with a warning.
 
 use faer::Mat;
-use serde::Serialize;
 
 use crate::error::Error;
 use crate::problem::LseProblem;
 
 use super::Prepared;
-
-/// Whether and how far to refine a solution (the CLI's `--refine
-/// off|auto|N`; [`Refine::Until`] is for callers with an accuracy target,
-/// such as the response basis of [`crate::handle`]).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub enum Refine {
-    /// No refinement; the forward error is still estimated (one correction
-    /// computed and not applied).
-    Off,
-    /// Refine until a correction is below [`CONVERGED_ULPS`] ulps of the
-    /// solution's size, stops shrinking, or [`AUTO_MAX_STEPS`] steps.
-    #[default]
-    Auto,
-    /// Exactly this many steps unless a correction stops shrinking or
-    /// reaches the rounding floor (then fewer).
-    Steps(usize),
-    /// As [`Refine::Auto`], and stop after applying a correction of at
-    /// most this size (relative to the length scale, as the estimate).
-    /// The estimate is then that correction's size: the error before it,
-    /// and an upper bound of the error after it while the iteration
-    /// contracts by at most ½ per step (module documentation).
-    Until(f64),
-}
-
-impl Refine {
-    /// Parses `off`, `auto` or a step count (the CLI's and Python's words).
-    pub fn parse(word: &str) -> Result<Refine, crate::error::ProblemError> {
-        match word {
-            "off" => Ok(Refine::Off),
-            "auto" => Ok(Refine::Auto),
-            n => n.parse::<usize>().map(Refine::Steps).map_err(|_| {
-                crate::error::ProblemError::InvalidArgument {
-                    message: format!(
-                        "refinement '{word}' is not one of off, auto or a number of steps"
-                    ),
-                }
-            }),
-        }
-    }
-
-    /// The cap on steps.
-    fn max_steps(self) -> usize {
-        match self {
-            Refine::Off => 0,
-            Refine::Auto | Refine::Until(_) => AUTO_MAX_STEPS,
-            Refine::Steps(n) => n,
-        }
-    }
-}
-
-impl std::fmt::Display for Refine {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Refine::Off => write!(f, "off"),
-            Refine::Auto => write!(f, "auto"),
-            Refine::Steps(n) => write!(f, "{n}"),
-            Refine::Until(tolerance) => write!(f, "until {tolerance:e}"),
-        }
-    }
-}
-
-/// The cap of [`Refine::Auto`]: 30 steps. The exact formulations converge in
-/// 1–4 steps whenever `ε κ(N) < 1` (each step gains about
-/// `−log10(ε κ(N))` digits); the method of multipliers contracts by
-/// `1/(1 + w² μ_min)` per step, so a small penalty weight can need more, and
-/// 30 steps of a rate of 1/3 gain 14 digits.
-pub const AUTO_MAX_STEPS: usize = 30;
-
-/// [`Refine::Auto`] stops once a correction is at most this many ulps of the
-/// solution's size (`‖ΔX‖ ≤ 8 ε max_i ‖X_i‖`): below that a correction only
-/// moves rounding noise.
-pub const CONVERGED_ULPS: f64 = 8.0;
-
-/// A result whose [`Refinement::forward_error_estimate`] exceeds `1e-8`
-/// (relative to the length scale) is returned with a warning: the same bound
-/// that classifies a skipped constraint as conflicting
-/// ([`crate::report::CONFLICT_RELATIVE_TOLERANCE`]); an error above it can
-/// show in a rendering or in a comparison of methods.
-pub const FORWARD_ERROR_WARNING: f64 = 1e-8;
+pub use crate::refinement::{
+    AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, Refine, RefineStop, Refinement,
+};
 
 /// The penalty method's conflict test: a hard-constraint residual above
 /// the conflict tolerance and more than this many times the size of the
 /// last correction (for three steps running) cannot be the error of `X`
 /// (the rows of `B` have norm of order one, so `‖B ΔX‖ ≲ ‖ΔX‖`).
 const CONFLICT_STALL_RATIO: f64 = 1e3;
-
-/// Why refinement stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum RefineStop {
-    /// Refinement was off (one correction was computed for the estimate).
-    #[default]
-    Off,
-    /// A correction fell below [`CONVERGED_ULPS`] ulps of the solution.
-    Converged,
-    /// A correction was at most the tolerance of [`Refine::Until`].
-    Tolerance,
-    /// A correction did not shrink: the rounding floor of this factor; it
-    /// was not applied.
-    Stagnated,
-    /// The step cap was reached.
-    StepLimit,
-    /// Penalty only: the hard-constraint residual `‖D − B X_k‖` stopped
-    /// shrinking above the conflict tolerance while the shifted targets
-    /// kept moving — conflicting hard constraints, which the method of
-    /// multipliers cannot satisfy.
-    ConflictingConstraints,
-    /// Nothing to refine (every unknown fixed by the hard constraints).
-    Exact,
-}
-
-/// What refinement did, for the report.
-#[derive(Debug, Clone, PartialEq, Serialize, Default)]
-pub struct Refinement {
-    /// The mode asked for (`off`, `auto`, or the step count).
-    pub mode: String,
-    /// Corrections applied.
-    pub steps: usize,
-    /// `max_i ‖ΔX_i‖₂ / length scale` of every correction computed, in order
-    /// (one more than `steps` when the last was not applied).
-    pub corrections: Vec<f64>,
-    /// Why it stopped.
-    pub stop_reason: RefineStop,
-    /// The estimated forward error of the returned solution, relative to
-    /// the length scale (see the module documentation).
-    pub forward_error_estimate: f64,
-    /// Penalty only: `max_k ‖b_k X − d_k‖₂ / length scale` after each
-    /// step (the first entry before any), the quantity the method of
-    /// multipliers drives to zero.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub constraint_residuals: Vec<f64>,
-}
 
 /// `max_i ‖M_i‖₂` over the rows of `m`.
 pub(crate) fn max_row_norm(m: &Mat<f64>) -> f64 {
@@ -221,7 +97,7 @@ pub fn refine(
 ) -> Result<Refinement, Error> {
     let scale = positive_or_one(problem.length_scale());
     let mut out = Refinement {
-        mode: mode.to_string(),
+        mode,
         ..Refinement::default()
     };
     let track_constraints = !system.exact() && problem.b().nrows() > 0;

@@ -1,6 +1,6 @@
 //! Discrete Laplacians of a triangle mesh as faer sparse matrices.
 //!
-//! Sign convention (DESIGN.md §1, paper eq. 1–2): `δ_i = Σ_{j∈N(i)} w_ij (p_i − p_j)`,
+//! Sign convention (docs/formulations.md §1, paper eq. 1–2): `δ_i = Σ_{j∈N(i)} w_ij (p_i − p_j)`,
 //! so `L_ii = Σ_j w_ij`, `L_ij = −w_ij` and `δ = L P`. Every row sums to zero.
 //!
 //! - [`LaplacianKind::Uniform`] (eq. 8): `w_ij = 1/|N(i)|`.
@@ -69,7 +69,7 @@ impl LaplacianKind {
     /// `X = s X̂`, `‖L(X − P)‖²` scales as `s^(2 − 2a)` and a soft term
     /// `w²‖b·X − d‖²` as `s²`: see [`crate::deform::Deformer`] for how the
     /// soft weights are compensated when the problem is assembled in another
-    /// length unit (docs/units.md).
+    /// length unit (docs/units.md §2–§3).
     pub fn inverse_length_power(self) -> i32 {
         match self {
             LaplacianKind::Uniform | LaplacianKind::CotangentSymmetric => 0,
@@ -88,6 +88,19 @@ impl LaplacianKind {
     }
 }
 
+impl crate::choice::Word for LaplacianKind {
+    const WHAT: &'static str = "Laplacian";
+    fn all() -> &'static [Self] {
+        &LaplacianKind::ALL
+    }
+    fn name(self) -> &'static str {
+        LaplacianKind::name(self)
+    }
+    fn aliases() -> &'static [(&'static str, Self)] {
+        &[("cotangent", LaplacianKind::Cotangent)]
+    }
+}
+
 impl std::fmt::Display for LaplacianKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
@@ -95,17 +108,11 @@ impl std::fmt::Display for LaplacianKind {
 }
 
 impl std::str::FromStr for LaplacianKind {
-    type Err = String;
+    type Err = crate::error::ParseWordError;
+    /// Errors: [`ParseWordError`](crate::error::ParseWordError) listing the
+    /// kinds.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "uniform" => Ok(LaplacianKind::Uniform),
-            "cotan" | "cotangent" => Ok(LaplacianKind::Cotangent),
-            "cotan-symmetric" => Ok(LaplacianKind::CotangentSymmetric),
-            "intrinsic-delaunay" => Ok(LaplacianKind::IntrinsicDelaunay),
-            other => Err(format!(
-                "unknown Laplacian '{other}' (expected uniform, cotan, cotan-symmetric or intrinsic-delaunay)"
-            )),
-        }
+        <LaplacianKind as crate::choice::Word>::parse_word(s)
     }
 }
 

@@ -509,29 +509,37 @@ impl GeneratedKind {
     }
 }
 
-impl fmt::Display for GeneratedKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
+impl crate::choice::Word for GeneratedKind {
+    const WHAT: &'static str = "mesh kind";
+    fn all() -> &'static [Self] {
+        &GeneratedKind::ALL
+    }
+    fn name(self) -> &'static str {
+        GeneratedKind::name(self)
     }
 }
 
 impl FromStr for GeneratedKind {
-    type Err = MeshError;
+    type Err = crate::error::ParseWordError;
 
     /// Parses a command-line name (case-insensitive; `_` accepted for `-`).
+    ///
+    /// Errors: [`ParseWordError`](crate::error::ParseWordError) listing the
+    /// kinds.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let norm = s.trim().to_ascii_lowercase().replace('_', "-");
-        GeneratedKind::ALL
-            .into_iter()
-            .find(|k| k.name() == norm)
-            .ok_or_else(|| {
-                bad(
-                    "kind",
-                    format!(
-                        "unknown mesh kind '{s}' (expected icosphere, bumpy-sphere, grid, unsymmetric-grid or sliver)"
-                    ),
-                )
-            })
+        <GeneratedKind as crate::choice::Word>::parse_word(&norm).map_err(|e| {
+            crate::error::ParseWordError {
+                word: s.to_string(),
+                ..e
+            }
+        })
+    }
+}
+
+impl fmt::Display for GeneratedKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -554,7 +562,10 @@ pub fn generate(kind: GeneratedKind, size: usize, seed: u64) -> Result<Mesh, Mes
 /// [`generate`] with the kind given by name (see [`GeneratedKind`]'s
 /// `FromStr`).
 pub fn by_name(kind: &str, size: usize, seed: u64) -> Result<Mesh, MeshError> {
-    generate(kind.parse()?, size, seed)
+    let kind = kind
+        .parse()
+        .map_err(|e: crate::error::ParseWordError| bad("kind", e.to_string()))?;
+    generate(kind, size, seed)
 }
 
 /// The size parameter of `kind` whose vertex count is closest to

@@ -26,7 +26,7 @@ use pyo3::exceptions::{PyRuntimeError, PyRuntimeWarning, PyUserWarning};
 use pyo3::prelude::*;
 
 use crate::constraints::ConstraintSet;
-use crate::error::ProblemError;
+use crate::error::{ProblemError, SolveOption};
 use crate::formulation::{Formulation, FormulationChoice, Refine};
 use crate::laplacian::{self, LaplacianKind};
 use crate::mesh::Mesh;
@@ -55,7 +55,27 @@ fn build_formulation(
         choice.spd = spd.parse()?;
     }
     choice.weight = weight;
-    choice.build()
+    choice.build().map_err(with_keyword)
+}
+
+/// A library error about an option, with the option's keyword argument
+/// (`weight=`) in front.
+fn with_keyword(e: ProblemError) -> ProblemError {
+    match e {
+        ProblemError::InvalidOption { option, message } => {
+            let keyword = match option {
+                SolveOption::Method => "method",
+                SolveOption::Qr => "qr",
+                SolveOption::Spd => "spd",
+                SolveOption::Weight => "weight",
+                SolveOption::Refine => "refine",
+            };
+            ProblemError::InvalidArgument {
+                message: format!("{keyword}=: {message}"),
+            }
+        }
+        other => other,
+    }
 }
 
 /// The formulation and refinement chosen by the keyword arguments
@@ -89,7 +109,7 @@ impl Chosen {
                     let word: String = r.extract().map_err(|_| {
                         type_error("refine must be 'auto', 'off', a number of steps or None")
                     })?;
-                    Refine::parse(&word).map_err(|e| to_py(e.into()))?
+                    word.parse::<Refine>().map_err(|e| to_py(e.into()))?
                 }
             }),
         };
@@ -102,7 +122,7 @@ impl Chosen {
 
 fn laplacian_kind(name: &str) -> PyResult<LaplacianKind> {
     name.parse()
-        .map_err(|message: String| to_py(ProblemError::InvalidArgument { message }.into()))
+        .map_err(|e: crate::error::ParseWordError| to_py(e.into()))
 }
 
 /// The mesh of `V`, `F` (validated by [`Mesh::new`], GIL released).

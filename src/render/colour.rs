@@ -1,7 +1,8 @@
 //! Colour maps for per-vertex scalars (displacement, difference between
 //! two deformations) and the legend strip that explains them.
 
-use super::raster::{Image, RenderError};
+use super::RenderError;
+use super::raster::Image;
 use super::text::{HAlign, draw_text, text_width};
 
 /// Viridis (matplotlib's perceptually uniform sequential map), sampled at

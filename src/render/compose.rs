@@ -3,10 +3,9 @@
 
 use std::path::Path;
 
-use super::raster::{
-    Camera, Image, RenderError, RenderMesh, Style, View, check_mesh, check_size, render, renumber,
-};
+use super::raster::{Camera, Image, RenderMesh, Style, View, check_mesh, render, renumber};
 use super::text::{HAlign, draw_text};
+use super::{RenderError, check_size};
 
 /// Text colour.
 const BLACK: [u8; 3] = [0, 0, 0];

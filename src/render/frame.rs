@@ -1,6 +1,7 @@
 //! A camera that shows a deformation: the displacement in the image plane.
 
-use super::raster::{Camera, RenderError};
+use super::RenderError;
+use super::raster::Camera;
 
 /// Azimuth tilt away from looking straight along the view axis, degrees:
 /// enough to show depth, little enough (cos 25° = 0.91) to keep the motion

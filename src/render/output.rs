@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::raster::{RenderError, check_size};
+use super::{RenderError, check_size};
 
 /// Writes packed RGB bytes (`3 · width · height`, rows from the top) as a
 /// PNG; the path must end in `.png` and its directory is created. Written

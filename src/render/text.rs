@@ -6,7 +6,8 @@ use std::sync::OnceLock;
 
 use ab_glyph::{Font, FontRef, PxScale, ScaleFont, point};
 
-use super::raster::{Image, RenderError};
+use super::RenderError;
+use super::raster::Image;
 
 /// Horizontal anchor of a line of text.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -128,7 +128,7 @@ def test_bad_constraint_file(tmp_path):
     [
         (dict(method="bogus"), InputError, "unknown method 'bogus'"),
         (dict(laplacian="bogus"), InputError, "unknown Laplacian 'bogus'"),
-        (dict(method="penalty"), InputError, "needs --weight"),
+        (dict(method="penalty"), InputError, "weight=: the penalty method needs a weight"),
         (dict(method="penalty", weight=float("nan")), InputError, "weight NaN"),
         (dict(qr="bogus"), InputError, "bogus"),
         (dict(spd="bogus"), InputError, "bogus"),

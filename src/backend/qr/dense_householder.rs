@@ -37,8 +37,8 @@ use crate::error::{Error, ProblemError};
 pub struct DenseHouseholder;
 
 impl QrBackend for DenseHouseholder {
-    fn name(&self) -> &'static str {
-        "dense-householder"
+    fn kind(&self) -> super::QrKind {
+        super::QrKind::DenseHouseholder
     }
 
     fn factor(
@@ -463,7 +463,7 @@ fn check_block_sizes(verts: &[Vec<usize>], rows: &[Vec<usize>]) -> Result<(), Pr
     }
     crate::limits::check(bytes, || {
         format!(
-            "the dense Householder blocks of Bᵀ (largest: {} unknowns linked by {} constraints; try --qr sparse-givens) would need",
+            "the dense Householder blocks of Bᵀ (largest: {} unknowns linked by {} constraints; try the sparse-givens QR back end) would need",
             largest.0, largest.1
         )
     })

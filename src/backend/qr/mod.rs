@@ -109,38 +109,6 @@ impl QrKind {
     }
 }
 
-impl std::fmt::Display for QrKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for QrKind {
-    type Err = ProblemError;
-    /// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
-    /// message lists the names of this build).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        QrKind::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| ProblemError::InvalidArgument {
-                message: format!(
-                    "unknown QR back end '{s}' (expected one of: {})",
-                    names(&QrKind::available())
-                ),
-            })
-    }
-}
-
-/// `kinds`' names joined by ", " (for messages).
-fn names(kinds: &[QrKind]) -> String {
-    kinds
-        .iter()
-        .map(|k| k.name())
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
 /// The rank-detection tolerance `η`: constraint `j` is skipped when the norm
 /// of what remains of it after projecting out the earlier kept constraints
 /// is `≤ η ‖b_j‖₂`.
@@ -167,10 +135,30 @@ impl Default for RankTolerance {
     }
 }
 
+impl crate::choice::Word for QrKind {
+    const WHAT: &'static str = "QR back end";
+    fn all() -> &'static [Self] {
+        &QrKind::ALL
+    }
+    fn name(self) -> &'static str {
+        QrKind::name(self)
+    }
+    fn listed() -> Vec<Self> {
+        QrKind::available()
+    }
+}
+
+crate::choice::word_traits!(QrKind);
+
 /// A QR factorisation method for `Bᵀ`.
 pub trait QrBackend: Send + Sync {
+    /// Which back end this is.
+    fn kind(&self) -> QrKind;
+
     /// Name used on the command line and in reports.
-    fn name(&self) -> &'static str;
+    fn name(&self) -> &'static str {
+        self.kind().name()
+    }
 
     /// Factors `Bᵀ` for the hard-constraint matrix `b` (m × n, one row per
     /// constraint, in priority order).

@@ -106,8 +106,8 @@ impl SparseGivens {
 }
 
 impl QrBackend for SparseGivens {
-    fn name(&self) -> &'static str {
-        "sparse-givens"
+    fn kind(&self) -> super::QrKind {
+        super::QrKind::SparseGivens
     }
 
     fn factor(

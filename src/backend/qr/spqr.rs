@@ -110,8 +110,8 @@ unsafe extern "C" {
 pub struct Spqr;
 
 impl QrBackend for Spqr {
-    fn name(&self) -> &'static str {
-        NAME
+    fn kind(&self) -> super::QrKind {
+        super::QrKind::Spqr
     }
 
     fn factor(

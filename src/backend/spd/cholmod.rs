@@ -217,8 +217,8 @@ fn configure(common: &mut Common) {
 }
 
 impl SpdBackend for Cholmod {
-    fn name(&self) -> &'static str {
-        NAME
+    fn kind(&self) -> super::SpdKind {
+        super::SpdKind::Cholmod
     }
 
     fn analyze(

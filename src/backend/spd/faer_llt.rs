@@ -27,7 +27,7 @@ use crate::error::NumericalError;
 #[derive(Debug, Clone, Copy)]
 pub struct FaerLlt {
     threshold: SupernodalThreshold,
-    name: &'static str,
+    kind: super::SpdKind,
 }
 
 impl FaerLlt {
@@ -36,7 +36,7 @@ impl FaerLlt {
     pub fn auto() -> FaerLlt {
         FaerLlt {
             threshold: SupernodalThreshold::AUTO,
-            name: "faer-auto",
+            kind: super::SpdKind::FaerAuto,
         }
     }
 
@@ -45,7 +45,7 @@ impl FaerLlt {
     pub fn supernodal() -> FaerLlt {
         FaerLlt {
             threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-            name: "faer-supernodal",
+            kind: super::SpdKind::FaerSupernodal,
         }
     }
 
@@ -53,7 +53,7 @@ impl FaerLlt {
     pub fn simplicial() -> FaerLlt {
         FaerLlt {
             threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
-            name: "faer-simplicial",
+            kind: super::SpdKind::FaerSimplicial,
         }
     }
 }
@@ -72,8 +72,8 @@ fn backend_error(name: &str, e: impl std::fmt::Debug) -> NumericalError {
 }
 
 impl SpdBackend for FaerLlt {
-    fn name(&self) -> &'static str {
-        self.name
+    fn kind(&self) -> super::SpdKind {
+        self.kind
     }
 
     fn analyze(
@@ -86,13 +86,13 @@ impl SpdBackend for FaerLlt {
         };
         let symbolic =
             factorize_symbolic_cholesky(lower, Side::Lower, SymmetricOrdering::Amd, params)
-                .map_err(|e| backend_error(self.name, e))?;
+                .map_err(|e| backend_error(self.kind.name(), e))?;
         let (nnz, index_bytes) = factor_size(&symbolic);
         let split = TreeSplit::new(&symbolic).map(Arc::new);
         Ok(Box::new(FaerSymbolic {
             symbolic: Arc::new(symbolic),
             split,
-            name: self.name,
+            name: self.kind.name(),
             nnz,
             index_bytes,
         }))

@@ -104,33 +104,6 @@ impl SpdKind {
     }
 }
 
-impl std::fmt::Display for SpdKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl std::str::FromStr for SpdKind {
-    type Err = ProblemError;
-    /// Errors: [`ProblemError::InvalidArgument`] for an unknown name (the
-    /// message lists the names of this build).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        SpdKind::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| ProblemError::InvalidArgument {
-                message: format!(
-                    "unknown SPD back end '{s}' (expected one of: {})",
-                    SpdKind::available()
-                        .iter()
-                        .map(|k| k.name())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            })
-    }
-}
-
 /// Threshold on `L_kk² / A_kk` below which a completed Cholesky
 /// factorisation is declared broken down.
 ///
@@ -153,10 +126,74 @@ pub fn check_factor_size(factor_nnz: usize, dim: usize, matrix: &str) -> Result<
     .map_err(|detail| ProblemError::TooLarge { detail })
 }
 
+impl crate::choice::Word for SpdKind {
+    const WHAT: &'static str = "SPD back end";
+    fn all() -> &'static [Self] {
+        &SpdKind::ALL
+    }
+    fn name(self) -> &'static str {
+        SpdKind::name(self)
+    }
+    fn listed() -> Vec<Self> {
+        SpdKind::available()
+    }
+}
+
+crate::choice::word_traits!(SpdKind);
+
+/// The factorisation a formulation ran, for the report: an SPD back end's
+/// Cholesky, or (the KKT method) faer's `LDLᵀ` in the variant an
+/// [`SpdKind`] selects. Serialised as its word (`faer-auto`,
+/// `faer-ldlt-simplicial`, ...).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum FactorKind {
+    /// `LLᵀ` by this back end.
+    Cholesky(SpdKind),
+    /// faer's `LDLᵀ`; `FaerSimplicial` and `FaerSupernodal` force that
+    /// variant, anything else is faer's automatic choice.
+    Ldlt(SpdKind),
+}
+
+impl FactorKind {
+    /// The word in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            FactorKind::Cholesky(kind) => kind.name(),
+            FactorKind::Ldlt(SpdKind::FaerSimplicial) => "faer-ldlt-simplicial",
+            FactorKind::Ldlt(SpdKind::FaerSupernodal) => "faer-ldlt-supernodal",
+            FactorKind::Ldlt(_) => "faer-ldlt-auto",
+        }
+    }
+
+    /// The SPD kind that selects it.
+    pub fn spd(self) -> SpdKind {
+        match self {
+            FactorKind::Cholesky(kind) | FactorKind::Ldlt(kind) => kind,
+        }
+    }
+}
+
+impl std::fmt::Display for FactorKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl serde::Serialize for FactorKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
 /// A sparse SPD solver family.
 pub trait SpdBackend: Send + Sync {
+    /// Which back end this is.
+    fn kind(&self) -> SpdKind;
+
     /// Name used on the command line and in reports.
-    fn name(&self) -> &'static str;
+    fn name(&self) -> &'static str {
+        self.kind().name()
+    }
 
     /// Symbolic analysis (ordering + symbolic factorisation) of the lower
     /// triangle pattern `lower` (square, sorted rows, diagonal present).

@@ -62,8 +62,8 @@ fn backend_error(message: impl Into<String>) -> NumericalError {
 }
 
 impl SpdBackend for NalgebraCsc {
-    fn name(&self) -> &'static str {
-        NAME
+    fn kind(&self) -> super::SpdKind {
+        super::SpdKind::Nalgebra
     }
 
     fn analyze(

@@ -1,0 +1,154 @@
+//! `lse-deform compare MESH -c CONSTRAINTS`: every formulation on every
+//! back end against one reference, as a Markdown table (the library's
+//! [`lse_deform::compare`] does the work).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use lse_deform::compare::{self, CompareOptions, CompareRow};
+use lse_deform::error::ProblemError;
+use lse_deform::formulation::Refine;
+use lse_deform::{Deformer, Error, LaplacianKind, Method, QrKind, SpdKind};
+
+use super::{check_outputs, constraints_for, load, show_after_a_second, write_text};
+
+/// Arguments of `compare`.
+#[derive(Args)]
+pub struct CompareArgs {
+    /// Input mesh.
+    mesh: PathBuf,
+    /// Constraints file (JSON).
+    #[arg(long, short = 'c')]
+    constraints: PathBuf,
+    /// Laplacian weights.
+    #[arg(long, default_value = "cotan")]
+    laplacian: LaplacianKind,
+    /// Formulations to run (comma-separated; default all four).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "nullspace-qr,penalty,kkt,eliminate"
+    )]
+    methods: Vec<Method>,
+    /// QR back ends for nullspace-qr (comma-separated; default all in this
+    /// build).
+    #[arg(long, value_delimiter = ',')]
+    qr: Vec<QrKind>,
+    /// SPD back ends (comma-separated; default all in this build; kkt runs
+    /// the faer LDLT variants among them).
+    #[arg(long, value_delimiter = ',')]
+    spd: Vec<SpdKind>,
+    /// Penalty weights to try (comma-separated).
+    #[arg(long, default_value = "1e4,1e8,1e12", value_delimiter = ',')]
+    weights: Vec<f64>,
+    /// Refinement of every configuration (default: each formulation's own;
+    /// the reference is always refined).
+    #[arg(long)]
+    refine: Option<Refine>,
+    /// Solves per configuration (the median time is reported).
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Skip the condition estimates (they cost a few hundred solves each).
+    #[arg(long)]
+    no_condition: bool,
+    /// Also write every report as a JSON array here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+impl CompareArgs {
+    /// The library's options for these arguments.
+    fn options(&self) -> CompareOptions {
+        CompareOptions {
+            methods: self.methods.clone(),
+            qrs: (!self.qr.is_empty()).then(|| self.qr.clone()),
+            spds: (!self.spd.is_empty()).then(|| self.spd.clone()),
+            weights: self.weights.clone(),
+            refine: self.refine,
+            repeat: self.repeat,
+            condition: !self.no_condition,
+        }
+    }
+}
+
+/// Runs `compare` and prints its table (and writes the rows as JSON).
+pub fn compare(a: CompareArgs) -> Result<(), Error> {
+    check_outputs(None, a.json.as_deref())?;
+    let options = a.options();
+    // Fail before any work when the filters leave nothing to run.
+    let configs = options
+        .configurations()
+        .map_err(|e| ProblemError::InvalidArgument {
+            message: format!("--methods/--qr/--spd/--weights: {e}"),
+        })?;
+    let mesh = load(&a.mesh)?;
+    let constraints = constraints_for(&a.constraints, &mesh, false)?;
+    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    let bar =
+        ProgressBar::with_draw_target(Some(configs.len() as u64 + 1), ProgressDrawTarget::hidden());
+    if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {
+        bar.set_style(style);
+    }
+    show_after_a_second(&bar);
+    bar.set_message("reference (nullspace-qr, refined)");
+    let reference = compare::reference(&mut deformer)?;
+    if let Some(e) = reference.forward_error_estimate.filter(|&e| e > 1e-12) {
+        eprintln!(
+            "warning: the reference solution (nullspace-qr, refined) has an estimated forward error of {e:.1e}: differences below it are not resolved"
+        );
+    }
+    bar.inc(1);
+    let mut rows = Vec::new();
+    for config in &configs {
+        // The QR back end is named for the null-space method only.
+        let qr = (config.method == Method::NullSpaceQr).then_some(config.qr.name());
+        bar.set_message(format!(
+            "{} {} {}",
+            config.method,
+            qr.unwrap_or(""),
+            config.spd
+        ));
+        rows.push(compare::run_one(
+            &mut deformer,
+            config,
+            &options,
+            &reference,
+        ));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    print_compare_table(&rows);
+    if let Some(path) = &a.json {
+        let json = serde_json::to_string_pretty(&rows).map_err(|e| Error::io(path, e.into()))?;
+        write_text(path, json)?;
+    }
+    Ok(())
+}
+
+/// The Markdown table of `compare` on stdout (status text in full).
+fn print_compare_table(rows: &[CompareRow]) {
+    out!(
+        "| method | QR | SPD | weight | precompute (s) | solve, median (ms) | refine (ms) | max ‖BX − D‖ | ΔX | ΔE | forward error est. | condition est. | status |"
+    );
+    out!("|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|");
+    let opt = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map(f).unwrap_or_else(|| "—".into());
+    for r in rows {
+        out!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.method,
+            r.qr.map_or("—", |q| q.name()),
+            r.spd,
+            opt(r.weight, &|w| format!("{w:.0e}")),
+            opt(r.precompute_s, &|t| format!("{t:.3}")),
+            opt(r.solve_median_s, &|t| format!("{:.2}", t * 1e3)),
+            opt(r.refine_s, &|t| format!("{:.2}", t * 1e3)),
+            opt(r.max_constraint_residual, &|v| format!("{v:.1e}")),
+            opt(r.delta_x, &|v| format!("{v:.1e}")),
+            opt(r.delta_e, &|v| format!("{v:.1e}")),
+            opt(r.forward_error_estimate, &|v| format!("{v:.1e}")),
+            opt(r.condition, &|v| format!("{v:.2e}")),
+            r.status.replace('|', "\\|")
+        );
+    }
+}

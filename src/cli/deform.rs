@@ -1,0 +1,171 @@
+//! `lse-deform deform MESH -c CONSTRAINTS -o OUT`: the Laplacian
+//! deformation (or ARAP iterations) of a mesh, with its report.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
+use lse_deform::choice::Energy;
+use lse_deform::formulation::Formulation;
+use lse_deform::{ConstraintSet, Deformer, Error, LaplacianKind, mesh};
+
+use super::summary::{check_strict, check_strict_conflicts, finish_report};
+use super::{MethodArgs, check_outputs, constraints_for, load, phase, write_text};
+
+/// Arguments of `deform`.
+#[derive(Args)]
+pub struct DeformArgs {
+    /// Input mesh (.obj, .ply, .off, optionally .gz).
+    mesh: PathBuf,
+    /// Constraints file (JSON).
+    #[arg(long, short = 'c')]
+    constraints: PathBuf,
+    /// Laplacian weights.
+    #[arg(long, default_value = "cotan")]
+    laplacian: LaplacianKind,
+    /// Output mesh (.obj or .ply).
+    #[arg(long, short = 'o')]
+    output: PathBuf,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    #[command(flatten)]
+    method: MethodArgs,
+    /// Estimate the condition number of the factored matrix (Lanczos; costs
+    /// up to a few hundred extra solves).
+    #[arg(long)]
+    condition: bool,
+    /// Turn warnings that have a strict form into errors, writing nothing:
+    /// an estimated forward error above 1e-8 of the bounding-box diagonal
+    /// (exit 3), a constraints file made for another mesh (exit 2) and a
+    /// conflicting hard constraint (exit 2; the warnings and the summary
+    /// line are still printed).
+    #[arg(long)]
+    strict: bool,
+    #[command(flatten)]
+    energy: EnergyArgs,
+}
+
+/// The deformation energy of `deform`.
+#[derive(Args)]
+struct EnergyArgs {
+    /// Deformation energy: the linear Laplacian (the paper; --laplacian
+    /// chooses its weights) or as-rigid-as-possible (cotangent weights).
+    #[arg(long, default_value = "laplacian")]
+    energy: Energy,
+    /// ARAP energy: spokes (Sorkine & Alexa 2007) or spokes-and-rims (Chao
+    /// et al. 2010, libigl's default).
+    #[arg(long, default_value = "spokes-and-rims")]
+    arap_energy: ArapEnergy,
+    /// ARAP: the most iterations to run.
+    #[arg(long, default_value_t = 10)]
+    iterations: usize,
+    /// ARAP: stop when the relative energy decrease of an iteration is at
+    /// most this (0 runs all --iterations).
+    #[arg(long, default_value_t = 0.0)]
+    tolerance: f64,
+    /// ARAP initial guess: linear (the linear gradient-domain solution;
+    /// lower energy than rest at every iteration count measured on the
+    /// Bunny, results/arap/README.md) or rest (rest pose, constrained
+    /// vertices at their targets, as libigl's tutorials).
+    #[arg(long, default_value = "linear")]
+    arap_init: ArapInit,
+}
+
+/// Runs `deform`: Laplacian editing, or ARAP with `--energy arap`.
+pub fn deform(a: DeformArgs) -> Result<(), Error> {
+    check_outputs(Some(&a.output), a.report.as_deref())?;
+    let mesh = load(&a.mesh)?;
+    let constraints = constraints_for(&a.constraints, &mesh, a.strict)?;
+    let m = &a.method;
+    let formulation = m.formulation()?;
+    if a.energy.energy == Energy::Arap {
+        return deform_arap(&a, mesh, constraints, formulation.as_ref());
+    }
+    let bar = phase("set-up");
+    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    deformer.set_refine(m.refine);
+    bar.set_message(format!("precompute ({})", formulation.name()));
+    deformer.precompute(formulation.as_ref())?;
+    if a.condition {
+        bar.set_message("condition estimate (Lanczos)");
+        deformer.estimate_condition()?;
+    }
+    bar.set_message("solve");
+    let solution = deformer.solve()?;
+    bar.finish_and_clear();
+    if a.strict && !solution.report.conflicting.is_empty() {
+        // The warnings and the summary line with its counts still go to
+        // stderr; nothing is written.
+        finish_report(&solution.report, None, "vertices", "constraints")?;
+        check_strict_conflicts(&solution.report, a.strict)?;
+    }
+    check_strict(&solution.report, a.strict)?;
+    let out = deformer.mesh().with_positions(solution.positions)?;
+    let bar = phase(&format!("writing {}", a.output.display()));
+    mesh::write_mesh(&out, &a.output)?;
+    bar.finish_and_clear();
+    finish_report(
+        &solution.report,
+        a.report.as_deref(),
+        "vertices",
+        "constraints",
+    )
+}
+
+fn deform_arap(
+    a: &DeformArgs,
+    mesh: mesh::Mesh,
+    constraints: ConstraintSet,
+    formulation: &dyn Formulation,
+) -> Result<(), Error> {
+    let e = &a.energy;
+    let bar = phase("set-up");
+    let mut arap = ArapDeformer::new(mesh, constraints, e.arap_energy)?;
+    arap.set_refine(a.method.refine);
+    bar.set_message(format!("precompute ({})", formulation.name()));
+    arap.precompute(formulation)?;
+    bar.set_message("ARAP iterations");
+    arap.initialize(e.arap_init)?;
+    let history = arap.run(e.iterations, e.tolerance)?;
+    bar.finish_and_clear();
+    let report = arap.report().clone();
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    let summary = format!(
+        "{} + ARAP ({}, init {}): {} vertices, {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; {} iterations ({}), energy {:.6e} -> {:.6e}; precompute {:.3} s, {:.4} s per iteration (local {:.3} s, global {:.3} s in all)",
+        report.method,
+        history.energy,
+        history.init,
+        report.vertices,
+        report.hard_constraints,
+        report.redundant.len(),
+        report.conflicting.len(),
+        report.max_constraint_residual,
+        history.iterations,
+        history.stop_reason,
+        history.initial_energy,
+        history
+            .energies
+            .last()
+            .copied()
+            .unwrap_or(history.initial_energy),
+        report.timings_s.precompute(),
+        history.time_per_iteration_s,
+        history.local_time_s,
+        history.global_time_s,
+    );
+    if a.strict && !report.conflicting.is_empty() {
+        eprintln!("{summary}");
+        return check_strict_conflicts(&report, a.strict);
+    }
+    let out = arap.mesh().with_positions(arap.positions())?;
+    mesh::write_mesh(&out, &a.output)?;
+    if let Some(path) = &a.report {
+        let json = serde_json::to_string_pretty(&report).map_err(|e| Error::io(path, e.into()))?;
+        write_text(path, json)?;
+    }
+    eprintln!("{summary}");
+    Ok(())
+}

@@ -1,0 +1,128 @@
+//! `lse-deform solve DIR -o X.mtx`: a problem given as Matrix Market
+//! matrices (as `export-system` writes them, or one by one).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use lse_deform::export::{META_FILE, read_meta};
+use lse_deform::problem::LseProblem;
+use lse_deform::{Error, LseSolver, Report, mtx};
+
+use super::summary::finish_report;
+use super::{MethodArgs, check_outputs, phase};
+
+/// Arguments of `solve`.
+#[derive(Args)]
+pub struct SolveArgs {
+    /// Directory holding A.mtx, C.mtx, B.mtx, D.mtx (and meta.json), as
+    /// export-system writes it.
+    dir: Option<PathBuf>,
+    /// A (l × n, sparse); default DIR/A.mtx.
+    #[arg(long)]
+    a: Option<PathBuf>,
+    /// C (l × k, dense); default DIR/C.mtx.
+    #[arg(long)]
+    c: Option<PathBuf>,
+    /// B (m × n, sparse, one hard constraint per row in priority order);
+    /// default DIR/B.mtx.
+    #[arg(long)]
+    b: Option<PathBuf>,
+    /// D (m × k, dense); default DIR/D.mtx.
+    #[arg(long)]
+    d: Option<PathBuf>,
+    /// meta.json of export-system (Laplacian rows, length scale); default
+    /// DIR/meta.json when it exists.
+    #[arg(long)]
+    meta: Option<PathBuf>,
+    #[command(flatten)]
+    method: MethodArgs,
+    /// Output: X (n × k) as a dense Matrix Market file.
+    #[arg(long, short = 'o')]
+    output: PathBuf,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Estimate the condition number of the factored matrix.
+    #[arg(long)]
+    condition: bool,
+}
+
+/// The path of one of `solve`'s matrices: the flag, else `DIR/NAME`.
+fn matrix_path(
+    flag: &Option<PathBuf>,
+    dir: &Option<PathBuf>,
+    name: &str,
+) -> Result<PathBuf, Error> {
+    match (flag, dir) {
+        (Some(p), _) => Ok(p.clone()),
+        (None, Some(d)) => Ok(d.join(name)),
+        (None, None) => Err(lse_deform::error::ProblemError::InvalidArgument {
+            message: format!(
+                "no {name}: give a directory or --{}",
+                name.trim_end_matches(".mtx").to_lowercase()
+            ),
+        }
+        .into()),
+    }
+}
+
+/// Runs `solve`.
+pub fn solve(a: SolveArgs) -> Result<(), Error> {
+    // Fail fast, as `deform` does: both outputs must be writable before
+    // the matrices are read and factored.
+    check_outputs(None, Some(&a.output))?;
+    check_outputs(None, a.report.as_deref())?;
+    let path = |flag: &Option<PathBuf>, name: &str| matrix_path(flag, &a.dir, name);
+    let (pa, pc, pb, pd) = (
+        path(&a.a, "A.mtx")?,
+        path(&a.c, "C.mtx")?,
+        path(&a.b, "B.mtx")?,
+        path(&a.d, "D.mtx")?,
+    );
+    let m = &a.method;
+    let formulation = m.formulation()?;
+    let meta_path = a.meta.clone().or_else(|| {
+        a.dir
+            .as_ref()
+            .map(|d| d.join(META_FILE))
+            .filter(|p| p.exists())
+    });
+    let meta = meta_path
+        .as_deref()
+        .map(read_meta)
+        .transpose()?
+        .unwrap_or_default();
+    let bar = phase("reading the matrices");
+    let t = std::time::Instant::now();
+    let (ma, mc, mb, md) = mtx::read_system(&pa, &pc, &pb, &pd)?;
+    let mut problem = LseProblem::from_parts(ma.as_ref(), mc.as_ref(), mb.as_ref(), md.as_ref())?;
+    if let Some(rows) = meta.laplacian_rows {
+        problem = problem.with_laplacian_rows(rows);
+    }
+    if let Some(scale) = meta.length_scale {
+        problem = problem.with_length_scale(scale);
+    }
+    let mut base = Report {
+        length_unit: meta.length_unit.unwrap_or(1.0),
+        ..Report::default()
+    };
+    base.timings_s.setup = t.elapsed().as_secs_f64();
+    let mut solver = LseSolver::with_report(problem, base);
+    solver.set_refine(m.refine);
+    bar.set_message(format!("precompute ({})", formulation.name()));
+    solver.precompute(formulation.as_ref())?;
+    if a.condition {
+        bar.set_message("condition estimate (Lanczos)");
+        solver.estimate_condition()?;
+    }
+    bar.set_message("solve");
+    let x = solver.solve()?;
+    bar.finish_and_clear();
+    mtx::write_dense(&a.output, x.as_ref())?;
+    finish_report(
+        solver.report(),
+        a.report.as_deref(),
+        "unknowns",
+        "rows of B",
+    )
+}

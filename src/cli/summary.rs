@@ -1,0 +1,120 @@
+//! What `deform` and `solve` print and write after a solve: warnings, the
+//! report file, the one-line summary, and the `--strict` checks.
+
+use std::path::Path;
+
+use lse_deform::refinement::FORWARD_ERROR_WARNING;
+use lse_deform::{Error, Report};
+
+use super::write_text;
+
+/// Conflict warnings, the `--report` file and the summary line of
+/// `deform` and `solve`.
+pub fn finish_report(
+    report: &Report,
+    path: Option<&Path>,
+    unknowns: &str,
+    constraints: &str,
+) -> Result<(), Error> {
+    // The conflicting constraints are among the warnings (the first few one
+    // by one, the rest counted: a file can hold 10⁵ of them).
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    if let Some(path) = path {
+        let json = serde_json::to_string_pretty(report).map_err(|e| Error::io(path, e.into()))?;
+        write_text(path, json)?;
+    }
+    eprintln!("{}", summary_line(report, unknowns, constraints));
+    Ok(())
+}
+
+/// `--strict`: a conflicting hard constraint is an error (exit 2) before
+/// anything is written; the message names the first (every one is among
+/// the warnings).
+pub fn check_strict_conflicts(report: &Report, strict: bool) -> Result<(), Error> {
+    let count = report.conflicting.len();
+    if !strict || count == 0 {
+        return Ok(());
+    }
+    let first = report
+        .warnings
+        .iter()
+        .find(|w| {
+            w.starts_with(&format!(
+                "constraint {} conflicts",
+                report.conflicting[0].index
+            ))
+        })
+        .cloned()
+        .unwrap_or_else(|| {
+            format!(
+                "constraint {} conflicts with earlier constraints (residual {:.3e})",
+                report.conflicting[0].index, report.conflicting[0].residual
+            )
+        });
+    let detail = if count > 1 {
+        format!("{first}; and {} more", count - 1)
+    } else {
+        first
+    };
+    Err(lse_deform::error::ConstraintError::Conflicting { count, detail }.into())
+}
+
+/// `--strict`: an estimated forward error above the warning threshold is
+/// an error (exit 3) before anything is written.
+pub fn check_strict(report: &Report, strict: bool) -> Result<(), Error> {
+    let estimate = report.forward_error_estimate.unwrap_or(0.0);
+    if strict && (estimate.is_nan() || estimate > FORWARD_ERROR_WARNING) {
+        return Err(lse_deform::error::NumericalError::LostAccuracy {
+            matrix: format!("{} (--strict)", report.method),
+            estimate,
+            tolerance: FORWARD_ERROR_WARNING,
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// The one-line summary of a deformation or solve on stderr.
+pub fn summary_line(report: &Report, unknowns: &str, constraints: &str) -> String {
+    let t = &report.timings_s;
+    let rank = report
+        .rank
+        .map(|r| format!("rank {r} of "))
+        .unwrap_or_default();
+    let dependence = if report.redundant.is_detected() {
+        format!(
+            "{} redundant, {} conflicting",
+            report.redundant.len(),
+            report.conflicting.len()
+        )
+    } else {
+        "redundancy and conflicts not detected".into()
+    };
+    let refinement = report
+        .refinement
+        .as_ref()
+        .map(|r| {
+            format!(
+                ", refine {} ({} steps, {:.4} s), forward error ~{:.1e}",
+                r.mode, r.steps, t.refine, r.forward_error_estimate
+            )
+        })
+        .unwrap_or_default();
+    format!(
+        "{}: {} {unknowns}, {rank}{} hard {constraints} ({dependence}), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s{refinement}{}",
+        report.method,
+        report.vertices,
+        report.hard_constraints,
+        report.max_constraint_residual,
+        t.setup,
+        t.precompute(),
+        t.solve,
+        report
+            .condition_estimate
+            .as_ref()
+            .map(|c| format!(", condition ~{:.2e}", c.value))
+            .unwrap_or_default()
+    )
+}

@@ -1,0 +1,329 @@
+//! `compare`: every chosen formulation on every back end that fits, on one
+//! mesh problem, each measured against one reference solution (the paper's
+//! method with its default back ends, refined to convergence). The CLI's
+//! `compare` prints the rows as a table; library and Python callers get
+//! them as values.
+//!
+//! Metrics against the reference `X*` (both in the problem's units):
+//! `ΔX = max_i ‖X_i − X*_i‖₂ / length scale` and the relative excess of the
+//! energy `E = ‖AX − C‖²`, `ΔE = (E − E*) / E*` (`E` itself when `E* = 0`).
+
+use faer::Mat;
+use serde::Serialize;
+
+use crate::backend::qr::QrKind;
+use crate::backend::spd::SpdKind;
+use crate::choice::Method;
+use crate::deform::Deformer;
+use crate::error::{Error, ProblemError};
+use crate::formulation::{FormulationChoice, Kkt, NullSpaceQr};
+use crate::refinement::Refine;
+
+/// What to compare.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompareOptions {
+    /// Formulations, in table order.
+    pub methods: Vec<Method>,
+    /// QR back ends for the null-space method (`None`: all of this build).
+    pub qrs: Option<Vec<QrKind>>,
+    /// SPD back ends (`None`: all of this build except `FaerAuto`, which
+    /// is one of the two explicit faer variants).
+    pub spds: Option<Vec<SpdKind>>,
+    /// Penalty weights, one configuration each.
+    pub weights: Vec<f64>,
+    /// Refinement of every configuration (`None`: each formulation's own).
+    pub refine: Option<Refine>,
+    /// Solves per configuration (the median time is reported).
+    pub repeat: usize,
+    /// Estimate the condition number of every factored matrix.
+    pub condition: bool,
+}
+
+impl Default for CompareOptions {
+    fn default() -> Self {
+        CompareOptions {
+            methods: Method::ALL.to_vec(),
+            qrs: None,
+            spds: None,
+            weights: vec![1e4, 1e8, 1e12],
+            refine: None,
+            repeat: 5,
+            condition: true,
+        }
+    }
+}
+
+impl CompareOptions {
+    /// Every configuration the options allow, in table order: the
+    /// null-space method on every QR × SPD pair, the penalty method for
+    /// every weight × SPD, KKT on the SPD kinds that select an `LDLᵀ`
+    /// variant ([`Kkt::for_spd`]), elimination on every SPD kind.
+    ///
+    /// Errors: [`ProblemError::InvalidArgument`] when nothing is left.
+    pub fn configurations(&self) -> Result<Vec<FormulationChoice>, ProblemError> {
+        let qrs = self.qrs.clone().unwrap_or_else(QrKind::available);
+        let spds = self.spds.clone().unwrap_or_else(|| {
+            SpdKind::available()
+                .into_iter()
+                .filter(|&k| k != SpdKind::FaerAuto)
+                .collect()
+        });
+        let mut configs = Vec::new();
+        for &method in &self.methods {
+            let with = |spd: SpdKind| FormulationChoice {
+                spd,
+                ..FormulationChoice::new(method)
+            };
+            match method {
+                Method::NullSpaceQr => {
+                    for &qr in &qrs {
+                        configs.extend(spds.iter().map(|&s| FormulationChoice { qr, ..with(s) }));
+                    }
+                }
+                Method::Penalty => {
+                    for &w in &self.weights {
+                        configs.extend(spds.iter().map(|&s| FormulationChoice {
+                            weight: Some(w),
+                            ..with(s)
+                        }));
+                    }
+                }
+                Method::Kkt => configs.extend(
+                    spds.iter()
+                        .filter(|&&s| Kkt::for_spd(s).is_some())
+                        .map(|&s| with(s)),
+                ),
+                Method::Eliminate => configs.extend(spds.iter().map(|&s| with(s))),
+            }
+        }
+        if configs.is_empty() {
+            return Err(ProblemError::InvalidArgument {
+                message: "the methods, back ends and weights chosen leave no configuration to run"
+                    .into(),
+            });
+        }
+        Ok(configs)
+    }
+}
+
+/// The reference of a comparison: `X*` (in the problem's units) and its
+/// energy `E* = ‖AX* − C‖²`.
+#[derive(Debug, Clone)]
+pub struct Reference {
+    /// The solution.
+    pub x: Mat<f64>,
+    /// Its energy.
+    pub energy: f64,
+    /// Its estimated forward error (relative to the length scale).
+    pub forward_error_estimate: Option<f64>,
+}
+
+/// Solves the reference with `deformer`: the null-space method with its
+/// default back ends, refined until it converges.
+pub fn reference(deformer: &mut Deformer) -> Result<Reference, Error> {
+    deformer.set_refine(Some(Refine::Auto));
+    deformer.precompute(&NullSpaceQr::default())?;
+    let x = deformer.solve_matrix()?;
+    let r = deformer.report();
+    Ok(Reference {
+        x,
+        energy: r.least_squares_residual.powi(2),
+        forward_error_estimate: r.forward_error_estimate,
+    })
+}
+
+/// `ΔX = max_i ‖X_i − X*_i‖₂ / scale` over the rows (scale: the length
+/// scale; a non-positive scale counts as the smallest positive double).
+pub fn delta_x(x: &Mat<f64>, reference: &Mat<f64>, scale: f64) -> f64 {
+    let worst = (0..x.nrows())
+        .map(|i| {
+            (0..x.ncols())
+                .map(|c| (x[(i, c)] - reference[(i, c)]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max);
+    worst / scale.max(f64::MIN_POSITIVE)
+}
+
+/// `ΔE = (E − E*) / E*`, or `E` when `E* = 0`.
+pub fn delta_e(energy: f64, reference: f64) -> f64 {
+    if reference > 0.0 {
+        (energy - reference) / reference
+    } else {
+        energy
+    }
+}
+
+/// One configuration's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct CompareRow {
+    /// The formulation.
+    pub method: Method,
+    /// The QR back end (null-space method only).
+    pub qr: Option<QrKind>,
+    /// The SPD back end (KKT: the `LDLᵀ` variant it selects).
+    pub spd: SpdKind,
+    /// The penalty weight.
+    pub weight: Option<f64>,
+    /// `ok`, `ok, warning: …` or `error (input|numerical): …`.
+    pub status: String,
+    /// Seconds of precompute.
+    pub precompute_s: Option<f64>,
+    /// Median seconds of one solve.
+    pub solve_median_s: Option<f64>,
+    /// Seconds of refinement of the last solve.
+    pub refine_s: Option<f64>,
+    /// `max ‖b_k X − d_k‖₂` over the kept hard constraints.
+    pub max_constraint_residual: Option<f64>,
+    /// `max_i ‖X_i − X*_i‖ / bbox diagonal` against the reference.
+    pub delta_x: Option<f64>,
+    /// `(E − E*) / E*` with `E = ‖AX − C‖²`, against the reference.
+    pub delta_e: Option<f64>,
+    /// The estimated forward error of the solution.
+    pub forward_error_estimate: Option<f64>,
+    /// The estimated condition number of the factored matrix.
+    pub condition: Option<f64>,
+    /// The full report.
+    pub report: Option<crate::Report>,
+}
+
+impl CompareRow {
+    /// An empty row for `config`.
+    fn new(config: &FormulationChoice) -> CompareRow {
+        CompareRow {
+            method: config.method,
+            qr: (config.method == Method::NullSpaceQr).then_some(config.qr),
+            spd: config.spd,
+            weight: config.weight,
+            status: "ok".into(),
+            precompute_s: None,
+            solve_median_s: None,
+            refine_s: None,
+            max_constraint_residual: None,
+            delta_x: None,
+            delta_e: None,
+            forward_error_estimate: None,
+            condition: None,
+            report: None,
+        }
+    }
+}
+
+/// Runs `config` on `deformer`'s problem and measures it against
+/// `reference`. An error of the configuration (a breakdown, a refused
+/// constraint kind) is its row's status, not an error of the comparison.
+pub fn run_one(
+    deformer: &mut Deformer,
+    config: &FormulationChoice,
+    options: &CompareOptions,
+    reference: &Reference,
+) -> CompareRow {
+    let mut row = CompareRow::new(config);
+    match measure(deformer, config, options, reference, &mut row) {
+        Err(e) => {
+            let class = if e.is_input_error() {
+                "input"
+            } else {
+                "numerical"
+            };
+            row.status = format!("error ({class}): {e}");
+        }
+        Ok(()) => {
+            if let Some(r) = &row.report
+                && !r.warnings.is_empty()
+            {
+                row.status = format!("ok, warning: {}", r.warnings.join("; "));
+            }
+        }
+    }
+    row
+}
+
+/// The measurements of [`run_one`].
+fn measure(
+    deformer: &mut Deformer,
+    config: &FormulationChoice,
+    options: &CompareOptions,
+    reference: &Reference,
+    row: &mut CompareRow,
+) -> Result<(), Error> {
+    let f = config.build()?;
+    deformer.set_refine(options.refine);
+    deformer.precompute(f.as_ref())?;
+    let mut times = Vec::new();
+    let mut x = Mat::<f64>::zeros(0, 0);
+    for _ in 0..options.repeat.max(1) {
+        x = deformer.solve_matrix()?;
+        times.push(deformer.report().timings_s.solve);
+    }
+    times.sort_by(f64::total_cmp);
+    row.solve_median_s = Some(times[times.len() / 2]);
+    if options.condition {
+        row.condition = Some(deformer.estimate_condition()?.value);
+    }
+    let r = deformer.report().clone();
+    // X and the reference are in the problem's units (solve_matrix).
+    row.delta_x = Some(delta_x(&x, &reference.x, deformer.problem().length_scale()));
+    row.delta_e = Some(delta_e(r.least_squares_residual.powi(2), reference.energy));
+    row.precompute_s = Some(r.timings_s.precompute());
+    row.refine_s = Some(r.timings_s.refine);
+    row.max_constraint_residual = Some(r.max_constraint_residual);
+    row.forward_error_estimate = r.forward_error_estimate;
+    row.report = Some(r);
+    Ok(())
+}
+
+/// Every configuration of `options` on `deformer`'s problem, after the
+/// reference; `progress` is told each configuration before it runs.
+pub fn compare(
+    deformer: &mut Deformer,
+    options: &CompareOptions,
+    progress: &mut dyn FnMut(&FormulationChoice),
+) -> Result<(Reference, Vec<CompareRow>), Error> {
+    let configs = options.configurations()?;
+    let reference = reference(deformer)?;
+    let rows = configs
+        .iter()
+        .map(|config| {
+            progress(config);
+            run_one(deformer, config, options, &reference)
+        })
+        .collect();
+    Ok((reference, rows))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kkt_runs_only_on_the_faer_variants_and_empty_choices_are_refused() {
+        let options = CompareOptions {
+            methods: vec![Method::Kkt],
+            spds: Some(vec![SpdKind::Nalgebra, SpdKind::FaerSimplicial]),
+            ..CompareOptions::default()
+        };
+        let configs = options.configurations().unwrap();
+        assert_eq!(configs.len(), 1);
+        assert_eq!(configs[0].spd, SpdKind::FaerSimplicial);
+        let none = CompareOptions {
+            methods: vec![Method::Kkt],
+            spds: Some(vec![SpdKind::Nalgebra]),
+            ..CompareOptions::default()
+        };
+        assert!(none.configurations().is_err());
+    }
+
+    #[test]
+    fn metrics_measure_the_worst_vertex_and_the_relative_energy() {
+        let r = Mat::<f64>::zeros(2, 3);
+        let mut x = Mat::<f64>::zeros(2, 3);
+        x[(1, 0)] = 3.0;
+        x[(1, 1)] = 4.0;
+        x[(0, 2)] = 1.0;
+        assert_eq!(delta_x(&x, &r, 10.0), 0.5);
+        assert_eq!(delta_e(3.0, 2.0), 0.5);
+        assert_eq!(delta_e(3.0, 0.0), 3.0);
+    }
+}
