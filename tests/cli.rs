@@ -712,3 +712,69 @@ fn a_conflict_warns_once_and_with_strict_exits_2() {
     assert!(err.contains("1 redundant, 1 conflicting"), "{err}");
     assert!(!Path::new(&out).exists());
 }
+
+/// Options the chosen method or energy does not use are said to be
+/// ignored, never silently: `--weight` without penalty, `--qr` with a
+/// method other than nullspace-qr, the ARAP options without `--energy
+/// arap`, `--laplacian` with it; the run itself goes on and is the same as
+/// without them. Options that apply draw no such warning.
+#[test]
+fn options_that_do_not_apply_are_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = grid_and_scene(dir.path());
+    let out = p(dir.path(), "out.obj");
+    let deform = |extra: &[&str]| {
+        let mut args = vec!["deform", &mesh, "-c", &scene, "-o", &out];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        (stderr(&o), std::fs::read(&out).unwrap())
+    };
+    let (_, plain) = deform(&[]);
+    for (extra, flag) in [
+        (
+            &["--weight", "1e3"][..],
+            "--weight applies to --method penalty only",
+        ),
+        (
+            &[
+                "--method",
+                "penalty",
+                "--weight",
+                "1e3",
+                "--qr",
+                "dense-householder",
+            ][..],
+            "--qr applies to --method nullspace-qr only",
+        ),
+        (
+            &["--iterations", "3"][..],
+            "--iterations applies to --energy arap only",
+        ),
+        (
+            &["--arap-init", "rest"][..],
+            "--arap-init applies to --energy arap only",
+        ),
+        (
+            &["--energy", "arap", "--laplacian", "uniform"][..],
+            "--laplacian applies to --energy laplacian only",
+        ),
+    ] {
+        let (err, written) = deform(extra);
+        assert!(
+            err.contains(&format!("warning: {flag}")),
+            "{extra:?}: {err}"
+        );
+        if !extra.contains(&"arap") && !extra.contains(&"penalty") {
+            assert_eq!(written, plain, "{extra:?} changed the result");
+        }
+    }
+    for extra in [
+        &["--method", "penalty", "--weight", "1e3"][..],
+        &["--qr", "dense-householder"][..],
+        &["--energy", "arap", "--iterations", "3"][..],
+    ] {
+        let (err, _) = deform(extra);
+        assert!(!err.contains("applies to"), "{extra:?}: {err}");
+    }
+}

@@ -130,7 +130,7 @@ fn a_dense_householder_block_beyond_the_budget_is_refused_and_sparse_givens_is_s
         &[
             "system too large",
             "dense Householder blocks",
-            "--qr sparse-givens",
+            "sparse-givens QR back end",
         ],
     );
     // The sparse QR of the same constraints fits the same budget.

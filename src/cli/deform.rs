@@ -20,10 +20,12 @@ pub struct DeformArgs {
     /// Constraints file (JSON).
     #[arg(long, short = 'c')]
     constraints: PathBuf,
-    /// Laplacian weights.
-    #[arg(long, default_value = "cotan")]
-    laplacian: LaplacianKind,
-    /// Output mesh (.obj or .ply).
+    /// Laplacian weights: cotan (the default), uniform, cotan-symmetric or
+    /// intrinsic-delaunay (--energy laplacian; ARAP always uses cotangent
+    /// weights).
+    #[arg(long)]
+    laplacian: Option<LaplacianKind>,
+    /// Output mesh (.obj, .ply or .off; .gz after it compresses).
     #[arg(long, short = 'o')]
     output: PathBuf,
     /// Write the report as JSON here.
@@ -54,22 +56,43 @@ struct EnergyArgs {
     #[arg(long, default_value = "laplacian")]
     energy: Energy,
     /// ARAP energy: spokes (Sorkine & Alexa 2007) or spokes-and-rims (Chao
-    /// et al. 2010, libigl's default).
-    #[arg(long, default_value = "spokes-and-rims")]
-    arap_energy: ArapEnergy,
-    /// ARAP: the most iterations to run.
-    #[arg(long, default_value_t = 10)]
-    iterations: usize,
+    /// et al. 2010, libigl's default; the default).
+    #[arg(long)]
+    arap_energy: Option<ArapEnergy>,
+    /// ARAP: the most iterations to run (default 10).
+    #[arg(long)]
+    iterations: Option<usize>,
     /// ARAP: stop when the relative energy decrease of an iteration is at
-    /// most this (0 runs all --iterations).
-    #[arg(long, default_value_t = 0.0)]
-    tolerance: f64,
-    /// ARAP initial guess: linear (the linear gradient-domain solution;
-    /// lower energy than rest at every iteration count measured on the
-    /// Bunny, results/arap/README.md) or rest (rest pose, constrained
-    /// vertices at their targets, as libigl's tutorials).
-    #[arg(long, default_value = "linear")]
-    arap_init: ArapInit,
+    /// most this (default 0: run all --iterations).
+    #[arg(long)]
+    tolerance: Option<f64>,
+    /// ARAP initial guess: linear (the default: the linear gradient-domain
+    /// solution; lower energy than rest at every iteration count measured
+    /// on the Bunny, results/arap/README.md) or rest (rest pose,
+    /// constrained vertices at their targets, as libigl's tutorials).
+    #[arg(long)]
+    arap_init: Option<ArapInit>,
+}
+
+impl EnergyArgs {
+    /// The ARAP options given without `--energy arap`, which ignores them.
+    fn inapplicable(&self) -> Vec<String> {
+        if self.energy == Energy::Arap {
+            return Vec::new();
+        }
+        [
+            ("--arap-energy", self.arap_energy.is_some()),
+            ("--iterations", self.iterations.is_some()),
+            ("--tolerance", self.tolerance.is_some()),
+            ("--arap-init", self.arap_init.is_some()),
+        ]
+        .into_iter()
+        .filter(|(_, given)| *given)
+        .map(|(flag, _)| {
+            format!("{flag} applies to --energy arap only; ignored with --energy laplacian")
+        })
+        .collect()
+    }
 }
 
 /// Runs `deform`: Laplacian editing, or ARAP with `--energy arap`.
@@ -79,11 +102,20 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
     let constraints = constraints_for(&a.constraints, &mesh, a.strict)?;
     let m = &a.method;
     let formulation = m.formulation()?;
+    for warning in a.energy.inapplicable() {
+        eprintln!("warning: {warning}");
+    }
     if a.energy.energy == Energy::Arap {
+        if a.laplacian.is_some() {
+            eprintln!(
+                "warning: --laplacian applies to --energy laplacian only; ignored with --energy arap (cotangent weights)"
+            );
+        }
         return deform_arap(&a, mesh, constraints, formulation.as_ref());
     }
     let bar = phase("set-up");
-    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    let laplacian = a.laplacian.unwrap_or(LaplacianKind::Cotangent);
+    let mut deformer = Deformer::new(mesh, laplacian, constraints)?;
     deformer.set_refine(m.refine);
     bar.set_message(format!("precompute ({})", formulation.name()));
     deformer.precompute(formulation.as_ref())?;
@@ -121,20 +153,24 @@ fn deform_arap(
 ) -> Result<(), Error> {
     let e = &a.energy;
     let bar = phase("set-up");
-    let mut arap = ArapDeformer::new(mesh, constraints, e.arap_energy)?;
+    let mut arap = ArapDeformer::new(
+        mesh,
+        constraints,
+        e.arap_energy.unwrap_or(ArapEnergy::SpokesAndRims),
+    )?;
     arap.set_refine(a.method.refine);
     bar.set_message(format!("precompute ({})", formulation.name()));
     arap.precompute(formulation)?;
     bar.set_message("ARAP iterations");
-    arap.initialize(e.arap_init)?;
-    let history = arap.run(e.iterations, e.tolerance)?;
+    arap.initialize(e.arap_init.unwrap_or(ArapInit::Linear))?;
+    let history = arap.run(e.iterations.unwrap_or(10), e.tolerance.unwrap_or(0.0))?;
     bar.finish_and_clear();
     let report = arap.report().clone();
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
     let summary = format!(
-        "{} + ARAP ({}, init {}): {} vertices, {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e}; {} iterations ({}), energy {:.6e} -> {:.6e}; precompute {:.3} s, {:.4} s per iteration (local {:.3} s, global {:.3} s in all)",
+        "{} + ARAP ({}, init {}): {} vertices, {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e} mesh units ({:.1e} × diagonal); {} iterations ({}), energy {:.6e} -> {:.6e} mesh units²; precompute {:.3} s, {:.4} s per iteration (local {:.3} s, global {:.3} s in all)",
         report.method,
         history.energy,
         history.init,
@@ -143,6 +179,7 @@ fn deform_arap(
         report.redundant.len(),
         report.conflicting.len(),
         report.max_constraint_residual,
+        report.max_constraint_residual_relative,
         history.iterations,
         history.stop_reason,
         history.initial_energy,

@@ -40,14 +40,15 @@ pub struct MethodArgs {
     /// nullspace-qr (the paper), penalty, kkt or eliminate.
     #[arg(long, default_value = "nullspace-qr")]
     pub method: Method,
-    /// QR back end: dense-householder, sparse-givens or spqr.
-    #[arg(long, default_value = "sparse-givens")]
-    pub qr: QrKind,
-    /// SPD back end: faer-auto, faer-supernodal, faer-simplicial, nalgebra or
-    /// cholmod (for kkt: the faer LDLT variant).
+    /// QR back end of nullspace-qr: dense-householder, sparse-givens
+    /// (default) or spqr.
+    #[arg(long)]
+    pub qr: Option<QrKind>,
+    /// SPD back end: faer-auto (default), faer-supernodal, faer-simplicial,
+    /// nalgebra or cholmod (for kkt: the faer LDLT variant).
     #[arg(long, default_value = "faer-auto")]
     pub spd: SpdKind,
-    /// Penalty weight of the hard rows (--method penalty).
+    /// Relative penalty weight of the hard rows (--method penalty only).
     #[arg(long)]
     pub weight: Option<f64>,
     /// Iterative refinement with the same factor: off, auto or a number of
@@ -60,13 +61,35 @@ pub struct MethodArgs {
 impl MethodArgs {
     /// The formulation these options name.
     pub fn formulation(&self) -> Result<Box<dyn Formulation>, Error> {
+        for warning in self.inapplicable() {
+            eprintln!("warning: {warning}");
+        }
         let choice = FormulationChoice {
             method: self.method,
-            qr: self.qr,
+            qr: self.qr.unwrap_or(FormulationChoice::new(self.method).qr),
             spd: self.spd,
             weight: self.weight,
         };
         choice.build().map_err(with_flag)
+    }
+
+    /// The options given that the chosen method does not use: each is
+    /// ignored, and said so rather than silently.
+    pub fn inapplicable(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.weight.is_some() && self.method != Method::Penalty {
+            out.push(format!(
+                "--weight applies to --method penalty only; ignored with --method {}",
+                self.method
+            ));
+        }
+        if self.qr.is_some() && self.method != Method::NullSpaceQr {
+            out.push(format!(
+                "--qr applies to --method nullspace-qr only; ignored with --method {}",
+                self.method
+            ));
+        }
+        out
     }
 }
 

@@ -18,7 +18,7 @@ use lse_deform::render::{
 /// Arguments of `render`.
 #[derive(Args)]
 pub struct RenderArgs {
-    /// The original mesh (OBJ, OFF, PLY, STL; .gz allowed).
+    /// The original mesh (.obj, .ply or .off; .gz after it allowed).
     mesh: PathBuf,
     /// A deformation of it (same vertices, in the same order): drawn
     /// opaque, with the original as a translucent ghost.
@@ -255,13 +255,16 @@ fn colour_values(
     let values = distances(reference.positions(), shown.positions(), "deformed mesh")?;
     let scale = ColourScale::from_zero(&values)?;
     let diagonal = original.bbox_diagonal();
+    // In the mesh's units and as a fraction of its diagonal, in scientific
+    // notation: a difference of 8.6e-12 must not read "0.00 %".
     let label = if diagonal > 0.0 {
         format!(
-            "{what} (max {:.2} % of the bbox diagonal)",
-            100.0 * scale.max / diagonal
+            "{what}: max {:.2e} mesh units = {:.2e} × bbox diagonal",
+            scale.max,
+            scale.max / diagonal
         )
     } else {
-        what.to_string()
+        format!("{what}: max {:.2e} mesh units", scale.max)
     };
     Ok(Some((scale, values, label)))
 }

@@ -92,22 +92,31 @@ pub fn summary_line(report: &Report, unknowns: &str, constraints: &str) -> Strin
     } else {
         "redundancy and conflicts not detected".into()
     };
+    // A mesh's residuals are lengths, relative ones fractions of its
+    // bounding-box diagonal; a general problem's are in its own units,
+    // relative to its length scale.
+    let (absolute, relative) = if unknowns == "vertices" {
+        (" mesh units", "× diagonal")
+    } else {
+        ("", "relative")
+    };
     let refinement = report
         .refinement
         .as_ref()
         .map(|r| {
             format!(
-                ", refine {} ({} steps, {:.4} s), forward error ~{:.1e}",
+                ", refine {} ({} steps, {:.4} s), forward error ~{:.1e} {relative}",
                 r.mode, r.steps, t.refine, r.forward_error_estimate
             )
         })
         .unwrap_or_default();
     format!(
-        "{}: {} {unknowns}, {rank}{} hard {constraints} ({dependence}), max |BX - D| = {:.2e}; set-up {:.3} s, precompute {:.3} s, solve {:.4} s{refinement}{}",
+        "{}: {} {unknowns}, {rank}{} hard {constraints} ({dependence}), max |BX - D| = {:.2e}{absolute} ({:.1e} {relative}); set-up {:.3} s, precompute {:.3} s, solve {:.4} s{refinement}{}",
         report.method,
         report.vertices,
         report.hard_constraints,
         report.max_constraint_residual,
+        report.max_constraint_residual_relative,
         t.setup,
         t.precompute(),
         t.solve,
