@@ -261,9 +261,8 @@ pub struct ArapReport {
     pub constraint_residuals: Vec<f64>,
     /// Iterations run.
     pub iterations: usize,
-    /// `iterations` (the cap), `tolerance` (relative decrease below it) or
-    /// `stationary` (zero objective: nothing left to decrease).
-    pub stop_reason: String,
+    /// Why the iterations stopped (`null` until [`crate::arap::ArapDeformer::run`]).
+    pub stop_reason: Option<ArapStop>,
     /// Median wall-clock seconds of one iteration (local + global step).
     pub time_per_iteration_s: f64,
     /// Wall-clock seconds of each iteration.
@@ -277,6 +276,29 @@ pub struct ArapReport {
     /// covariance was zero, non-finite or rank ≤ 1 with the previous
     /// rotation still optimal (summed over iterations).
     pub kept_rotations: usize,
+}
+
+/// Why [`crate::arap::ArapDeformer::run`] stopped, serialised as its word.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ArapStop {
+    /// The iteration cap was reached.
+    Iterations,
+    /// The relative decrease of the objective fell to the tolerance (or
+    /// was not a number).
+    Tolerance,
+    /// The objective is zero: nothing left to decrease.
+    Stationary,
+}
+
+impl std::fmt::Display for ArapStop {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            ArapStop::Iterations => "iterations",
+            ArapStop::Tolerance => "tolerance",
+            ArapStop::Stationary => "stationary",
+        })
+    }
 }
 
 /// Relative tolerance for classifying a skipped hard constraint as

@@ -78,7 +78,7 @@ use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Refine};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
-use crate::report::{ArapReport, Report, first_non_finite};
+use crate::report::{ArapReport, ArapStop, Report, first_non_finite};
 use crate::solver::LseSolver;
 
 pub mod energy;
@@ -318,20 +318,20 @@ impl ArapDeformer {
             }
             .into());
         }
-        let mut stop = "iterations";
+        let mut stop = ArapStop::Iterations;
         for k in 0..max_iterations {
             let before = self.energy;
             self.iterate(1)?;
             if self.energy == 0.0 {
-                stop = "stationary";
+                stop = ArapStop::Stationary;
                 break;
             }
             if k > 0 && tolerance > 0.0 && !decreased_by_more_than(before, self.energy, tolerance) {
-                stop = "tolerance";
+                stop = ArapStop::Tolerance;
                 break;
             }
         }
-        self.arap.stop_reason = stop.into();
+        self.arap.stop_reason = Some(stop);
         self.finish()?;
         Ok(self.arap.clone())
     }

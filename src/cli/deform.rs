@@ -181,7 +181,9 @@ fn deform_arap(
         report.max_constraint_residual,
         report.max_constraint_residual_relative,
         history.iterations,
-        history.stop_reason,
+        history
+            .stop_reason
+            .map_or_else(|| "not run".to_string(), |s| s.to_string()),
         history.initial_energy,
         history
             .energies
