@@ -1,8 +1,9 @@
 //! Requests to the editor's HTTP service, through its whole router in
 //! process (token and `Host`/`Origin` guard, body limits, handlers): every
 //! answer is a status below 500, every refusal carries a JSON body
-//! `{"error": text, "kind": word}`, and after each request the session
-//! still answers `/api/progress` as idle.
+//! `{"error": text, "kind": word}` (to HEAD: no body, and the JSON content
+//! type), and after each request the session still answers
+//! `/api/progress` as idle.
 //!
 //! An input is up to four requests separated by NUL bytes. A request is
 //! a head, an empty line, and the body: the head's first line is
@@ -102,10 +103,17 @@ fuzz_target!(|data: &[u8]| {
         let Some(r) = request(part) else {
             continue;
         };
+        let head = r.method() == http::Method::HEAD;
         let answer = editor.answer(r);
         let status = answer.status.as_u16();
         assert!(status < 500, "{status}: {:?}", answer.body);
-        if status >= 400 {
+        if status >= 400 && head {
+            // A HEAD answer has no body (RFC 9110 §9.3.2); its headers
+            // still say what the body would be.
+            assert!(answer.body.is_empty());
+            let kind = answer.headers.get("content-type").map(|v| v.as_bytes());
+            assert_eq!(kind, Some(&b"application/json"[..]), "{status}");
+        } else if status >= 400 {
             let v: serde_json::Value =
                 serde_json::from_slice(&answer.body).expect("a JSON error body");
             assert!(v["error"].is_string() && v["kind"].is_string(), "{v}");
