@@ -49,6 +49,9 @@ pub struct LseProblem {
     soft: Vec<SoftRow>,
     length_scale: f64,
     general: bool,
+    /// The power of two `s` that `A` and `C` of a general problem were
+    /// multiplied by (1 for a mesh's problem); see [`LseProblem::a_scale`].
+    a_scale: f64,
 }
 
 /// A soft constraint's row of `A` and `C`.
@@ -150,7 +153,9 @@ impl LseProblem {
         check_shapes(a, c, b, d)?;
         check_dense_finite("C", c)?;
         check_dense_finite("D", d)?;
-        let a = canonical_csc("A", a, true)?;
+        let mut a = canonical_csc("A", a, true)?;
+        let mut c = c.to_owned();
+        let a_scale = equilibrate_objective(&mut a, &mut c);
         let b_csc = canonical_csc("B", b, false)?;
         let b = csc_to_csr(b_csc.as_ref());
         let (l, n, m) = (a.nrows(), a.ncols(), b.nrows());
@@ -173,7 +178,7 @@ impl LseProblem {
         });
         Ok(LseProblem {
             a,
-            c: c.to_owned(),
+            c,
             b,
             d: d.to_owned(),
             n_laplacian_rows: l,
@@ -186,6 +191,7 @@ impl LseProblem {
                 1.0
             },
             general: true,
+            a_scale,
         })
     }
 
@@ -313,6 +319,7 @@ impl LseProblem {
             soft,
             length_scale,
             general: false,
+            a_scale: 1.0,
         };
         for (i, c) in constraints.as_slice().iter().enumerate() {
             problem.write_rhs(i, c.kind.rhs());
@@ -533,6 +540,16 @@ impl LseProblem {
     /// The length unit of absolute constraint tolerances.
     pub fn length_scale(&self) -> f64 {
         self.length_scale
+    }
+
+    /// The power of two `A` and `C` of a general problem were multiplied by
+    /// ([`LseProblem::from_parts`]: `A`'s largest entry brought near 1, so
+    /// that normal matrices of entries near 1e±300 neither overflow nor
+    /// underflow; the minimiser is unchanged). `‖AX − C‖` of the problem as
+    /// given is that of [`LseProblem::a`] and [`LseProblem::c`] divided by
+    /// it. 1 for a mesh's problem.
+    pub fn a_scale(&self) -> f64 {
+        self.a_scale
     }
 
     /// Euclidean norm of the residual `b_k·X − d_k` of hard row `k` (over
@@ -850,4 +867,32 @@ pub fn check_pinned(
         });
     }
     Ok(())
+}
+
+/// Multiplies `A` and `C` by the power of two `s` that brings `A`'s largest
+/// entry into `[2^-1/2, 2^1/2)`, and returns `s` (1 when `A` has no entry or
+/// when `s C` would not be finite). `min ‖sA X − sC‖` has the minimiser of
+/// `min ‖A X − C‖` (the objective is multiplied by `s²`), and a power of two
+/// changes no digit; but the normal matrices the formulations form square
+/// `A`'s entries, which for entries near 1e±300 overflow or underflow (an
+/// `A` of full rank then looked singular, "unknown 1 is free").
+fn equilibrate_objective(a: &mut SparseColMat<usize, f64>, c: &mut Mat<f64>) -> f64 {
+    let largest = a.val().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if !(largest > 0.0 && largest.is_finite()) {
+        return 1.0;
+    }
+    let s = (-largest.log2().round()).exp2();
+    let c_largest = c.norm_max();
+    if s == 1.0 || !(s.is_finite() && (s * c_largest).is_finite() && s > 0.0) {
+        return 1.0;
+    }
+    for v in a.val_mut() {
+        *v *= s;
+    }
+    for j in 0..c.ncols() {
+        for i in 0..c.nrows() {
+            c[(i, j)] *= s;
+        }
+    }
+    s
 }

@@ -395,8 +395,10 @@ pub fn fill_solution_diagnostics(
             }
         })
         .collect();
-    report.least_squares_residual = residual.norm_l2();
-    let c_norm = problem.c().norm_l2();
+    // In the units of the problem as given (A and C of a general problem
+    // carry a power-of-two factor).
+    report.least_squares_residual = residual.norm_l2() / problem.a_scale();
+    let c_norm = problem.c().norm_l2() / problem.a_scale();
     report.least_squares_residual_relative = if c_norm > 0.0 {
         report.least_squares_residual / c_norm
     } else {
