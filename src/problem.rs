@@ -547,7 +547,7 @@ impl LseProblem {
     /// that normal matrices of entries near 1e±300 neither overflow nor
     /// underflow; the minimiser is unchanged). `‖AX − C‖` of the problem as
     /// given is that of [`LseProblem::a`] and [`LseProblem::c`] divided by
-    /// it. 1 for a mesh's problem.
+    /// it. 1 for a mesh's problem (docs/units.md §8).
     pub fn a_scale(&self) -> f64 {
         self.a_scale
     }
