@@ -18,6 +18,10 @@ pub const HANDLE_GROUP: &str = "handle";
 pub struct FixedAndHandle {
     /// Coordinate axis (0 = x, 1 = y, 2 = z) that orders "bottom" to "top".
     pub axis: usize,
+    /// `true`: "bottom" is the high end of `axis` (the fixed region at the
+    /// largest coordinates, the handle at the smallest): a mesh modelled
+    /// upside down, or the other end of a long one.
+    pub descending: bool,
     /// Fraction of vertices fixed, in `[0, 1]`.
     pub fixed_fraction: f64,
     /// Fraction of vertices in the handle, in `[0, 1]`.
@@ -40,6 +44,7 @@ impl FixedAndHandle {
             .unwrap_or(1);
         FixedAndHandle {
             axis,
+            descending: false,
             fixed_fraction: 0.2,
             handle_fraction: 0.02,
             offset: FixedAndHandle::default_offset(mesh, axis),
@@ -54,6 +59,16 @@ impl FixedAndHandle {
         let mut offset = [0.0; 3];
         offset[(axis + 1) % 3] = 0.15 * mesh.bbox_diagonal();
         offset
+    }
+
+    /// How high `p` is, bottom to top: its coordinate along the axis,
+    /// negated when [`FixedAndHandle::descending`].
+    pub fn height(&self, p: [f64; 3]) -> f64 {
+        if self.descending {
+            -p[self.axis]
+        } else {
+            p[self.axis]
+        }
     }
 
     /// The vertices of the fixed region and of the handle.
@@ -73,7 +88,11 @@ impl FixedAndHandle {
         let p = mesh.positions();
         let n = mesh.n_vertices();
         let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| p[a][self.axis].total_cmp(&p[b][self.axis]).then(a.cmp(&b)));
+        order.sort_by(|&a, &b| {
+            self.height(p[a])
+                .total_cmp(&self.height(p[b]))
+                .then(a.cmp(&b))
+        });
         let n_fixed = ((self.fixed_fraction * n as f64).round() as usize).min(n);
         let mut fixed: Vec<usize> = order[..n_fixed].to_vec();
         fixed.sort_unstable();
@@ -168,8 +187,13 @@ impl MixedScene {
         }
         let (offsets, neighbours) = crate::mesh::topology::vertex_neighbors(mesh);
         let mut order: Vec<usize> = (0..n).collect();
-        let axis = self.base.axis;
-        order.sort_by(|&a, &b| p[a][axis].total_cmp(&p[b][axis]).then(a.cmp(&b)));
+        let base_scene = &self.base;
+        order.sort_by(|&a, &b| {
+            base_scene
+                .height(p[a])
+                .total_cmp(&base_scene.height(p[b]))
+                .then(a.cmp(&b))
+        });
         let seed_at = |frac: f64, used: &[bool]| -> Option<usize> {
             let start = ((frac * n as f64) as usize).min(n - 1);
             order[start..]

@@ -778,3 +778,64 @@ fn options_that_do_not_apply_are_warned_about() {
         assert!(!err.contains("applies to"), "{extra:?}: {err}");
     }
 }
+
+/// `scene --axis -y` fixes the top of a grid and drags its bottom, `--axis
+/// y` the other way round (a y-up model whose longest extent is another
+/// axis, the Stanford Bunny's x, needs one of them to fix its feet); the
+/// groups are `fixed` and `handle`; a bad axis is refused naming the
+/// accepted ones.
+#[test]
+fn scene_axis_takes_a_direction() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = p(dir.path(), "grid.obj");
+    assert!(
+        run(&["generate", "grid", "--vertices", "400", "-o", &mesh])
+            .status
+            .success()
+    );
+    let ys: Vec<f64> = read_mesh(Path::new(&mesh))
+        .unwrap()
+        .mesh
+        .positions()
+        .iter()
+        .map(|q| q[1])
+        .collect();
+    let (lo, hi) = ys
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &y| {
+            (l.min(y), h.max(y))
+        });
+    for (axis, fixed_end, handle_end) in [("y", lo, hi), ("-y", hi, lo)] {
+        let scene = p(dir.path(), &format!("scene{axis}.json"));
+        let o = run(&["scene", &mesh, "--axis", axis, "-o", &scene]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+        let mut nearest = [f64::INFINITY; 2];
+        for c in v["constraints"].as_array().unwrap() {
+            let y = ys[c["vertex"].as_u64().unwrap() as usize];
+            let (k, end) = match c["group"].as_str().unwrap() {
+                "fixed" => (0, fixed_end),
+                "handle" => (1, handle_end),
+                g => panic!("group {g}"),
+            };
+            nearest[k] = nearest[k].min((y - end).abs());
+        }
+        // Each region contains the vertices at its own end of the axis.
+        assert_eq!(nearest, [0.0, 0.0], "--axis {axis}");
+    }
+    let o = run(&[
+        "scene",
+        &mesh,
+        "--axis",
+        "w",
+        "-o",
+        &p(dir.path(), "s.json"),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("expected x, y, z, -x, -y or -z"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -21,9 +21,13 @@ pub struct SceneArgs {
     /// Fraction of vertices in the handle at the top.
     #[arg(long, default_value_t = 0.02)]
     handle: f64,
-    /// Axis from bottom to top: x, y or z (default: the longest extent).
-    #[arg(long)]
-    axis: Option<char>,
+    /// Axis from bottom to top: x, y or z, or -x, -y, -z for the other way
+    /// (the fixed region at the largest coordinates). Default: the longest
+    /// extent, ascending — on a y-up model whose longest extent is not y
+    /// (the Stanford Bunny: x) that fixes one end, not the feet; give
+    /// --axis y for those.
+    #[arg(long, allow_hyphen_values = true)]
+    axis: Option<String>,
     /// Handle displacement "dx,dy,dz" (default: 15% of the bounding-box
     /// diagonal, perpendicular to the axis).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -72,18 +76,23 @@ pub fn scene(a: SceneArgs) -> Result<(), Error> {
     check_outputs(None, Some(&a.output))?;
     let mesh = load(&a.mesh)?;
     let mut s = FixedAndHandle::paper_default(&mesh);
-    if let Some(axis) = a.axis {
-        s.axis = match axis {
-            'x' => 0,
-            'y' => 1,
-            'z' => 2,
-            other => {
+    if let Some(axis) = &a.axis {
+        let (descending, name) = match axis.strip_prefix('-') {
+            Some(rest) => (true, rest),
+            None => (false, axis.strip_prefix('+').unwrap_or(axis)),
+        };
+        s.axis = match name {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => {
                 return Err(lse_deform::error::ProblemError::InvalidArgument {
-                    message: format!("--axis {other}: expected x, y or z"),
+                    message: format!("--axis {axis}: expected x, y, z, -x, -y or -z"),
                 }
                 .into());
             }
         };
+        s.descending = descending;
         s.offset = FixedAndHandle::default_offset(&mesh, s.axis);
     }
     if let Some(o) = a.offset {
@@ -117,10 +126,11 @@ pub fn scene(a: SceneArgs) -> Result<(), Error> {
         }
     }
     eprintln!(
-        "{} constraints: {} fixed + {} handle vertices{extra} (axis {}, offset {:?}) -> {}",
+        "{} constraints: {} fixed + {} handle vertices{extra} (axis {}{}, offset {:?}) -> {}",
         set.len(),
         fixed.len(),
         handle.len(),
+        if s.descending { "-" } else { "" },
         ["x", "y", "z"][s.axis],
         s.offset,
         a.output.display()
