@@ -139,7 +139,7 @@ impl Deformer {
             soft_scale,
         )?;
         let mut report = Report {
-            laplacian: Some(laplacian.name().into()),
+            laplacian: Some(crate::report::EnergyOperator::Laplacian(laplacian)),
             warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
             length_unit: unit,
             soft_weight_scale: Some(soft_scale.factor()),

@@ -5,6 +5,7 @@ use serde::{Serialize, Serializer};
 use crate::backend::qr::QrKind;
 use crate::backend::spd::FactorKind;
 use crate::choice::{ArapEnergy, ArapInit, Method};
+use crate::laplacian::LaplacianKind;
 
 mod conflicts;
 pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources, conflict_warnings};
@@ -151,6 +152,30 @@ impl Timings {
     }
 }
 
+/// The operator whose energy a mesh problem minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EnergyOperator {
+    /// A Laplacian of the given kind (Laplacian editing).
+    Laplacian(LaplacianKind),
+    /// The as-rigid-as-possible rows of the given energy.
+    Arap(ArapEnergy),
+}
+
+impl std::fmt::Display for EnergyOperator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EnergyOperator::Laplacian(kind) => f.write_str(kind.name()),
+            EnergyOperator::Arap(energy) => write!(f, "arap-{}", energy.name()),
+        }
+    }
+}
+
+impl Serialize for EnergyOperator {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// The report of a deformation.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Report {
@@ -160,8 +185,10 @@ pub struct Report {
     pub qr_backend: Option<QrKind>,
     /// The SPD back end's Cholesky, or the KKT method's `LDLᵀ`.
     pub spd_backend: Option<FactorKind>,
-    /// The Laplacian kind.
-    pub laplacian: Option<String>,
+    /// The operator of the energy: a Laplacian kind, or ARAP's rows
+    /// (serialised as `cotan`, `uniform`, … or `arap-spokes`,
+    /// `arap-spokes-and-rims`); `None` for a problem given as matrices.
+    pub laplacian: Option<EnergyOperator>,
     /// Number of vertices (unknowns).
     pub vertices: usize,
     /// Number of constraints (hard + soft).

@@ -78,7 +78,7 @@ use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Refine};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
-use crate::report::{ArapReport, ArapStop, Report, first_non_finite};
+use crate::report::{ArapReport, ArapStop, EnergyOperator, Report, first_non_finite};
 use crate::solver::LseSolver;
 
 pub mod energy;
@@ -188,7 +188,7 @@ impl ArapDeformer {
         )?;
         let x = Mat::from_fn(n, 3, |i, c| unit_mesh.positions()[i][c]);
         let mut report = Report {
-            laplacian: Some(format!("arap-{}", energy.name())),
+            laplacian: Some(EnergyOperator::Arap(energy)),
             warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
             length_unit: unit,
             soft_weight_scale: Some(soft_scale.factor()),

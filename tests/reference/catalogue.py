@@ -357,7 +357,7 @@ def run_binary(binary, mesh, cons, lap, label, args, workdir, tag):
 
 def expected_refusal(method, cons_kinds_hard, has_dependent):
     if method == "eliminate" and any(k != "position" for k in cons_kinds_hard):
-        return "elimination does not support", "eliminate takes hard position constraints only (README: other kinds are refused)"
+        return "eliminate does not support", "eliminate takes hard position constraints only (README: other kinds are refused)"
     if method == "kkt" and has_dependent:
         return "is singular", "kkt refuses dependent hard constraints (README: redundant constraints -> Singular error)"
     return None
