@@ -121,8 +121,7 @@ def test_bad_word_lists_the_accepted_words(scene, kwargs, accepted):
         lse_deform.deform(V, F, constraints, **kwargs)
     message = str(e.value)
     assert list(kwargs)[-1] + "=" in message
-    for word in accepted:
-        assert "'%s'" % word in message or word in message.split()
+    assert message.endswith("(expected one of: %s)" % ", ".join(accepted))
 
 
 def test_compare_equals_the_cli(scene, tmp_path):
