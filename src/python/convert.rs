@@ -613,7 +613,16 @@ pub(crate) fn csc_to_scipy<'py>(
 
 /// The report as a plain dict with the keys of the CLI's JSON report.
 pub(crate) fn report_dict<'py>(py: Python<'py>, report: &Report) -> PyResult<Bound<'py, PyAny>> {
-    let json = serde_json::to_string(report)
+    json_value(py, report)
+}
+
+/// A serialisable value as the Python value of its JSON (dicts, lists,
+/// numbers, strings, `None`): the keys and words of the CLI's JSON.
+pub(crate) fn json_value<'py>(
+    py: Python<'py>,
+    value: &impl serde::Serialize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let json = serde_json::to_string(value)
         .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     py.import("json")?.call_method1("loads", (json,))
 }

@@ -25,6 +25,9 @@ use std::sync::Mutex;
 use pyo3::exceptions::{PyRuntimeError, PyRuntimeWarning, PyUserWarning};
 use pyo3::prelude::*;
 
+use crate::arap::ArapDeformer;
+use crate::choice::{ArapEnergy, ArapInit, Energy};
+use crate::compare::{self, CompareOptions};
 use crate::constraints::ConstraintSet;
 use crate::error::{ProblemError, SolveOption};
 use crate::formulation::{Formulation, FormulationChoice, Refine};
@@ -95,29 +98,43 @@ impl Chosen {
     ) -> PyResult<Chosen> {
         let formulation =
             build_formulation(method, qr, spd, weight).map_err(|e| to_py(e.into()))?;
-        let refine = match refine {
-            None => None,
-            Some(r) if r.is_none() => None,
-            Some(r) if r.is_instance_of::<pyo3::types::PyBool>() => {
-                return Err(type_error(
-                    "refine must be 'auto', 'off', a number of steps or None",
-                ));
-            }
-            Some(r) => Some(match r.extract::<usize>() {
-                Ok(steps) => Refine::Steps(steps),
-                Err(_) => {
-                    let word: String = r.extract().map_err(|_| {
-                        type_error("refine must be 'auto', 'off', a number of steps or None")
-                    })?;
-                    word.parse::<Refine>().map_err(|e| to_py(e.into()))?
-                }
-            }),
-        };
+        let refine = parse_refine(refine)?;
         Ok(Chosen {
             formulation,
             refine,
         })
     }
+}
+
+/// The `refine` keyword: `None`, a number of steps, or a word of
+/// [`Refine`] (`auto`, `off`).
+fn parse_refine(refine: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Refine>> {
+    const EXPECTED: &str = "refine must be 'auto', 'off', a number of steps or None";
+    let r = match refine {
+        None => return Ok(None),
+        Some(r) if r.is_none() => return Ok(None),
+        Some(r) if r.is_instance_of::<pyo3::types::PyBool>() => return Err(type_error(EXPECTED)),
+        Some(r) => r,
+    };
+    if let Ok(steps) = r.extract::<usize>() {
+        return Ok(Some(Refine::Steps(steps)));
+    }
+    let word: String = r.extract().map_err(|_| type_error(EXPECTED))?;
+    word.parse::<Refine>()
+        .map(Some)
+        .map_err(|e| to_py(e.into()))
+}
+
+/// A word of one of the library's word enums (`FromStr` with
+/// [`ParseWordError`](crate::error::ParseWordError), which lists the
+/// accepted words), as an `InputError` naming the keyword.
+fn word<T>(keyword: &str, value: &str) -> PyResult<T>
+where
+    T: std::str::FromStr<Err = crate::error::ParseWordError>,
+{
+    value
+        .parse()
+        .map_err(|e: crate::error::ParseWordError| input(format!("{keyword}=: {e}")))
 }
 
 fn laplacian_kind(name: &str) -> PyResult<LaplacianKind> {
@@ -157,38 +174,207 @@ fn report_with_warnings<'py>(py: Python<'py>, report: &Report) -> PyResult<Bound
     convert::report_dict(py, report)
 }
 
+/// The energy keywords of `deform` (the CLI's `--energy` options).
+struct EnergyKeywords<'a> {
+    energy: &'a str,
+    arap_energy: Option<&'a str>,
+    iterations: Option<usize>,
+    tolerance: Option<f64>,
+    arap_init: Option<&'a str>,
+}
+
+/// The ARAP options of [`EnergyKeywords`], parsed into the library's types
+/// with the CLI's defaults (spokes-and-rims, 10 iterations, tolerance 0,
+/// linear initial guess).
+struct ArapOptions {
+    energy: ArapEnergy,
+    iterations: usize,
+    tolerance: f64,
+    init: ArapInit,
+}
+
+impl EnergyKeywords<'_> {
+    /// The energy, and the ARAP options when it is ARAP. Options the energy
+    /// does not use are `RuntimeWarning`s, as the CLI warns about them.
+    fn parse(&self, py: Python<'_>, laplacian: Option<&str>) -> PyResult<Option<ArapOptions>> {
+        let energy: Energy = word("energy", self.energy)?;
+        let arap_energy = self
+            .arap_energy
+            .map(|w| word::<ArapEnergy>("arap_energy", w))
+            .transpose()?;
+        let init = self
+            .arap_init
+            .map(|w| word::<ArapInit>("arap_init", w))
+            .transpose()?;
+        if energy != Energy::Arap {
+            let given = [
+                ("arap_energy", arap_energy.is_some()),
+                ("iterations", self.iterations.is_some()),
+                ("tolerance", self.tolerance.is_some()),
+                ("arap_init", init.is_some()),
+            ];
+            for (keyword, _) in given.iter().filter(|(_, g)| *g) {
+                warn::<PyRuntimeWarning>(
+                    py,
+                    &format!(
+                        "{keyword}= applies to energy='arap' only; ignored with energy='{energy}'"
+                    ),
+                )?;
+            }
+            return Ok(None);
+        }
+        if laplacian.is_some() {
+            warn::<PyRuntimeWarning>(
+                py,
+                "laplacian= applies to energy='laplacian' only; ignored with energy='arap' (cotangent weights)",
+            )?;
+        }
+        Ok(Some(ArapOptions {
+            energy: arap_energy.unwrap_or(ArapEnergy::SpokesAndRims),
+            iterations: self.iterations.unwrap_or(10),
+            tolerance: self.tolerance.unwrap_or(0.0),
+            init: init.unwrap_or(ArapInit::Linear),
+        }))
+    }
+}
+
+/// The ARAP deformation of `mesh` (GIL released): set-up, precompute, the
+/// initial guess and the iterations, as `deform --energy arap` runs them.
+fn deform_arap(
+    py: Python<'_>,
+    mesh: Mesh,
+    set: ConstraintSet,
+    chosen: Chosen,
+    options: ArapOptions,
+) -> PyResult<(Vec<[f64; 3]>, Report)> {
+    released(py, move || {
+        let mut arap = ArapDeformer::new(mesh, set, options.energy)?;
+        arap.set_refine(chosen.refine);
+        arap.precompute(chosen.formulation.as_ref())?;
+        arap.initialize(options.init)?;
+        arap.run(options.iterations, options.tolerance)?;
+        Ok((arap.positions(), arap.report().clone()))
+    })
+}
+
 /// Deforms the mesh `(V, F)` under `constraints`: set-up, precompute and
-/// solve in one call. Returns `(U, report)`.
+/// solve in one call (with `energy="arap"`, the ARAP iterations). Returns
+/// `(U, report)`.
 #[pyfunction]
-#[pyo3(signature = (V, F, constraints, laplacian="cotan", method="nullspace-qr", qr=None, spd=None, weight=None, refine=None))]
+#[pyo3(signature = (V, F, constraints, laplacian=None, method="nullspace-qr", qr=None, spd=None, weight=None, refine=None, energy="laplacian", arap_energy=None, iterations=None, tolerance=None, arap_init=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn deform<'py>(
     py: Python<'py>,
     V: &Bound<'py, PyAny>,
     F: &Bound<'py, PyAny>,
     constraints: &Bound<'py, PyAny>,
-    laplacian: &str,
+    laplacian: Option<&str>,
     method: &str,
     qr: Option<&str>,
     spd: Option<&str>,
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
+    energy: &str,
+    arap_energy: Option<&str>,
+    iterations: Option<usize>,
+    tolerance: Option<f64>,
+    arap_init: Option<&str>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
-        let kind = laplacian_kind(laplacian)?;
+        let kind = laplacian_kind(laplacian.unwrap_or("cotan"))?;
         let m = Chosen::parse(method, qr, spd, weight, refine)?;
+        let keywords = EnergyKeywords {
+            energy,
+            arap_energy,
+            iterations,
+            tolerance,
+            arap_init,
+        };
+        let arap = keywords.parse(py, laplacian)?;
         let mesh = mesh(py, V, F)?;
         let set = constraints_for(constraints, &mesh)?;
-        let solution = released(py, move || {
-            let mut deformer = Deformer::new(mesh, kind, set)?;
-            deformer.set_refine(m.refine);
-            deformer.precompute(m.formulation.as_ref())?;
-            deformer.solve()
-        })?;
+        let (positions, report) = match arap {
+            Some(options) => deform_arap(py, mesh, set, m, options)?,
+            None => {
+                let solution = released(py, move || {
+                    let mut deformer = Deformer::new(mesh, kind, set)?;
+                    deformer.set_refine(m.refine);
+                    deformer.precompute(m.formulation.as_ref())?;
+                    deformer.solve()
+                })?;
+                (solution.positions, solution.report)
+            }
+        };
         Ok((
-            convert::positions_to_numpy(py, &solution.positions).into_any(),
-            report_with_warnings(py, &solution.report)?,
+            convert::positions_to_numpy(py, &positions).into_any(),
+            report_with_warnings(py, &report)?,
         ))
+    })
+}
+
+/// A list keyword of words (`methods=["penalty", "kkt"]`), each parsed by
+/// [`word`]; `None` when absent.
+fn words<T>(keyword: &str, list: Option<Vec<String>>) -> PyResult<Option<Vec<T>>>
+where
+    T: std::str::FromStr<Err = crate::error::ParseWordError>,
+{
+    list.map(|l| l.iter().map(|w| word(keyword, w)).collect())
+        .transpose()
+}
+
+/// Runs the library's comparison ([`crate::compare`]) of every
+/// configuration on the mesh `(V, F)` under `constraints` against the
+/// refined null-space reference: the rows of `lse-deform compare --json`,
+/// as a list of dicts. A reference forward error above 1e-12 of the
+/// diagonal is a `RuntimeWarning`, as the CLI warns.
+#[pyfunction]
+#[pyo3(name = "compare", signature = (V, F, constraints, laplacian="cotan", methods=None, qr=None, spd=None, weights=None, refine=None, repeat=5, condition=true))]
+#[allow(non_snake_case, clippy::too_many_arguments)]
+fn compare_rows<'py>(
+    py: Python<'py>,
+    V: &Bound<'py, PyAny>,
+    F: &Bound<'py, PyAny>,
+    constraints: &Bound<'py, PyAny>,
+    laplacian: &str,
+    methods: Option<Vec<String>>,
+    qr: Option<Vec<String>>,
+    spd: Option<Vec<String>>,
+    weights: Option<Vec<f64>>,
+    refine: Option<&Bound<'py, PyAny>>,
+    repeat: usize,
+    condition: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    guarded(|| {
+        let kind = laplacian_kind(laplacian)?;
+        let defaults = CompareOptions::default();
+        let options = CompareOptions {
+            methods: words("methods", methods)?.unwrap_or(defaults.methods),
+            qrs: words("qr", qr)?,
+            spds: words("spd", spd)?,
+            weights: weights.unwrap_or(defaults.weights),
+            refine: parse_refine(refine)?,
+            repeat,
+            condition,
+        };
+        // Fail before any work when the filters leave nothing to run.
+        options
+            .configurations()
+            .map_err(|e| input(format!("methods=/qr=/spd=/weights=: {e}")))?;
+        let mesh = mesh(py, V, F)?;
+        let set = constraints_for(constraints, &mesh)?;
+        let (reference, rows) = released(py, move || {
+            let mut deformer = Deformer::new(mesh, kind, set)?;
+            compare::compare(&mut deformer, &options, &mut |_| {})
+        })?;
+        if let Some(e) = reference.forward_error_estimate.filter(|&e| e > 1e-12) {
+            warn::<PyRuntimeWarning>(
+                py,
+                &format!(
+                    "the reference solution (nullspace-qr, refined) has an estimated forward error of {e:.1e}: differences below it are not resolved"
+                ),
+            )?;
+        }
+        convert::json_value(py, &rows)
     })
 }
 
@@ -431,6 +617,7 @@ pub fn native_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("InputTypeError", input_type_error_class(py)?)?;
     m.add("TooLargeError", too_large_error_class(py)?)?;
     m.add_class::<PyDeformer>()?;
+    m.add_function(wrap_pyfunction!(compare_rows, m)?)?;
     m.add_function(wrap_pyfunction!(deform, m)?)?;
     m.add_function(wrap_pyfunction!(laplacian_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(solve_lse, m)?)?;

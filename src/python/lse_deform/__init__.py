@@ -6,7 +6,10 @@ least-squares method of Masuda et al. (SMI 2006) -- the Rust crate
 Conventions are libigl's: ``V`` float64 n x 3, ``F`` int64 m x 3, sparse
 matrices from ``scipy.sparse``; C- and Fortran-ordered arrays alike.
 
-- ``deform(V, F, constraints, ...) -> (U, report)``
+- ``deform(V, F, constraints, ...) -> (U, report)``; ``energy="arap"``
+  for as-rigid-as-possible iterations
+- ``compare(V, F, constraints, ...) -> rows``: every formulation and back
+  end against one reference (``lse-deform compare --json``)
 - ``Deformer(V, F, constraints, ...)``: ``precompute()``, then
   ``set_targets``/``transform_group`` and ``solve()`` per frame
 - ``laplacian(V, F, kind) -> scipy.sparse.csc_matrix``
@@ -28,6 +31,7 @@ from ._native import (
     NumericalError,
     TooLargeError,
     __version__,
+    compare,
     deform,
     laplacian,
     solve_lse,
@@ -40,6 +44,7 @@ __all__ = [
     "NumericalError",
     "TooLargeError",
     "__version__",
+    "compare",
     "deform",
     "laplacian",
     "solve_lse",

@@ -42,20 +42,55 @@ def deform(
     V: npt.ArrayLike,
     F: npt.ArrayLike,
     constraints: Constraints,
-    laplacian: str = "cotan",
+    laplacian: Optional[str] = None,
     method: str = "nullspace-qr",
     qr: Optional[str] = None,
     spd: Optional[str] = None,
     weight: Optional[float] = None,
     refine: Refine = None,
+    energy: str = "laplacian",
+    arap_energy: Optional[str] = None,
+    iterations: Optional[int] = None,
+    tolerance: Optional[float] = None,
+    arap_init: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """Deforms (V, F) under the constraints; returns (U, report).
 
-    laplacian: 'uniform', 'cotan', 'cotan-symmetric', 'intrinsic-delaunay'.
+    laplacian: 'uniform', 'cotan' (None: the default), 'cotan-symmetric',
+    'intrinsic-delaunay'.
     method: 'nullspace-qr' (the paper), 'penalty' (needs weight), 'kkt',
     'eliminate'. qr: 'sparse-givens' (default), 'dense-householder'.
     spd: 'faer-auto' (default), 'faer-supernodal', 'faer-simplicial',
     'nalgebra'.
+    energy: 'laplacian' (default) or 'arap' (as-rigid-as-possible, cotangent
+    weights; report['arap'] says what the iterations did), with
+    arap_energy 'spokes' or 'spokes-and-rims' (default), iterations (default
+    10), tolerance on the relative energy decrease (default 0: run all) and
+    arap_init 'linear' (default) or 'rest'. Options the energy does not use
+    are RuntimeWarnings, as the CLI warns.
+    """
+
+def compare(
+    V: npt.ArrayLike,
+    F: npt.ArrayLike,
+    constraints: Constraints,
+    laplacian: str = "cotan",
+    methods: Optional[Sequence[str]] = None,
+    qr: Optional[Sequence[str]] = None,
+    spd: Optional[Sequence[str]] = None,
+    weights: Optional[Sequence[float]] = None,
+    refine: Refine = None,
+    repeat: int = 5,
+    condition: bool = True,
+) -> List[Dict[str, Any]]:
+    """`lse-deform compare`: every configuration against the refined
+    null-space reference; one dict per configuration with the keys of
+    `compare --json` (method, qr, spd, weight, status, precompute_s,
+    solve_median_s, refine_s, max_constraint_residual, delta_x, delta_e,
+    forward_error_estimate, condition, report).
+
+    methods: default all four; qr, spd: default every back end of this
+    build; weights: penalty weights (default 1e4, 1e8, 1e12).
     """
 
 def laplacian(
