@@ -19,7 +19,7 @@ use std::time::Instant;
 use faer::Mat;
 use lse_deform::backend::spd::FaerLlt;
 use lse_deform::condition::ConditionEstimate;
-use lse_deform::formulation::{FORWARD_ERROR_WARNING, PenaltySweep};
+use lse_deform::formulation::{FORWARD_ERROR_WARNING, PenaltySweep, max_hard_residual};
 use lse_deform::problem::LseProblem;
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, Error, Formulation, FormulationChoice, LaplacianKind, Method};
@@ -185,13 +185,6 @@ pub fn qr_reference(problem: &LseProblem) -> Result<Option<Mat<f64>>, AnyError> 
         return Err("sparse QR reference: non-finite solution".into());
     }
     Ok(Some(x))
-}
-
-/// `max_k ‖b_k X − d_k‖₂` over all hard rows (kept or not).
-pub fn max_hard_residual(problem: &LseProblem, x: &Mat<f64>) -> f64 {
-    (0..problem.b().nrows())
-        .map(|k| problem.hard_residual(k, x))
-        .fold(0.0, f64::max)
 }
 
 /// `‖X − X*‖_F / ‖X*‖_F`.

@@ -34,7 +34,7 @@ use lse_deform::backend::spd::{FaerLlt, SpdBackend};
 use lse_deform::condition::{self, InverseOperator, LowerSymmetricOperator};
 use lse_deform::constraints::{ConstraintSet, read_constraints};
 use lse_deform::error::Error;
-use lse_deform::formulation::Refine;
+use lse_deform::formulation::{Refine, max_hard_residual};
 use lse_deform::problem::LseProblem;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
 use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method};
@@ -42,7 +42,7 @@ use serde::Serialize;
 
 use crate::context::{Context, MeshCase, fmt_time, markdown_table};
 use crate::plot::{self, Axis, Failure, LegendPosition, LineChart, Output, ReferenceLine, Series};
-use crate::table1::{energy_gap, failure_kind, max_hard_residual, qr_reference, sci};
+use crate::table1::{energy_gap, failure_kind, qr_reference, sci};
 use crate::{AnyError, Summary};
 
 /// The folder and command-line word of this experiment.

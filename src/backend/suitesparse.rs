@@ -59,3 +59,39 @@ impl Common {
         &mut self.0
     }
 }
+
+/// A `cholmod_sparse` header (64-bit indices, real `f64` values, sorted and
+/// packed) over a compressed-column matrix of `nrow × ncol` held in `p`
+/// (column pointers, `ncol + 1` of them), `i` (row indices) and `x` (values).
+///
+/// `stype` is CHOLMOD's symmetry flag: `0` unsymmetric, `-1` symmetric with
+/// only the lower triangle stored. The header borrows nothing in Rust's
+/// eyes: it is valid only while the three arrays are alive and unmoved, and
+/// only for CHOLMOD/SPQR calls that read their input.
+pub(crate) fn sparse_header(
+    nrow: usize,
+    ncol: usize,
+    p: &mut [Long],
+    i: &mut [Long],
+    x: &mut [f64],
+    stype: std::os::raw::c_int,
+) -> ss::cholmod_sparse {
+    // SAFETY: an all-zero cholmod_sparse is a valid value (null pointers,
+    // zero sizes); the fields that matter are set below.
+    let mut a: ss::cholmod_sparse = unsafe { std::mem::zeroed() };
+    a.nrow = nrow as _;
+    a.ncol = ncol as _;
+    a.nzmax = x.len().max(1) as _;
+    a.p = p.as_mut_ptr().cast();
+    a.i = i.as_mut_ptr().cast();
+    a.nz = std::ptr::null_mut();
+    a.x = x.as_mut_ptr().cast();
+    a.z = std::ptr::null_mut();
+    a.stype = stype;
+    a.itype = ss::CHOLMOD_LONG as _;
+    a.xtype = ss::CHOLMOD_REAL as _;
+    a.dtype = ss::CHOLMOD_DOUBLE as _;
+    a.sorted = 1;
+    a.packed = 1;
+    a
+}

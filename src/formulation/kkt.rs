@@ -67,7 +67,7 @@ use faer::{Conj, Mat, Par, Side};
 
 use super::util::{row_kind, split_normal};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FactorKind, SpdKind};
+use crate::backend::spd::{FactorKind, SpdKind, factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
 use crate::mesh::topology::UnionFind;
@@ -448,9 +448,9 @@ impl Formulation for Kkt {
         let faer_failed = result.err();
         check_pivots(&symbolic, &values, &k_lower, problem, faer_failed)?;
         report.timings_s.numeric = t.elapsed().as_secs_f64();
-        let (factor_nnz, factor_bytes) = factor_size(&symbolic);
-        report.nnz.factor = Some(factor_nnz);
-        report.nnz.factor_bytes = Some(factor_bytes);
+        let size = factor_size(&symbolic);
+        report.nnz.factor = Some(size.nnz);
+        report.nnz.factor_bytes = Some(size.total_bytes());
 
         let workspace = MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq))
             .map_err(backend_error)?;
@@ -562,26 +562,6 @@ fn for_each_factor_entry(
                     }
                 }
             }
-        }
-    }
-}
-
-/// Lower-triangle entries of the factor and bytes of values + row indices.
-fn factor_size(symbolic: &SymbolicCholesky<usize>) -> (usize, usize) {
-    match symbolic.raw() {
-        SymbolicCholeskyRaw::Simplicial(s) => {
-            (s.len_val(), s.len_val() * 8 + s.row_idx().len() * 8)
-        }
-        SymbolicCholeskyRaw::Supernodal(s) => {
-            let (begin, end) = (s.supernode_begin(), s.supernode_end());
-            let mut nnz = 0;
-            let mut idx = 0;
-            for (k, &p) in s.nnz_per_super().iter().enumerate() {
-                let c = end[k] - begin[k];
-                nnz += c * (c + 1) / 2 + c * p;
-                idx += p;
-            }
-            (nnz, s.len_val() * 8 + idx * 8)
         }
     }
 }

@@ -76,8 +76,11 @@ pub(crate) fn max_row_norm(m: &Mat<f64>) -> f64 {
     worst.sqrt()
 }
 
-/// `max_k ‖b_k X − d_k‖₂` over all hard rows.
-pub(crate) fn max_hard_residual(problem: &LseProblem, x: &Mat<f64>) -> f64 {
+/// `max_k ‖b_k X − d_k‖₂` over all hard rows of `problem` (including rows a
+/// formulation dropped as redundant), each the Euclidean norm over the
+/// columns of `X` ([`LseProblem::hard_residual`]), in the problem's own units
+/// (not divided by its length scale); `0` for a problem without hard rows.
+pub fn max_hard_residual(problem: &LseProblem, x: &Mat<f64>) -> f64 {
     (0..problem.b().nrows())
         .map(|k| problem.hard_residual(k, x))
         .fold(0.0, f64::max)

@@ -38,6 +38,7 @@ use crate::error::{Error, ProblemError};
 mod dense_householder;
 mod distinct_rows;
 mod fill;
+mod givens_merge;
 mod graph_rows;
 mod sparse_columns;
 mod sparse_givens;

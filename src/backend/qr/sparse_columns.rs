@@ -10,6 +10,8 @@
 
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat};
 
+use super::givens_merge::rotate_merge;
+
 /// A sorted sparse column.
 #[derive(Debug, Clone, Default)]
 struct Col {
@@ -89,32 +91,14 @@ impl<'a> ColumnWorkspace<'a> {
             rows: Vec::with_capacity(cap),
             vals: Vec::with_capacity(cap),
         };
-        let (mut i, mut k) = (0, 0);
-        while i < mp.rows.len() || k < mq.rows.len() {
-            let ri = mp.rows.get(i).copied().unwrap_or(usize::MAX);
-            let rk = mq.rows.get(k).copied().unwrap_or(usize::MAX);
-            let (row, x, y) = if ri < rk {
-                i += 1;
-                (ri, mp.vals[i - 1], 0.0)
-            } else if rk < ri {
-                k += 1;
-                (rk, 0.0, mq.vals[k - 1])
-            } else {
-                i += 1;
-                k += 1;
-                (ri, mp.vals[i - 1], mq.vals[k - 1])
-            };
-            let u = c * x + s * y;
-            let v = -s * x + c * y;
-            if u != 0.0 {
-                np.rows.push(row);
-                np.vals.push(u);
-            }
-            if v != 0.0 {
-                nq.rows.push(row);
-                nq.vals.push(v);
-            }
-        }
+        rotate_merge(
+            (&mp.rows, &mp.vals),
+            (&mq.rows, &mq.vals),
+            c,
+            s,
+            (&mut np.rows, &mut np.vals),
+            (&mut nq.rows, &mut nq.vals),
+        );
         self.cols[p] = Some(np);
         self.cols[q] = Some(nq);
     }

@@ -69,6 +69,7 @@ use faer::{MatMut, MatRef};
 
 use super::distinct_rows::factor_distinct_rows;
 use super::fill::{check_r_fill, fill_reducing_constraint_order};
+use super::givens_merge::rotate_merge;
 use super::graph_rows::factor_graph_rows;
 use super::sparse_columns::ColumnWorkspace;
 use super::{ConstraintQr, QrBackend, RankTolerance};
@@ -340,32 +341,14 @@ impl GivensQr {
                 new_row.vals.clear();
                 new_r.cols.push(j);
                 new_r.vals.push(h);
-                let (mut i, mut k) = (1, start + 1);
-                while i < r.cols.len() || k < row.cols.len() {
-                    let ci = r.cols.get(i).copied().unwrap_or(usize::MAX);
-                    let ck = row.cols.get(k).copied().unwrap_or(usize::MAX);
-                    let (col, x, y) = if ci < ck {
-                        i += 1;
-                        (ci, r.vals[i - 1], 0.0)
-                    } else if ck < ci {
-                        k += 1;
-                        (ck, 0.0, row.vals[k - 1])
-                    } else {
-                        i += 1;
-                        k += 1;
-                        (ci, r.vals[i - 1], row.vals[k - 1])
-                    };
-                    let rv = c * x + s * y;
-                    let wv = -s * x + c * y;
-                    if rv != 0.0 {
-                        new_r.cols.push(col);
-                        new_r.vals.push(rv);
-                    }
-                    if wv != 0.0 {
-                        new_row.cols.push(col);
-                        new_row.vals.push(wv);
-                    }
-                }
+                rotate_merge(
+                    (&r.cols[1..], &r.vals[1..]),
+                    (&row.cols[start + 1..], &row.vals[start + 1..]),
+                    c,
+                    s,
+                    (&mut new_r.cols, &mut new_r.vals),
+                    (&mut new_row.cols, &mut new_row.vals),
+                );
                 std::mem::swap(r, &mut new_r);
                 std::mem::swap(&mut row, &mut new_row);
                 start = 0;

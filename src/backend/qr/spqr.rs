@@ -56,7 +56,7 @@ use super::fill::check_r_fill;
 use super::graph_rows::factor_graph_rows;
 use super::sparse_columns::ColumnWorkspace;
 use super::{ConstraintQr, QrBackend, RankTolerance};
-use crate::backend::suitesparse::{Common, Long};
+use crate::backend::suitesparse::{Common, Long, sparse_header};
 use crate::error::{Error, NumericalError, ProblemError};
 
 const NAME: &str = "spqr";
@@ -218,23 +218,7 @@ impl ScaledBt {
     /// A `cholmod_sparse` header over the arrays (valid while `self` is
     /// borrowed; SPQR only reads its input).
     fn header(&mut self) -> ss::cholmod_sparse {
-        // SAFETY: an all-zero cholmod_sparse is a valid value.
-        let mut a: ss::cholmod_sparse = unsafe { std::mem::zeroed() };
-        a.nrow = self.n as _;
-        a.ncol = self.m as _;
-        a.nzmax = self.x.len().max(1) as _;
-        a.p = self.p.as_mut_ptr().cast();
-        a.i = self.i.as_mut_ptr().cast();
-        a.nz = ptr::null_mut();
-        a.x = self.x.as_mut_ptr().cast();
-        a.z = ptr::null_mut();
-        a.stype = 0;
-        a.itype = ss::CHOLMOD_LONG as _;
-        a.xtype = ss::CHOLMOD_REAL as _;
-        a.dtype = ss::CHOLMOD_DOUBLE as _;
-        a.sorted = 1;
-        a.packed = 1;
-        a
+        sparse_header(self.n, self.m, &mut self.p, &mut self.i, &mut self.x, 0)
     }
 }
 

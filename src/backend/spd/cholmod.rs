@@ -30,7 +30,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use suitesparse_sys as ss;
 
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
-use crate::backend::suitesparse::{Common, Long};
+use crate::backend::suitesparse::{Common, Long, sparse_header};
 use crate::error::NumericalError;
 
 const NAME: &str = "cholmod";
@@ -185,24 +185,7 @@ impl LowerCsc {
     /// A `cholmod_sparse` header over the arrays (valid while `self` is
     /// borrowed; CHOLMOD only reads it).
     fn header(&mut self) -> ss::cholmod_sparse {
-        // SAFETY: an all-zero cholmod_sparse is a valid value (null pointers,
-        // zero sizes); the fields that matter are set below.
-        let mut a: ss::cholmod_sparse = unsafe { std::mem::zeroed() };
-        a.nrow = self.n as _;
-        a.ncol = self.n as _;
-        a.nzmax = self.x.len().max(1) as _;
-        a.p = self.p.as_mut_ptr().cast();
-        a.i = self.i.as_mut_ptr().cast();
-        a.nz = ptr::null_mut();
-        a.x = self.x.as_mut_ptr().cast();
-        a.z = ptr::null_mut();
-        a.stype = -1;
-        a.itype = ss::CHOLMOD_LONG as _;
-        a.xtype = ss::CHOLMOD_REAL as _;
-        a.dtype = ss::CHOLMOD_DOUBLE as _;
-        a.sorted = 1;
-        a.packed = 1;
-        a
+        sparse_header(self.n, self.n, &mut self.p, &mut self.i, &mut self.x, -1)
     }
 }
 

@@ -15,6 +15,7 @@ use faer::{MatMut, Par, Side};
 
 use crate::cpu::clear_upper_vector_state;
 
+use super::factor_size::factor_size;
 use super::tree_split::TreeSplit;
 use super::triangular::{
     LANES, Lane, Passes, SupernodalRows, WIDE_LANES, factor_diagonal, passes, solve_lanes,
@@ -87,34 +88,15 @@ impl SpdBackend for FaerLlt {
         let symbolic =
             factorize_symbolic_cholesky(lower, Side::Lower, SymmetricOrdering::Amd, params)
                 .map_err(|e| backend_error(self.kind.name(), e))?;
-        let (nnz, index_bytes) = factor_size(&symbolic);
+        let size = factor_size(&symbolic);
         let split = TreeSplit::new(&symbolic).map(Arc::new);
         Ok(Box::new(FaerSymbolic {
             symbolic: Arc::new(symbolic),
             split,
             name: self.kind.name(),
-            nnz,
-            index_bytes,
+            nnz: size.nnz,
+            index_bytes: size.index_bytes,
         }))
-    }
-}
-
-/// Lower-triangle entries of the factor, and bytes of its row indices.
-fn factor_size(symbolic: &SymbolicCholesky<usize>) -> (usize, usize) {
-    match symbolic.raw() {
-        SymbolicCholeskyRaw::Simplicial(s) => (s.len_val(), s.row_idx().len() * 8),
-        SymbolicCholeskyRaw::Supernodal(s) => {
-            let begin = s.supernode_begin();
-            let end = s.supernode_end();
-            let mut nnz = 0;
-            let mut idx = 0;
-            for (k, &p) in s.nnz_per_super().iter().enumerate() {
-                let c = end[k] - begin[k];
-                nnz += c * (c + 1) / 2 + c * p;
-                idx += p;
-            }
-            (nnz, idx * 8)
-        }
     }
 }
 

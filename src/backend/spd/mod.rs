@@ -21,6 +21,7 @@ use crate::error::{NumericalError, ProblemError};
 
 #[cfg(feature = "suitesparse")]
 mod cholmod;
+mod factor_size;
 mod faer_llt;
 mod nalgebra;
 mod tree_split;
@@ -28,6 +29,7 @@ mod triangular;
 
 #[cfg(feature = "suitesparse")]
 pub use cholmod::Cholmod;
+pub(crate) use factor_size::factor_size;
 pub use faer_llt::FaerLlt;
 pub use nalgebra::NalgebraCsc;
 
