@@ -18,6 +18,12 @@
 //! - `t5_large`: precompute and solve on the large mesh and its floor;
 //! - `t6_setup`: reading an OBJ file and building L and A;
 //! - `t7_scaling`: precompute and solve at 1k … 64k vertices;
+//! - `refine`: on the Bunny and the Dragon (generated 35k and 50k bumpy
+//!   spheres without `LSE_MESH_DIR`), the solve phase alone next to the
+//!   refine phase of the default `--refine auto`, both as a later solve
+//!   with the factor does it (stopping on the prediction from what earlier
+//!   refinements measured, docs/refinement.md §6) and as the first
+//!   refinement of a factor (measuring the rounding floor);
 //! - `t8_crowded`: set-up, precompute and solve with 20,000 and 200,000
 //!   constraints through one vertex (one position constraint repeated;
 //!   relative constraints from one hub to 1,000 vertices in turn) on a
@@ -38,6 +44,7 @@ use lse_deform::constraints::ConstraintSet;
 use lse_deform::formulation::{NullSpaceQr, PenaltySweep};
 use lse_deform::mesh::{Mesh, generate, read_mesh, write_mesh};
 use lse_deform::scene::{CrowdedScene, FixedAndHandle, MixedScene};
+use lse_deform::solver::LseSolver;
 use lse_deform::sparse::NormalPattern;
 use lse_deform::{Deformer, LaplacianKind};
 
@@ -71,6 +78,18 @@ fn large_mesh() -> Mesh {
         return m.mesh;
     }
     generate::with_about_vertices(generate::GeneratedKind::BumpySphere, 250_000, 1)
+        .expect("generated mesh")
+}
+
+/// A mesh of `LSE_MESH_DIR` by file name, else a generated bumpy sphere
+/// of about `vertices` vertices.
+fn named_mesh(file: &str, vertices: usize) -> Mesh {
+    if let Some(dir) = mesh_dir()
+        && let Ok(m) = read_mesh(&dir.join(file))
+    {
+        return m.mesh;
+    }
+    generate::with_about_vertices(generate::GeneratedKind::BumpySphere, vertices, 1)
         .expect("generated mesh")
 }
 
@@ -306,6 +325,44 @@ fn t7_scaling(c: &mut Criterion) {
     g.finish();
 }
 
+fn refine(c: &mut Criterion) {
+    let mut g = c.benchmark_group("refine");
+    g.sample_size(30);
+    for (name, file, vertices) in [
+        ("bunny", "bunny-35k-stanford.obj", 35_000),
+        ("dragon", "dragon-50k.obj", 50_000),
+    ] {
+        let mesh = named_mesh(file, vertices);
+        let d = deformer(&mesh, &scene(&mesh));
+        let mut solver = LseSolver::new(d.problem().clone());
+        solver.precompute(&ours()).expect("precompute");
+        let mut x0 = Mat::<f64>::zeros(d.problem().n(), 3);
+        solver.solve_unrefined_into(x0.as_mut()).expect("solve");
+        let mut x = x0.clone();
+        solver.refine_solution(&mut x).expect("refine");
+        g.bench_function(BenchmarkId::new("solve phase (unrefined)", name), |b| {
+            b.iter(|| solver.solve_unrefined_into(x.as_mut()).expect("solve"))
+        });
+        g.bench_function(BenchmarkId::new("refine auto, later solve", name), |b| {
+            b.iter(|| {
+                x.copy_from(&x0);
+                black_box(solver.refine_solution(&mut x).expect("refine").steps)
+            })
+        });
+        g.bench_function(
+            BenchmarkId::new("refine auto, first of the factor", name),
+            |b| {
+                b.iter(|| {
+                    solver.forget_factor_rounding();
+                    x.copy_from(&x0);
+                    black_box(solver.refine_solution(&mut x).expect("refine").steps)
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
 fn t8_crowded(c: &mut Criterion) {
     let mesh = generate::with_about_vertices(generate::GeneratedKind::BumpySphere, 10_000, 1)
         .expect("generated mesh");
@@ -343,6 +400,7 @@ criterion_group!(
     t5_large,
     t6_setup,
     t7_scaling,
+    refine,
     t8_crowded
 );
 criterion_main!(benches);

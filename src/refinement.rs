@@ -115,6 +115,12 @@ pub enum RefineStop {
     /// A correction did not shrink: the rounding floor of this factor; it
     /// was not applied.
     Stagnated,
+    /// Exact formulations, a factor refined before: the error left after
+    /// the last correction is predicted to be at the rounding floor that an
+    /// earlier refinement with the same factor measured
+    /// ([`FactorRounding`], docs/refinement.md §6); no further correction
+    /// was computed.
+    Predicted,
     /// The step cap was reached.
     StepLimit,
     /// Penalty only: the hard-constraint residual `‖D − B X_k‖` stopped
@@ -147,3 +153,33 @@ pub struct Refinement {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub constraint_residuals: Vec<f64>,
 }
+
+/// What earlier refinements with one factor measured about it
+/// (docs/refinement.md §6): the contraction `ρ` of a correction (the
+/// relative error a solve with the factor leaves) and the rounding floor
+/// below which corrections are noise, relative to the solution's size.
+/// Both are properties of the factor, not of the right-hand side, so a
+/// later solve with the same factor can stop once the error left is
+/// predicted to be at that floor, without computing one more correction
+/// only to see noise. A solver keeps one per factor and forgets it at
+/// every precompute.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FactorRounding {
+    /// The largest contraction per correction seen with this factor: the
+    /// first correction's size over the solution's, and the ratio of each
+    /// applied correction to the one before it.
+    pub contraction: f64,
+    /// The last measured floor: the size of the correction that ended a
+    /// measured refinement (one that did not shrink, or one within
+    /// [`CONVERGED_ULPS`] ulps) over the solution's size (both relative to
+    /// the length scale); `None` until a refinement measured it.
+    pub floor: Option<f64>,
+    /// Refinements that stopped on a prediction since the floor was last
+    /// measured (every [`REMEASURE_EVERY`]th refinement measures it again).
+    pub predicted_since_measured: usize,
+}
+
+/// A solver that stops refinements on predictions measures the rounding
+/// floor again on every this-many-th refinement with the same factor, so
+/// that a floor measured on one right-hand side is not trusted forever.
+pub const REMEASURE_EVERY: usize = 16;

@@ -49,7 +49,8 @@ use faer::{Mat, MatMut, MatRef};
 use crate::condition::ConditionEstimate;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{
-    FORWARD_ERROR_WARNING, Formulation, Method, Prepared, Refine, RefineStop, Refinement, refine,
+    FORWARD_ERROR_WARNING, FactorRounding, Formulation, Method, Prepared, Refine, RefineStop,
+    Refinement, refine, refine_with_memory,
 };
 use crate::problem::{LseProblem, RHS_BLOCK};
 use crate::report::{
@@ -75,6 +76,10 @@ pub struct LseSolver {
     /// The earlier constraints each conflicting one contradicts, found
     /// once per precompute (for the warnings).
     conflict_sources: ConflictSources,
+    /// What the refinements of the current factor measured (contraction,
+    /// rounding floor), so that later solves can stop refining on a
+    /// prediction; reset at every precompute.
+    rounding: FactorRounding,
 }
 
 impl LseSolver {
@@ -98,6 +103,7 @@ impl LseSolver {
             refine: None,
             last_refinement: None,
             conflict_sources: ConflictSources::default(),
+            rounding: FactorRounding::default(),
         }
     }
 
@@ -107,6 +113,21 @@ impl LseSolver {
     /// for penalty).
     pub fn set_refine(&mut self, refine: Option<Refine>) {
         self.refine = refine;
+    }
+
+    /// Forgets what refinements measured about the current factor
+    /// ([`FactorRounding`]): the next refinement measures its rounding floor
+    /// again, with one more correction than a stop on a prediction needs
+    /// (docs/refinement.md §6). A caller whose right-hand sides change in
+    /// kind, not just in value, may want this; it also times the cost of a
+    /// first refinement.
+    pub fn forget_factor_rounding(&mut self) {
+        self.rounding = FactorRounding::default();
+    }
+
+    /// What refinements have measured about the current factor so far.
+    pub fn factor_rounding(&self) -> &FactorRounding {
+        &self.rounding
     }
 
     /// The refinement the next solve uses.
@@ -123,6 +144,7 @@ impl LseSolver {
     /// succeeds).
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
         self.system = None;
+        self.rounding = FactorRounding::default();
         let mut report = self.base.clone();
         let system = formulation
             .precompute(&self.problem, &mut report)
@@ -187,7 +209,8 @@ impl LseSolver {
             })?;
         check_finite(x.as_ref())?;
         let t = Instant::now();
-        let refinement = refine(system.as_mut(), &self.problem, x, mode)?;
+        let rounding = Some(&mut self.rounding);
+        let refinement = refine_with_memory(system.as_mut(), &self.problem, x, mode, rounding)?;
         self.report.timings_s.refine = t.elapsed().as_secs_f64();
         Ok(self.last_refinement.insert(refinement))
     }
@@ -234,7 +257,14 @@ impl LseSolver {
                 check_finite(x.as_ref())?;
                 let t = Instant::now();
                 let mut refined = x.to_owned();
-                refinements.push(refine(system.as_mut(), &self.problem, &mut refined, mode)?);
+                let rounding = Some(&mut self.rounding);
+                refinements.push(refine_with_memory(
+                    system.as_mut(),
+                    &self.problem,
+                    &mut refined,
+                    mode,
+                    rounding,
+                )?);
                 x.copy_from(&refined);
                 self.report.timings_s.refine = t.elapsed().as_secs_f64();
             }

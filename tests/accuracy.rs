@@ -733,6 +733,81 @@ proptest! {
         }
     }
 
+    /// Later solves with one factor stop on a prediction
+    /// (docs/refinement.md §6): after a first solve has measured the
+    /// factor's rounding floor, a drag of the handle (targets moved by up
+    /// to 0.2 of the diagonal per frame) computes fewer corrections in all
+    /// than the first solve's count per frame, and every frame's solution is within 1e-12 of the
+    /// accurate reference with an estimate within a factor 10 of its true
+    /// error wherever that is above 1e-13 (a prediction that trusted the
+    /// contraction alone reads far below the truth and fails this).
+    #[test]
+    fn predicted_stops_keep_the_estimate_and_the_accuracy(
+        seed in any::<u64>(),
+        nx in 3usize..9,
+        ny in 3usize..9,
+        kkt in any::<bool>(),
+    ) {
+        let mesh = random_surface(nx, ny, seed);
+        let cs = mixed_constraints(&mesh, true);
+        let handle: Vec<usize> = (0..cs.len())
+            .filter(|&i| matches!(cs[i].kind, ConstraintKind::Position { .. }))
+            .take(2)
+            .collect();
+        let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs)).unwrap();
+        // (Elimination supports position rows only; its refinement is the
+        // null-space one with a selection for Q2.)
+        let f: Box<dyn Formulation> = if kkt {
+            Box::new(Kkt::default())
+        } else {
+            Box::new(NullSpaceQr::default())
+        };
+        d.precompute(f.as_ref()).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let diagonal = mesh.bbox_diagonal();
+        let (mut first, mut later) = (0, 0);
+        for frame in 0..6 {
+            if frame > 0 {
+                for &i in &handle {
+                    let ConstraintKind::Position { target, .. } = d.constraints().as_slice()[i].kind else {
+                        unreachable!()
+                    };
+                    let moved = target.map(|t| t + rng.random_range(-0.2..0.2) * diagonal);
+                    d.set_target(i, moved).unwrap();
+                }
+            }
+            let x = d.solve_matrix().unwrap();
+            let r = d.report().refinement.clone().unwrap();
+            let problem = d.problem();
+            let rows: Vec<usize> = (0..problem.b().nrows()).collect();
+            let reference = lse_deform::testing::accurate_reference(problem, &rows);
+            let scale = problem.length_scale();
+            let truth = (0..x.nrows())
+                .map(|i| (0..3).map(|c| (x[(i, c)] - reference[(i, c)]).powi(2)).sum::<f64>().sqrt())
+                .fold(0.0, f64::max) / scale;
+            prop_assert!(truth <= 1e-12, "frame {frame}: {truth:e} from the reference, {r:?}");
+            let estimate = r.forward_error_estimate;
+            if truth > 1e-13 {
+                prop_assert!(
+                    estimate <= 10.0 * truth && truth <= 10.0 * estimate,
+                    "frame {frame}: estimate {estimate:e}, true error {truth:e}, {r:?}"
+                );
+            }
+            if r.stop_reason == RefineStop::Predicted {
+                prop_assert!(frame > 0, "the first solve measures the floor: {r:?}");
+            }
+            if frame == 0 {
+                first = r.corrections.len();
+            } else {
+                later += r.corrections.len();
+            }
+        }
+        prop_assert!(
+            first < 2 || later < 5 * first,
+            "the later frames computed {later} corrections, the first {first}"
+        );
+    }
+
     /// A mesh and its targets scaled by `10^e` (soft weights by `10^(−2e)`)
     /// deform to the same answer scaled, with the same rank and the same
     /// redundant and conflicting constraints.

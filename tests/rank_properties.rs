@@ -412,14 +412,39 @@ fn check_mix(mix: &ConstructedMix, kind: LaplacianKind) -> Result<(), TestCaseEr
                 .precompute(f.as_ref())
                 .and_then(|()| d.solve_matrix())
                 .map(|x| (x, d.report().clone()));
-            if let Err(e) = check_method(
-                &label, method, refine, &problem, &expected, &reference, outcome,
-            ) {
-                violations.push(e.to_string());
+            let again = solve_again(refine, outcome.is_ok(), || {
+                d.solve_matrix().map(|x| (x, d.report().clone()))
+            });
+            for (label, outcome) in [(label.clone(), Some(outcome)), again_label(&label, again)] {
+                if let Some(outcome) = outcome
+                    && let Err(e) = check_method(
+                        &label, method, refine, &problem, &expected, &reference, outcome,
+                    )
+                {
+                    violations.push(e.to_string());
+                }
             }
         }
     }
     finish(violations)
+}
+
+/// With [`Refine::Auto`], after a first solve that succeeded, the same
+/// right-hand sides solved again with the same factor: that refinement may
+/// stop on a prediction from what the first measured (docs/refinement.md
+/// §6), and must meet the same checks, the estimate within a factor 10 of
+/// the true error included.
+fn solve_again<T>(
+    refine: Refine,
+    first_solved: bool,
+    solve: impl FnOnce() -> Result<T, Error>,
+) -> Option<Result<T, Error>> {
+    (refine == Refine::Auto && first_solved).then(solve)
+}
+
+/// The label of a second solve, with its outcome.
+fn again_label<T>(label: &str, again: Option<T>) -> (String, Option<T>) {
+    (format!("{label}, solved again"), again)
 }
 
 /// One failure listing every violation of the case (each method and mode
@@ -453,16 +478,23 @@ fn check_lse(lse: &ConstructedLse) -> Result<(), TestCaseError> {
                 .precompute(f.as_ref())
                 .and_then(|()| solver.solve())
                 .map(|x| (x, solver.report().clone()));
-            if let Err(e) = check_method(
-                &label,
-                method,
-                refine,
-                &lse.problem,
-                &expected,
-                &reference,
-                outcome,
-            ) {
-                violations.push(e.to_string());
+            let again = solve_again(refine, outcome.is_ok(), || {
+                solver.solve().map(|x| (x, solver.report().clone()))
+            });
+            for (label, outcome) in [(label.clone(), Some(outcome)), again_label(&label, again)] {
+                if let Some(outcome) = outcome
+                    && let Err(e) = check_method(
+                        &label,
+                        method,
+                        refine,
+                        &lse.problem,
+                        &expected,
+                        &reference,
+                        outcome,
+                    )
+                {
+                    violations.push(e.to_string());
+                }
             }
         }
     }

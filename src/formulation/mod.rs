@@ -34,8 +34,8 @@ pub use penalty::{
     PENALTY_FORWARD_ERROR_LIMIT, Penalty, PenaltyPoint, PenaltySolution, PenaltySweep,
 };
 pub use refine::{
-    AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, Refine, RefineStop, Refinement,
-    max_hard_residual, refine,
+    AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, FactorRounding, REMEASURE_EVERY, Refine,
+    RefineStop, Refinement, max_hard_residual, refine, refine_with_memory,
 };
 
 /// A way to solve `min ‖AX − C‖ s.t. BX = D`.

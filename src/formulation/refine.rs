@@ -54,7 +54,8 @@ use crate::problem::LseProblem;
 
 use super::Prepared;
 pub use crate::refinement::{
-    AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, Refine, RefineStop, Refinement,
+    AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, FactorRounding, REMEASURE_EVERY, Refine,
+    RefineStop, Refinement,
 };
 
 /// The penalty method's conflict test: a hard-constraint residual above
@@ -98,6 +99,29 @@ pub fn refine(
     x: &mut Mat<f64>,
     mode: Refine,
 ) -> Result<Refinement, Error> {
+    refine_with_memory(system, problem, x, mode, None)
+}
+
+/// [`refine`], remembering in `rounding` what this refinement measured
+/// about the factor, and, for the exact formulations under
+/// [`Refine::Auto`] or [`Refine::Until`] once a floor is known, stopping as
+/// soon as the error left is predicted to be at that floor
+/// ([`RefineStop::Predicted`], docs/refinement.md §6). `rounding` must
+/// belong to `system`'s factor (reset it at every precompute).
+pub fn refine_with_memory(
+    system: &mut dyn Prepared,
+    problem: &LseProblem,
+    x: &mut Mat<f64>,
+    mode: Refine,
+    rounding: Option<&mut FactorRounding>,
+) -> Result<Refinement, Error> {
+    let predictable = system.exact() && matches!(mode, Refine::Auto | Refine::Until(_));
+    let known_floor = rounding
+        .as_deref()
+        .filter(|r| predictable && r.predicted_since_measured < REMEASURE_EVERY)
+        .and_then(|r| r.floor.map(|floor| (r.contraction, floor)));
+    let mut rates = Vec::new();
+    let mut x_size;
     let scale = positive_or_one(problem.length_scale());
     let mut out = Refinement {
         mode,
@@ -118,6 +142,10 @@ pub fn refine(
         let size = max_row_norm(&dx) / scale;
         let size = if size.is_nan() { f64::INFINITY } else { size };
         let previous = out.corrections.last().copied();
+        x_size = max_row_norm(x) / scale;
+        // This correction's contraction: the first's size over the
+        // solution's, later ones' over the correction before.
+        let rate = size / previous.unwrap_or(x_size);
         out.corrections.push(size);
         out.forward_error_estimate = size;
         if mode == Refine::Off {
@@ -147,6 +175,7 @@ pub fn refine(
         *x += &dx;
         system.accept_correction();
         out.steps += 1;
+        rates.push(rate);
         if track_constraints {
             let r = max_hard_residual(problem, x) / scale;
             out.constraint_residuals.push(r);
@@ -170,6 +199,14 @@ pub fn refine(
             out.stop_reason = RefineStop::Tolerance;
             break;
         }
+        if let Some((contraction, floor_ratio)) = known_floor
+            && let Some(left) =
+                predicted_error(contraction.max(rate), size, floor_ratio * x_size, floor)
+        {
+            out.stop_reason = RefineStop::Predicted;
+            out.forward_error_estimate = left;
+            break;
+        }
         if out.steps >= cap {
             out.stop_reason = RefineStop::StepLimit;
             break;
@@ -183,6 +220,11 @@ pub fn refine(
     if slow && let [.., before, last] = out.corrections[..out.steps] {
         let tail = last * (geometric_tail(last / before) - 1.0);
         out.forward_error_estimate = out.forward_error_estimate.max(tail);
+    }
+    if let Some(r) = rounding
+        && predictable
+    {
+        remember(r, &out, &rates, x_size);
     }
     if track_constraints {
         // `‖B (X − X*)‖ = ‖B X − D‖` and the rows of `B` have norm of order
@@ -205,6 +247,46 @@ pub fn refine(
         }
     }
     Ok(out)
+}
+
+/// The error left after applying a correction of `size` with the
+/// contraction `rate`, `rate/(1 − rate) · size`, or the rounding `floor`
+/// measured with the factor if larger; `None` when that prediction is above
+/// both the measured floor and `ulps` ([`CONVERGED_ULPS`] ulps of the
+/// solution: one more correction is needed) or the iteration does not
+/// contract (docs/refinement.md §6).
+fn predicted_error(rate: f64, size: f64, floor: f64, ulps: f64) -> Option<f64> {
+    let left = size * rate / (1.0 - rate);
+    (rate < 1.0 && left <= floor.max(ulps) && floor.is_finite()).then_some(left.max(floor))
+}
+
+/// Updates what `rounding` knows of the factor from the refinement `out`
+/// (`rates` the contractions of its applied corrections, `x_size` the
+/// solution's size relative to the length scale): a refinement that
+/// stopped on a correction at the floor (converged or not shrinking)
+/// measured the floor; a predicted stop counts towards the next
+/// measurement.
+fn remember(rounding: &mut FactorRounding, out: &Refinement, rates: &[f64], x_size: f64) {
+    // A correction that converged (within the ulps of the solution) is
+    // rounding noise, not a contraction of the one before it.
+    let measured = match out.stop_reason {
+        RefineStop::Converged => &rates[..rates.len().saturating_sub(1)],
+        _ => rates,
+    };
+    let seen = measured.iter().copied().filter(|r| r.is_finite());
+    rounding.contraction = seen.fold(rounding.contraction, f64::max);
+    match out.stop_reason {
+        RefineStop::Converged | RefineStop::Stagnated => {
+            let last = out.corrections.last().copied().unwrap_or(0.0);
+            let floor = last / x_size;
+            if floor.is_finite() && x_size > 0.0 {
+                rounding.floor = Some(floor);
+                rounding.predicted_since_measured = 0;
+            }
+        }
+        RefineStop::Predicted => rounding.predicted_since_measured += 1,
+        _ => {}
+    }
 }
 
 /// A hard-constraint residual still at this fraction of its size before
