@@ -6,13 +6,15 @@
 //! iterations, however many were asked for.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::error::{Error, NumericalError};
 use lse_deform::testing::random_surface;
 use lse_deform::{Mesh, NullSpaceQr};
+
+mod common;
+use common::path_in;
 
 /// The bottom row fixed, the top row moved, one hard relative constraint
 /// and two soft ones (a position and an edge), all lengths times `s`.
@@ -172,17 +174,6 @@ fn an_energy_beyond_double_precision_is_a_numerical_error() {
     assert!(arap.positions().iter().flatten().all(|v| v.is_finite()));
 }
 
-fn bin_run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lse-deform"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn p(dir: &Path, name: &str) -> String {
-    dir.join(name).to_string_lossy().into_owned()
-}
-
 /// Through the binary: `deform --energy arap` with a target near 1e160
 /// and a tolerance with (practically) unlimited iterations exits 3 at
 /// once, naming the energy, and writes neither mesh nor report (before,
@@ -191,10 +182,10 @@ fn p(dir: &Path, name: &str) -> String {
 #[test]
 fn deform_arap_with_a_target_near_1e160_exits_3_and_stops() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = p(dir.path(), "grid.obj");
-    let o = bin_run(&["generate", "grid", "--vertices", "100", "-o", &mesh]);
+    let mesh = path_in(dir.path(), "grid.obj");
+    let o = common::run(&["generate", "grid", "--vertices", "100", "-o", &mesh]);
     assert!(o.status.success());
-    let scene = p(dir.path(), "huge.json");
+    let scene = path_in(dir.path(), "huge.json");
     std::fs::write(
         &scene,
         r#"{"constraints": [
@@ -204,9 +195,12 @@ fn deform_arap_with_a_target_near_1e160_exits_3_and_stops() {
         ]}"#,
     )
     .unwrap();
-    let (out, report) = (p(dir.path(), "out.obj"), p(dir.path(), "r.json"));
+    let (out, report) = (
+        path_in(dir.path(), "out.obj"),
+        path_in(dir.path(), "r.json"),
+    );
     for init in ["linear", "rest"] {
-        let o = bin_run(&[
+        let o = common::run(&[
             "deform",
             &mesh,
             "-c",

@@ -1,32 +1,19 @@
 //! The `lse-deform` binary as a user runs it.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use lse_deform::mesh::read_mesh;
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lse-deform"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn p(dir: &Path, name: &str) -> String {
-    dir.join(name).to_string_lossy().into_owned()
-}
+mod common;
+use common::{path_in, run, stderr};
 
 #[test]
 fn generate_scene_deform_round_trip() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = p(dir.path(), "grid.obj");
+    let mesh = path_in(dir.path(), "grid.obj");
     let o = run(&["generate", "grid", "--vertices", "900", "-o", &mesh]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let scene = p(dir.path(), "scene.json");
+    let scene = path_in(dir.path(), "scene.json");
     let o = run(&[
         "scene",
         &mesh,
@@ -42,8 +29,8 @@ fn generate_scene_deform_round_trip() {
         &scene,
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let out = p(dir.path(), "out.ply");
-    let report = p(dir.path(), "report.json");
+    let out = path_in(dir.path(), "out.ply");
+    let report = path_in(dir.path(), "report.json");
     let o = run(&[
         "deform", &mesh, "-c", &scene, "-o", &out, "--report", &report,
     ]);
@@ -100,7 +87,7 @@ fn generate_scene_deform_round_trip() {
 fn bad_inputs_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| {
-        let path = p(dir.path(), name);
+        let path = path_in(dir.path(), name);
         std::fs::write(&path, text).unwrap();
         path
     };
@@ -168,7 +155,7 @@ fn bad_inputs_are_one_line_errors() {
         args.push("-c".into());
         args.push(files.get(1).cloned().unwrap_or_else(|| pin_both.clone()));
         args.push("-o".into());
-        args.push(p(dir.path(), "out.obj"));
+        args.push(path_in(dir.path(), "out.obj"));
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let o = run(&args);
         let err = stderr(&o);
@@ -184,7 +171,7 @@ fn bad_inputs_are_one_line_errors() {
         "-c",
         &pin_both,
         "-o",
-        &p(dir.path(), "ok.obj"),
+        &path_in(dir.path(), "ok.obj"),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
@@ -195,7 +182,7 @@ fn bad_inputs_are_one_line_errors() {
 #[test]
 fn export_system_then_solve_reproduces_deform() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = p(dir.path(), "sphere.obj");
+    let mesh = path_in(dir.path(), "sphere.obj");
     let o = run(&[
         "generate",
         "bumpy-sphere",
@@ -205,7 +192,7 @@ fn export_system_then_solve_reproduces_deform() {
         &mesh,
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let scene = p(dir.path(), "scene.json");
+    let scene = path_in(dir.path(), "scene.json");
     let o = run(&[
         "scene",
         &mesh,
@@ -233,8 +220,8 @@ fn export_system_then_solve_reproduces_deform() {
         ],
         vec!["--method", "penalty", "--weight", "1e3"],
     ] {
-        let deformed = p(dir.path(), "deformed.obj");
-        let deform_report = p(dir.path(), "deform.json");
+        let deformed = path_in(dir.path(), "deformed.obj");
+        let deform_report = path_in(dir.path(), "deform.json");
         let mut args = vec![
             "deform",
             &mesh,
@@ -248,7 +235,7 @@ fn export_system_then_solve_reproduces_deform() {
         args.extend(&method);
         let o = run(&args);
         assert!(o.status.success(), "{}", stderr(&o));
-        let system = p(dir.path(), "system");
+        let system = path_in(dir.path(), "system");
         let mut args = vec!["export-system", &mesh, "-c", &scene, "-o", &system];
         args.extend(&method);
         let o = run(&args);
@@ -270,8 +257,8 @@ fn export_system_then_solve_reproduces_deform() {
             assert!(meta.get(key).is_some(), "meta.json lacks {key}");
         }
         assert_eq!(meta["laplacian"], "cotan");
-        let x_path = p(dir.path(), "X.mtx");
-        let solve_report = p(dir.path(), "solve.json");
+        let x_path = path_in(dir.path(), "X.mtx");
+        let solve_report = path_in(dir.path(), "solve.json");
         let mut args = vec!["solve", &system, "-o", &x_path, "--report", &solve_report];
         args.extend(&method);
         let o = run(&args);
@@ -353,8 +340,8 @@ fn solve_names_dependent_rows_and_refuses_bad_files() {
     lse_deform::mtx::write_dense(&sys.join("C.mtx"), c.as_ref()).unwrap();
     lse_deform::mtx::write_sparse(&sys.join("B.mtx"), b.as_ref()).unwrap();
     lse_deform::mtx::write_dense(&sys.join("D.mtx"), d.as_ref()).unwrap();
-    let x_path = p(dir.path(), "X.mtx");
-    let report = p(dir.path(), "r.json");
+    let x_path = path_in(dir.path(), "X.mtx");
+    let report = path_in(dir.path(), "r.json");
     let sys_s = sys.to_string_lossy().into_owned();
     let o = run(&["solve", &sys_s, "-o", &x_path, "--report", &report]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -369,7 +356,7 @@ fn solve_names_dependent_rows_and_refuses_bad_files() {
     assert!((x[(0, 0)] + x[(3, 0)] - d[(0, 0)]).abs() < 1e-12);
 
     // Bad files: exit code 2, one line naming the file and line.
-    let bad_c = p(dir.path(), "badC.mtx");
+    let bad_c = path_in(dir.path(), "badC.mtx");
     std::fs::write(
         &bad_c,
         "%%MatrixMarket matrix array real general\n12 2\n1\nfoo\n",
@@ -383,7 +370,7 @@ fn solve_names_dependent_rows_and_refuses_bad_files() {
         "{err}"
     );
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    let short_d = p(dir.path(), "shortD.mtx");
+    let short_d = path_in(dir.path(), "shortD.mtx");
     lse_deform::mtx::write_dense(Path::new(&short_d), Mat::<f64>::zeros(4, 2).as_ref()).unwrap();
     let o = run(&["solve", &sys_s, "--d", &short_d, "-o", &x_path]);
     let err = stderr(&o);
@@ -396,10 +383,10 @@ fn solve_names_dependent_rows_and_refuses_bad_files() {
 /// A 900-vertex grid, a scene with every constraint kind (and a duplicate
 /// and a conflict) for it, in `dir`: `(mesh path, scene path)`.
 fn grid_and_scene(dir: &Path) -> (String, String) {
-    let mesh = p(dir, "grid.obj");
+    let mesh = path_in(dir, "grid.obj");
     let o = run(&["generate", "grid", "--vertices", "900", "-o", &mesh]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let scene = p(dir, "scene.json");
+    let scene = path_in(dir, "scene.json");
     let o = run(&[
         "scene",
         &mesh,
@@ -426,8 +413,8 @@ fn grid_and_scene(dir: &Path) -> (String, String) {
 fn the_written_mesh_meets_the_targets() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, scene) = grid_and_scene(dir.path());
-    let out = p(dir.path(), "out.ply");
-    let report = p(dir.path(), "report.json");
+    let out = path_in(dir.path(), "out.ply");
+    let report = path_in(dir.path(), "report.json");
     let o = run(&[
         "deform", &mesh, "-c", &scene, "-o", &out, "--report", &report,
     ]);
@@ -467,11 +454,11 @@ fn the_written_mesh_meets_the_targets() {
 fn exit_codes_of_every_error_class() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, scene) = grid_and_scene(dir.path());
-    let out = p(dir.path(), "out.obj");
-    let missing_dir = p(dir.path(), "no-such-dir/out.obj");
-    let missing_report = p(dir.path(), "no-such-dir/report.json");
+    let out = path_in(dir.path(), "out.obj");
+    let missing_dir = path_in(dir.path(), "no-such-dir/out.obj");
+    let missing_report = path_in(dir.path(), "no-such-dir/report.json");
     // A file where the export directory should be: it cannot be created.
-    let blocker = p(dir.path(), "blocker");
+    let blocker = path_in(dir.path(), "blocker");
     std::fs::write(&blocker, "x").unwrap();
     let deform = |extra: &[&str]| -> Vec<String> {
         let mut v: Vec<String> = ["deform", &mesh, "-c", &scene]
@@ -491,7 +478,7 @@ fn exit_codes_of_every_error_class() {
         (vec!["generate".into(), "grid".into()], 2, "--output"),
         // Unwritable or unsupported outputs, refused before any work.
         (deform(&["-o", &missing_dir]), 2, "no-such-dir"),
-        (deform(&["-o", &p(dir.path(), "out.stl")]), 2, ".stl"),
+        (deform(&["-o", &path_in(dir.path(), "out.stl")]), 2, ".stl"),
         (
             deform(&["-o", &out, "--report", &missing_report]),
             2,
@@ -529,10 +516,10 @@ fn exit_codes_of_every_error_class() {
 #[test]
 fn a_null_space_numerical_failure_exits_3() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = p(dir.path(), "grid.obj");
+    let mesh = path_in(dir.path(), "grid.obj");
     let o = run(&["generate", "grid", "--vertices", "100", "-o", &mesh]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let scene = p(dir.path(), "huge.json");
+    let scene = path_in(dir.path(), "huge.json");
     std::fs::write(
         &scene,
         r#"{"constraints": [
@@ -541,7 +528,7 @@ fn a_null_space_numerical_failure_exits_3() {
         ]}"#,
     )
     .unwrap();
-    let out = p(dir.path(), "out.obj");
+    let out = path_in(dir.path(), "out.obj");
     let o = run(&["deform", &mesh, "-c", &scene, "-o", &out]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(3), "{err}");
@@ -556,11 +543,11 @@ fn outputs_are_checked_first() {
     let dir = tempfile::tempdir().unwrap();
     let o = run(&[
         "deform",
-        &p(dir.path(), "missing.obj"),
+        &path_in(dir.path(), "missing.obj"),
         "-c",
-        &p(dir.path(), "missing.json"),
+        &path_in(dir.path(), "missing.json"),
         "-o",
-        &p(dir.path(), "x.stl"),
+        &path_in(dir.path(), "x.stl"),
     ]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2));
@@ -569,13 +556,13 @@ fn outputs_are_checked_first() {
         "{err}"
     );
     // An existing output file is checked without being changed.
-    let existing = p(dir.path(), "keep.obj");
+    let existing = path_in(dir.path(), "keep.obj");
     std::fs::write(&existing, "keep me").unwrap();
     let o = run(&[
         "deform",
-        &p(dir.path(), "missing.obj"),
+        &path_in(dir.path(), "missing.obj"),
         "-c",
-        &p(dir.path(), "missing.json"),
+        &path_in(dir.path(), "missing.json"),
         "-o",
         &existing,
     ]);
@@ -592,7 +579,7 @@ fn outputs_are_checked_first() {
 #[test]
 fn generate_says_which_vertex_count_it_produced() {
     let dir = tempfile::tempdir().unwrap();
-    let out = p(dir.path(), "s.obj");
+    let out = path_in(dir.path(), "s.obj");
     let o = run(&["generate", "icosphere", "--vertices", "1000", "-o", &out]);
     assert!(o.status.success());
     // Icospheres have 10·4^k + 2 vertices: 642 and 2562 around 1000.
@@ -619,9 +606,9 @@ fn a_scene_for_another_mesh_warns_or_with_strict_fails() {
         .iter()
         .map(|q| [q[0], q[1], q[2] + 0.2 * q[0] * q[0]])
         .collect();
-    let other = p(dir.path(), "other.obj");
+    let other = path_in(dir.path(), "other.obj");
     lse_deform::mesh::write_mesh(&grid.with_positions(bent).unwrap(), Path::new(&other)).unwrap();
-    let out = p(dir.path(), "out.obj");
+    let out = path_in(dir.path(), "out.obj");
     let o = run(&["deform", &mesh, "-c", &scene, "-o", &out]);
     assert!(!stderr(&o).contains("made for"), "{}", stderr(&o));
     let o = run(&["deform", &other, "-c", &scene, "-o", &out]);
@@ -648,9 +635,16 @@ fn a_constraints_file_with_a_bom_works() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, scene) = grid_and_scene(dir.path());
     let text = std::fs::read_to_string(&scene).unwrap();
-    let bom = p(dir.path(), "bom.json");
+    let bom = path_in(dir.path(), "bom.json");
     std::fs::write(&bom, format!("\u{feff}{text}")).unwrap();
-    let o = run(&["deform", &mesh, "-c", &bom, "-o", &p(dir.path(), "o.obj")]);
+    let o = run(&[
+        "deform",
+        &mesh,
+        "-c",
+        &bom,
+        "-o",
+        &path_in(dir.path(), "o.obj"),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
@@ -669,8 +663,8 @@ fn a_conflict_warns_once_and_with_strict_exits_2() {
         "warning: constraint {} conflicts with constraint 1 and was dropped (residual ",
         n - 1
     );
-    let out = p(dir.path(), "out.obj");
-    let report = p(dir.path(), "report.json");
+    let out = path_in(dir.path(), "out.obj");
+    let report = path_in(dir.path(), "report.json");
     let o = run(&["deform", &mesh, "-c", &scene, "-o", &out]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
@@ -722,7 +716,7 @@ fn a_conflict_warns_once_and_with_strict_exits_2() {
 fn options_that_do_not_apply_are_warned_about() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, scene) = grid_and_scene(dir.path());
-    let out = p(dir.path(), "out.obj");
+    let out = path_in(dir.path(), "out.obj");
     let deform = |extra: &[&str]| {
         let mut args = vec!["deform", &mesh, "-c", &scene, "-o", &out];
         args.extend_from_slice(extra);
@@ -787,7 +781,7 @@ fn options_that_do_not_apply_are_warned_about() {
 #[test]
 fn scene_axis_takes_a_direction() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = p(dir.path(), "grid.obj");
+    let mesh = path_in(dir.path(), "grid.obj");
     assert!(
         run(&["generate", "grid", "--vertices", "400", "-o", &mesh])
             .status
@@ -806,7 +800,7 @@ fn scene_axis_takes_a_direction() {
             (l.min(y), h.max(y))
         });
     for (axis, fixed_end, handle_end) in [("y", lo, hi), ("-y", hi, lo)] {
-        let scene = p(dir.path(), &format!("scene{axis}.json"));
+        let scene = path_in(dir.path(), &format!("scene{axis}.json"));
         let o = run(&["scene", &mesh, "--axis", axis, "-o", &scene]);
         assert!(o.status.success(), "{}", stderr(&o));
         let v: serde_json::Value =
@@ -830,7 +824,7 @@ fn scene_axis_takes_a_direction() {
         "--axis",
         "w",
         "-o",
-        &p(dir.path(), "s.json"),
+        &path_in(dir.path(), "s.json"),
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(

@@ -4,7 +4,7 @@
 //! requests get 400/404/405/413 with a message, concurrent clients see
 //! whole frames, and the server survives a client that disconnects.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -14,6 +14,8 @@ use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::mesh::{generate, write_mesh};
 use lse_deform::{Deformer, LaplacianKind, Mesh, NullSpaceQr};
 use serde_json::Value;
+
+mod common;
 
 const NX: usize = 10;
 
@@ -83,45 +85,20 @@ fn start_with(max_body: usize, args: &[&str], env: &[(&str, &str)]) -> Server {
     }
 }
 
-/// Starts `lse-deform edit MESH --constraints C ARGS` on any free port and
-/// parses its first line, `listening on http://ADDR/?token=T`.
+/// Starts `lse-deform edit MESH --constraints C ARGS` on any free port
+/// ([`common::spawn_editor`], standard error piped).
 fn spawn_edit(
     mesh_path: &Path,
     c_path: &Path,
     args: &[&str],
     env: &[(&str, &str)],
 ) -> (Child, Client) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lse-deform"))
-        .args([
-            "edit",
-            mesh_path.to_str().unwrap(),
-            "--constraints",
-            c_path.to_str().unwrap(),
-        ])
-        .args(["--port", "0"])
-        .args(args)
-        .env_remove("LSE_DEFORM_EDIT_TOKEN")
-        .envs(env.iter().copied())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let (addr, token) = line
-        .trim()
-        .strip_prefix("listening on http://")
-        .and_then(|s| s.split_once('/'))
-        .unwrap_or_else(|| panic!("first line: {line:?}"));
-    let token = token.strip_prefix("?token=").unwrap_or("").to_string();
-    assert!(addr.starts_with("127.0.0.1:"), "{addr}");
+    let e = common::spawn_editor(mesh_path, c_path, args, env, Stdio::piped());
     (
-        child,
+        e.child,
         Client {
-            addr: addr.to_string(),
-            token,
+            addr: e.addr,
+            token: e.token,
         },
     )
 }

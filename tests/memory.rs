@@ -11,7 +11,7 @@
 //! ran out of memory there; now each ends with its typed message and exit
 //! code 2 within a few megabytes.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
@@ -20,6 +20,8 @@ use std::time::Instant;
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::mesh::{generate, write_mesh};
 use serde_json::Value;
+
+mod common;
 
 // ---------------------------------------------------------------------------
 // Groups
@@ -86,32 +88,11 @@ fn start(env: &[(&str, &str)]) -> Server {
     }
     let c_path = dir.path().join("c.json");
     std::fs::write(&c_path, cs.to_json()).unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lse-deform"))
-        .arg("edit")
-        .arg(&mesh_path)
-        .arg("--constraints")
-        .arg(&c_path)
-        .args(["--port", "0"])
-        .env_remove("LSE_DEFORM_EDIT_TOKEN")
-        .env_remove("LSE_MEMORY_LIMIT")
-        .envs(env.iter().copied())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let (addr, token) = line
-        .trim()
-        .strip_prefix("listening on http://")
-        .and_then(|s| s.split_once("/?token="))
-        .unwrap_or_else(|| panic!("first line: {line:?}"));
+    let e = common::spawn_editor(&mesh_path, &c_path, &[], env, Stdio::null());
     Server {
-        addr: addr.to_string(),
-        token: token.to_string(),
-        child,
+        addr: e.addr,
+        token: e.token,
+        child: e.child,
         _dir: dir,
     }
 }

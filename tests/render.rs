@@ -1,22 +1,9 @@
 //! `lse-deform render`: the PNG a user gets for their own result.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lse-deform"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn p(dir: &Path, name: &str) -> String {
-    dir.join(name).to_string_lossy().into_owned()
-}
+mod common;
+use common::{path_in, run, stderr};
 
 /// Width, height and RGB pixels of a PNG.
 fn read_png(path: &str) -> (u32, u32, Vec<[u8; 3]>) {
@@ -35,13 +22,13 @@ fn read_png(path: &str) -> (u32, u32, Vec<[u8; 3]>) {
 /// A sphere, the tool's scene on it (fixed bottom, handle dragged at the
 /// top) and the deformed mesh.
 fn deformed_sphere(dir: &Path) -> (String, String, String) {
-    let mesh = p(dir, "sphere.obj");
+    let mesh = path_in(dir, "sphere.obj");
     let o = run(&["generate", "icosphere", "--vertices", "600", "-o", &mesh]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let scene = p(dir, "scene.json");
+    let scene = path_in(dir, "scene.json");
     let o = run(&["scene", &mesh, "-o", &scene]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let out = p(dir, "deformed.obj");
+    let out = path_in(dir, "deformed.obj");
     let o = run(&["deform", &mesh, "-c", &scene, "-o", &out]);
     assert!(o.status.success(), "{}", stderr(&o));
     (mesh, scene, out)
@@ -59,7 +46,7 @@ fn border_is_background(w: u32, h: u32, px: &[[u8; 3]]) -> bool {
 fn ghost_displacement_map_and_framing() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, scene, deformed) = deformed_sphere(dir.path());
-    let with_ghost = p(dir.path(), "ghost.png");
+    let with_ghost = path_in(dir.path(), "ghost.png");
     let args = [
         "render",
         &mesh,
@@ -78,7 +65,7 @@ fn ghost_displacement_map_and_framing() {
         border_is_background(w, h, &ghost),
         "the mesh is framed inside"
     );
-    let no_ghost = p(dir.path(), "plain.png");
+    let no_ghost = path_in(dir.path(), "plain.png");
     let o = run(&[&args[..], &[&no_ghost, "--no-ghost"]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, _, plain) = read_png(&no_ghost);
@@ -93,7 +80,7 @@ fn ghost_displacement_map_and_framing() {
     // Constraint groups are drawn in the group colour (red for "fixed").
     assert!(plain.iter().any(|c| c[0] > 150 && c[1] < 60 && c[2] < 60));
 
-    let map = p(dir.path(), "map.png");
+    let map = path_in(dir.path(), "map.png");
     let o = run(&[
         "render",
         &mesh,
@@ -122,12 +109,12 @@ fn ghost_displacement_map_and_framing() {
 fn a_difference_map_between_two_deformations() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, scene, exact) = deformed_sphere(dir.path());
-    let soft = p(dir.path(), "penalty.obj");
+    let soft = path_in(dir.path(), "penalty.obj");
     let o = run(&[
         "deform", &mesh, "-c", &scene, "--method", "penalty", "--weight", "10", "-o", &soft,
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let out = p(dir.path(), "diff.png");
+    let out = path_in(dir.path(), "diff.png");
     let o = run(&[
         "render",
         &mesh,
@@ -150,12 +137,12 @@ fn a_difference_map_between_two_deformations() {
 fn bad_inputs_are_one_line_errors_with_exit_code_2() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, _, deformed) = deformed_sphere(dir.path());
-    let other = p(dir.path(), "grid.obj");
+    let other = path_in(dir.path(), "grid.obj");
     let o = run(&["generate", "grid", "--vertices", "100", "-o", &other]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let out = p(dir.path(), "x.png");
-    let missing = p(dir.path(), "missing.obj");
-    let jpg = p(dir.path(), "x.jpg");
+    let out = path_in(dir.path(), "x.png");
+    let missing = path_in(dir.path(), "missing.obj");
+    let jpg = path_in(dir.path(), "x.jpg");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec![&mesh, &other, "-o", &out],
@@ -198,7 +185,7 @@ fn bad_inputs_are_one_line_errors_with_exit_code_2() {
 #[test]
 fn a_deformation_that_collapses_a_face_renders_and_reads_back() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = p(dir.path(), "grid.obj");
+    let mesh = path_in(dir.path(), "grid.obj");
     let o = run(&["generate", "grid", "--vertices", "100", "-o", &mesh]);
     assert!(o.status.success(), "{}", stderr(&o));
     let first = lse_deform::mesh::read_mesh(Path::new(&mesh))
@@ -217,13 +204,13 @@ fn a_deformation_that_collapses_a_face_renders_and_reads_back() {
     constraints.push(format!(
         r#"{{"type": "position", "vertex": {last}, "target": [1, 1, 0]}}"#
     ));
-    let scene = p(dir.path(), "collapse.json");
+    let scene = path_in(dir.path(), "collapse.json");
     std::fs::write(
         &scene,
         format!(r#"{{"constraints": [{}]}}"#, constraints.join(", ")),
     )
     .unwrap();
-    let collapsed = p(dir.path(), "collapsed.obj");
+    let collapsed = path_in(dir.path(), "collapsed.obj");
     let o = run(&["deform", &mesh, "-c", &scene, "-o", &collapsed]);
     assert!(o.status.success(), "{}", stderr(&o));
 
@@ -247,7 +234,7 @@ fn a_deformation_that_collapses_a_face_renders_and_reads_back() {
         vec!["render", collapsed.as_str()],
         vec!["render", mesh.as_str(), collapsed.as_str()],
     ] {
-        let png = p(dir.path(), "c.png");
+        let png = path_in(dir.path(), "c.png");
         let _ = std::fs::remove_file(&png);
         let o = run(&[args.as_slice(), &["-o", &png]].concat());
         assert!(o.status.success(), "{args:?}: {}", stderr(&o));
@@ -258,7 +245,7 @@ fn a_deformation_that_collapses_a_face_renders_and_reads_back() {
 
     // Deformed again: the uniform Laplacian takes it; the cotangent one
     // names the face.
-    let again = p(dir.path(), "again.obj");
+    let again = path_in(dir.path(), "again.obj");
     let o = run(&[
         "deform",
         &collapsed,

@@ -9,26 +9,14 @@
 //!
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lse-deform"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn p(dir: &Path, name: &str) -> String {
-    dir.join(name).to_string_lossy().into_owned()
-}
+mod common;
+use common::{path_in, run, stderr};
 
 /// Writes `text` as `dir/name` and returns its path.
 fn mtx(dir: &Path, name: &str, text: &str) -> String {
-    let path = p(dir, name);
+    let path = path_in(dir, name);
     std::fs::write(&path, text).unwrap();
     path
 }
@@ -68,7 +56,7 @@ fn solve(dir: &Path, files: [&str; 4], method: &str) -> Output {
         "--method",
         method,
         "-o",
-        &p(dir, "x.mtx"),
+        &path_in(dir, "x.mtx"),
     ])
 }
 
@@ -184,7 +172,7 @@ fn a_full_rank_a_scaled_by_1e_pm300_is_not_called_free() {
             let o = solve(d, [&a, &c, &b, &dd], method);
             let err = stderr(&o);
             if o.status.success() {
-                let x: Vec<f64> = std::fs::read_to_string(p(d, "x.mtx"))
+                let x: Vec<f64> = std::fs::read_to_string(path_in(d, "x.mtx"))
                     .unwrap()
                     .lines()
                     .filter(|l| !l.starts_with('%'))
