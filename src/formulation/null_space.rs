@@ -14,6 +14,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use faer::sparse::SparseColMat;
+use faer::sparse::SparseColMatRef;
 use faer::{Mat, MatMut};
 use rayon::prelude::*;
 
@@ -174,6 +175,50 @@ struct SolveWorkspace {
 }
 
 impl SolveWorkspace {
+    /// `residual ← C` (three columns).
+    fn residual_from(&mut self, c: &Mat<f64>) {
+        for k in 0..3 {
+            for (r, &v) in self.residual.iter_mut().zip(c.col_as_slice(k)) {
+                r[k] = v;
+            }
+        }
+    }
+
+    /// `z ← (AQ2)ᵀ residual`: one pass over `AQ2`, parallel over its
+    /// columns (each a dot product with the residual).
+    fn project_residual(&mut self, aq2: &SparseColMat<usize, f64>) {
+        let (ptr, rows, val) = (
+            aq2.symbolic().col_ptr(),
+            aq2.symbolic().row_idx(),
+            aq2.val(),
+        );
+        // Parallel over the columns of AQ2 (each a dot product with
+        // the residual), into `zt`, then copied into z's columns.
+        let res = &self.residual;
+        self.zt
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(ZT_MIN_LEN)
+            .for_each_init(clear_upper_vector_state, |(), (j, s)| {
+                let mut acc = [0.0; 3];
+                for (&i, &v) in rows[ptr[j]..ptr[j + 1]]
+                    .iter()
+                    .zip(&val[ptr[j]..ptr[j + 1]])
+                {
+                    let r = res[i];
+                    acc[0] += v * r[0];
+                    acc[1] += v * r[1];
+                    acc[2] += v * r[2];
+                }
+                *s = acc;
+            });
+        for k in 0..3 {
+            for (z, s) in self.z.col_as_slice_mut(k).iter_mut().zip(&self.zt) {
+                *z = s[k];
+            }
+        }
+    }
+
     fn new(n: usize, rank: usize, a_rows: usize) -> SolveWorkspace {
         SolveWorkspace {
             y: Mat::zeros(rank, 3),
@@ -181,6 +226,32 @@ impl SolveWorkspace {
             xp: Mat::zeros(n, 3),
             residual: vec![[0.0; 3]; a_rows],
             zt: vec![[0.0; 3]; n - rank],
+        }
+    }
+}
+
+/// `residual −= A X` over the columns of `a` (three columns of `x`;
+/// column `t` of `a` multiplies row `unknown(t)` of `x`): one pass over
+/// those columns, each residual row `[x, y, z]` in one cache line.
+fn subtract_product(
+    residual: &mut [[f64; 3]],
+    a: SparseColMatRef<'_, usize, f64>,
+    unknown: impl Fn(usize) -> usize,
+    x: &Mat<f64>,
+) {
+    let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
+    let (x0, x1, x2) = (x.col_as_slice(0), x.col_as_slice(1), x.col_as_slice(2));
+    for t in 0..a.ncols() {
+        let j = unknown(t);
+        let u = [x0[j], x1[j], x2[j]];
+        for (&i, &v) in rows[ptr[t]..ptr[t + 1]]
+            .iter()
+            .zip(&val[ptr[t]..ptr[t + 1]])
+        {
+            let r = &mut residual[i];
+            r[0] -= v * u[0];
+            r[1] -= v * u[1];
+            r[2] -= v * u[2];
         }
     }
 }
@@ -205,66 +276,16 @@ impl Prepared for PreparedNullSpace {
             qr.apply_q(ws.y.as_ref(), ws.z.as_ref(), ws.xp.as_mut());
             // residual ← C − A X_p: one pass over the columns of A where X_p
             // can be non-zero.
-            let c = problem.c();
-            for k in 0..3 {
-                for (r, &v) in ws.residual.iter_mut().zip(c.col_as_slice(k)) {
-                    r[k] = v;
-                }
-            }
+            ws.residual_from(problem.c());
             let ac = &self.a_constrained;
-            let (ptr, rows, val) = (
-                ac.columns.symbolic().col_ptr(),
-                ac.columns.symbolic().row_idx(),
-                ac.columns.val(),
+            subtract_product(
+                &mut ws.residual,
+                ac.columns.as_ref(),
+                |t| ac.unknowns[t],
+                &ws.xp,
             );
-            let (x0, x1, x2) = (
-                ws.xp.col_as_slice(0),
-                ws.xp.col_as_slice(1),
-                ws.xp.col_as_slice(2),
-            );
-            for (t, &j) in ac.unknowns.iter().enumerate() {
-                let u = [x0[j], x1[j], x2[j]];
-                for (&i, &v) in rows[ptr[t]..ptr[t + 1]]
-                    .iter()
-                    .zip(&val[ptr[t]..ptr[t + 1]])
-                {
-                    let r = &mut ws.residual[i];
-                    r[0] -= v * u[0];
-                    r[1] -= v * u[1];
-                    r[2] -= v * u[2];
-                }
-            }
             // z ← (AQ2)ᵀ residual: one pass over AQ2.
-            let (ptr, rows, val) = (
-                self.aq2.symbolic().col_ptr(),
-                self.aq2.symbolic().row_idx(),
-                self.aq2.val(),
-            );
-            // Parallel over the columns of AQ2 (each a dot product with
-            // the residual), into `zt`, then copied into z's columns.
-            let res = &ws.residual;
-            ws.zt
-                .par_iter_mut()
-                .enumerate()
-                .with_min_len(ZT_MIN_LEN)
-                .for_each_init(clear_upper_vector_state, |(), (j, s)| {
-                    let mut acc = [0.0; 3];
-                    for (&i, &v) in rows[ptr[j]..ptr[j + 1]]
-                        .iter()
-                        .zip(&val[ptr[j]..ptr[j + 1]])
-                    {
-                        let r = res[i];
-                        acc[0] += v * r[0];
-                        acc[1] += v * r[1];
-                        acc[2] += v * r[2];
-                    }
-                    *s = acc;
-                });
-            for k in 0..3 {
-                for (z, s) in ws.z.col_as_slice_mut(k).iter_mut().zip(&ws.zt) {
-                    *z = s[k];
-                }
-            }
+            ws.project_residual(&self.aq2);
             factor.solve_in_place(ws.z.as_mut());
             clear_upper_vector_state();
         }
@@ -337,24 +358,39 @@ impl Prepared for PreparedNullSpace {
         let rd = hard_residual_compensated(problem.b().as_ref(), problem.d().as_ref(), x.as_ref());
         let mut gy = Mat::<f64>::zeros(qr.rank(), k);
         qr.solve_r1t(rd.as_ref(), gy.as_mut());
-        let mut moved = x.clone();
-        if gy.norm_max() > 0.0 {
+        // X' = X + Q[Δy; 0] (X itself when Δy = 0, the common case).
+        let shifted;
+        let moved = if gy.norm_max() > 0.0 {
             let mut dxp = Mat::<f64>::zeros(qr.n(), k);
             let zero = Mat::<f64>::zeros(qr.n() - qr.rank(), k);
             qr.apply_q(gy.as_ref(), zero.as_ref(), dxp.as_mut());
-            moved += &dxp;
-        }
-        let mut gz = mt_residual(
-            self.aq2.as_ref(),
-            a.as_ref(),
-            None,
-            problem.c().as_ref(),
-            moved.as_ref(),
-        );
-        factor.solve_in_place(gz.as_mut());
-        clear_upper_vector_state();
+            shifted = x + &dxp;
+            &shifted
+        } else {
+            x
+        };
         let mut dx = Mat::<f64>::zeros(qr.n(), k);
-        qr.apply_q(gy.as_ref(), gz.as_ref(), dx.as_mut());
+        if k == 3 {
+            // The solve's 3-column kernels, over every column of A.
+            let ws = &mut self.workspace;
+            ws.residual_from(problem.c());
+            subtract_product(&mut ws.residual, a.as_ref(), |j| j, moved);
+            ws.project_residual(&self.aq2);
+            factor.solve_in_place(ws.z.as_mut());
+            clear_upper_vector_state();
+            qr.apply_q(gy.as_ref(), ws.z.as_ref(), dx.as_mut());
+        } else {
+            let mut gz = mt_residual(
+                self.aq2.as_ref(),
+                a.as_ref(),
+                None,
+                problem.c().as_ref(),
+                moved.as_ref(),
+            );
+            factor.solve_in_place(gz.as_mut());
+            clear_upper_vector_state();
+            qr.apply_q(gy.as_ref(), gz.as_ref(), dx.as_mut());
+        }
         Ok(Some(dx))
     }
 
