@@ -84,6 +84,7 @@ pub use formulation::{
     Elimination, Formulation, FormulationChoice, Kkt, Method, NullSpaceQr, Penalty, PenaltySweep,
 };
 pub use laplacian::LaplacianKind;
+pub use limits::MemoryBudget;
 pub use mesh::Mesh;
 pub use report::Report;
-pub use solver::LseSolver;
+pub use solver::{LseSolver, SolveOptions};

@@ -70,6 +70,7 @@ use super::{Formulation, Prepared};
 use crate::backend::spd::{FactorKind, SpdKind, factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
+use crate::limits::MemoryBudget;
 use crate::mesh::topology::UnionFind;
 use crate::problem::{LseProblem, pivot_columns};
 use crate::report::{Report, first_non_finite};
@@ -368,10 +369,11 @@ impl Formulation for Kkt {
         super::Method::Kkt
     }
 
-    fn precompute(
+    fn precompute_within(
         &self,
         problem: &LseProblem,
         report: &mut Report,
+        budget: MemoryBudget,
     ) -> Result<Box<dyn Prepared>, Error> {
         report.method = self.method();
         report.spd_backend = Some(FactorKind::Ldlt(match self.threshold {
@@ -427,6 +429,7 @@ impl Formulation for Kkt {
             symbolic.len_val(),
             n + m,
             "the KKT matrix [AᵀA Bᵀ; B 0]",
+            budget,
         )?;
 
         let t = Instant::now();

@@ -18,6 +18,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, MatRef};
 
 use crate::error::{NumericalError, ProblemError};
+use crate::limits::MemoryBudget;
 
 #[cfg(feature = "suitesparse")]
 mod cholmod;
@@ -118,11 +119,16 @@ impl SpdKind {
 pub const BREAKDOWN_RATIO: f64 = 1000.0 * f64::EPSILON;
 
 /// Refuses a factorisation whose factor, as the symbolic analysis sized it,
-/// would not fit in the memory budget ([`crate::limits`]): `matrix` names
-/// the matrix for the message.
-pub fn check_factor_size(factor_nnz: usize, dim: usize, matrix: &str) -> Result<(), ProblemError> {
+/// would not fit in the solve's memory `budget` ([`crate::limits`]):
+/// `matrix` names the matrix for the message.
+pub fn check_factor_size(
+    factor_nnz: usize,
+    dim: usize,
+    matrix: &str,
+    budget: MemoryBudget,
+) -> Result<(), ProblemError> {
     let bytes = (factor_nnz as u64).saturating_mul(crate::limits::FACTOR_BYTES_PER_ENTRY);
-    crate::limits::check(bytes, || {
+    budget.check(bytes, || {
         format!("the Cholesky factor of {matrix} ({dim} unknowns, {factor_nnz} entries after fill-in) would need")
     })
     .map_err(|detail| ProblemError::TooLarge { detail })
