@@ -24,7 +24,8 @@ use faer::sparse::SparseColMat;
 
 use super::util::{factor_normal_matrix, nothing_factored, row_kind};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FactorKind, FaerLlt, SpdBackend, SpdFactor};
+use crate::backend::FactorKind;
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, ProblemError};
 use crate::limits::MemoryBudget;

@@ -19,8 +19,9 @@ use rayon::prelude::*;
 
 use super::util::{factor_normal_matrix, nothing_factored};
 use super::{Formulation, Prepared};
+use crate::backend::FactorKind;
 use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
-use crate::backend::spd::{FactorKind, FaerLlt, SpdBackend, SpdFactor};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::cpu::clear_upper_vector_state;
 use crate::error::Error;

@@ -35,9 +35,8 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use super::refine::{Refine, Refinement, refine};
 use super::util::{split_normal, with_context};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{
-    FactorKind, FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size,
-};
+use crate::backend::FactorKind;
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::limits::MemoryBudget;

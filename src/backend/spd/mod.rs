@@ -149,50 +149,6 @@ impl crate::choice::Word for SpdKind {
 
 crate::choice::word_traits!(SpdKind);
 
-/// The factorisation a formulation ran, for the report: an SPD back end's
-/// Cholesky, or (the KKT method) faer's `LDLᵀ` in the variant an
-/// [`SpdKind`] selects. Serialised as its word (`faer-auto`,
-/// `faer-ldlt-simplicial`, ...).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum FactorKind {
-    /// `LLᵀ` by this back end.
-    Cholesky(SpdKind),
-    /// faer's `LDLᵀ`; `FaerSimplicial` and `FaerSupernodal` force that
-    /// variant, anything else is faer's automatic choice.
-    Ldlt(SpdKind),
-}
-
-impl FactorKind {
-    /// The word in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            FactorKind::Cholesky(kind) => kind.name(),
-            FactorKind::Ldlt(SpdKind::FaerSimplicial) => "faer-ldlt-simplicial",
-            FactorKind::Ldlt(SpdKind::FaerSupernodal) => "faer-ldlt-supernodal",
-            FactorKind::Ldlt(_) => "faer-ldlt-auto",
-        }
-    }
-
-    /// The SPD kind that selects it.
-    pub fn spd(self) -> SpdKind {
-        match self {
-            FactorKind::Cholesky(kind) | FactorKind::Ldlt(kind) => kind,
-        }
-    }
-}
-
-impl std::fmt::Display for FactorKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl serde::Serialize for FactorKind {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(self.name())
-    }
-}
-
 /// A sparse SPD solver family.
 pub trait SpdBackend: Send + Sync {
     /// Which back end this is.
