@@ -5,7 +5,8 @@
 //! [sB    0 ] [Λ'] = [sD ]        (Λ = sΛ' are the multipliers)
 //! ```
 //!
-//! factored by faer's sparse `LDLᵀ` **without numerical pivoting**, in a
+//! factored by an `LDLᵀ` back end ([`crate::backend::ldlt`]: faer's sparse
+//! `LDLᵀ`) **without numerical pivoting**, in a
 //! static order designed so that every pivot exists ([`kkt_ordering`]).
 //!
 //! **Scaling `s`.** For cotangent weights the entries of `AᵀA` are of order
