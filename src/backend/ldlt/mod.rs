@@ -160,3 +160,125 @@ pub trait LdltFactor: Send + Sync {
     /// factorisation (its error, as text), if any.
     fn reported_failure(&self) -> Option<&str>;
 }
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+    use faer::sparse::{SparseColMat, Triplet};
+
+    use super::*;
+
+    /// The lower triangle of a symmetric matrix from its `(row ≥ col)`
+    /// entries.
+    fn lower(n: usize, entries: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
+        let t: Vec<_> = entries
+            .iter()
+            .map(|&(i, j, v)| Triplet::new(i, j, v))
+            .collect();
+        SparseColMat::try_new_from_triplets(n, n, &t).unwrap()
+    }
+
+    /// `K = [2 1 1; 1 2 0; 1 0 0]` (a vertex block and one multiplier):
+    /// `d = (2, 3/2, −2/3)`, the last computed from
+    /// `0 + (1/2)²·2 + (1/3)²·3/2 = 2/3`.
+    fn kkt_like() -> SparseColMat<usize, f64> {
+        lower(
+            3,
+            &[
+                (0, 0, 2.0),
+                (1, 0, 1.0),
+                (2, 0, 1.0),
+                (1, 1, 2.0),
+                (2, 2, 0.0),
+            ],
+        )
+    }
+
+    #[test]
+    fn every_variant_factors_solves_and_hands_out_the_pivots() {
+        let k = kkt_like();
+        let full = [[2.0, 1.0, 1.0], [1.0, 2.0, 0.0], [1.0, 0.0, 0.0]];
+        for kind in LdltKind::ALL {
+            let backend = kind.backend();
+            assert_eq!(backend.kind(), kind);
+            let symbolic = backend.analyze(k.symbolic(), &[0, 1, 2]).unwrap();
+            assert!(symbolic.factor_values() >= 6, "{kind}");
+            let mut factor = symbolic.factorize(k.as_ref()).unwrap();
+            assert_eq!(factor.dim(), 3);
+            assert_eq!(factor.nnz(), 6, "{kind}");
+            assert!(factor.reported_failure().is_none(), "{kind}");
+            let pivots = factor.pivots(k.as_ref());
+            let expected = [(0, 2.0, 2.0), (1, 1.5, 2.5), (2, -2.0 / 3.0, 2.0 / 3.0)];
+            for (p, (unknown, value, magnitude)) in pivots.iter().zip(expected) {
+                assert_eq!(p.unknown, unknown, "{kind}");
+                assert!((p.value - value).abs() < 1e-15, "{kind}: {p:?}");
+                assert!((p.magnitude - magnitude).abs() < 1e-15, "{kind}: {p:?}");
+            }
+            // Three columns (the workspace) and five (a buffer of their own).
+            for k_cols in [3, 5] {
+                let x_true = Mat::from_fn(3, k_cols, |i, c| (i + 2 * c) as f64 - 1.5);
+                let mut x = Mat::from_fn(3, k_cols, |i, c| {
+                    (0..3).map(|j| full[i][j] * x_true[(j, c)]).sum::<f64>()
+                });
+                factor.solve_in_place(x.as_mut());
+                for c in 0..k_cols {
+                    for i in 0..3 {
+                        assert!((x[(i, c)] - x_true[(i, c)]).abs() < 1e-14, "{kind}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_order_is_the_callers() {
+        // Eliminating the multiplier first meets its zero diagonal.
+        let k = kkt_like();
+        let symbolic = LdltKind::FaerSimplicial
+            .backend()
+            .analyze(k.symbolic(), &[2, 0, 1])
+            .unwrap();
+        let factor = symbolic.factorize(k.as_ref()).unwrap();
+        let first = factor.pivots(k.as_ref())[0];
+        assert_eq!((first.unknown, first.value, first.magnitude), (2, 0.0, 0.0));
+        assert!(factor.reported_failure().is_some());
+    }
+
+    #[test]
+    fn a_dependent_multiplier_has_a_zero_pivot() {
+        // Two multipliers of the same row `x0 = …`: the second pivot is
+        // 0 − 1·1 − 1·(−1) = 0, from a magnitude of 2.
+        let k = lower(
+            3,
+            &[
+                (0, 0, 1.0),
+                (1, 0, 1.0),
+                (2, 0, 1.0),
+                (1, 1, 0.0),
+                (2, 2, 0.0),
+            ],
+        );
+        let symbolic = LdltKind::FaerAuto
+            .backend()
+            .analyze(k.symbolic(), &[0, 1, 2])
+            .unwrap();
+        let factor = symbolic.factorize(k.as_ref()).unwrap();
+        let last = factor.pivots(k.as_ref())[2];
+        assert_eq!((last.unknown, last.value, last.magnitude), (2, 0.0, 2.0));
+    }
+
+    #[test]
+    fn kinds_name_their_report_words_and_follow_the_spd_choice() {
+        use crate::backend::spd::SpdKind;
+        assert_eq!(
+            LdltKind::for_spd(SpdKind::FaerSimplicial),
+            Some(LdltKind::FaerSimplicial)
+        );
+        assert_eq!(LdltKind::for_spd(SpdKind::Nalgebra), None);
+        assert_eq!(
+            "faer-ldlt-supernodal".parse::<LdltKind>(),
+            Ok(LdltKind::FaerSupernodal)
+        );
+        assert_eq!(LdltKind::default().to_string(), "faer-ldlt-auto");
+    }
+}
