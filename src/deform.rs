@@ -33,10 +33,11 @@ use crate::constraints::ConstraintSet;
 use crate::error::{ConstraintError, Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine};
 use crate::laplacian::{self, LaplacianKind};
+use crate::limits::MemoryBudget;
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
 use crate::report::Report;
-use crate::solver::LseSolver;
+use crate::solver::{LseSolver, SolveOptions};
 
 /// Deformed positions and the report of how they were obtained.
 #[derive(Debug, Clone)]
@@ -173,9 +174,27 @@ impl Deformer {
         self.solver.refine_mode()
     }
 
-    /// Precompute phase: factors the system with `formulation`.
+    /// Precompute phase: factors the system with `formulation` within the
+    /// memory budget ([`Deformer::set_memory_budget`]).
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
         self.solver.precompute(formulation)
+    }
+
+    /// Precompute phase with `options`: its formulation, refinement and
+    /// memory budget ([`LseSolver::precompute_with`]).
+    pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
+        self.solver.precompute_with(options)
+    }
+
+    /// Sets the memory budget of every following precompute and response
+    /// basis (default: [`MemoryBudget::default`]).
+    pub fn set_memory_budget(&mut self, budget: MemoryBudget) {
+        self.solver.set_memory_budget(budget);
+    }
+
+    /// The memory budget of the next precompute.
+    pub fn memory_budget(&self) -> MemoryBudget {
+        self.solver.memory_budget()
     }
 
     /// Solve phase: positions for the current targets, in the mesh's units.

@@ -44,6 +44,7 @@ use crate::cpu::clear_upper_vector_state;
 use crate::deform::{Affine, Deformer};
 use crate::error::{Error, ProblemError};
 use crate::formulation::Refine;
+use crate::limits::MemoryBudget;
 use crate::problem::RowPlace;
 
 /// Vertices per parallel task of [`HandleBasis::evaluate`] (a few hundred
@@ -80,8 +81,8 @@ impl HandleBasis {
     ///
     /// The memory it needs ([`HandleBasis::estimated_bytes`]: `3 + 4G`
     /// columns of the problem's height, several times over while they are
-    /// solved and refined) is checked against the memory budget
-    /// ([`crate::limits`]) before anything is allocated: beyond it, a
+    /// solved and refined) is checked against the deformer's memory budget
+    /// ([`Deformer::memory_budget`]) before anything is allocated: beyond it, a
     /// [`ProblemError::TooLarge`] with the estimate.
     pub fn new(deformer: &mut Deformer, names: &[&str]) -> Result<HandleBasis, Error> {
         let t = Instant::now();
@@ -96,7 +97,7 @@ impl HandleBasis {
         }
         let problem = deformer.problem();
         let (n, l, m) = (problem.n(), problem.c().nrows(), problem.d().nrows());
-        HandleBasis::check_memory(n, l, m, names.len())?;
+        HandleBasis::check_memory(n, l, m, names.len(), deformer.memory_budget())?;
         let mut members = Vec::with_capacity(names.len());
         for name in names {
             members.push(deformer.group_members(name)?);
@@ -130,13 +131,19 @@ impl HandleBasis {
         k.saturating_mul(per_column).saturating_mul(8)
     }
 
-    /// [`HandleBasis::estimated_bytes`] against the memory budget
+    /// [`HandleBasis::estimated_bytes`] against the memory `budget`
     /// ([`crate::limits`]): [`ProblemError::TooLarge`] with the estimate
     /// when it exceeds it (what [`HandleBasis::new`] checks first; a
     /// caller can check before its precompute).
-    pub fn check_memory(n: usize, l: usize, m: usize, groups: usize) -> Result<(), Error> {
+    pub fn check_memory(
+        n: usize,
+        l: usize,
+        m: usize,
+        groups: usize,
+        budget: MemoryBudget,
+    ) -> Result<(), Error> {
         let k = 3 + 4 * groups as u64;
-        crate::limits::check(HandleBasis::estimated_bytes(n, l, m, groups), || {
+        budget.check(HandleBasis::estimated_bytes(n, l, m, groups), || {
             format!(
                 "the response basis of {groups} group(s) on {n} vertices ({k} solved columns of {n} numbers, with the solve's workspace) would need"
             )

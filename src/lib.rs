@@ -22,12 +22,14 @@
 //! - [`mesh`] (types, I/O, validation, generators) → [`laplacian`] →
 //!   [`constraints`] (model and JSON file) → [`problem`] (assembly of
 //!   `A, C, B, D`);
-//! - [`backend`] (QR and SPD traits and their implementations),
+//! - [`backend`] (QR, SPD Cholesky and `LDLᵀ` traits and their
+//!   implementations),
 //!   [`condition`] (condition-number estimates of the factored matrix) and
 //!   [`refinement`] (refinement modes, stop reasons, thresholds) →
 //!   [`report`] (diagnostics of a solve) → [`formulation`] (the paper's
 //!   method and its alternatives, refinement) → [`solver`] (precompute and
-//!   solve of any problem, including general ones from their matrices);
+//!   solve of any problem, including general ones from their matrices, and
+//!   [`SolveOptions`]: formulation, refinement, memory budget);
 //! - [`deform`] (the three-phase mesh API), [`handle`] (affine handles:
 //!   per-frame positions from a precomputed response basis), [`arap`]
 //!   (as-rigid-as-possible iterations on the same formulations), [`compare`]
@@ -84,6 +86,7 @@ pub use formulation::{
     Elimination, Formulation, FormulationChoice, Kkt, Method, NullSpaceQr, Penalty, PenaltySweep,
 };
 pub use laplacian::LaplacianKind;
+pub use limits::MemoryBudget;
 pub use mesh::Mesh;
 pub use report::Report;
-pub use solver::LseSolver;
+pub use solver::{LseSolver, SolveOptions};

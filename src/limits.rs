@@ -1,11 +1,13 @@
 //! The memory budget: inputs and systems that would not fit are refused up
 //! front, with the estimate, instead of the process being killed.
 //!
-//! The budget is `LSE_MEMORY_LIMIT` when set (bytes, with an optional
-//! `K`, `M`, `G` or `T` suffix, powers of 1024), otherwise the memory the
-//! kernel reports as available (`MemAvailable` in `/proc/meminfo`) when the
-//! process starts using it, otherwise unlimited. These estimates are checked
-//! against it, each before the memory is allocated:
+//! A solve's budget is a [`MemoryBudget`], one of its options
+//! (`SolveOptions`). Its default, which is also the budget of reading input
+//! files, is `LSE_MEMORY_LIMIT` when set (bytes, with an optional `K`, `M`,
+//! `G` or `T` suffix, powers of 1024), otherwise the memory the kernel
+//! reports as available (`MemAvailable` in `/proc/meminfo`) when the process
+//! starts using it, otherwise unlimited. These estimates are checked against
+//! it, each before the memory is allocated:
 //!
 //! | what | estimate | where |
 //! |---|---|---|
@@ -57,28 +59,120 @@ pub const CONSTRAINT_BYTES_PER_FILE_BYTE: u64 = 8;
 /// a supernode, a little of its row index.
 pub const FACTOR_BYTES_PER_ENTRY: u64 = 12;
 
-/// The memory budget in bytes (see the module documentation), read once.
+/// The default memory budget in bytes (see the module documentation), read
+/// once per process: what [`MemoryBudget::default`] holds.
 pub fn memory_budget() -> u64 {
-    static BUDGET: OnceLock<u64> = OnceLock::new();
+    default_budget().bytes
+}
+
+/// The default budget with its source, read once.
+fn default_budget() -> MemoryBudget {
+    static BUDGET: OnceLock<MemoryBudget> = OnceLock::new();
     *BUDGET.get_or_init(|| {
-        std::env::var("LSE_MEMORY_LIMIT")
+        let from_env = std::env::var("LSE_MEMORY_LIMIT")
             .ok()
-            .and_then(|s| parse_bytes(&s))
-            .or_else(available_memory)
-            .unwrap_or(u64::MAX)
+            .and_then(|s| parse_bytes(&s));
+        match (from_env, available_memory()) {
+            (Some(bytes), _) => MemoryBudget {
+                bytes,
+                source: BudgetSource::Environment,
+            },
+            (None, Some(bytes)) => MemoryBudget {
+                bytes,
+                source: BudgetSource::Available,
+            },
+            (None, None) => MemoryBudget::unlimited(),
+        }
     })
 }
 
-/// Where the budget comes from, for messages.
-fn budget_source() -> &'static str {
-    if std::env::var("LSE_MEMORY_LIMIT")
-        .ok()
-        .and_then(|s| parse_bytes(&s))
-        .is_some()
-    {
-        "LSE_MEMORY_LIMIT"
-    } else {
-        "the available memory; set LSE_MEMORY_LIMIT to change it"
+/// Where a [`MemoryBudget`] comes from, for messages.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BudgetSource {
+    /// Given with the solve ([`MemoryBudget::bytes`], the solve options).
+    Option,
+    /// `LSE_MEMORY_LIMIT`.
+    Environment,
+    /// The memory the kernel reported as available when first asked.
+    Available,
+    /// No limit (no environment variable and no `/proc/meminfo`, or
+    /// [`MemoryBudget::unlimited`]).
+    Unlimited,
+}
+
+/// The memory a solve may use: every estimate of its precompute (the
+/// Cholesky or `LDLᵀ` factor's size, the QR factor's `R`, dense Householder
+/// blocks, a response basis) is checked against it before the memory is
+/// allocated, and a solve beyond it is refused with
+/// [`crate::error::ProblemError::TooLarge`].
+///
+/// The default ([`MemoryBudget::default`]) is the process's:
+/// `LSE_MEMORY_LIMIT` when set, otherwise the available memory, otherwise
+/// unlimited (the module documentation), so a solve given no budget
+/// behaves as one did before budgets were options. [`MemoryBudget::bytes`]
+/// sets one for a solve, whatever the environment says. Input files are
+/// read before any solve and are checked against the default.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct MemoryBudget {
+    bytes: u64,
+    source: BudgetSource,
+}
+
+impl Default for MemoryBudget {
+    /// The process's budget: `LSE_MEMORY_LIMIT` when set, otherwise the
+    /// available memory, otherwise unlimited (read once per process).
+    fn default() -> MemoryBudget {
+        default_budget()
+    }
+}
+
+impl MemoryBudget {
+    /// A budget of `bytes` for one solve, whatever the environment says.
+    pub fn bytes(bytes: u64) -> MemoryBudget {
+        MemoryBudget {
+            bytes,
+            source: BudgetSource::Option,
+        }
+    }
+
+    /// No limit.
+    pub fn unlimited() -> MemoryBudget {
+        MemoryBudget {
+            bytes: u64::MAX,
+            source: BudgetSource::Unlimited,
+        }
+    }
+
+    /// The budget in bytes (`u64::MAX` when unlimited).
+    pub fn limit(self) -> u64 {
+        self.bytes
+    }
+
+    /// Where it comes from.
+    pub fn source(self) -> BudgetSource {
+        self.source
+    }
+
+    /// `Err(detail)` when `estimate` exceeds the budget; the detail names
+    /// the estimate, what it is made of, the budget and where the budget
+    /// comes from.
+    pub fn check(self, estimate: u64, what: impl FnOnce() -> String) -> Result<(), String> {
+        if estimate <= self.bytes {
+            return Ok(());
+        }
+        let source = match self.source {
+            BudgetSource::Option => "the memory budget of the solve options",
+            BudgetSource::Environment => "LSE_MEMORY_LIMIT",
+            BudgetSource::Available | BudgetSource::Unlimited => {
+                "the available memory; set LSE_MEMORY_LIMIT or the solve options' memory budget to change it"
+            }
+        };
+        Err(format!(
+            "{} about {}, more than the memory budget of {} ({source})",
+            what(),
+            format_bytes(estimate),
+            format_bytes(self.bytes),
+        ))
     }
 }
 
@@ -126,23 +220,11 @@ pub fn format_bytes(bytes: u64) -> String {
     }
 }
 
-/// `Err(detail)` when `estimate` exceeds the budget; the detail names the
-/// estimate, what it is made of and the budget.
+/// `Err(detail)` when `estimate` exceeds the default budget
+/// ([`MemoryBudget::default`]): the checks of input files, which come
+/// before any solve.
 pub fn check(estimate: u64, what: impl FnOnce() -> String) -> Result<(), String> {
-    check_against(estimate, memory_budget(), what)
-}
-
-fn check_against(estimate: u64, budget: u64, what: impl FnOnce() -> String) -> Result<(), String> {
-    if estimate <= budget {
-        return Ok(());
-    }
-    Err(format!(
-        "{} about {}, more than the memory budget of {} ({})",
-        what(),
-        format_bytes(estimate),
-        format_bytes(budget),
-        budget_source()
-    ))
+    MemoryBudget::default().check(estimate, what)
 }
 
 #[cfg(test)]
@@ -169,13 +251,19 @@ mod tests {
 
     #[test]
     fn check_names_the_numbers() {
-        assert!(check_against(10, 10, || unreachable!()).is_ok());
-        let e =
-            check_against(3 << 30, 1 << 30, || "the factor's 1e9 entries need".into()).unwrap_err();
+        let budget = MemoryBudget::bytes(10);
+        assert!(budget.check(10, || unreachable!()).is_ok());
+        let e = MemoryBudget::bytes(1 << 30)
+            .check(3 << 30, || "the factor's 1e9 entries need".into())
+            .unwrap_err();
         assert!(
             e.starts_with("the factor's 1e9 entries need about 3.0 GiB"),
             "{e}"
         );
         assert!(e.contains("budget of 1.0 GiB"), "{e}");
+        assert!(
+            e.ends_with("(the memory budget of the solve options)"),
+            "{e}"
+        );
     }
 }

@@ -2,8 +2,8 @@
 
 use serde::{Serialize, Serializer};
 
+use crate::backend::FactorKind;
 use crate::backend::qr::QrKind;
-use crate::backend::spd::FactorKind;
 use crate::choice::{ArapEnergy, ArapInit, Method};
 use crate::laplacian::LaplacianKind;
 

@@ -49,13 +49,55 @@ use faer::{Mat, MatMut, MatRef};
 use crate::condition::ConditionEstimate;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{
-    FORWARD_ERROR_WARNING, FactorRounding, Formulation, Method, Prepared, Refine, RefineStop,
-    Refinement, refine, refine_with_memory,
+    FORWARD_ERROR_WARNING, FactorRounding, Formulation, FormulationChoice, Method, Prepared,
+    Refine, RefineStop, Refinement, refine, refine_with_memory,
 };
+use crate::limits::MemoryBudget;
 use crate::problem::{LseProblem, RHS_BLOCK};
 use crate::report::{
     ConflictSources, Report, conflict_warnings, fill_solution_diagnostics, first_non_finite,
 };
+
+/// How to solve: the formulation with its back ends, the refinement and the
+/// memory budget. What the CLI's flags, Python's keywords and the editor's
+/// settings translate into; [`LseSolver::precompute_with`] (and the
+/// `precompute_with` of [`crate::Deformer`] and
+/// [`crate::arap::ArapDeformer`]) applies all three.
+///
+/// The default is the paper's method on the default back ends
+/// ([`FormulationChoice::new`] of [`Method::NullSpaceQr`]), the
+/// formulation's default refinement (`refine: None`) and the process's
+/// memory budget ([`MemoryBudget::default`]: `LSE_MEMORY_LIMIT` when set,
+/// otherwise the available memory), which is what a solve without options
+/// does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolveOptions {
+    /// The formulation and its back ends.
+    pub formulation: FormulationChoice,
+    /// The refinement of every solve; `None`: the formulation's default
+    /// ([`Refine::Auto`] for the exact formulations, [`Refine::Off`] for
+    /// penalty).
+    pub refine: Option<Refine>,
+    /// The memory the precompute may use ([`crate::limits`]).
+    pub memory_budget: MemoryBudget,
+}
+
+impl Default for SolveOptions {
+    fn default() -> SolveOptions {
+        SolveOptions::new(FormulationChoice::new(Method::NullSpaceQr))
+    }
+}
+
+impl SolveOptions {
+    /// `formulation` with the default refinement and memory budget.
+    pub fn new(formulation: FormulationChoice) -> SolveOptions {
+        SolveOptions {
+            formulation,
+            refine: None,
+            memory_budget: MemoryBudget::default(),
+        }
+    }
+}
 
 /// A problem with its precomputed system and the report of the last
 /// precompute and solve.
@@ -80,6 +122,8 @@ pub struct LseSolver {
     /// rounding floor), so that later solves can stop refining on a
     /// prediction; reset at every precompute.
     rounding: FactorRounding,
+    /// The budget of every following precompute.
+    memory_budget: MemoryBudget,
 }
 
 impl LseSolver {
@@ -104,7 +148,32 @@ impl LseSolver {
             last_refinement: None,
             conflict_sources: ConflictSources::default(),
             rounding: FactorRounding::default(),
+            memory_budget: MemoryBudget::default(),
         }
+    }
+
+    /// Sets the memory budget of every following precompute (and of a
+    /// response basis built on this solver); the default is
+    /// [`MemoryBudget::default`].
+    pub fn set_memory_budget(&mut self, budget: MemoryBudget) {
+        self.memory_budget = budget;
+    }
+
+    /// The memory budget the next precompute uses.
+    pub fn memory_budget(&self) -> MemoryBudget {
+        self.memory_budget
+    }
+
+    /// Applies `options`: builds its formulation, sets its refinement and
+    /// memory budget, and precomputes.
+    ///
+    /// Errors: those of [`FormulationChoice::build`] (the previous system is
+    /// kept then) and of [`LseSolver::precompute`].
+    pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
+        let formulation = options.formulation.build()?;
+        self.set_refine(options.refine);
+        self.set_memory_budget(options.memory_budget);
+        self.precompute(formulation.as_ref())
     }
 
     /// Sets the refinement of every following solve (see
@@ -139,15 +208,16 @@ impl LseSolver {
         }
     }
 
-    /// Precompute phase: factors the system with `formulation`. On error the
-    /// previous system is gone (solve then fails until a precompute
+    /// Precompute phase: factors the system with `formulation` within the
+    /// solver's memory budget ([`LseSolver::set_memory_budget`]). On error
+    /// the previous system is gone (solve then fails until a precompute
     /// succeeds).
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
         self.system = None;
         self.rounding = FactorRounding::default();
         let mut report = self.base.clone();
         let system = formulation
-            .precompute(&self.problem, &mut report)
+            .precompute_within(&self.problem, &mut report, self.memory_budget)
             .map_err(|e| name_free_unknown(e, &self.problem))?;
         self.conflict_sources = ConflictSources::new(system.skipped());
         self.system = Some(system);

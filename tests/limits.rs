@@ -1,6 +1,7 @@
 //! Resource limits: inputs and systems beyond the memory budget are refused
 //! up front with the estimate (`src/limits.rs`), never by the kernel killing
-//! the process. The budget is set per run with `LSE_MEMORY_LIMIT`.
+//! the process. The budget is set per run with `LSE_MEMORY_LIMIT`, and per
+//! solve with `--memory-limit`.
 
 use std::io::Write;
 use std::path::Path;
@@ -166,4 +167,31 @@ fn a_factor_beyond_the_budget_is_refused_after_the_analysis() {
     }
     let o = run(Some("1G"), &["deform", &mesh, "-c", &scene, "-o", &out]);
     assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn the_memory_limit_flag_sets_the_solve_budget_over_the_environment() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "bumpy-sphere", "20000");
+    let scene = p(dir.path(), "scene.json");
+    let o = run(None, &["scene", &mesh, "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = p(dir.path(), "out.obj");
+    let args = ["deform", &mesh, "-c", &scene, "-o", &out, "--memory-limit"];
+    let with = |limit: &'static str| [&args[..], &[limit]].concat();
+    let o = run(None, &with("8M"));
+    assert_refused(
+        &o,
+        &[
+            "Cholesky factor",
+            "budget of 8.0 MiB (the memory budget of the solve options)",
+        ],
+    );
+    // The environment's 8M refuses the factor (above); the flag's budget
+    // replaces it for the solve.
+    let o = run(Some("8M"), &with("1G"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run(None, &with("12X"));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("'12X' is not a size"), "{}", stderr(&o));
 }

@@ -79,7 +79,7 @@ use crate::formulation::{Formulation, Refine};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
 use crate::report::{ArapReport, ArapStop, EnergyOperator, Report, first_non_finite};
-use crate::solver::LseSolver;
+use crate::solver::{LseSolver, SolveOptions};
 
 pub mod energy;
 pub mod rotations;
@@ -222,6 +222,15 @@ impl ArapDeformer {
     /// once for all iterations.
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
         let result = self.solver.precompute(formulation);
+        self.report = self.solver.report().clone();
+        result
+    }
+
+    /// Precompute with `options`: its formulation, refinement (the one
+    /// [`ArapDeformer::finish`] applies) and memory budget
+    /// ([`LseSolver::precompute_with`]).
+    pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
+        let result = self.solver.precompute_with(options);
         self.report = self.solver.report().clone();
         result
     }

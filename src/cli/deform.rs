@@ -6,8 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::choice::Energy;
-use lse_deform::formulation::Formulation;
-use lse_deform::{ConstraintSet, Deformer, Error, LaplacianKind, mesh};
+use lse_deform::{ConstraintSet, Deformer, Error, LaplacianKind, SolveOptions, mesh};
 
 use super::summary::{check_strict, check_strict_conflicts, finish_report};
 use super::{MethodArgs, check_outputs, constraints_for, load, phase, write_text};
@@ -100,8 +99,7 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
     check_outputs(Some(&a.output), a.report.as_deref())?;
     let mesh = load(&a.mesh)?;
     let constraints = constraints_for(&a.constraints, &mesh, a.strict)?;
-    let m = &a.method;
-    let formulation = m.formulation()?;
+    let options = a.method.options()?;
     for warning in a.energy.inapplicable() {
         eprintln!("warning: {warning}");
     }
@@ -111,14 +109,13 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
                 "warning: --laplacian applies to --energy laplacian only; ignored with --energy arap (cotangent weights)"
             );
         }
-        return deform_arap(&a, mesh, constraints, formulation.as_ref());
+        return deform_arap(&a, mesh, constraints, &options);
     }
     let bar = phase("set-up");
     let laplacian = a.laplacian.unwrap_or(LaplacianKind::Cotangent);
     let mut deformer = Deformer::new(mesh, laplacian, constraints)?;
-    deformer.set_refine(m.refine);
-    bar.set_message(format!("precompute ({})", formulation.name()));
-    deformer.precompute(formulation.as_ref())?;
+    bar.set_message(format!("precompute ({})", options.formulation.method));
+    deformer.precompute_with(&options)?;
     if a.condition {
         bar.set_message("condition estimate (Lanczos)");
         deformer.estimate_condition()?;
@@ -149,7 +146,7 @@ fn deform_arap(
     a: &DeformArgs,
     mesh: mesh::Mesh,
     constraints: ConstraintSet,
-    formulation: &dyn Formulation,
+    options: &SolveOptions,
 ) -> Result<(), Error> {
     let e = &a.energy;
     let bar = phase("set-up");
@@ -158,9 +155,8 @@ fn deform_arap(
         constraints,
         e.arap_energy.unwrap_or(ArapEnergy::SpokesAndRims),
     )?;
-    arap.set_refine(a.method.refine);
-    bar.set_message(format!("precompute ({})", formulation.name()));
-    arap.precompute(formulation)?;
+    bar.set_message(format!("precompute ({})", options.formulation.method));
+    arap.precompute_with(options)?;
     bar.set_message("ARAP iterations");
     arap.initialize(e.arap_init.unwrap_or(ArapInit::Linear))?;
     let history = arap.run(e.iterations.unwrap_or(10), e.tolerance.unwrap_or(0.0))?;

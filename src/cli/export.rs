@@ -35,10 +35,9 @@ pub fn export_system(a: ExportArgs) -> Result<(), Error> {
     mesh::check_writable(&a.output.join("A.mtx"))?;
     let mesh = load(&a.mesh)?;
     let constraints = constraints_for(&a.constraints, &mesh, false)?;
-    let m = &a.method;
-    let formulation = m.formulation()?;
+    let options = a.method.options()?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    deformer.precompute(formulation.as_ref())?;
+    deformer.precompute_with(&options)?;
     let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
     let meta = export_meta(&a.output, deformer.problem(), deformer.report())?;
     eprintln!(
@@ -53,7 +52,7 @@ pub fn export_system(a: ExportArgs) -> Result<(), Error> {
             .map(|f| format!(
                 " and {} (the matrix {} factors)",
                 f.display(),
-                formulation.name()
+                options.formulation.method
             ))
             .unwrap_or_default()
     );

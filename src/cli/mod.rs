@@ -11,8 +11,9 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lse_deform::constraints::{ConstraintSet, read_constraints_file};
 use lse_deform::error::{ProblemError, SolveOption};
 use lse_deform::formulation::Refine;
+use lse_deform::limits::{MemoryBudget, parse_bytes};
 use lse_deform::mesh;
-use lse_deform::{Error, Formulation, FormulationChoice, Method, QrKind, SpdKind};
+use lse_deform::{Error, FormulationChoice, Method, QrKind, SolveOptions, SpdKind};
 
 /// `println!` that treats a closed pipe (`lse-deform info m.obj | head`) as
 /// the end of the output rather than a panic.
@@ -34,7 +35,8 @@ pub mod scene;
 pub mod solve;
 pub mod summary;
 
-/// How to solve: the formulation and its back ends.
+/// How to solve: the formulation and its back ends, the refinement and the
+/// memory budget ([`SolveOptions`]).
 #[derive(Args, Clone)]
 pub struct MethodArgs {
     /// nullspace-qr (the paper), penalty, kkt or eliminate.
@@ -56,21 +58,41 @@ pub struct MethodArgs {
     /// refinement is the method of multipliers and makes it exact).
     #[arg(long)]
     pub refine: Option<Refine>,
+    /// Memory budget of the precompute (bytes, or with a K, M, G or T
+    /// suffix, powers of 1024): a factor estimated beyond it is refused
+    /// before it is allocated. Default: LSE_MEMORY_LIMIT when set, else
+    /// the available memory (which also bound reading the inputs).
+    #[arg(long, value_parser = memory_budget)]
+    pub memory_limit: Option<MemoryBudget>,
+}
+
+/// `--memory-limit`'s value: bytes as [`parse_bytes`] reads them.
+fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
+    parse_bytes(word).map(MemoryBudget::bytes).ok_or_else(|| {
+        format!("'{word}' is not a size (a positive number of bytes, optionally with K, M, G or T)")
+    })
 }
 
 impl MethodArgs {
-    /// The formulation these options name.
-    pub fn formulation(&self) -> Result<Box<dyn Formulation>, Error> {
+    /// The solve options these flags name, the formulation checked (a
+    /// penalty without weight, a back end missing from this build) before
+    /// anything is read.
+    pub fn options(&self) -> Result<SolveOptions, Error> {
         for warning in self.inapplicable() {
             eprintln!("warning: {warning}");
         }
-        let choice = FormulationChoice {
+        let formulation = FormulationChoice {
             method: self.method,
             qr: self.qr.unwrap_or(FormulationChoice::new(self.method).qr),
             spd: self.spd,
             weight: self.weight,
         };
-        choice.build().map_err(with_flag)
+        formulation.build().map_err(with_flag)?;
+        Ok(SolveOptions {
+            formulation,
+            refine: self.refine,
+            memory_budget: self.memory_limit.unwrap_or_default(),
+        })
     }
 
     /// The options given that the chosen method does not use: each is

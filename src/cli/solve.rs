@@ -80,7 +80,7 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
         path(&a.d, "D.mtx")?,
     );
     let m = &a.method;
-    let formulation = m.formulation()?;
+    let options = m.options()?;
     let meta_path = a.meta.clone().or_else(|| {
         a.dir
             .as_ref()
@@ -108,9 +108,8 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
     };
     base.timings_s.setup = t.elapsed().as_secs_f64();
     let mut solver = LseSolver::with_report(problem, base);
-    solver.set_refine(m.refine);
-    bar.set_message(format!("precompute ({})", formulation.name()));
-    solver.precompute(formulation.as_ref())?;
+    bar.set_message(format!("precompute ({})", options.formulation.method));
+    solver.precompute_with(&options)?;
     if a.condition {
         bar.set_message("condition estimate (Lanczos)");
         solver.estimate_condition()?;

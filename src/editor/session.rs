@@ -14,10 +14,11 @@ use crate::choice::{Energy, Method, deserialize_word};
 use crate::constraints::ConstraintSet;
 use crate::deform::{Affine, Deformer};
 use crate::error::{Error, ProblemError};
-use crate::formulation::{Formulation, FormulationChoice, Refine};
+use crate::formulation::{FormulationChoice, Refine};
 use crate::handle::HandleBasis;
 use crate::laplacian::LaplacianKind;
 use crate::mesh::Mesh;
+use crate::solver::SolveOptions;
 
 /// The group that never moves in a drag: left out of the response basis
 /// (moving it falls back to full solves).
@@ -71,14 +72,19 @@ fn invalid(message: String) -> Error {
 }
 
 impl Settings {
-    /// The formulation of `method` with the default back ends (and
-    /// `weight` for the penalty method).
-    fn formulation(&self) -> Result<Box<dyn Formulation>, Error> {
-        let choice = FormulationChoice {
+    /// The solve options: the formulation of `method` with the default
+    /// back ends (and `weight` for the penalty method), checked; the
+    /// refinement; the default memory budget.
+    fn options(&self) -> Result<SolveOptions, Error> {
+        let formulation = FormulationChoice {
             weight: Some(self.weight),
             ..FormulationChoice::new(self.method)
         };
-        Ok(choice.build()?)
+        formulation.build()?;
+        Ok(SolveOptions {
+            refine: Some(self.refine),
+            ..SolveOptions::new(formulation)
+        })
     }
 
     /// These settings with `fields` replaced (any of the fields above; an
@@ -95,7 +101,7 @@ impl Settings {
     /// Checks what the types do not: the formulation can be built, and the
     /// iteration count.
     pub fn check(&self) -> Result<(), Error> {
-        self.formulation()?;
+        self.options()?;
         // Checked whatever the method: a weight kept for a later switch to
         // `penalty` must already be one.
         if !(self.weight.is_finite() && self.weight > 0.0) {
@@ -163,13 +169,17 @@ pub fn build(
     let laplacian = settings.laplacian;
     let mut deformer = Deformer::new(mesh.clone(), laplacian, constraints.clone())?;
     let setup_s = t0.elapsed().as_secs_f64();
-    let formulation = settings.formulation()?;
+    let options = settings.options()?;
     if settings.energy == Energy::Arap {
         stage("ARAP precompute");
         let t = Instant::now();
         let mut arap =
             ArapDeformer::new(mesh.clone(), constraints.clone(), ArapEnergy::SpokesAndRims)?;
-        arap.precompute(formulation.as_ref())?;
+        // ARAP refines with the formulation's default, as it always has.
+        arap.precompute_with(&SolveOptions {
+            refine: None,
+            ..options
+        })?;
         arap.initialize(ArapInit::Linear)?;
         arap.iterate(settings.arap_iterations_per_frame)?;
         let report = serde_json::to_value(arap.finish()?).unwrap_or(Value::Null);
@@ -184,13 +194,13 @@ pub fn build(
             timings: json!({"setup_s": setup_s, "precompute_s": t.elapsed().as_secs_f64()}),
         });
     }
-    deformer.set_refine(Some(settings.refine));
+    deformer.set_memory_budget(options.memory_budget);
     let groups = constraints.group_names();
     let movable: Vec<&str> = groups.into_iter().filter(|g| *g != FIXED_GROUP).collect();
     check_basis_size(&deformer, movable.len())?;
     stage("precompute (factorisation)");
     let t = Instant::now();
-    deformer.precompute(formulation.as_ref())?;
+    deformer.precompute_with(&options)?;
     let precompute_s = t.elapsed().as_secs_f64();
     stage("response basis");
     let t = Instant::now();
@@ -249,7 +259,7 @@ fn check_basis_size(deformer: &Deformer, groups: usize) -> Result<(), Error> {
         }
         .into());
     }
-    HandleBasis::check_memory(n, l, m, groups)
+    HandleBasis::check_memory(n, l, m, groups, deformer.memory_budget())
 }
 
 /// How a frame was computed.

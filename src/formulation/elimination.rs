@@ -24,9 +24,11 @@ use faer::sparse::SparseColMat;
 
 use super::util::{factor_normal_matrix, nothing_factored, row_kind};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FactorKind, FaerLlt, SpdBackend, SpdFactor};
+use crate::backend::FactorKind;
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, ProblemError};
+use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::report::Report;
 use crate::sparse::{at_residual, at_times, gather_columns, lower_to_full, row_entries};
@@ -66,10 +68,11 @@ impl Formulation for Elimination {
         super::Method::Eliminate
     }
 
-    fn precompute(
+    fn precompute_within(
         &self,
         problem: &LseProblem,
         report: &mut Report,
+        budget: MemoryBudget,
     ) -> Result<Box<dyn Prepared>, Error> {
         report.method = self.method();
         report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
@@ -121,6 +124,7 @@ impl Formulation for Elimination {
                 "the eliminated normal matrix A_UᵀA_U",
                 |k| unknown.get(k).copied(),
                 report,
+                budget,
             )?;
             (Some(lower), Some(factor))
         };

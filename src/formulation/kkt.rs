@@ -5,7 +5,8 @@
 //! [sB    0 ] [Λ'] = [sD ]        (Λ = sΛ' are the multipliers)
 //! ```
 //!
-//! factored by faer's sparse `LDLᵀ` **without numerical pivoting**, in a
+//! factored by an `LDLᵀ` back end ([`crate::backend::ldlt`]: faer's sparse
+//! `LDLᵀ`) **without numerical pivoting**, in a
 //! static order designed so that every pivot exists ([`kkt_ordering`]).
 //!
 //! **Scaling `s`.** For cotangent weights the entries of `AᵀA` are of order
@@ -54,22 +55,18 @@
 use std::time::Instant;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
-use faer::perm::PermRef;
-use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::amd;
-use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LdltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-    factorize_symbolic_cholesky, supernodal::SupernodalLdltRef,
-};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use faer::{Conj, Mat, Par, Side};
+use faer::{Mat, MatMut};
 
 use super::util::{row_kind, split_normal};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{FactorKind, SpdKind, factor_size};
+use crate::backend::FactorKind;
+use crate::backend::ldlt::{LdltFactor, LdltKind, Pivot};
+use crate::backend::spd::{SpdKind, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
+use crate::limits::MemoryBudget;
 use crate::mesh::topology::UnionFind;
 use crate::problem::{LseProblem, pivot_columns};
 use crate::report::{Report, first_non_finite};
@@ -105,46 +102,33 @@ pub const KKT_PIVOT_TOLERANCE: f64 = 1000.0 * f64::EPSILON;
 /// `1e-10 ‖X‖∞`, the accuracy the null-space method is tested to.
 pub const KKT_BACKWARD_ERROR_TOLERANCE: f64 = 1e-10;
 
-/// The KKT / Lagrange-multiplier formulation, factored by faer's sparse
-/// `LDLᵀ` in a static order.
-#[derive(Debug, Clone, Copy)]
+/// The KKT / Lagrange-multiplier formulation, factored by an `LDLᵀ` back
+/// end ([`crate::backend::ldlt`]) in a static order.
+#[derive(Debug, Clone, Copy, Default)]
 pub struct Kkt {
-    /// faer's choice between simplicial and supernodal factorisation.
-    pub threshold: SupernodalThreshold,
-}
-
-impl Default for Kkt {
-    fn default() -> Self {
-        Kkt {
-            threshold: SupernodalThreshold::AUTO,
-        }
-    }
+    /// The `LDLᵀ` back end (faer's, simplicial, supernodal or its choice).
+    pub ldlt: LdltKind,
 }
 
 impl Kkt {
-    /// The KKT formulation in the `LDLᵀ` variant an SPD kind selects:
-    /// `FaerAuto`, `FaerSimplicial` or `FaerSupernodal`; `None` for the other
-    /// kinds (KKT factors with faer's `LDLᵀ` only).
+    /// The KKT formulation in the `LDLᵀ` variant an SPD kind selects
+    /// ([`LdltKind::for_spd`]): `FaerAuto`, `FaerSimplicial` or
+    /// `FaerSupernodal`; `None` for the other kinds, which have no `LDLᵀ`.
     pub fn for_spd(spd: SpdKind) -> Option<Kkt> {
-        match spd {
-            SpdKind::FaerAuto => Some(Kkt::default()),
-            SpdKind::FaerSimplicial => Some(Kkt::simplicial()),
-            SpdKind::FaerSupernodal => Some(Kkt::supernodal()),
-            SpdKind::Nalgebra | SpdKind::Cholmod => None,
-        }
+        LdltKind::for_spd(spd).map(|ldlt| Kkt { ldlt })
     }
 
     /// Always simplicial (column by column).
     pub fn simplicial() -> Kkt {
         Kkt {
-            threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
+            ldlt: LdltKind::FaerSimplicial,
         }
     }
 
     /// Always supernodal (dense `LDLᵀ` on blocks of columns).
     pub fn supernodal() -> Kkt {
         Kkt {
-            threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ldlt: LdltKind::FaerSupernodal,
         }
     }
 }
@@ -368,17 +352,14 @@ impl Formulation for Kkt {
         super::Method::Kkt
     }
 
-    fn precompute(
+    fn precompute_within(
         &self,
         problem: &LseProblem,
         report: &mut Report,
+        budget: MemoryBudget,
     ) -> Result<Box<dyn Prepared>, Error> {
         report.method = self.method();
-        report.spd_backend = Some(FactorKind::Ldlt(match self.threshold {
-            t if t == SupernodalThreshold::FORCE_SIMPLICIAL => SpdKind::FaerSimplicial,
-            t if t == SupernodalThreshold::FORCE_SUPERNODAL => SpdKind::FaerSupernodal,
-            _ => SpdKind::FaerAuto,
-        }));
+        report.spd_backend = Some(FactorKind::Ldlt(self.ldlt));
         let n = problem.n();
         let b = problem.b().as_ref();
         let m = b.nrows();
@@ -406,63 +387,30 @@ impl Formulation for Kkt {
         report.timings_s.preparation = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let mut inv = vec![0usize; n + m];
-        for (new, &old) in order.iter().enumerate() {
-            inv[old] = new;
-        }
-        let perm = PermRef::new_checked(&order, &inv, n + m);
-        let params = CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: self.threshold,
-            ..Default::default()
-        };
-        let symbolic = factorize_symbolic_cholesky(
-            k_lower.symbolic(),
-            Side::Lower,
-            SymmetricOrdering::Custom(perm),
-            params,
-        )
-        .map_err(backend_error)?;
+        let backend = self.ldlt.backend();
+        let symbolic = backend.analyze(k_lower.symbolic(), &order)?;
         report.timings_s.symbolic = t.elapsed().as_secs_f64();
-        crate::backend::spd::check_factor_size(
-            symbolic.len_val(),
+        check_factor_size(
+            symbolic.factor_values(),
             n + m,
             "the KKT matrix [AᵀA Bᵀ; B 0]",
+            budget,
         )?;
 
         let t = Instant::now();
-        let mut values = vec![0.0f64; symbolic.len_val()];
-        let par = Par::rayon(0);
-        let mut mem = MemBuffer::try_new(
-            symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
-        )
-        .map_err(backend_error)?;
-        let result = symbolic.factorize_numeric_ldlt(
-            &mut values,
-            k_lower.as_ref(),
-            Side::Lower,
-            LdltRegularization::default(),
-            par,
-            MemStack::new(&mut mem),
-            Default::default(),
-        );
-        let faer_failed = result.err();
-        check_pivots(&symbolic, &values, &k_lower, problem, faer_failed)?;
+        let factor = symbolic.factorize(k_lower.as_ref())?;
+        check_pivots(factor.as_ref(), &k_lower, problem)?;
         report.timings_s.numeric = t.elapsed().as_secs_f64();
-        let size = factor_size(&symbolic);
-        report.nnz.factor = Some(size.nnz);
-        report.nnz.factor_bytes = Some(size.total_bytes());
+        report.nnz.factor = Some(factor.nnz());
+        report.nnz.factor_bytes = Some(factor.bytes());
 
-        let workspace = MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq))
-            .map_err(backend_error)?;
         let norm = lower_sym_norm_inf(k_lower.as_ref());
         Ok(Box::new(PreparedKkt {
-            symbolic,
-            values,
+            factor,
             k_lower,
             norm,
             scale,
             n,
-            workspace,
             multipliers: Mat::zeros(m, problem.c().ncols()),
             pending_multipliers: None,
         }))
@@ -528,80 +476,30 @@ fn assemble_kkt(
     )
 }
 
-/// Visits every stored entry of the `LDLᵀ` factor in permuted coordinates:
-/// `f(i, k, value)` with `i == k` for the pivot `d_k` and `i > k` for
-/// `L_ik`.
-fn for_each_factor_entry(
-    symbolic: &SymbolicCholesky<usize>,
-    values: &[f64],
-    mut f: impl FnMut(usize, usize, f64),
-) {
-    match symbolic.raw() {
-        SymbolicCholeskyRaw::Simplicial(s) => {
-            let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
-            for k in 0..s.ncols() {
-                for p in col_ptr[k]..col_ptr[k + 1] {
-                    f(row_idx[p], k, values[p]);
-                }
-            }
-        }
-        SymbolicCholeskyRaw::Supernodal(s) => {
-            let l = SupernodalLdltRef::new(s, values);
-            for sn in 0..s.n_supernodes() {
-                let node = l.supernode(sn);
-                let (start, pattern, block) = (node.start(), node.pattern(), node.val());
-                let width = block.ncols();
-                for t in 0..width {
-                    let k = start + t;
-                    f(k, k, block[(t, t)]);
-                    for r in t + 1..width {
-                        f(start + r, k, block[(r, t)]);
-                    }
-                    for (q, &i) in pattern.iter().enumerate() {
-                        f(i, k, block[(width + q, t)]);
-                    }
-                }
-            }
-        }
-    }
-}
-
 /// The pivot test of the module documentation, in elimination order; the
 /// first failing pivot becomes a [`NumericalError::Singular`] naming its
 /// constraint or vertex.
 fn check_pivots(
-    symbolic: &SymbolicCholesky<usize>,
-    values: &[f64],
+    factor: &dyn LdltFactor,
     k_lower: &SparseColMat<usize, f64>,
     problem: &LseProblem,
-    faer_failed: Option<faer::linalg::cholesky::ldlt::factor::LdltError>,
 ) -> Result<(), Error> {
-    let dim = symbolic.nrows();
     let n = problem.n();
-    let fwd: Vec<usize> = match symbolic.perm() {
-        Some(p) => p.arrays().0.to_vec(),
-        None => (0..dim).collect(),
-    };
-    let mut d = vec![0.0f64; dim];
-    for_each_factor_entry(symbolic, values, |i, k, v| {
-        if i == k {
-            d[k] = v;
-        }
-    });
-    let mut reference: Vec<f64> = (0..dim)
-        .map(|i| lower_diag(k_lower.as_ref(), fwd[i]).abs())
-        .collect();
-    for_each_factor_entry(symbolic, values, |i, k, v| {
-        if i != k {
-            reference[i] += v * v * d[k].abs();
-        }
-    });
-    for i in 0..dim {
-        let unknown = fwd[i];
+    let pivots = factor.pivots(k_lower.as_ref());
+    let dim = pivots.len();
+    for (
+        i,
+        &Pivot {
+            unknown,
+            value: d,
+            magnitude,
+        },
+    ) in pivots.iter().enumerate()
+    {
         let is_vertex = unknown < n;
-        let ratio = d[i].abs() / reference[i];
-        let right_sign = if is_vertex { d[i] > 0.0 } else { d[i] < 0.0 };
-        let ok = d[i].is_finite() && ratio.is_finite() && ratio > KKT_PIVOT_TOLERANCE && right_sign;
+        let ratio = d.abs() / magnitude;
+        let right_sign = if is_vertex { d > 0.0 } else { d < 0.0 };
+        let ok = d.is_finite() && ratio.is_finite() && ratio > KKT_PIVOT_TOLERANCE && right_sign;
         if ok {
             continue;
         }
@@ -611,7 +509,7 @@ fn check_pivots(
                 unknown,
                 detail: format!(
                     "{}; expected positive and above {KKT_PIVOT_TOLERANCE:e} of that magnitude",
-                    describe_pivot(i, dim, d[i], reference[i])
+                    describe_pivot(i, dim, d, magnitude)
                 ),
             }
             .into());
@@ -619,7 +517,7 @@ fn check_pivots(
         let detail = if is_vertex {
             format!(
                 "vertex {unknown}: {} (expected positive and above {KKT_PIVOT_TOLERANCE:e} of that magnitude): AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",
-                describe_pivot(i, dim, d[i], reference[i])
+                describe_pivot(i, dim, d, magnitude)
             )
         } else {
             let k = unknown - n;
@@ -627,7 +525,7 @@ fn check_pivots(
             format!(
                 "hard constraint {index} (row {k} of B, {}) depends on the constraints eliminated before it: for its multiplier, {} (expected negative and above {KKT_PIVOT_TOLERANCE:e} of that magnitude); redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
                 row_kind(problem.b().as_ref(), k),
-                describe_pivot(i, dim, d[i], reference[i])
+                describe_pivot(i, dim, d, magnitude)
             )
         };
         return Err(NumericalError::Singular {
@@ -636,26 +534,24 @@ fn check_pivots(
         }
         .into());
     }
-    if let Some(e) = faer_failed {
+    if let Some(e) = factor.reported_failure() {
         return Err(NumericalError::Singular {
             matrix: MATRIX.into(),
-            detail: format!("faer's LDLᵀ reported {e:?}"),
+            detail: format!("faer's LDLᵀ reported {e}"),
         }
         .into());
     }
     Ok(())
 }
 
-/// A factored KKT system. Invariant: `values` is the `LDLᵀ` factor of
-/// `k_lower` (scaled by `scale`) under `symbolic`, all pivots checked.
+/// A factored KKT system. Invariant: `factor` is the `LDLᵀ` factor of
+/// `k_lower` (scaled by `scale`), all pivots checked.
 struct PreparedKkt {
-    symbolic: SymbolicCholesky<usize>,
-    values: Vec<f64>,
+    factor: Box<dyn LdltFactor>,
     k_lower: SparseColMat<usize, f64>,
     norm: f64,
     scale: f64,
     n: usize,
-    workspace: MemBuffer,
     /// `μ` (the scaled multipliers `Λ'`) of the last solve, refined along
     /// with `x`.
     multipliers: Mat<f64>,
@@ -664,29 +560,8 @@ struct PreparedKkt {
 }
 
 impl PreparedKkt {
-    fn solve_in_place(&mut self, rhs: faer::MatMut<'_, f64>) {
-        if rhs.ncols() > 3 {
-            // Only the condition estimate (1 column) and solves (3 columns)
-            // call this; a wider right-hand side gets its own workspace.
-            if let Ok(mut buf) = MemBuffer::try_new(
-                self.symbolic
-                    .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
-            ) {
-                LdltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
-                    Conj::No,
-                    rhs,
-                    Par::Seq,
-                    MemStack::new(&mut buf),
-                );
-            }
-            return;
-        }
-        LdltRef::new(&self.symbolic, &self.values).solve_in_place_with_conj(
-            Conj::No,
-            rhs,
-            Par::Seq,
-            MemStack::new(&mut self.workspace),
-        );
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+        self.factor.solve_in_place(rhs);
     }
 
     /// `max_c ‖b_c − K y_c‖∞ / (‖K‖∞ ‖y_c‖∞ + ‖b_c‖∞)` and the residual.

@@ -17,6 +17,7 @@ use crate::backend::spd::SpdKind;
 pub use crate::choice::Method;
 use crate::condition::ConditionEstimate;
 use crate::error::{Error, ProblemError, SolveOption};
+use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::report::Report;
 
@@ -49,12 +50,25 @@ pub trait Formulation: Send + Sync {
     }
 
     /// The precompute phase: factor everything that depends on the matrices
-    /// only. Fills the timings and sizes it knows into `report`.
+    /// only, refusing with [`ProblemError::TooLarge`] a factor whose
+    /// estimated size exceeds `budget` (checked before it is allocated).
+    /// Fills the timings and sizes it knows into `report`.
+    fn precompute_within(
+        &self,
+        problem: &LseProblem,
+        report: &mut Report,
+        budget: MemoryBudget,
+    ) -> Result<Box<dyn Prepared>, Error>;
+
+    /// [`Formulation::precompute_within`] the default memory budget
+    /// ([`MemoryBudget::default`]).
     fn precompute(
         &self,
         problem: &LseProblem,
         report: &mut Report,
-    ) -> Result<Box<dyn Prepared>, Error>;
+    ) -> Result<Box<dyn Prepared>, Error> {
+        self.precompute_within(problem, report, MemoryBudget::default())
+    }
 }
 
 /// A precomputed system: solves for new right-hand sides (`C`, `D`) of the

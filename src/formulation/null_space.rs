@@ -20,11 +20,13 @@ use rayon::prelude::*;
 
 use super::util::{factor_normal_matrix, nothing_factored};
 use super::{Formulation, Prepared};
+use crate::backend::FactorKind;
 use crate::backend::qr::{ConstraintQr, QrBackend, RankTolerance, SparseGivens};
-use crate::backend::spd::{FactorKind, FaerLlt, SpdBackend, SpdFactor};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::cpu::clear_upper_vector_state;
 use crate::error::Error;
+use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::report::Report;
 use crate::sparse::NormalPattern;
@@ -72,17 +74,20 @@ impl Formulation for NullSpaceQr {
         super::Method::NullSpaceQr
     }
 
-    fn precompute(
+    fn precompute_within(
         &self,
         problem: &LseProblem,
         report: &mut Report,
+        budget: MemoryBudget,
     ) -> Result<Box<dyn Prepared>, Error> {
         report.method = self.method();
         report.qr_backend = Some(self.qr.kind());
         report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
 
         let t = Instant::now();
-        let qr = self.qr.factor(problem.b().as_ref(), self.tolerance)?;
+        let qr = self
+            .qr
+            .factor_within(problem.b().as_ref(), self.tolerance, budget)?;
         report.timings_s.qr = t.elapsed().as_secs_f64();
         report.rank = Some(qr.rank());
         report.nnz.qr = Some(qr.storage_nnz());
@@ -104,6 +109,7 @@ impl Formulation for NullSpaceQr {
                 "the reduced normal matrix (AQ2)ᵀ(AQ2)",
                 |k| Some(qr.free_unknown(k)),
                 report,
+                budget,
             )?;
             Some(factor)
         };

@@ -35,11 +35,11 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use super::refine::{Refine, Refinement, refine};
 use super::util::{split_normal, with_context};
 use super::{Formulation, Prepared};
-use crate::backend::spd::{
-    FactorKind, FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size,
-};
+use crate::backend::FactorKind;
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
+use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::report::{Report, first_non_finite};
 use crate::sparse::{
@@ -111,16 +111,17 @@ impl Formulation for Penalty {
         super::Method::Penalty
     }
 
-    fn precompute(
+    fn precompute_within(
         &self,
         problem: &LseProblem,
         report: &mut Report,
+        budget: MemoryBudget,
     ) -> Result<Box<dyn Prepared>, Error> {
         check_weight(self.weight, 1.0)?;
         report.method = self.method();
         report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
         report.penalty_weight = Some(self.weight);
-        let sweep = PenaltySweep::new(problem, self.spd.as_ref())?;
+        let sweep = PenaltySweep::within(problem, self.spd.as_ref(), budget)?;
         report.penalty_weight_unit = Some(sweep.weight_unit);
         report.timings_s.normal_matrix = sweep.normal_matrix_s;
         report.timings_s.symbolic = sweep.symbolic_s;
@@ -208,7 +209,17 @@ pub struct PenaltySolution {
 impl PenaltySweep {
     /// Builds `tril(pattern(AᵀA + BᵀB))`, the values of `AᵀA` and `BᵀB` on
     /// it, and the back end's symbolic analysis (the only one of the sweep).
+    /// The factor's size is checked against the default memory budget.
     pub fn new(problem: &LseProblem, spd: &dyn SpdBackend) -> Result<PenaltySweep, Error> {
+        PenaltySweep::within(problem, spd, MemoryBudget::default())
+    }
+
+    /// [`PenaltySweep::new`] within a solve's memory `budget`.
+    pub fn within(
+        problem: &LseProblem,
+        spd: &dyn SpdBackend,
+        budget: MemoryBudget,
+    ) -> Result<PenaltySweep, Error> {
         let t = Instant::now();
         let (pattern, ata, btb) = split_normal(problem);
         let normal_matrix_s = t.elapsed().as_secs_f64();
@@ -216,7 +227,12 @@ impl PenaltySweep {
         let t = Instant::now();
         let symbolic = spd.analyze(pattern.as_ref())?;
         let symbolic_s = t.elapsed().as_secs_f64();
-        check_factor_size(symbolic.factor_nnz(), pattern.ncols(), "AᵀA + w²BᵀB")?;
+        check_factor_size(
+            symbolic.factor_nnz(),
+            pattern.ncols(),
+            "AᵀA + w²BᵀB",
+            budget,
+        )?;
         let ata_lower = faer::sparse::SparseColMatRef::new(pattern.as_ref(), &ata);
         let max_diagonal = (0..pattern.ncols())
             .map(|j| lower_diag(ata_lower, j))

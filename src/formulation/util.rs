@@ -9,6 +9,7 @@ use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef, SymbolicSpars
 
 use crate::backend::spd::{SpdBackend, SpdFactor, check_factor_size};
 use crate::error::{Error, NumericalError, ProblemError};
+use crate::limits::MemoryBudget;
 use crate::report::Report;
 use crate::sparse::{NormalPattern, stack_rows};
 
@@ -70,7 +71,7 @@ pub(crate) fn row_kind(b: SparseRowMatRef<'_, usize, f64>, k: usize) -> &'static
 pub(crate) type FactoredNormal = (SparseColMat<usize, f64>, Box<dyn SpdFactor>);
 
 /// `tril(MᵀM)` and its Cholesky factor by `spd`: the normal matrix, the
-/// symbolic analysis, the factor's size checked against the memory budget
+/// symbolic analysis, the factor's size checked against the memory `budget`
 /// ([`check_factor_size`]) before the numeric factorisation, and the
 /// numeric factorisation, each phase's time and size recorded in `report`.
 /// `matrix` names `MᵀM` in errors and `vertex_of` gives the vertex of one
@@ -81,6 +82,7 @@ pub(crate) fn factor_normal_matrix(
     matrix: &str,
     vertex_of: impl Fn(usize) -> Option<usize>,
     report: &mut Report,
+    budget: MemoryBudget,
 ) -> Result<FactoredNormal, Error> {
     let t = Instant::now();
     let pattern = NormalPattern::new(m);
@@ -91,7 +93,7 @@ pub(crate) fn factor_normal_matrix(
     let t = Instant::now();
     let symbolic = spd.analyze(normal.symbolic())?;
     report.timings_s.symbolic = t.elapsed().as_secs_f64();
-    check_factor_size(symbolic.factor_nnz(), normal.ncols(), matrix)?;
+    check_factor_size(symbolic.factor_nnz(), normal.ncols(), matrix, budget)?;
 
     let t = Instant::now();
     let factor = symbolic

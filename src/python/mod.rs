@@ -30,12 +30,13 @@ use crate::choice::{ArapEnergy, ArapInit, Energy};
 use crate::compare::{self, CompareOptions};
 use crate::constraints::ConstraintSet;
 use crate::error::{ProblemError, SolveOption};
-use crate::formulation::{Formulation, FormulationChoice, Refine};
+use crate::formulation::{FormulationChoice, Refine};
 use crate::laplacian::{self, LaplacianKind};
+use crate::limits::{MemoryBudget, parse_bytes};
 use crate::mesh::Mesh;
 use crate::problem::LseProblem;
 use crate::report::Report;
-use crate::{Deformer, Error, LseSolver};
+use crate::{Deformer, Error, LseSolver, SolveOptions};
 
 use errors::{
     InputError, NumericalError, guarded, input, input_type_error_class, released, to_py,
@@ -43,13 +44,14 @@ use errors::{
 };
 
 /// The formulation named by the keyword arguments, with the CLI's
-/// defaults (`--qr sparse-givens --spd faer-auto`) where they are absent.
-fn build_formulation(
+/// defaults (`--qr sparse-givens --spd faer-auto`) where they are absent,
+/// checked ([`FormulationChoice::build`]) before any work.
+fn formulation_choice(
     method: &str,
     qr: Option<&str>,
     spd: Option<&str>,
     weight: Option<f64>,
-) -> Result<Box<dyn Formulation>, ProblemError> {
+) -> Result<FormulationChoice, ProblemError> {
     let mut choice = FormulationChoice::new(method.parse()?);
     if let Some(qr) = qr {
         choice.qr = qr.parse()?;
@@ -58,7 +60,8 @@ fn build_formulation(
         choice.spd = spd.parse()?;
     }
     choice.weight = weight;
-    choice.build().map_err(with_keyword)
+    choice.build().map_err(with_keyword)?;
+    Ok(choice)
 }
 
 /// A library error about an option, with the option's keyword argument
@@ -81,29 +84,49 @@ fn with_keyword(e: ProblemError) -> ProblemError {
     }
 }
 
-/// The formulation and refinement chosen by the keyword arguments
-/// `method`, `qr`, `spd`, `weight`, `refine` (the CLI's options).
-struct Chosen {
-    formulation: Box<dyn Formulation>,
-    refine: Option<Refine>,
+/// The keyword arguments `method`, `qr`, `spd`, `weight`, `refine` and
+/// `memory_limit` (the CLI's options).
+struct Keywords<'a, 'py> {
+    method: &'a str,
+    qr: Option<&'a str>,
+    spd: Option<&'a str>,
+    weight: Option<f64>,
+    refine: Option<&'a Bound<'py, PyAny>>,
+    memory_limit: Option<&'a Bound<'py, PyAny>>,
 }
 
-impl Chosen {
-    fn parse(
-        method: &str,
-        qr: Option<&str>,
-        spd: Option<&str>,
-        weight: Option<f64>,
-        refine: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Chosen> {
-        let formulation =
-            build_formulation(method, qr, spd, weight).map_err(|e| to_py(e.into()))?;
-        let refine = parse_refine(refine)?;
-        Ok(Chosen {
+impl Keywords<'_, '_> {
+    /// The solve options they name.
+    fn options(&self) -> PyResult<SolveOptions> {
+        let formulation = formulation_choice(self.method, self.qr, self.spd, self.weight)
+            .map_err(|e| to_py(e.into()))?;
+        Ok(SolveOptions {
             formulation,
-            refine,
+            refine: parse_refine(self.refine)?,
+            memory_budget: parse_memory_limit(self.memory_limit)?,
         })
     }
+}
+
+/// The `memory_limit` keyword: `None` (the default budget:
+/// `LSE_MEMORY_LIMIT`, else the available memory), a positive number of
+/// bytes, or a size such as `"2G"` (powers of 1024).
+fn parse_memory_limit(limit: Option<&Bound<'_, PyAny>>) -> PyResult<MemoryBudget> {
+    const EXPECTED: &str =
+        "memory_limit must be a positive number of bytes, a size such as '2G', or None";
+    let l = match limit {
+        None => return Ok(MemoryBudget::default()),
+        Some(l) if l.is_none() => return Ok(MemoryBudget::default()),
+        Some(l) if l.is_instance_of::<pyo3::types::PyBool>() => return Err(type_error(EXPECTED)),
+        Some(l) => l,
+    };
+    let bytes = match l.extract::<u64>() {
+        Ok(bytes) => Some(bytes).filter(|&b| b > 0),
+        Err(_) => parse_bytes(&l.extract::<String>().map_err(|_| type_error(EXPECTED))?),
+    };
+    bytes
+        .map(MemoryBudget::bytes)
+        .ok_or_else(|| input(format!("memory_limit=: {EXPECTED}")))
 }
 
 /// The `refine` keyword: `None`, a number of steps, or a word of
@@ -244,13 +267,12 @@ fn deform_arap(
     py: Python<'_>,
     mesh: Mesh,
     set: ConstraintSet,
-    chosen: Chosen,
+    solve: SolveOptions,
     options: ArapOptions,
 ) -> PyResult<(Vec<[f64; 3]>, Report)> {
     released(py, move || {
         let mut arap = ArapDeformer::new(mesh, set, options.energy)?;
-        arap.set_refine(chosen.refine);
-        arap.precompute(chosen.formulation.as_ref())?;
+        arap.precompute_with(&solve)?;
         arap.initialize(options.init)?;
         arap.run(options.iterations, options.tolerance)?;
         Ok((arap.positions(), arap.report().clone()))
@@ -261,7 +283,7 @@ fn deform_arap(
 /// solve in one call (with `energy="arap"`, the ARAP iterations). Returns
 /// `(U, report)`.
 #[pyfunction]
-#[pyo3(signature = (V, F, constraints, laplacian=None, method="nullspace-qr", qr=None, spd=None, weight=None, refine=None, energy="laplacian", arap_energy=None, iterations=None, tolerance=None, arap_init=None))]
+#[pyo3(signature = (V, F, constraints, laplacian=None, method="nullspace-qr", qr=None, spd=None, weight=None, refine=None, energy="laplacian", arap_energy=None, iterations=None, tolerance=None, arap_init=None, memory_limit=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn deform<'py>(
     py: Python<'py>,
@@ -279,10 +301,19 @@ fn deform<'py>(
     iterations: Option<usize>,
     tolerance: Option<f64>,
     arap_init: Option<&str>,
+    memory_limit: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
         let kind = laplacian_kind(laplacian.unwrap_or("cotan"))?;
-        let m = Chosen::parse(method, qr, spd, weight, refine)?;
+        let m = Keywords {
+            method,
+            qr,
+            spd,
+            weight,
+            refine,
+            memory_limit,
+        }
+        .options()?;
         let keywords = EnergyKeywords {
             energy,
             arap_energy,
@@ -298,8 +329,7 @@ fn deform<'py>(
             None => {
                 let solution = released(py, move || {
                     let mut deformer = Deformer::new(mesh, kind, set)?;
-                    deformer.set_refine(m.refine);
-                    deformer.precompute(m.formulation.as_ref())?;
+                    deformer.precompute_with(&m)?;
                     deformer.solve()
                 })?;
                 (solution.positions, solution.report)
@@ -400,7 +430,7 @@ fn laplacian_matrix<'py>(
 /// Solves `min ‖A X − C‖ subject to B X = D` for sparse `A` (l × n) and
 /// `B` (m × n) and dense `C` (l × k) and `D` (m × k); returns `(X, report)`.
 #[pyfunction]
-#[pyo3(signature = (A, C, B, D, method="nullspace-qr", qr=None, spd=None, weight=None, refine=None))]
+#[pyo3(signature = (A, C, B, D, method="nullspace-qr", qr=None, spd=None, weight=None, refine=None, memory_limit=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn solve_lse<'py>(
     py: Python<'py>,
@@ -413,9 +443,18 @@ fn solve_lse<'py>(
     spd: Option<&str>,
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
+    memory_limit: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
-        let m = Chosen::parse(method, qr, spd, weight, refine)?;
+        let m = Keywords {
+            method,
+            qr,
+            spd,
+            weight,
+            refine,
+            memory_limit,
+        }
+        .options()?;
         let a = convert::sparse(A, "A")?;
         let b = convert::sparse(B, "B")?;
         let (c, one_d) = convert::dense(C, "C", None, true)?;
@@ -423,8 +462,7 @@ fn solve_lse<'py>(
         let (x, report) = released(py, move || {
             let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref())?;
             let mut solver = LseSolver::new(problem);
-            solver.set_refine(m.refine);
-            solver.precompute(m.formulation.as_ref())?;
+            solver.precompute_with(&m)?;
             let x = solver.solve()?;
             Ok((x, solver.report().clone()))
         })?;
@@ -438,7 +476,7 @@ fn solve_lse<'py>(
 /// What a `Deformer` holds behind its lock.
 struct DeformerState {
     deformer: Deformer,
-    formulation: Box<dyn Formulation>,
+    options: SolveOptions,
 }
 
 /// A mesh with constraints, deformed again and again: `precompute()` once,
@@ -474,7 +512,7 @@ impl PyDeformer {
     /// Set-up: validates the mesh and constraints, builds the Laplacian and
     /// the system. Options as for `deform`.
     #[new]
-    #[pyo3(signature = (V, F, constraints, laplacian="cotan", method="nullspace-qr", qr=None, spd=None, weight=None, refine=None))]
+    #[pyo3(signature = (V, F, constraints, laplacian="cotan", method="nullspace-qr", qr=None, spd=None, weight=None, refine=None, memory_limit=None))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -487,29 +525,36 @@ impl PyDeformer {
         spd: Option<&str>,
         weight: Option<f64>,
         refine: Option<&Bound<'_, PyAny>>,
+        memory_limit: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyDeformer> {
         guarded(|| {
             let kind = laplacian_kind(laplacian)?;
-            let m = Chosen::parse(method, qr, spd, weight, refine)?;
+            let options = Keywords {
+                method,
+                qr,
+                spd,
+                weight,
+                refine,
+                memory_limit,
+            }
+            .options()?;
             let mesh = mesh(py, V, F)?;
             let set = constraints_for(constraints, &mesh)?;
             let deformer = released(py, move || {
                 let mut deformer = Deformer::new(mesh, kind, set)?;
-                deformer.set_refine(m.refine);
+                deformer.set_refine(options.refine);
+                deformer.set_memory_budget(options.memory_budget);
                 Ok(deformer)
             })?;
             Ok(PyDeformer {
-                state: Mutex::new(DeformerState {
-                    deformer,
-                    formulation: m.formulation,
-                }),
+                state: Mutex::new(DeformerState { deformer, options }),
             })
         })
     }
 
     /// Precompute: factors the system (GIL released).
     fn precompute(&self, py: Python<'_>) -> PyResult<()> {
-        self.with_state(py, |s| s.deformer.precompute(s.formulation.as_ref()))
+        self.with_state(py, |s| s.deformer.precompute_with(&s.options))
     }
 
     /// New targets for the constraints `indices` (positions in the

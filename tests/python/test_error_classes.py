@@ -146,3 +146,29 @@ def test_each_family_is_provoked():
         except FAMILIES as e:
             raised |= {f for f in FAMILIES if isinstance(e, f)}
     assert raised == set(FAMILIES)
+
+
+def test_memory_limit_is_a_per_call_budget():
+    """A tiny memory_limit refuses the factor with TooLargeError naming the
+    option; the same call without it (the process's default budget)
+    succeeds in the same process, before and after."""
+    U, _ = lse_deform.deform(V, F, (B_IDX, BC))
+    for call in (
+        lambda: lse_deform.deform(V, F, (B_IDX, BC), memory_limit=64),
+        lambda: lse_deform.deform(V, F, (B_IDX, BC), memory_limit=64, energy="arap"),
+        lambda: lse_deform.solve_lse(A, C, B, D, memory_limit="8"),
+        lambda: lse_deform.Deformer(V, F, (B_IDX, BC), memory_limit=64).precompute(),
+    ):
+        with pytest.raises(TooLargeError) as e:
+            call()
+        assert "the memory budget of the solve options" in str(e.value), str(e.value)
+    again, _ = lse_deform.deform(V, F, (B_IDX, BC), memory_limit="1G")
+    assert np.array_equal(U, again)
+    lse_deform.solve_lse(A, C, B, D)
+
+
+@pytest.mark.parametrize("bad", [0, "12X", "-1", True, 1.5])
+def test_a_bad_memory_limit_is_an_input_error(bad):
+    with pytest.raises(InputError) as e:
+        lse_deform.deform(V, F, (B_IDX, BC), memory_limit=bad)
+    assert "memory_limit" in str(e.value), str(e.value)

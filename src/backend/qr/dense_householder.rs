@@ -31,6 +31,7 @@ use super::distinct_rows::factor_distinct_rows;
 use super::graph_rows::factor_graph_rows;
 use super::{ConstraintQr, QrBackend, RankTolerance};
 use crate::error::{Error, ProblemError};
+use crate::limits::MemoryBudget;
 
 /// Per-block dense Householder QR with the paper's column skipping.
 #[derive(Debug, Clone, Copy, Default)]
@@ -41,14 +42,16 @@ impl QrBackend for DenseHouseholder {
         super::QrKind::DenseHouseholder
     }
 
-    fn factor(
+    fn factor_within(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
+        budget: MemoryBudget,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
         factor_distinct_rows(b, |b| {
             factor_graph_rows(b, |b| {
-                Ok(Box::new(BlockHouseholderQr::new(b, tolerance)?) as Box<dyn ConstraintQr>)
+                Ok(Box::new(BlockHouseholderQr::new(b, tolerance, budget)?)
+                    as Box<dyn ConstraintQr>)
             })
         })
     }
@@ -118,7 +121,7 @@ impl BlockHouseholderQr {
     /// Factors `Bᵀ` block by block.
     ///
     /// Errors: [`ProblemError::TooLarge`] when the dense blocks would not fit
-    /// in the memory budget ([`crate::limits`]): a block of `k` unknowns and
+    /// in the solve's memory `budget` ([`crate::limits`]): a block of `k` unknowns and
     /// `m` constraints stores `Bᵀ` and its reflectors densely
     /// (`8(k m + k min(k, m) + min(k, m)²)` bytes) and makes a dense block of
     /// at least `(k − min(k, m))²` entries in the normal matrix (16 bytes
@@ -126,6 +129,7 @@ impl BlockHouseholderQr {
     pub fn new(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
+        budget: MemoryBudget,
     ) -> Result<Self, ProblemError> {
         let (m, n) = (b.nrows(), b.ncols());
         let row_ptr = b.symbolic().row_ptr();
@@ -180,7 +184,7 @@ impl BlockHouseholderQr {
             }
         }
 
-        check_block_sizes(&block_verts, &block_rows)?;
+        check_block_sizes(&block_verts, &block_rows, budget)?;
 
         let mut local = vec![usize::MAX; n];
         let mut blocks = Vec::with_capacity(block_verts.len());
@@ -445,7 +449,11 @@ impl ConstraintQr for BlockHouseholderQr {
 
 /// See [`BlockHouseholderQr::new`]: the dense storage of every block and the
 /// dense blocks they put in the normal matrix, against the memory budget.
-fn check_block_sizes(verts: &[Vec<usize>], rows: &[Vec<usize>]) -> Result<(), ProblemError> {
+fn check_block_sizes(
+    verts: &[Vec<usize>],
+    rows: &[Vec<usize>],
+    budget: MemoryBudget,
+) -> Result<(), ProblemError> {
     let (mut bytes, mut largest) = (0u64, (0u64, 0u64));
     for (v, r) in verts.iter().zip(rows) {
         let (k, m) = (v.len() as u64, r.len() as u64);
@@ -461,7 +469,7 @@ fn check_block_sizes(verts: &[Vec<usize>], rows: &[Vec<usize>]) -> Result<(), Pr
             largest = (k, m);
         }
     }
-    crate::limits::check(bytes, || {
+    budget.check(bytes, || {
         format!(
             "the dense Householder blocks of Bᵀ (largest: {} unknowns linked by {} constraints; try the sparse-givens QR back end) would need",
             largest.0, largest.1

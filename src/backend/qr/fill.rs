@@ -162,15 +162,16 @@ pub(super) fn r_nnz(
 }
 
 /// Refuses, with the estimate, a factorisation whose `R` alone would not
-/// fit in the memory budget ([`crate::limits`]).
+/// fit in the solve's memory `budget` ([`crate::limits`]).
 pub(super) fn check_r_fill(
     b: SparseRowMatRef<'_, usize, f64>,
     perm: Option<&[usize]>,
     what: &str,
+    budget: crate::limits::MemoryBudget,
 ) -> Result<(), Error> {
     let nnz = r_nnz(b, perm)?;
     let bytes = nnz.saturating_mul(R_BYTES_PER_ENTRY);
-    crate::limits::check(bytes, || {
+    budget.check(bytes, || {
         format!(
             "the QR factor R of the {} hard constraints ({what}) has {nnz} entries (the constraints share unknowns: R's pattern is that of the Cholesky factor of B Bᵀ) and would need",
             b.nrows()

@@ -34,6 +34,7 @@ use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef};
 use faer::{Mat, MatMut, MatRef};
 
 use crate::error::{Error, ProblemError};
+use crate::limits::MemoryBudget;
 
 mod dense_householder;
 mod distinct_rows;
@@ -162,12 +163,25 @@ pub trait QrBackend: Send + Sync {
     }
 
     /// Factors `Bᵀ` for the hard-constraint matrix `b` (m × n, one row per
-    /// constraint, in priority order).
+    /// constraint, in priority order), refusing with
+    /// [`ProblemError::TooLarge`] a factor whose estimated storage exceeds
+    /// `budget`.
+    fn factor_within(
+        &self,
+        b: SparseRowMatRef<'_, usize, f64>,
+        tolerance: RankTolerance,
+        budget: MemoryBudget,
+    ) -> Result<Box<dyn ConstraintQr>, Error>;
+
+    /// [`QrBackend::factor_within`] the default budget
+    /// ([`MemoryBudget::default`]).
     fn factor(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
-    ) -> Result<Box<dyn ConstraintQr>, Error>;
+    ) -> Result<Box<dyn ConstraintQr>, Error> {
+        self.factor_within(b, tolerance, MemoryBudget::default())
+    }
 }
 
 /// A factorisation `Bᵀ = Q R` kept in implicit form.

@@ -74,6 +74,7 @@ use super::graph_rows::factor_graph_rows;
 use super::sparse_columns::ColumnWorkspace;
 use super::{ConstraintQr, QrBackend, RankTolerance};
 use crate::error::{Error, ProblemError};
+use crate::limits::MemoryBudget;
 
 /// The order in which the rows of `Bᵀ` (the unknowns touched by
 /// constraints) are rotated into `R`. It does not change `R`'s final pattern
@@ -111,14 +112,18 @@ impl QrBackend for SparseGivens {
         super::QrKind::SparseGivens
     }
 
-    fn factor(
+    fn factor_within(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
+        budget: MemoryBudget,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
         factor_distinct_rows(b, |b| {
             factor_graph_rows(b, |b| {
-                Ok(Box::new(GivensQr::new(b, tolerance, self.order)?) as Box<dyn ConstraintQr>)
+                Ok(
+                    Box::new(GivensQr::within(b, tolerance, self.order, budget)?)
+                        as Box<dyn ConstraintQr>,
+                )
             })
         })
     }
@@ -184,15 +189,25 @@ impl GivensQr {
     /// Errors: a non-finite coefficient; [`ProblemError::TooLarge`] when the
     /// `R` of an order, counted before that factorisation starts
     /// (`nnz(R)` from the symbolic analysis of `B Bᵀ`, 16 bytes an entry),
-    /// would not fit in the memory budget ([`crate::limits`]).
+    /// would not fit in the default memory budget ([`crate::limits`]).
     pub fn new(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
         order: GivensRowOrder,
     ) -> Result<GivensQr, Error> {
+        GivensQr::within(b, tolerance, order, MemoryBudget::default())
+    }
+
+    /// [`GivensQr::new`] within a solve's memory `budget`.
+    pub fn within(
+        b: SparseRowMatRef<'_, usize, f64>,
+        tolerance: RankTolerance,
+        order: GivensRowOrder,
+        budget: MemoryBudget,
+    ) -> Result<GivensQr, Error> {
         let fill_order = fill_reducing_constraint_order(b)?;
         if let Some(perm) = &fill_order {
-            check_r_fill(b, Some(perm), "sparse-givens, fill-reducing order")?;
+            check_r_fill(b, Some(perm), "sparse-givens, fill-reducing order", budget)?;
             let permuted = permute_rows(b, perm)?;
             let mut qr = GivensQr::in_column_order(permuted.as_ref(), tolerance, order)?;
             if qr.skipped.is_empty() {
@@ -203,7 +218,7 @@ impl GivensQr {
                 qr.kept = (0..b.nrows()).collect();
                 return Ok(qr);
             }
-            check_r_fill(b, None, "sparse-givens, priority order")?;
+            check_r_fill(b, None, "sparse-givens, priority order", budget)?;
         }
         GivensQr::in_column_order(b, tolerance, order)
     }

@@ -114,15 +114,16 @@ impl QrBackend for Spqr {
         super::QrKind::Spqr
     }
 
-    fn factor(
+    fn factor_within(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
+        budget: crate::limits::MemoryBudget,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
         factor_distinct_rows(b, |b| {
             factor_graph_rows(b, |b| {
                 // Fixed ordering: R's fill is that of B Bᵀ in list order.
-                check_r_fill(b, None, "spqr, fixed order")?;
+                check_r_fill(b, None, "spqr, fixed order", budget)?;
                 Ok(Box::new(SpqrQr::new(b, tolerance)?) as Box<dyn ConstraintQr>)
             })
         })

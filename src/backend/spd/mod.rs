@@ -18,6 +18,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, MatRef};
 
 use crate::error::{NumericalError, ProblemError};
+use crate::limits::MemoryBudget;
 
 #[cfg(feature = "suitesparse")]
 mod cholmod;
@@ -118,11 +119,16 @@ impl SpdKind {
 pub const BREAKDOWN_RATIO: f64 = 1000.0 * f64::EPSILON;
 
 /// Refuses a factorisation whose factor, as the symbolic analysis sized it,
-/// would not fit in the memory budget ([`crate::limits`]): `matrix` names
-/// the matrix for the message.
-pub fn check_factor_size(factor_nnz: usize, dim: usize, matrix: &str) -> Result<(), ProblemError> {
+/// would not fit in the solve's memory `budget` ([`crate::limits`]):
+/// `matrix` names the matrix for the message.
+pub fn check_factor_size(
+    factor_nnz: usize,
+    dim: usize,
+    matrix: &str,
+    budget: MemoryBudget,
+) -> Result<(), ProblemError> {
     let bytes = (factor_nnz as u64).saturating_mul(crate::limits::FACTOR_BYTES_PER_ENTRY);
-    crate::limits::check(bytes, || {
+    budget.check(bytes, || {
         format!("the Cholesky factor of {matrix} ({dim} unknowns, {factor_nnz} entries after fill-in) would need")
     })
     .map_err(|detail| ProblemError::TooLarge { detail })
@@ -142,50 +148,6 @@ impl crate::choice::Word for SpdKind {
 }
 
 crate::choice::word_traits!(SpdKind);
-
-/// The factorisation a formulation ran, for the report: an SPD back end's
-/// Cholesky, or (the KKT method) faer's `LDLᵀ` in the variant an
-/// [`SpdKind`] selects. Serialised as its word (`faer-auto`,
-/// `faer-ldlt-simplicial`, ...).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum FactorKind {
-    /// `LLᵀ` by this back end.
-    Cholesky(SpdKind),
-    /// faer's `LDLᵀ`; `FaerSimplicial` and `FaerSupernodal` force that
-    /// variant, anything else is faer's automatic choice.
-    Ldlt(SpdKind),
-}
-
-impl FactorKind {
-    /// The word in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            FactorKind::Cholesky(kind) => kind.name(),
-            FactorKind::Ldlt(SpdKind::FaerSimplicial) => "faer-ldlt-simplicial",
-            FactorKind::Ldlt(SpdKind::FaerSupernodal) => "faer-ldlt-supernodal",
-            FactorKind::Ldlt(_) => "faer-ldlt-auto",
-        }
-    }
-
-    /// The SPD kind that selects it.
-    pub fn spd(self) -> SpdKind {
-        match self {
-            FactorKind::Cholesky(kind) | FactorKind::Ldlt(kind) => kind,
-        }
-    }
-}
-
-impl std::fmt::Display for FactorKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl serde::Serialize for FactorKind {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(self.name())
-    }
-}
 
 /// A sparse SPD solver family.
 pub trait SpdBackend: Send + Sync {

@@ -37,6 +37,11 @@ Refine = Union[None, str, int]
 """None (the method's default: 'auto' for exact methods, 'off' for
 penalty), 'auto', 'off' or a number of steps."""
 Matrix = Union[scipy.sparse.spmatrix, scipy.sparse.sparray, npt.ArrayLike]
+MemoryLimit = Union[None, int, str]
+"""The memory budget of the precompute: None (the default:
+LSE_MEMORY_LIMIT when set, else the available memory), a number of bytes
+or a size such as '2G' (powers of 1024). A factor estimated beyond it
+raises TooLargeError before it is allocated."""
 
 def deform(
     V: npt.ArrayLike,
@@ -53,6 +58,7 @@ def deform(
     iterations: Optional[int] = None,
     tolerance: Optional[float] = None,
     arap_init: Optional[str] = None,
+    memory_limit: MemoryLimit = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """Deforms (V, F) under the constraints; returns (U, report).
 
@@ -68,6 +74,7 @@ def deform(
     10), tolerance on the relative energy decrease (default 0: run all) and
     arap_init 'linear' (default) or 'rest'. Options the energy does not use
     are RuntimeWarnings, as the CLI warns.
+    memory_limit: the precompute's memory budget (see MemoryLimit).
     """
 
 def compare(
@@ -108,6 +115,7 @@ def solve_lse(
     spd: Optional[str] = None,
     weight: Optional[float] = None,
     refine: Refine = None,
+    memory_limit: MemoryLimit = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """min ||A X - C|| subject to B X = D; returns (X, report).
 
@@ -129,6 +137,7 @@ class Deformer:
         spd: Optional[str] = None,
         weight: Optional[float] = None,
         refine: Refine = None,
+        memory_limit: MemoryLimit = None,
     ) -> None: ...
     def precompute(self) -> None:
         """Factors the system (GIL released)."""

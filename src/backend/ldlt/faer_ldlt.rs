@@ -1,0 +1,242 @@
+//! faer's sparse `LDLᵀ` in a given elimination order (simplicial,
+//! supernodal, or chosen by faer's flop-ratio heuristic), without
+//! numerical pivoting.
+
+use std::sync::Arc;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
+use faer::perm::PermRef;
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, LdltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky, supernodal::SupernodalLdltRef,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+
+use super::{LdltBackend, LdltFactor, LdltKind, LdltSymbolic, Pivot};
+use crate::backend::spd::factor_size;
+use crate::error::NumericalError;
+use crate::sparse::lower_diag;
+
+/// The name in a [`NumericalError::Backend`] from this back end.
+const BACKEND: &str = "faer-ldlt";
+
+/// Right-hand-side columns the factor's solve workspace is sized for (a
+/// mesh's x, y, z); wider right-hand sides get their own.
+const WORKSPACE_COLUMNS: usize = 3;
+
+fn backend_error(e: impl std::fmt::Debug) -> NumericalError {
+    NumericalError::Backend {
+        backend: BACKEND.into(),
+        message: format!("{e:?}"),
+    }
+}
+
+/// faer's sparse `LDLᵀ` in the caller's elimination order.
+#[derive(Debug, Clone, Copy)]
+pub struct FaerLdlt {
+    kind: LdltKind,
+}
+
+impl FaerLdlt {
+    /// The variant `kind` names.
+    pub fn new(kind: LdltKind) -> FaerLdlt {
+        FaerLdlt { kind }
+    }
+
+    /// faer's switch between simplicial and supernodal factorisation.
+    fn threshold(self) -> SupernodalThreshold {
+        match self.kind {
+            LdltKind::FaerAuto => SupernodalThreshold::AUTO,
+            LdltKind::FaerSimplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
+            LdltKind::FaerSupernodal => SupernodalThreshold::FORCE_SUPERNODAL,
+        }
+    }
+}
+
+impl LdltBackend for FaerLdlt {
+    fn kind(&self) -> LdltKind {
+        self.kind
+    }
+
+    fn analyze(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        order: &[usize],
+    ) -> Result<Box<dyn LdltSymbolic>, NumericalError> {
+        let dim = lower.ncols();
+        let mut inv = vec![0usize; dim];
+        for (new, &old) in order.iter().enumerate() {
+            inv[old] = new;
+        }
+        let perm = PermRef::new_checked(order, &inv, dim);
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: self.threshold(),
+            ..Default::default()
+        };
+        let symbolic = factorize_symbolic_cholesky(
+            lower,
+            Side::Lower,
+            SymmetricOrdering::Custom(perm),
+            params,
+        )
+        .map_err(backend_error)?;
+        Ok(Box::new(FaerLdltSymbolic {
+            symbolic: Arc::new(symbolic),
+        }))
+    }
+}
+
+struct FaerLdltSymbolic {
+    symbolic: Arc<SymbolicCholesky<usize>>,
+}
+
+impl LdltSymbolic for FaerLdltSymbolic {
+    fn factorize(
+        &self,
+        lower: SparseColMatRef<'_, usize, f64>,
+    ) -> Result<Box<dyn LdltFactor>, NumericalError> {
+        let symbolic = Arc::clone(&self.symbolic);
+        let mut values = vec![0.0f64; symbolic.len_val()];
+        let par = Par::rayon(0);
+        let mut mem = MemBuffer::try_new(
+            symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
+        )
+        .map_err(backend_error)?;
+        let result = symbolic.factorize_numeric_ldlt(
+            &mut values,
+            lower,
+            Side::Lower,
+            LdltRegularization::default(),
+            par,
+            MemStack::new(&mut mem),
+            Default::default(),
+        );
+        let failure = result.err().map(|e| format!("{e:?}"));
+        let workspace =
+            MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(WORKSPACE_COLUMNS, Par::Seq))
+                .map_err(backend_error)?;
+        Ok(Box::new(FaerLdltFactor {
+            symbolic,
+            values,
+            workspace,
+            failure,
+        }))
+    }
+
+    fn factor_values(&self) -> usize {
+        self.symbolic.len_val()
+    }
+}
+
+/// Invariant: `values` is the numeric factor of the matrix given to
+/// `factorize` under `symbolic`; `workspace` fits a solve of
+/// [`WORKSPACE_COLUMNS`] columns.
+struct FaerLdltFactor {
+    symbolic: Arc<SymbolicCholesky<usize>>,
+    values: Vec<f64>,
+    workspace: MemBuffer,
+    failure: Option<String>,
+}
+
+impl FaerLdltFactor {
+    /// Visits every stored entry of the factor in permuted coordinates:
+    /// `f(i, k, value)` with `i == k` for the pivot `d_k` and `i > k` for
+    /// `L_ik`.
+    fn for_each_entry(&self, mut f: impl FnMut(usize, usize, f64)) {
+        match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
+                for k in 0..s.ncols() {
+                    for p in col_ptr[k]..col_ptr[k + 1] {
+                        f(row_idx[p], k, self.values[p]);
+                    }
+                }
+            }
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let l = SupernodalLdltRef::new(s, &self.values);
+                for sn in 0..s.n_supernodes() {
+                    let node = l.supernode(sn);
+                    let (start, pattern, block) = (node.start(), node.pattern(), node.val());
+                    let width = block.ncols();
+                    for t in 0..width {
+                        let k = start + t;
+                        f(k, k, block[(t, t)]);
+                        for r in t + 1..width {
+                            f(start + r, k, block[(r, t)]);
+                        }
+                        for (q, &i) in pattern.iter().enumerate() {
+                            f(i, k, block[(width + q, t)]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl LdltFactor for FaerLdltFactor {
+    fn dim(&self) -> usize {
+        self.symbolic.nrows()
+    }
+
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+        let factor = LdltRef::new(&self.symbolic, &self.values);
+        if rhs.ncols() > WORKSPACE_COLUMNS {
+            if let Ok(mut buf) = MemBuffer::try_new(
+                self.symbolic
+                    .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
+            ) {
+                factor.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut buf));
+            }
+            return;
+        }
+        factor.solve_in_place_with_conj(
+            Conj::No,
+            rhs,
+            Par::Seq,
+            MemStack::new(&mut self.workspace),
+        );
+    }
+
+    fn nnz(&self) -> usize {
+        factor_size(&self.symbolic).nnz
+    }
+
+    fn bytes(&self) -> usize {
+        factor_size(&self.symbolic).total_bytes()
+    }
+
+    fn pivots(&self, lower: SparseColMatRef<'_, usize, f64>) -> Vec<Pivot> {
+        let dim = self.dim();
+        let fwd: Vec<usize> = match self.symbolic.perm() {
+            Some(p) => p.arrays().0.to_vec(),
+            None => (0..dim).collect(),
+        };
+        let mut d = vec![0.0f64; dim];
+        self.for_each_entry(|i, k, v| {
+            if i == k {
+                d[k] = v;
+            }
+        });
+        let mut magnitude: Vec<f64> = (0..dim).map(|i| lower_diag(lower, fwd[i]).abs()).collect();
+        self.for_each_entry(|i, k, v| {
+            if i != k {
+                magnitude[i] += v * v * d[k].abs();
+            }
+        });
+        (0..dim)
+            .map(|i| Pivot {
+                unknown: fwd[i],
+                value: d[i],
+                magnitude: magnitude[i],
+            })
+            .collect()
+    }
+
+    fn reported_failure(&self) -> Option<&str> {
+        self.failure.as_deref()
+    }
+}
