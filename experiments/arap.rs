@@ -15,9 +15,9 @@
 //! the same scene: every hard constraint's residual and the energy at
 //! every iteration.
 
+use std::ffi::OsStr;
 use std::fmt::Write as _;
 use std::path::Path;
-use std::process::Command;
 use std::time::Instant;
 
 use faer::Mat;
@@ -321,26 +321,22 @@ fn read_positions(path: &Path, n: usize) -> Result<Vec<[f64; 3]>, AnyError> {
 /// version; `Err` with a note when it cannot run.
 #[allow(clippy::type_complexity)]
 fn run_libigl(
-    python: &Path,
+    python: &Python,
     io: &Path,
     n: usize,
     checkpoints: &[usize],
 ) -> Result<(Vec<(Vec<[f64; 3]>, f64)>, String), AnyError> {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("arap_libigl.py");
     let trace: Vec<String> = checkpoints.iter().map(|k| k.to_string()).collect();
-    let out = Command::new(python)
-        .arg(&script)
-        .arg(io)
-        .args(["--iterations", "", "--trace", &trace.join(",")])
-        .output()?;
-    if !out.status.success() {
-        return Err(format!(
-            "arap_libigl.py failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        )
-        .into());
-    }
-    let json: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    let trace = trace.join(",");
+    let args: [&OsStr; 5] = [
+        io.as_os_str(),
+        "--iterations".as_ref(),
+        "".as_ref(),
+        "--trace".as_ref(),
+        trace.as_ref(),
+    ];
+    let stdout = python.script("arap_libigl.py", &args)?;
+    let json: serde_json::Value = serde_json::from_slice(&stdout)?;
     let version = json["libigl_version"]
         .as_str()
         .unwrap_or("unknown")
@@ -400,7 +396,7 @@ fn libigl_part(
 ) -> Result<(), AnyError> {
     write_problem(io, mesh, cs)?;
     let checkpoints: Vec<usize> = peer.rows.iter().map(|r| r.iterations).collect();
-    let (libigl, version) = run_libigl(&python.exe, io, mesh.n_vertices(), &checkpoints)?;
+    let (libigl, version) = run_libigl(python, io, mesh.n_vertices(), &checkpoints)?;
     peer.libigl_version = Some(version);
     let triangles = ArapTriangles::new(mesh, ArapEnergy::SpokesAndRims);
     let diag = mesh.bbox_diagonal();
@@ -417,27 +413,18 @@ fn libigl_part(
             )?;
         }
     }
-    peer.float_check = run_float_check(&python.exe, io, float_at)?;
+    peer.float_check = run_float_check(python, io, float_at)?;
     Ok(())
 }
 
 /// `arap_float_check.py` on the problem and trajectories in `io`.
-fn run_float_check(python: &Path, io: &Path, at: &[usize]) -> Result<Vec<FloatRow>, AnyError> {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("arap_float_check.py");
+fn run_float_check(python: &Python, io: &Path, at: &[usize]) -> Result<Vec<FloatRow>, AnyError> {
     let list: Vec<String> = at.iter().map(|k| k.to_string()).collect();
-    let out = Command::new(python)
-        .arg(&script)
-        .arg(io)
-        .args(["--iterations", &list.join(",")])
-        .output()?;
-    if !out.status.success() {
-        return Err(format!(
-            "arap_float_check.py failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        )
-        .into());
-    }
-    Ok(serde_json::from_slice(&out.stdout)?)
+    let list = list.join(",");
+    let args: [&OsStr; 3] = [io.as_os_str(), "--iterations".as_ref(), list.as_ref()];
+    Ok(serde_json::from_slice(
+        &python.script("arap_float_check.py", &args)?,
+    )?)
 }
 
 fn versus_libigl(ctx: &Context, dir: &Path, case: &MeshCase) -> Result<Peer, AnyError> {

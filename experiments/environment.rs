@@ -16,6 +16,7 @@
 //!
 //! Paths in the reasons are relative to the repository, never a machine's.
 
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -35,6 +36,24 @@ pub struct Python {
     pub exe: PathBuf,
     /// Where it came from, for the sections ("$LSE_PYTHON", the venv).
     pub origin: String,
+}
+
+impl Python {
+    /// Runs the script `experiments/SCRIPT` with `args`; its standard
+    /// output, or `Err` with the last line of its standard error.
+    pub fn script(&self, script: &str, args: &[&OsStr]) -> Result<Vec<u8>, String> {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(script);
+        let out = Command::new(&self.exe)
+            .arg(path)
+            .args(args)
+            .output()
+            .map_err(|e| format!("{script}: {e}"))?;
+        if out.status.success() {
+            Ok(out.stdout)
+        } else {
+            Err(format!("{script} failed: {}", last_line(&out.stderr)))
+        }
+    }
 }
 
 /// The last non-empty line of a program's output (its error, usually).
