@@ -159,7 +159,7 @@ fn end_to_end(
         .current_dir(&tests)
         .env("LSE_DEFORM_BIN", bin)
         .env("CHROMIUM", chromium)
-        .env("SCREENSHOT", dir.join("e2e.png"))
+        .env("SCREENSHOT", std::path::absolute(dir.join("e2e.png"))?)
         .output()?;
     if out.status.success() {
         Ok(())
