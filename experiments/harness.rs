@@ -147,6 +147,17 @@ pub const EXPERIMENTS: &[Experiment] = &[
     },
 ];
 
+/// What an experiment could not measure because this build lacks an
+/// optional input it names (today: the SuiteSparse feature), as a line for
+/// the end of its section.
+pub fn missing_build_inputs(e: &Experiment) -> Option<String> {
+    (e.inputs.contains(&Input::SuiteSparse) && !cfg!(feature = "suitesparse")).then(|| {
+        "**Not measured:** the CHOLMOD and SPQR back ends (the reference rows and columns above are missing): \
+         this build has no `--features suitesparse` (it needs libsuitesparse-dev, libclang-dev and libopenblas0-pthread; see the README)."
+            .to_string()
+    })
+}
+
 /// The section title of the experiment `name` (its own name if unlisted).
 pub fn title(name: &'static str) -> &'static str {
     EXPERIMENTS

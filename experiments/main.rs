@@ -161,7 +161,13 @@ fn run_fresh(ctx: &Context, e: &harness::Experiment) -> Result<Summary, AnyError
         std::fs::remove_dir_all(&dir)
             .map_err(|err| format!("cannot empty {}: {err}", dir.display()))?;
     }
-    (e.run)(ctx).inspect_err(|err| {
+    let outcome = (e.run)(ctx);
+    if let (Ok(_), Some(note)) = (&outcome, harness::missing_build_inputs(e)) {
+        let path = dir.join("section.md");
+        let section = std::fs::read_to_string(&path)?;
+        std::fs::write(&path, format!("{}\n\n{note}\n", section.trim_end()))?;
+    }
+    outcome.inspect_err(|err| {
         let _ = std::fs::remove_dir_all(&dir);
         let section = format!(
             "{}**Failed at this revision**, nothing of this experiment was measured: {err}\n\n_{}_\n",
