@@ -43,7 +43,9 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let case = scene_mesh(ctx)?;
     let peer = versus_libigl(ctx, &dir, &case)?;
     let exact = exact_constraints(ctx, &dir, &case)?;
-    let md = section(ctx, &bend, &peer, &exact, &case);
+    let init = initial_guesses(ctx, &dir, &case)?;
+    let mut md = section(ctx, &bend, &peer, &exact, &case);
+    initial_guess_text(&mut md, &init);
     ctx.write_section(NAME, &md)?;
     ctx.write_page(NAME, crate::harness::title(NAME), &md)?;
     Ok(Summary {
@@ -616,6 +618,101 @@ fn plot_exact(exact: &Exact, dir: &Path) -> Result<(), AnyError> {
     };
     plot::line_chart(&chart, &Output::new(dir.join("exact_residual")))?;
     Ok(())
+}
+
+// ---------------------------------------------------------------- (d)
+
+/// Which initial guess a row of (d) starts from.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum Init {
+    Rest,
+    Linear,
+}
+
+/// One row of (d): the energy after `iterations` from one initial guess.
+#[derive(Debug, Clone, Serialize)]
+struct InitRow {
+    init: Init,
+    iterations: usize,
+    energy: f64,
+}
+
+/// The iteration counts of (d) (0: the initial guess itself).
+const INIT_COUNTS: [usize; 6] = [0, 1, 5, 10, 20, 30];
+
+/// (d): the paper's position-only scene from the rest pose and from the
+/// linear solution, the energy at [`INIT_COUNTS`].
+fn initial_guesses(ctx: &Context, dir: &Path, case: &MeshCase) -> Result<Vec<InitRow>, AnyError> {
+    let mesh = &case.mesh;
+    let cs = FixedAndHandle::paper_default(mesh).constraints(mesh)?;
+    let last = if ctx.quick {
+        5
+    } else {
+        INIT_COUNTS[INIT_COUNTS.len() - 1]
+    };
+    let mut rows = Vec::new();
+    for (init, start) in [
+        (Init::Rest, ArapInit::Rest),
+        (Init::Linear, ArapInit::Linear),
+    ] {
+        let mut arap = ArapDeformer::new(mesh.clone(), cs.clone(), ArapEnergy::SpokesAndRims)?;
+        arap.precompute(&NullSpaceQr::default())?;
+        arap.initialize(start)?;
+        for k in 0..=last {
+            if k > 0 {
+                arap.iterate(1)?;
+            }
+            if INIT_COUNTS.contains(&k) {
+                rows.push(InitRow {
+                    init,
+                    iterations: k,
+                    energy: arap.energy(),
+                });
+            }
+        }
+    }
+    ctx.write_rows(&dir.join("initial_guess"), &rows)?;
+    Ok(rows)
+}
+
+/// (d)'s table and finding, from its rows.
+fn initial_guess_text(s: &mut String, rows: &[InitRow]) {
+    let energies =
+        |init: Init| -> Vec<&InitRow> { rows.iter().filter(|r| r.init == init).collect() };
+    let (rest, linear) = (energies(Init::Rest), energies(Init::Linear));
+    let _ = writeln!(
+        s,
+        "\n**(d) Initial guess.** The scene of (b) from the rest pose (constrained vertices at their targets) and from the linear solution: ARAP energy after k iterations.\n"
+    );
+    let header: Vec<String> = std::iter::once("init".to_string())
+        .chain(rest.iter().map(|r| format!("k = {}", r.iterations)))
+        .collect();
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    let table: Vec<Vec<String>> = [("rest", &rest), ("linear", &linear)]
+        .iter()
+        .map(|(name, rs)| {
+            std::iter::once(name.to_string())
+                .chain(rs.iter().map(|r| format!("{:.3e}", r.energy)))
+                .collect()
+        })
+        .collect();
+    s.push_str(&markdown_table(&header, &table));
+    let lower = rest
+        .iter()
+        .zip(&linear)
+        .filter(|(r, l)| l.energy < r.energy)
+        .count();
+    let _ = writeln!(
+        s,
+        "\nThe linear start is lower at {lower} of {} counts{}.",
+        rest.len(),
+        if lower == rest.len() {
+            " (every one): hence `--arap-init linear` is the default"
+        } else {
+            ""
+        }
+    );
 }
 
 // ---------------------------------------------------------------- section
