@@ -36,7 +36,7 @@ mod table1;
 mod text;
 mod weight_sweep;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -152,6 +152,22 @@ fn context(cli: &Cli) -> Result<Context, AnyError> {
     Ok(ctx)
 }
 
+/// Adds to an experiment's section what the harness knows and the section
+/// may lack: what this build could not measure, and the machine line with
+/// the revision (which `results/README.md`'s header reads).
+fn complete_section(ctx: &Context, e: &harness::Experiment, path: &Path) -> Result<(), AnyError> {
+    let mut section = std::fs::read_to_string(path)?.trim_end().to_string();
+    if let Some(note) = harness::missing_build_inputs(e) {
+        section = format!("{section}\n\n{note}");
+    }
+    let machine = ctx.machine.one_line();
+    if !section.contains(&machine) {
+        section = format!("{section}\n\n_{machine}_");
+    }
+    std::fs::write(path, section + "\n")?;
+    Ok(())
+}
+
 /// Runs `e` into an empty folder `out/<name>/` (what an earlier run left
 /// there is removed first, so that nothing older stays beside the new
 /// section); if it fails, its section says so and nothing else is left.
@@ -162,10 +178,8 @@ fn run_fresh(ctx: &Context, e: &harness::Experiment) -> Result<Summary, AnyError
             .map_err(|err| format!("cannot empty {}: {err}", dir.display()))?;
     }
     let outcome = (e.run)(ctx);
-    if let (Ok(_), Some(note)) = (&outcome, harness::missing_build_inputs(e)) {
-        let path = dir.join("section.md");
-        let section = std::fs::read_to_string(&path)?;
-        std::fs::write(&path, format!("{}\n\n{note}\n", section.trim_end()))?;
+    if outcome.is_ok() {
+        complete_section(ctx, e, &dir.join("section.md"))?;
     }
     outcome.inspect_err(|err| {
         let _ = std::fs::remove_dir_all(&dir);
