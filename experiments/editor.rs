@@ -338,3 +338,43 @@ fn not_measured(ctx: &Context, why: &str) -> (String, String) {
     s.push_str(&ctx.closing(&[], "No data files."));
     (s, format!("not measured: {why}"))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One path's drags as `editor_frames.mjs` writes them (the page's
+    /// `scriptedDrag` fields, camelCase).
+    fn path_json(fps: f64, server: Option<f64>) -> serde_json::Value {
+        let drag = |frames: usize, fps: f64| {
+            serde_json::json!({
+                "frames": frames, "path": "x", "seconds": 1.0, "fps": fps, "rendered": false,
+                "bytesPerFrame": 0.5, "bytes": {"sent": 82, "received": 79},
+                "jsMedianMs": 0.2, "jsMeanMs": 0.4, "uploadMeanMs": 0.1, "renderMeanMs": 2.0,
+                "uploadMedianMs": 0.1, "renderMedianMs": 1.5,
+                "serverFrameMedianMs": server, "serverRequestMedianMs": server,
+                "postMedianMs": server, "downloadMedianMs": server,
+            })
+        };
+        serde_json::json!({"without": drag(300, fps), "with": drag(30, 4.0), "readbackError": 5e-8})
+    }
+
+    #[test]
+    fn rows_take_undrawn_rates_and_drawn_times_from_the_scripts_json() {
+        let doc = serde_json::json!([{
+            "name": "bunny", "vertices": 34834, "frames": 300, "drawnFrames": 30,
+            "rows": {"client": path_json(12000.0, None), "server": path_json(65.0, Some(0.2))},
+        }]);
+        let parsed: Vec<MeshResult> = serde_json::from_value(doc).expect("the script's format");
+        let m = &parsed[0];
+        let client = Row::new(m, FramePath::Client, &m.rows.client);
+        let server = Row::new(m, FramePath::Server, &m.rows.server);
+        assert_eq!((client.frames_undrawn, client.frames_drawn), (300, 30));
+        assert_eq!((client.fps_undrawn, client.fps_drawn), (12000.0, 4.0));
+        assert_eq!(client.server_frame_median_ms, None);
+        assert_eq!(server.server_frame_median_ms, Some(0.2));
+        assert_eq!(server.fps_undrawn, 65.0);
+        assert_eq!(server.drawn_median_ms, 1.5);
+        assert_eq!(server.displayed_vs_f64_over_diagonal, 5e-8);
+    }
+}
