@@ -1,47 +1,35 @@
 #!/usr/bin/env python3
 """Why ours and libigl's `arap_solve` drift apart: libigl's iteration
 re-implemented from libigl's own building blocks, with the rotations fitted
-in double and in single precision.
+in double and in single precision (run by experiments/arap.rs).
 
-    $PY experiments/arap_float_check.py \\
-        MESH.obj SCENE.json WORK_DIR --iterations 10,100,1000
+    python3 arap_float_check.py DIR --iterations 10,100
 
-Run experiments/arap_compare.py with the same WORK_DIR first: it leaves our
-positions after N iterations in WORK_DIR/ours_N.ply. This script then runs
-
-- `igl.arap_solve` (spokes-and-rims, max_iter = N, libigl's tutorial
-  initial guess: the rest pose with U[b] = bc);
-- the same iteration written out in numpy/scipy, step by step as in
-  libigl's arap.cpp: U[b] = bc; S = covariances of the spokes-and-rims
-  energy (cotangent weights from `igl.cotmatrix_entries`), normalised by
-  max |S| as libigl does; R = `igl.fit_rotations(S, single_precision)`;
-  the global step (-L) U = K R with U[b] = bc (L = `igl.cotmatrix`, one
-  sparse LU of the free block), once with `single_precision=True` (what
-  `arap_solve` calls: `polar_svd3x3`, a fixed 4-sweep float Jacobi SVD) and
-  once with `single_precision=False` (`polar_svd` in double);
-
-and prints, per N, the largest coordinate difference over the bounding-box
-diagonal between: ours and libigl; ours and the double re-implementation;
-the single-precision re-implementation and libigl; the double and single
-re-implementations. One JSON object per N on stdout, all of them in
-WORK_DIR/float_check.json.
+DIR holds what experiments/arap.rs and arap_libigl.py wrote: the problem
+(V.f64, F.i64, b.i32, bc.f64), libigl's positions after N iterations
+(libigl_trace_N.f64, rest-pose start) and ours (ours_N.f64). The
+re-implementation follows libigl's arap.cpp step by step: U[b] = bc;
+S = covariances of the spokes-and-rims energy (cotangent weights from
+`igl.cotmatrix_entries`), normalised by max |S| as libigl does;
+R = `igl.fit_rotations(S, single_precision)`; the global step (-L) U = K R
+with U[b] = bc (L = `igl.cotmatrix`, one sparse LU of the free block), once
+with `single_precision=True` (what `arap_solve` calls: `polar_svd3x3`, a
+fixed 4-sweep float Jacobi SVD) and once with `False` (`polar_svd` in
+double). Prints one JSON list, one object per N: the largest coordinate
+difference over the bounding-box diagonal between ours and libigl, ours and
+the double re-implementation, the single re-implementation and libigl, and
+the double and single re-implementations.
 """
 
 import argparse
 import json
 import os
+import sys
 
 import igl
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-
-
-def read_ply_doubles(path, n):
-    with open(path, "rb") as fh:
-        data = fh.read()
-    end = data.index(b"end_header\n") + len(b"end_header\n")
-    return np.frombuffer(data, dtype="<f8", count=3 * n, offset=end).reshape(n, 3)
 
 
 class Iteration:
@@ -111,18 +99,17 @@ class Iteration:
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("mesh")
-    ap.add_argument("scene")
-    ap.add_argument("work")
-    ap.add_argument("--iterations", default="10,100,1000")
+    ap.add_argument("dir")
+    ap.add_argument("--iterations", default="10,100")
     a = ap.parse_args()
-    v, f = igl.read_triangle_mesh(a.mesh)
-    v = np.ascontiguousarray(v, dtype=np.float64)
-    f = np.ascontiguousarray(f, dtype=np.int64)
-    with open(a.scene) as fh:
-        cons = json.load(fh)["constraints"]
-    b = np.array([c["vertex"] for c in cons], dtype=np.int64)
-    bc = np.array([c["target"] for c in cons], dtype=np.float64)
+
+    def load(name, dtype):
+        return np.fromfile(os.path.join(a.dir, name), dtype=dtype)
+
+    v = np.ascontiguousarray(load("V.f64", "<f8").reshape(-1, 3))
+    f = np.ascontiguousarray(load("F.i64", "<i8").reshape(-1, 3))
+    b = np.ascontiguousarray(load("b.i32", "<i4")).astype(np.int64)
+    bc = np.ascontiguousarray(load("bc.f64", "<f8").reshape(-1, 3))
     diag = np.linalg.norm(v.max(axis=0) - v.min(axis=0))
     checkpoints = sorted({int(s) for s in a.iterations.split(",") if s})
     it = Iteration(v, f, b, bc)
@@ -134,30 +121,19 @@ def main():
 
     rows = []
     for n in checkpoints:
-        data = igl.ARAPData()
-        data.energy = igl.ARAP_ENERGY_TYPE_SPOKES_AND_RIMS
-        data.max_iter = n
-        igl.arap_precomputation(v, f, 3, b.astype(np.int32), data)
-        u0 = v.copy()
-        u0[b] = bc
-        libigl = igl.arap_solve(bc, data, u0)
-        row = {
-            "mesh": os.path.basename(a.mesh),
-            "iterations": n,
-            "double_reimplementation_vs_single_reimplementation": gap(double[n], single[n]),
-            "single_reimplementation_vs_libigl": gap(single[n], libigl),
-            "double_reimplementation_vs_libigl": gap(double[n], libigl),
-        }
-        ours_path = os.path.join(a.work, f"ours_{n}.ply")
-        if os.path.exists(ours_path):
-            ours = read_ply_doubles(ours_path, v.shape[0])
-            row["ours_vs_libigl"] = gap(ours, libigl)
-            row["ours_vs_double_reimplementation"] = gap(ours, double[n])
-            row["ours_vs_single_reimplementation"] = gap(ours, single[n])
-        rows.append(row)
-        print(json.dumps(row), flush=True)
-    with open(os.path.join(a.work, "float_check.json"), "w") as fh:
-        json.dump(rows, fh, indent=1)
+        libigl = load(f"libigl_trace_{n}.f64", "<f8").reshape(-1, 3)
+        ours = load(f"ours_{n}.f64", "<f8").reshape(-1, 3)
+        rows.append(
+            {
+                "iterations": n,
+                "ours_vs_libigl": gap(ours, libigl),
+                "ours_vs_double_reimplementation": gap(ours, double[n]),
+                "single_reimplementation_vs_libigl": gap(single[n], libigl),
+                "double_vs_single_reimplementation": gap(double[n], single[n]),
+            }
+        )
+    json.dump(rows, sys.stdout)
+    sys.stdout.write("\n")
 
 
 if __name__ == "__main__":

@@ -450,6 +450,19 @@ impl Context {
         std::fs::write(path, markdown)?;
         Ok(())
     }
+
+    /// Writes `results/<name>/README.md`: the section as the folder's own
+    /// page (`# title`, then the section with its links `name/FILE` made
+    /// relative to the folder), so that nothing in the folder is written
+    /// by hand.
+    pub fn write_page(&self, name: &str, title: &str, markdown: &str) -> Result<(), AnyError> {
+        let page = format!(
+            "# {title}\n\n{}",
+            markdown.replace(&format!("]({name}/"), "](")
+        );
+        std::fs::write(self.dir(name)?.join("README.md"), page)?;
+        Ok(())
+    }
 }
 
 /// The mesh file extensions the experiments read (each also with `.gz`).

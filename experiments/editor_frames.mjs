@@ -1,26 +1,29 @@
 // The editor's drag in headless Chromium, client path against server path
-// in one run (results/editor/frames.md):
+// in one run; run by the `editor` experiment (experiments/editor.rs):
 //
-//   node experiments/editor_frames.mjs [--frames 300] [--out results/editor] MESH [MESH ...]
+//   node experiments/editor_frames.mjs --frames 300 --drawn-frames 30 --out DIR MESH [MESH ...]
 //
-// For each mesh: `lse-deform scene MESH` (20 % fixed at the bottom, a 2 %
-// handle at the top) regrouped at rest as groups "fixed" and "handle 1",
-// `lse-deform edit MESH --constraints …` (LSE_DEFORM_BIN, default
-// target/release/lse-deform), then in Debian's chromium (SwiftShader, no
-// GPU; playwright-core from tests/browser's npm install):
-//   - the page with ?mode=client: window.editor.scriptedDrag('handle 1',
-//     FRAMES) without drawing and with drawing, each frame uploading the
-//     group's transform to the vertex shader's basis; the final transform
-//     POSTed at the end; the shader's positions read back once (transform
-//     feedback) against the server's f64 positions (GET /api/positions);
+// For each mesh: `lse-deform scene MESH` (20 % fixed, a 2 % handle, as the
+// groups "fixed" and "handle") with every target at rest,
+// `lse-deform edit MESH --constraints …` (LSE_DEFORM_BIN), then in
+// Chromium (CHROMIUM; SwiftShader, no GPU; playwright-core from
+// tests/browser's npm install):
+//   - the page with ?mode=client: window.editor.scriptedDrag('handle',
+//     FRAMES) without drawing, then DRAWN frames with drawing (the same
+//     circle in fewer steps: software drawing of a large mesh takes
+//     seconds a frame), each frame uploading the group's transform to the
+//     vertex shader's basis; the final transform POSTed at the end; the
+//     shader's positions read back once (transform feedback) against the
+//     server's f64 positions (GET /api/positions);
 //   - the page with ?mode=server: the same drags, each frame POSTing the
 //     transform and downloading the positions (f32).
 // Bytes per frame are HTTP body bytes (Content-Length, both directions)
-// over the drag including the final POST, divided by FRAMES. Also writes
-// the page's screenshot and `lse-deform render`'s image of the same view
-// (the page's yaw and pitch as render's azimuth and elevation; render is
-// orthographic, the page perspective), and one with the page's former near
-// plane (1e-6 of the bounding radius) for comparison.
+// over the drag including the final POST, divided by its frames. Writes
+// DIR/frames.json (the measurements) and, per mesh, the page's screenshot,
+// one with the page's former near plane (1e-6 of the bounding radius) and
+// `lse-deform render`'s image of the same view (the page's yaw and pitch
+// as render's azimuth and elevation; render is orthographic, the page
+// perspective).
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
 import { createRequire } from 'node:module';
@@ -42,9 +45,10 @@ const option = (name, fallback) => {
   return value;
 };
 const frames = Number(option('--frames', '300'));
-const out = resolve(option('--out', join(here, '../results/editor')));
+const drawnFrames = Number(option('--drawn-frames', String(frames)));
+const out = resolve(option('--out', '.'));
 const meshes = args;
-if (!meshes.length) throw new Error('usage: node experiments/editor_frames.mjs [--frames N] [--out DIR] MESH [MESH ...]');
+if (!meshes.length) throw new Error('usage: node experiments/editor_frames.mjs [--frames N] [--drawn-frames M] [--out DIR] MESH [MESH ...]');
 const bin = resolve(process.env.LSE_DEFORM_BIN || join(here, '../target/release/lse-deform'));
 const work = mkdtempSync(join(tmpdir(), 'lse-frames-'));
 // The page's default camera (view.js): yaw 0.6 rad, pitch 0.3 rad, y up.
@@ -64,10 +68,8 @@ function sceneWithGroups(mesh, json) {
   const p = restPositions(mesh);
   const doc = JSON.parse(readFileSync(`${json}.raw`, 'utf8'));
   for (const c of doc.constraints) {
-    const rest = p[c.vertex];
-    const fixed = c.target.every((t, k) => Math.abs(t - rest[k]) <= 1e-12 * (1 + Math.abs(rest[k])));
-    c.group = fixed ? 'fixed' : 'handle 1';
-    c.target = rest;
+    if (c.group !== 'fixed' && c.group !== 'handle') throw new Error(`${mesh}: scene wrote a constraint outside the groups fixed and handle`);
+    c.target = p[c.vertex];
   }
   writeFileSync(json, JSON.stringify(doc));
 }
@@ -93,7 +95,7 @@ async function openPage(browser, url, mode) {
   return page;
 }
 
-const drag = (page, render) => page.evaluate(([f, render]) => window.editor.scriptedDrag('handle 1', f, 0.25, 1, { render }), [frames, render]);
+const drag = (page, render) => page.evaluate(([f, render]) => window.editor.scriptedDrag('handle', f, 0.25, 1, { render }), [render ? drawnFrames : frames, render]);
 
 async function measure(browser, url, token, diag, name) {
   const api = async (path) => (await fetch(new URL(path, url), { headers: { authorization: `Bearer ${token}` } })).arrayBuffer();
@@ -133,25 +135,9 @@ async function measure(browser, url, token, diag, name) {
   return rows;
 }
 
-const fmt = (x, d = 3) => (x === null || x === undefined ? '–' : x >= 100 ? x.toFixed(0) : x.toPrecision(d));
-
-function table(results) {
-  const lines = [
-    `| mesh | path | bytes/frame | frames/s without drawing | frames/s with drawing | JS ms/frame, median (mean) | upload ms/frame, median (mean) | until drawn ms/frame, median (mean) | server compute ms/frame | download ms/frame | displayed vs f64, max / diagonal |`,
-    '|---|---|---|---|---|---|---|---|---|---|---|',
-  ];
-  for (const r of results) {
-    for (const path of ['client', 'server']) {
-      const x = r.rows[path], w = x.with, o = x.without;
-      lines.push(`| ${r.name} (${r.vertices} vertices) | ${path} | ${fmt(w.bytesPerFrame)} | ${fmt(o.fps)} | ${fmt(w.fps)} | ${fmt(w.jsMedianMs)} (${fmt(w.jsMeanMs)}) | ${fmt(w.uploadMedianMs)} (${fmt(w.uploadMeanMs)}) | ${fmt(w.renderMedianMs)} (${fmt(w.renderMeanMs)}) | ${fmt(w.serverFrameMedianMs)} | ${fmt(w.downloadMedianMs)} | ${x.readbackError.toExponential(2)} |`);
-    }
-  }
-  return lines.join('\n');
-}
-
 mkdirSync(out, { recursive: true });
 const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  executablePath: process.env.CHROMIUM || 'chromium',
   args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
     '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
 });
@@ -166,7 +152,7 @@ try {
       const token = new URL(url).searchParams.get('token');
       const info = await (await fetch(new URL('api/mesh', url), { headers: { authorization: `Bearer ${token}` } })).json();
       const rows = await measure(browser, url, token, info.diagonal, name);
-      results.push({ name, vertices: info.vertices, frames, rows });
+      results.push({ name, vertices: info.vertices, frames, drawnFrames, rows });
       console.log(JSON.stringify(results.at(-1)));
       execFileSync(bin, ['render', mesh, '-o', join(out, `${name}-render.png`), '--up', 'y',
         '--azimuth', String((YAW * 180) / Math.PI), '--elevation', String((PITCH * 180) / Math.PI), '--size', '900x800']);
@@ -178,6 +164,3 @@ try {
   await browser.close();
 }
 writeFileSync(join(out, 'frames.json'), JSON.stringify(results, null, 1));
-const md = `${table(results)}\n\n${frames}-frame scripted drag of "handle 1" per row (a circle of a quarter of the bounding radius), headless Chromium with SwiftShader (no GPU), written by experiments/editor_frames.mjs.\n`;
-writeFileSync(join(out, 'frames.md'), md);
-console.log(md);

@@ -9,8 +9,8 @@ use std::path::Path;
 
 use crate::context::{Context, Machine};
 use crate::{
-    AnyError, Summary, accuracy, arap, breakdown, conflicts, drag, performance, relative, renders,
-    scaling, table1, weight_sweep,
+    AnyError, Summary, accuracy, arap, breakdown, conflicts, drag, editor, performance, python,
+    relative, renders, scaling, table1, weight_sweep,
 };
 
 /// What an experiment reads besides the library.
@@ -30,6 +30,9 @@ pub enum Input {
     /// A Python environment with libigl (found or created as the section
     /// says; the comparison is left out without it).
     Python,
+    /// Node with playwright-core and Chromium (found or installed as
+    /// `.ci/run` does; the section says what was not measured without).
+    Browser,
 }
 
 impl Input {
@@ -41,6 +44,7 @@ impl Input {
             Input::Constraints => "optional -c constraints",
             Input::SuiteSparse => "optional suitesparse feature",
             Input::Python => "optional Python with libigl",
+            Input::Browser => "optional Node and Chromium",
         }
     }
 }
@@ -129,7 +133,38 @@ pub const EXPERIMENTS: &[Experiment] = &[
         inputs: &[Input::OneMesh, Input::Python],
         run: arap::run,
     },
+    Experiment {
+        name: python::NAME,
+        title: "The Python door — its cost against Rust and its agreement with libigl",
+        inputs: &[Input::OneMesh, Input::Python],
+        run: python::run,
+    },
+    Experiment {
+        name: editor::NAME,
+        title: "The interactive editor in a browser — client path against server path",
+        inputs: &[Input::Meshes, Input::Browser],
+        run: editor::run,
+    },
 ];
+
+/// What an experiment could not measure because this build lacks an
+/// optional input it names (today: the SuiteSparse feature), as a line for
+/// the end of its section.
+pub fn missing_build_inputs(e: &Experiment) -> Option<String> {
+    (e.inputs.contains(&Input::SuiteSparse) && !cfg!(feature = "suitesparse")).then(|| {
+        "**Not measured:** the CHOLMOD and SPQR back ends (the reference rows and columns above are missing): \
+         this build has no `--features suitesparse` (it needs libsuitesparse-dev, libclang-dev and libopenblas0-pthread; see the README)."
+            .to_string()
+    })
+}
+
+/// The section title of the experiment `name` (its own name if unlisted).
+pub fn title(name: &'static str) -> &'static str {
+    EXPERIMENTS
+        .iter()
+        .find(|e| e.name == name)
+        .map_or(name, |e| e.title)
+}
 
 /// The git revision in a section's machine line (`… (git REV, …`), if any.
 fn section_revision(section: &str) -> Option<String> {
@@ -151,9 +186,14 @@ fn anchor(title: &str) -> String {
 
 /// The header line naming the revisions the sections were written at.
 fn revisions_line(revisions: &[(String, Vec<&str>)], machine: &Machine) -> String {
+    let dirty = if revisions.iter().any(|(rev, _)| rev.ends_with("-dirty")) {
+        " A revision marked `-dirty` had uncommitted changes: its sections are not reproducible from it."
+    } else {
+        ""
+    };
     match revisions {
         [(rev, _)] => format!(
-            "Every section below was written at git {rev}; this assembly: {}\n",
+            "Every section below was written at git {rev}; this assembly: {}.{dirty}\n",
             machine.one_line()
         ),
         _ => {
@@ -162,7 +202,7 @@ fn revisions_line(revisions: &[(String, Vec<&str>)], machine: &Machine) -> Strin
                 .map(|(rev, names)| format!("git {rev}: {}", names.join(", ")))
                 .collect();
             format!(
-                "The sections were written at different git revisions ({}); this assembly: {}\n",
+                "The sections were written at different git revisions ({}); this assembly: {}.{dirty}\n",
                 list.join("; "),
                 machine.one_line()
             )
@@ -179,6 +219,7 @@ pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
         "Everything in this directory is written by the `experiments` program; nothing is edited by hand. \
          Regenerate all of it with\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- all --mesh-dir ../shared/meshes --out results\n```\n\n\
          (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out; \
+         without a Python with libigl, Node or Chromium, found or created as the README's experiment list says, the sections of `arap`, `python` and `editor` say what was not measured; \
          without `--out results` it writes to a fresh directory under `target/experiments/`). \
          Each section names the command that regenerates it alone. CSV files start with a `#` line describing the machine and build.\n"
     );

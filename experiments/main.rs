@@ -22,9 +22,12 @@ mod conflicts;
 mod context;
 mod demo;
 mod drag;
+mod editor;
+mod environment;
 mod harness;
 mod performance;
 mod plot;
+mod python;
 mod relative;
 mod render;
 mod renders;
@@ -33,7 +36,7 @@ mod table1;
 mod text;
 mod weight_sweep;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -149,6 +152,48 @@ fn context(cli: &Cli) -> Result<Context, AnyError> {
     Ok(ctx)
 }
 
+/// Adds to an experiment's section what the harness knows and the section
+/// may lack: what this build could not measure, and the machine line with
+/// the revision (which `results/README.md`'s header reads).
+fn complete_section(ctx: &Context, e: &harness::Experiment, path: &Path) -> Result<(), AnyError> {
+    let mut section = std::fs::read_to_string(path)?.trim_end().to_string();
+    if let Some(note) = harness::missing_build_inputs(e) {
+        section = format!("{section}\n\n{note}");
+    }
+    let machine = ctx.machine.one_line();
+    if !section.contains(&machine) {
+        section = format!("{section}\n\n_{machine}_");
+    }
+    std::fs::write(path, section + "\n")?;
+    Ok(())
+}
+
+/// Runs `e` into an empty folder `out/<name>/` (what an earlier run left
+/// there is removed first, so that nothing older stays beside the new
+/// section); if it fails, its section says so and nothing else is left.
+fn run_fresh(ctx: &Context, e: &harness::Experiment) -> Result<Summary, AnyError> {
+    let dir = ctx.out.join(e.name);
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir)
+            .map_err(|err| format!("cannot empty {}: {err}", dir.display()))?;
+    }
+    let outcome = (e.run)(ctx);
+    if outcome.is_ok() {
+        complete_section(ctx, e, &dir.join("section.md"))?;
+    }
+    outcome.inspect_err(|err| {
+        let _ = std::fs::remove_dir_all(&dir);
+        let section = format!(
+            "{}**Failed at this revision**, nothing of this experiment was measured: {err}\n\n_{}_\n",
+            ctx.regenerate(e.name),
+            ctx.machine.one_line()
+        );
+        if let Err(write) = ctx.write_section(e.name, &section) {
+            eprintln!("error: writing the section of {}: {write}", e.name);
+        }
+    })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let (performance::NAME, Some(mesh)) = (cli.experiment.as_str(), &cli.memory_probe) {
@@ -174,7 +219,7 @@ fn main() -> ExitCode {
             continue;
         }
         let t = Instant::now();
-        let (status, headline) = match (e.run)(&ctx) {
+        let (status, headline) = match run_fresh(&ctx, e) {
             Ok(s) => ("ok".to_string(), s.headline),
             Err(err) => {
                 failed = true;

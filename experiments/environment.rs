@@ -1,0 +1,214 @@
+//! The programs some experiments run besides this one, found or created
+//! the documented way, or the reason why not (for the section, which then
+//! says what was not measured):
+//!
+//! - a Python with numpy, scipy and libigl (`arap`, `python`): `$LSE_PYTHON`
+//!   if set, else the virtual environment `target/experiments/venv`,
+//!   created if missing as the README's Python section and `.ci/run` do
+//!   (`python3 -m venv`, `pip install numpy scipy libigl`); `python` also
+//!   installs this checkout's package into it (`pip install .`, built by
+//!   maturin), so that it measures this revision;
+//! - Node with playwright-core and Chromium (`editor`), as `.ci/run`'s
+//!   browser test: `node`, `chromium` (or `$CHROMIUM`), and
+//!   `npm ci` in `tests/browser` when its `node_modules` is missing;
+//! - the `lse-deform` command-line tool (`editor`): `cargo build --release
+//!   --bin lse-deform`.
+//!
+//! Paths in the reasons are relative to the repository, never a machine's.
+
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The repository's top level (the workspace root).
+pub fn workspace_root() -> PathBuf {
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    manifest.parent().unwrap_or(manifest).to_path_buf()
+}
+
+/// The virtual environment the experiments create, relative to the root.
+pub const VENV: &str = "target/experiments/venv";
+
+/// A Python interpreter and where it came from.
+#[derive(Debug, Clone)]
+pub struct Python {
+    /// The interpreter.
+    pub exe: PathBuf,
+    /// Where it came from, for the sections ("$LSE_PYTHON", the venv).
+    pub origin: String,
+}
+
+impl Python {
+    /// Runs the script `experiments/SCRIPT` with `args`; its standard
+    /// output, or `Err` with the last line of its standard error.
+    pub fn script(&self, script: &str, args: &[&OsStr]) -> Result<Vec<u8>, String> {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(script);
+        let out = Command::new(&self.exe)
+            .arg(path)
+            .args(args)
+            .output()
+            .map_err(|e| format!("{script}: {e}"))?;
+        if out.status.success() {
+            Ok(out.stdout)
+        } else {
+            Err(format!("{script} failed: {}", last_line(&out.stderr)))
+        }
+    }
+}
+
+/// The last non-empty line of a program's output (its error, usually).
+fn last_line(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes)
+        .lines()
+        .rev()
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("no output")
+        .trim()
+        .to_string()
+}
+
+/// Runs `cmd`; `Err` names `what` and the last line it printed.
+fn run(cmd: &mut Command, what: &str) -> Result<(), String> {
+    let out = cmd.output().map_err(|e| format!("{what}: {e}"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!("{what} failed: {}", last_line(&out.stderr)))
+    }
+}
+
+/// `true` if `python -c "import MODULES"` succeeds.
+fn imports(python: &Path, modules: &str) -> bool {
+    Command::new(python)
+        .args(["-c", &format!("import {modules}")])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// A Python with numpy, scipy and libigl (see the module documentation).
+pub fn python_with_libigl() -> Result<Python, String> {
+    const MODULES: &str = "numpy, scipy, igl";
+    if let Some(p) = std::env::var_os("LSE_PYTHON") {
+        let exe = PathBuf::from(p);
+        return if imports(&exe, MODULES) {
+            Ok(Python {
+                exe,
+                origin: "`$LSE_PYTHON`".into(),
+            })
+        } else {
+            Err("the Python of `$LSE_PYTHON` does not import numpy, scipy and igl".into())
+        };
+    }
+    let root = workspace_root();
+    let venv = root.join(VENV);
+    let exe = venv.join("bin").join("python");
+    if !exe.exists() {
+        run(
+            Command::new("python3").args(["-m", "venv"]).arg(&venv),
+            &format!("`python3 -m venv {VENV}`"),
+        )?;
+    }
+    if !imports(&exe, MODULES) {
+        run(
+            Command::new(&exe).args(["-m", "pip", "install", "-q", "numpy", "scipy", "libigl"]),
+            &format!("`pip install numpy scipy libigl` in {VENV}"),
+        )?;
+    }
+    Ok(Python {
+        exe,
+        origin: format!("the virtual environment `{VENV}`"),
+    })
+}
+
+/// [`python_with_libigl`] with this checkout's `lse_deform` package
+/// installed into it (`pip install --force-reinstall --no-deps .`: rebuilt
+/// by maturin from the working tree, so the module is this revision's).
+pub fn python_with_package() -> Result<Python, String> {
+    let python = python_with_libigl()?;
+    run(
+        Command::new(&python.exe)
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "-q",
+                "--force-reinstall",
+                "--no-deps",
+                ".",
+            ])
+            .current_dir(workspace_root()),
+        "`pip install .` (the lse_deform package, built by maturin)",
+    )?;
+    if !imports(&python.exe, "lse_deform") {
+        return Err("`import lse_deform` fails after `pip install .`".into());
+    }
+    Ok(python)
+}
+
+/// `true` if `program` is an executable file on `PATH` (or a path to one).
+fn on_path(program: &str) -> bool {
+    let p = Path::new(program);
+    if p.components().count() > 1 {
+        return p.is_file();
+    }
+    std::env::var_os("PATH")
+        .is_some_and(|paths| std::env::split_paths(&paths).any(|d| d.join(program).is_file()))
+}
+
+/// Node with playwright-core, and Chromium.
+#[derive(Debug, Clone)]
+pub struct Browser {
+    /// Chromium's executable (`$CHROMIUM`, else the first `chromium` on
+    /// `PATH`).
+    pub chromium: PathBuf,
+}
+
+/// Node, playwright-core (`npm ci` in `tests/browser` if missing) and
+/// Chromium, or the reason why not.
+pub fn browser() -> Result<Browser, String> {
+    if !on_path("node") || !on_path("npm") {
+        return Err("no `node` and `npm` on PATH".into());
+    }
+    let chromium = match std::env::var_os("CHROMIUM") {
+        Some(c) => PathBuf::from(c),
+        None => {
+            let paths = std::env::var_os("PATH").unwrap_or_default();
+            std::env::split_paths(&paths)
+                .map(|d| d.join("chromium"))
+                .find(|p| p.is_file())
+                .ok_or("no `chromium` on PATH (`.ci/run` installs Debian's with apt-get)")?
+        }
+    };
+    if !chromium.is_file() {
+        return Err("`$CHROMIUM` is not a file".into());
+    }
+    let tests = workspace_root().join("tests").join("browser");
+    if !tests.join("node_modules").join("playwright-core").is_dir() {
+        run(
+            Command::new("npm")
+                .args(["ci", "--no-audit", "--no-fund"])
+                .current_dir(&tests),
+            "`npm ci` in tests/browser (playwright-core)",
+        )?;
+    }
+    Ok(Browser { chromium })
+}
+
+/// Builds the `lse-deform` command-line tool (release, default features)
+/// and returns its path.
+pub fn cli_binary() -> Result<PathBuf, String> {
+    let root = workspace_root();
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    run(
+        Command::new(cargo)
+            .args(["build", "--release", "--bin", "lse-deform"])
+            .current_dir(&root),
+        "`cargo build --release --bin lse-deform`",
+    )?;
+    let exe = root.join("target").join("release").join("lse-deform");
+    if exe.is_file() {
+        Ok(exe)
+    } else {
+        Err("`cargo build` left no target/release/lse-deform".into())
+    }
+}
