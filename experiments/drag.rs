@@ -128,6 +128,8 @@ struct Row {
     frame_p50_s: Option<f64>,
     frame_p99_s: Option<f64>,
     set_target_p50_s: Option<f64>,
+    /// The refine phase (`timings_s.refine`), p50.
+    refine_p50_s: Option<f64>,
     diagnostics_p50_s: Option<f64>,
     /// 1 / frame p50.
     fps_p50: Option<f64>,
@@ -152,6 +154,7 @@ struct FrameRow {
     frame: usize,
     set_target_s: f64,
     solve_s: f64,
+    refine_s: f64,
     diagnostics_s: f64,
     frame_s: f64,
 }
@@ -161,6 +164,7 @@ struct FrameRow {
 struct Frames {
     set_target: Vec<f64>,
     solve: Vec<f64>,
+    refine: Vec<f64>,
     diagnostics: Vec<f64>,
     frame: Vec<f64>,
     max_residual: f64,
@@ -189,7 +193,12 @@ impl Drag {
             constraints: scene.constraints(mesh)?,
             amplitude: 0.15 * mesh.bbox_diagonal(),
             original: mesh.positions().to_vec(),
-            frames: if ctx.quick { 60 } else { 300 },
+            frames: match (ctx.quick, ctx.has_user_meshes()) {
+                (true, _) => 60,
+                (false, true) => 300,
+                // Generated meshes: within the ten minutes of `all`.
+                (false, false) => 150,
+            },
         })
     }
 }
@@ -253,6 +262,7 @@ fn frame(deformer: &mut Deformer, drag: &Drag, f: usize, rec: &mut Frames) -> Re
     let r = deformer.report();
     rec.set_target.push(set);
     rec.solve.push(r.timings_s.solve);
+    rec.refine.push(r.timings_s.refine);
     rec.diagnostics.push(r.timings_s.diagnostics);
     rec.frame.push(frame);
     rec.max_residual = rec.max_residual.max(r.max_constraint_residual_relative);
@@ -303,6 +313,7 @@ fn summarise(row: &mut Row, rec: &Frames) {
     row.frame_p50_s = Some(median(&rec.frame));
     row.frame_p99_s = Some(percentile(&rec.frame, 0.99));
     row.set_target_p50_s = Some(median(&rec.set_target));
+    row.refine_p50_s = Some(median(&rec.refine));
     row.diagnostics_p50_s = Some(median(&rec.diagnostics));
     row.fps_p50 = row.frame_p50_s.map(|t| 1.0 / t);
     row.fps_p99 = row.frame_p99_s.map(|t| 1.0 / t);
@@ -371,6 +382,7 @@ fn write_data(
                 frame: f + 1,
                 set_target_s: rec.set_target[f],
                 solve_s: rec.solve[f],
+                refine_s: rec.refine[f],
                 diagnostics_s: rec.diagnostics[f],
                 frame_s: rec.frame[f],
             })
@@ -498,6 +510,7 @@ fn table(rows: &[Row]) -> String {
                 fmt(r.precompute_s, fmt_time),
                 ms(r.solve_p50_s),
                 ms(r.solve_p99_s),
+                ms(r.refine_p50_s),
                 ms(r.frame_p50_s),
                 ms(r.frame_p99_s),
                 fmt(r.fps_p50, |v| format!("{v:.0}")),
@@ -515,6 +528,7 @@ fn table(rows: &[Row]) -> String {
             "precompute",
             "solve p50 (ms)",
             "solve p99 (ms)",
+            "refine p50 (ms)",
             "frame p50 (ms)",
             "frame p99 (ms)",
             "fps (p50)",
@@ -549,7 +563,10 @@ fn method_text(ctx: &Context, case: &MeshCase, drag: &Drag) -> String {
          so that the load of this shared machine falls on all of them alike. \
          Configurations: the library default first; null-space QR on every SPD back end but faer-supernodal (what faer-auto selects at this size{}) and with every QR back end; \
          penalty, KKT and elimination on the default SPD back end only (their solve phase is that back end's; `scaling` compares the back ends). \
-         **Solve** is the library's solve phase (`report.timings_s.solve`); **frame** is the wall time of the targets + solve call, which includes the \
+         Each frame calls `Deformer::solve_matrix`: the solve phase, the refine phase of each method's default refinement (`auto` for the exact methods: \
+         after the warm-up solve has measured the factor's rounding floor, a frame stops refining on the prediction of docs/refinement.md §6; `off` for penalty, \
+         which still computes one correction for the forward-error estimate), then the solution diagnostics; an interactive caller that does not want the diagnostics calls `solve_into`. \
+         **Solve** is the library's solve phase (`report.timings_s.solve`), **refine** its refine phase (`timings_s.refine`); **frame** is the wall time of the targets + `solve_matrix` call, which includes the \
          diagnostics the library computes after every solve (constraint residuals, ‖AX − C‖). fps = 1 / latency. \
          Penalty weight w = {:.3e} (100 × median |L_ii|).\n",
         case.name,
@@ -584,6 +601,24 @@ fn findings(rows: &[Row]) -> String {
             ms(d.frame_p99_s),
             d.fps_p50.unwrap_or(f64::NAN),
             d.fps_p99.unwrap_or(f64::NAN),
+        );
+    }
+    if let Some(d) = rows.first()
+        && let (Some(solve), Some(refine), Some(frame), Some(diag)) = (
+            d.solve_p50_s,
+            d.refine_p50_s,
+            d.frame_p50_s,
+            d.diagnostics_p50_s,
+        )
+    {
+        let _ = writeln!(
+            s,
+            "The library default's frame p50 is {:.2}× its solve p50 ({:.2}× without the diagnostics, as `solve_into` runs it): refine p50 {} ms = {:.2}× the solve, diagnostics {} ms.",
+            frame / solve,
+            (frame - diag) / solve,
+            ms(Some(refine)),
+            refine / solve,
+            ms(Some(diag)),
         );
     }
     let diag_share: Vec<f64> = rows

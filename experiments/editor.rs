@@ -62,10 +62,57 @@ struct PathResult {
     readback_error: f64,
 }
 
+/// The ARAP drag (server path) and the report's median time per
+/// iteration.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "camelCase")]
+struct ArapResult {
+    without: Drag,
+    iterations_per_frame: usize,
+    time_per_iteration_s: f64,
+}
+
 #[derive(Debug, Clone, Deserialize)]
 struct Paths {
     client: PathResult,
     server: PathResult,
+    arap: Option<ArapResult>,
+}
+
+/// One row of `editor/arap_frames.csv`: a mesh's ARAP drag.
+#[derive(Debug, Clone, Serialize)]
+struct ArapRow {
+    mesh: String,
+    vertices: usize,
+    frames: usize,
+    iterations_per_frame: usize,
+    fps_undrawn: f64,
+    server_frame_median_ms: Option<f64>,
+    iterations_per_s: f64,
+}
+
+impl ArapRow {
+    fn new(m: &MeshResult, r: &ArapResult) -> ArapRow {
+        ArapRow {
+            mesh: m.name.clone(),
+            vertices: m.vertices,
+            frames: r.without.frames,
+            iterations_per_frame: r.iterations_per_frame,
+            fps_undrawn: r.without.fps,
+            server_frame_median_ms: r.without.server_frame_median_ms,
+            iterations_per_s: 1.0 / r.time_per_iteration_s,
+        }
+    }
+}
+
+/// ARAP frames per drag: fewer on large meshes (each frame runs the
+/// iterations of a global solve).
+fn arap_frames(vertices: usize, quick: bool) -> usize {
+    match (quick, vertices) {
+        (true, _) => 5,
+        (false, v) if v > 200_000 => 20,
+        (false, _) => 60,
+    }
 }
 
 /// One mesh of `frames.json`.
@@ -175,13 +222,13 @@ fn end_to_end(
 
 /// Runs `editor_frames.mjs` on every mesh, the screenshots into `dir`,
 /// then the end-to-end test.
-fn measure(ctx: &Context, dir: &std::path::Path) -> Result<Vec<Row>, AnyError> {
+fn measure(ctx: &Context, dir: &std::path::Path) -> Result<(Vec<Row>, Vec<ArapRow>), AnyError> {
     let browser = environment::browser()?;
     let bin = environment::cli_binary()?;
     end_to_end(dir, &bin, &browser.chromium)?;
     let work = std::env::temp_dir().join(format!("lse-editor-{}", std::process::id()));
     std::fs::create_dir_all(&work)?;
-    let mut rows = Vec::new();
+    let (mut rows, mut arap) = (Vec::new(), Vec::new());
     for mesh in mesh_files(ctx, &work)? {
         let vertices = lse_deform::mesh::read_mesh(&mesh)?.mesh.n_vertices();
         let frames = if ctx.quick { 30 } else { FRAMES };
@@ -192,6 +239,10 @@ fn measure(ctx: &Context, dir: &std::path::Path) -> Result<Vec<Row>, AnyError> {
             .args([
                 "--drawn-frames",
                 &drawn_frames(vertices, ctx.quick).to_string(),
+            ])
+            .args([
+                "--arap-frames",
+                &arap_frames(vertices, ctx.quick).to_string(),
             ])
             .arg("--out")
             .arg(dir)
@@ -208,20 +259,22 @@ fn measure(ctx: &Context, dir: &std::path::Path) -> Result<Vec<Row>, AnyError> {
         for m in &measured {
             rows.push(Row::new(m, FramePath::Client, &m.rows.client));
             rows.push(Row::new(m, FramePath::Server, &m.rows.server));
+            arap.extend(m.rows.arap.as_ref().map(|r| ArapRow::new(m, r)));
         }
     }
     std::fs::remove_file(dir.join("frames.json"))?;
     let _ = std::fs::remove_dir_all(&work);
-    Ok(rows)
+    Ok((rows, arap))
 }
 
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let dir = ctx.dir(NAME)?;
     let (md, headline) = match measure(ctx, &dir) {
-        Ok(rows) => {
+        Ok((rows, arap)) => {
             ctx.write_rows(&dir.join("frames"), &rows)?;
-            (section(ctx, &rows), headline(&rows))
+            ctx.write_rows(&dir.join("arap_frames"), &arap)?;
+            (section(ctx, &rows, &arap), headline(&rows))
         }
         Err(why) => not_measured(ctx, &why.to_string()),
     };
@@ -263,7 +316,41 @@ fn headline(rows: &[Row]) -> String {
     parts.join("; ")
 }
 
-fn section(ctx: &Context, rows: &[Row]) -> String {
+/// The ARAP frames table and its finding.
+fn arap_section(arap: &[ArapRow]) -> String {
+    let mut s = String::from(
+        "\n**ARAP frames.** After `PUT /api/settings {\"energy\": \"arap\"}` the same handle is dragged on the server path (ARAP has no response basis): \
+         each frame runs the session's ARAP iterations per frame (`arap_iterations_per_frame`), warm-started from the last frame's positions, and downloads the positions. \
+         Iterations/s is 1 / the report's median time per iteration (`arap.time_per_iteration_s`), the figure the page's HUD shows.\n\n",
+    );
+    let table: Vec<Vec<String>> = arap
+        .iter()
+        .map(|r| {
+            vec![
+                format!("{} ({} vertices)", r.mesh, r.vertices),
+                r.frames.to_string(),
+                r.iterations_per_frame.to_string(),
+                num(r.fps_undrawn),
+                opt(r.server_frame_median_ms),
+                num(r.iterations_per_s),
+            ]
+        })
+        .collect();
+    s.push_str(&markdown_table(
+        &[
+            "mesh",
+            "frames",
+            "iterations/frame",
+            "frames/s undrawn",
+            "server compute ms/frame",
+            "ARAP iterations/s",
+        ],
+        &table,
+    ));
+    s
+}
+
+fn section(ctx: &Context, rows: &[Row], arap: &[ArapRow]) -> String {
     let mut s = ctx.regenerate(NAME);
     let _ = writeln!(
         s,
@@ -309,6 +396,10 @@ fn section(ctx: &Context, rows: &[Row]) -> String {
         &table,
     ));
     let _ = writeln!(s, "\nIn short: {}.\n", headline(rows));
+    if !arap.is_empty() {
+        s.push_str(&arap_section(arap));
+        s.push('\n');
+    }
     let mut meshes: Vec<&str> = rows.iter().map(|r| r.mesh.as_str()).collect();
     meshes.dedup();
     for m in meshes {
@@ -323,7 +414,7 @@ fn section(ctx: &Context, rows: &[Row]) -> String {
     );
     s.push_str(&ctx.closing(
         &["This machine has no GPU: the drawn frame rates are SwiftShader's, on the same cores as the server.".into()],
-        "Data: `editor/frames.csv` (and `.json`).",
+        "Data: `editor/frames.csv` and `editor/arap_frames.csv` (and `.json`).",
     ));
     s
 }

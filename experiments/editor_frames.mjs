@@ -16,7 +16,13 @@
 //     shader's positions read back once (transform feedback) against the
 //     server's f64 positions (GET /api/positions);
 //   - the page with ?mode=server: the same drags, each frame POSTing the
-//     transform and downloading the positions (f32).
+//     transform and downloading the positions (f32);
+//   - ARAP frames: `PUT /api/settings {"energy": "arap"}`, then a drag of
+//     ARAP_FRAMES frames without drawing on the server path (ARAP has no
+//     basis), each frame running the session's iterations per frame
+//     warm-started from the last; the report's median time per iteration
+//     (`arap.time_per_iteration_s`, what the page's HUD shows as
+//     iterations/s).
 // Bytes per frame are HTTP body bytes (Content-Length, both directions)
 // over the drag including the final POST, divided by its frames. Writes
 // DIR/frames.json (the measurements) and, per mesh, the page's screenshot,
@@ -46,9 +52,10 @@ const option = (name, fallback) => {
 };
 const frames = Number(option('--frames', '300'));
 const drawnFrames = Number(option('--drawn-frames', String(frames)));
+const arapFrames = Number(option('--arap-frames', '60'));
 const out = resolve(option('--out', '.'));
 const meshes = args;
-if (!meshes.length) throw new Error('usage: node experiments/editor_frames.mjs [--frames N] [--drawn-frames M] [--out DIR] MESH [MESH ...]');
+if (!meshes.length) throw new Error('usage: node experiments/editor_frames.mjs [--frames N] [--drawn-frames M] [--arap-frames K] [--out DIR] MESH [MESH ...]');
 const bin = resolve(process.env.LSE_DEFORM_BIN || join(here, '../target/release/lse-deform'));
 const work = mkdtempSync(join(tmpdir(), 'lse-frames-'));
 // The page's default camera (view.js): yaw 0.6 rad, pitch 0.3 rad, y up.
@@ -132,7 +139,24 @@ async function measure(browser, url, token, diag, name) {
   for (let i = 0; i < exact2.length; i++) err2 = Math.max(err2, Math.abs(f32[i] - exact2[i]));
   rows.server.readbackError = err2 / diag;
   await server.close();
+  rows.arap = await arapFramesOf(browser, url, token);
   return rows;
+}
+
+// ARAP frames on the server path, after switching the session's energy.
+async function arapFramesOf(browser, url, token) {
+  const headers = { authorization: `Bearer ${token}`, 'content-type': 'application/json' };
+  const put = await fetch(new URL('api/settings', url), { method: 'PUT', headers, body: JSON.stringify({ energy: 'arap' }) });
+  if (!put.ok) throw new Error(`PUT /api/settings: ${put.status} ${await put.text()}`);
+  const page = await openPage(browser, url, 'server');
+  const without = await page.evaluate(([f]) => window.editor.scriptedDrag('handle', f, 0.25, 1, { render: false }), [arapFrames]);
+  await page.close();
+  const report = await (await fetch(new URL('api/report', url), { headers })).json();
+  return {
+    without,
+    iterationsPerFrame: report.editor.settings.arap_iterations_per_frame,
+    timePerIterationS: report.arap.time_per_iteration_s,
+  };
 }
 
 mkdirSync(out, { recursive: true });

@@ -7,10 +7,12 @@
 //! upper halves of the vector registers still "dirty". Until a
 //! `vzeroupper`, every legacy SSE instruction on such a thread then pays a
 //! state-transition penalty or a false dependency on the upper half (Intel
-//! optimisation manual, §"Mixing AVX code with SSE code"). Measured here:
-//! the handle basis's per-frame kernel ran 2–3 times slower after a faer
-//! factorisation had run on the same threads, and at full speed after a
-//! `vzeroupper` (`results/editor/README.md`).
+//! optimisation manual, §"Mixing AVX code with SSE code"). On the AVX-512
+//! machine this crate is measured on, the handle basis's per-frame kernel
+//! ran several times slower after a faer factorisation had run on the same
+//! threads, and at full speed after a `vzeroupper` (compare
+//! `cargo bench --bench editor` with the calls to
+//! [`clear_upper_vector_state`] removed).
 //!
 //! [`clear_upper_vector_state`] issues `vzeroupper` when the CPU has AVX
 //! (nothing otherwise, and nothing on other architectures). It costs a

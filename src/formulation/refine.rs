@@ -267,13 +267,19 @@ fn predicted_error(rate: f64, size: f64, floor: f64, ulps: f64) -> Option<f64> {
 /// measured the floor; a predicted stop counts towards the next
 /// measurement.
 fn remember(rounding: &mut FactorRounding, out: &Refinement, rates: &[f64], x_size: f64) {
-    // A correction that converged (within the ulps of the solution) is
-    // rounding noise, not a contraction of the one before it.
-    let measured = match out.stop_reason {
-        RefineStop::Converged => &rates[..rates.len().saturating_sub(1)],
-        _ => rates,
+    // A correction at the rounding floor is noise, not a contraction of the
+    // one before it: only corrections above NOISE_MARGIN times the one that
+    // ended a measured refinement (the floor) count.
+    let noise = match out.stop_reason {
+        RefineStop::Converged | RefineStop::Stagnated => out.corrections.last().copied(),
+        _ => None,
     };
-    let seen = measured.iter().copied().filter(|r| r.is_finite());
+    let seen = rates
+        .iter()
+        .zip(&out.corrections)
+        .filter(|&(_, &size)| noise.is_none_or(|n| size > NOISE_MARGIN * n))
+        .map(|(&rate, _)| rate)
+        .filter(|r| r.is_finite());
     rounding.contraction = seen.fold(rounding.contraction, f64::max);
     match out.stop_reason {
         RefineStop::Converged | RefineStop::Stagnated => {
@@ -288,6 +294,12 @@ fn remember(rounding: &mut FactorRounding, out: &Refinement, rates: &[f64], x_si
         _ => {}
     }
 }
+
+/// A correction counts towards the contraction a factor is known for only
+/// when it is above this many times the rounding floor its refinement
+/// ended on: the ratio of two corrections at the floor is the ratio of two
+/// samples of noise (0.6 to 0.95 on the Bunny), not a contraction.
+const NOISE_MARGIN: f64 = 4.0;
 
 /// A hard-constraint residual still at this fraction of its size before
 /// the multiplier updates when they stop has not been reduced by them

@@ -17,9 +17,10 @@
 //
 // Environment: LSE_DEFORM_BIN (default ../../target/release/lse-deform),
 // EDITOR_MESH (default: a generated 4k-vertex grid), SCREENSHOT (default
-// ../../results/editor/e2e.png), DRAG_FRAMES (default 0: when > 0, a
+// e2e.png in a fresh temporary directory; the `editor` experiment sets it
+// to results/editor/e2e.png), DRAG_FRAMES (default 0: when > 0, a
 // scripted drag of that many frames is timed afterwards and printed as
-// JSON — the figure of results/editor/README.md).
+// JSON).
 import { spawn, execFileSync } from 'node:child_process';
 import { createInterface } from 'node:readline';
 import { mkdtempSync, mkdirSync, readFileSync, writeFileSync } from 'node:fs';
@@ -31,7 +32,9 @@ import { chromium } from 'playwright-core';
 
 const here = dirname(fileURLToPath(import.meta.url));
 const bin = resolve(process.env.LSE_DEFORM_BIN || join(here, '../../target/release/lse-deform'));
-const screenshot = resolve(process.env.SCREENSHOT || join(here, '../../results/editor/e2e.png'));
+const screenshot = resolve(
+  process.env.SCREENSHOT || join(mkdtempSync(join(tmpdir(), 'lse-editor-shot-')), 'e2e.png'),
+);
 const dragFrames = Number(process.env.DRAG_FRAMES || 0);
 
 let mesh = process.env.EDITOR_MESH;
