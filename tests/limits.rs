@@ -195,3 +195,34 @@ fn the_memory_limit_flag_sets_the_solve_budget_over_the_environment() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("'12X' is not a size"), "{}", stderr(&o));
 }
+
+/// `compare --memory-limit` bounds every configuration's precompute: the
+/// reference's factor beyond 1 KiB is refused with the budget's source,
+/// and the same comparison without the flag runs.
+#[test]
+fn compare_takes_the_memory_limit_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "grid", "900");
+    let scene = p(dir.path(), "scene.json");
+    let o = run(None, &["scene", &mesh, "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let args = [
+        "compare",
+        &mesh,
+        "-c",
+        &scene,
+        "--no-condition",
+        "--repeat",
+        "1",
+    ];
+    let o = run(None, &[&args[..], &["--memory-limit", "1K"]].concat());
+    assert_refused(
+        &o,
+        &[
+            "Cholesky factor",
+            "budget of 1.0 KiB (the memory budget of the solve options)",
+        ],
+    );
+    let o = run(None, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

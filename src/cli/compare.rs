@@ -55,6 +55,10 @@ pub struct CompareArgs {
     /// Also write every report as a JSON array here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Memory budget of every precompute, as for `deform` (default:
+    /// LSE_MEMORY_LIMIT when set, else the available memory).
+    #[arg(long, value_parser = super::memory_budget)]
+    memory_limit: Option<lse_deform::MemoryBudget>,
 }
 
 impl CompareArgs {
@@ -85,6 +89,7 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh)?;
     let constraints = constraints_for(&a.constraints, &mesh, false)?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    deformer.set_memory_budget(a.memory_limit.unwrap_or_default());
     let bar =
         ProgressBar::with_draw_target(Some(configs.len() as u64 + 1), ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {

@@ -67,7 +67,7 @@ pub struct MethodArgs {
 }
 
 /// `--memory-limit`'s value: bytes as [`parse_bytes`] reads them.
-fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
+pub fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
     parse_bytes(word).map(MemoryBudget::bytes).ok_or_else(|| {
         format!("'{word}' is not a size (a positive number of bytes, optionally with K, M, G or T)")
     })
