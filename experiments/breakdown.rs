@@ -321,6 +321,10 @@ fn row_of(
 }
 
 /// Both formulations on every SPD back end, on one mesh.
+/// Meshes above this many vertices are measured on the fast SPD back ends
+/// only (faer-auto, faer-supernodal, CHOLMOD).
+const LARGE_VERTICES: usize = 100_000;
+
 fn measure_case(
     ctx: &Context,
     case: &MeshCase,
@@ -328,7 +332,15 @@ fn measure_case(
     notes: &mut Vec<String>,
 ) -> Result<(), AnyError> {
     let constraints = FixedAndHandle::paper_default(&case.mesh).constraints(&case.mesh)?;
-    for spd_name in spd_backends() {
+    let large = case.mesh.n_vertices() > LARGE_VERTICES;
+    let slow = |s: &str| matches!(s, "faer-simplicial" | "nalgebra");
+    if large {
+        notes.push(format!(
+            "{}: faer-simplicial and nalgebra left out (above {LARGE_VERTICES} vertices their numeric factorisation takes minutes per repetition; `scaling` shows how they grow)",
+            case.name
+        ));
+    }
+    for spd_name in spd_backends().into_iter().filter(|s| !(large && slow(s))) {
         let choices = choices(spd_name)?;
         let formulations = [choices[0].build()?, choices[1].build()?];
         let reps = if ctx.quick { 1 } else { 5 };
