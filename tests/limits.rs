@@ -49,6 +49,15 @@ fn generate(dir: &Path, kind: &str, vertices: &str) -> String {
     mesh
 }
 
+/// A generated mesh and its default scene (`lse-deform scene`).
+fn mesh_and_scene(dir: &Path, kind: &str, vertices: &str) -> (String, String) {
+    let mesh = generate(dir, kind, vertices);
+    let scene = p(dir, "scene.json");
+    let o = run(None, &["scene", &mesh, "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (mesh, scene)
+}
+
 #[test]
 fn a_mesh_file_beyond_the_budget_is_refused_with_its_size() {
     let dir = tempfile::tempdir().unwrap();
@@ -142,10 +151,7 @@ fn a_dense_householder_block_beyond_the_budget_is_refused_and_sparse_givens_is_s
 #[test]
 fn a_factor_beyond_the_budget_is_refused_after_the_analysis() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = generate(dir.path(), "bumpy-sphere", "20000");
-    let scene = p(dir.path(), "scene.json");
-    let o = run(None, &["scene", &mesh, "-o", &scene]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (mesh, scene) = mesh_and_scene(dir.path(), "bumpy-sphere", "20000");
     let out = p(dir.path(), "out.obj");
     for method in [
         &["--method", "nullspace-qr"][..],
@@ -172,10 +178,7 @@ fn a_factor_beyond_the_budget_is_refused_after_the_analysis() {
 #[test]
 fn the_memory_limit_flag_sets_the_solve_budget_over_the_environment() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = generate(dir.path(), "bumpy-sphere", "20000");
-    let scene = p(dir.path(), "scene.json");
-    let o = run(None, &["scene", &mesh, "-o", &scene]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (mesh, scene) = mesh_and_scene(dir.path(), "bumpy-sphere", "20000");
     let out = p(dir.path(), "out.obj");
     let args = ["deform", &mesh, "-c", &scene, "-o", &out, "--memory-limit"];
     let with = |limit: &'static str| [&args[..], &[limit]].concat();
@@ -202,10 +205,7 @@ fn the_memory_limit_flag_sets_the_solve_budget_over_the_environment() {
 #[test]
 fn compare_takes_the_memory_limit_flag() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = generate(dir.path(), "grid", "900");
-    let scene = p(dir.path(), "scene.json");
-    let o = run(None, &["scene", &mesh, "-o", &scene]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (mesh, scene) = mesh_and_scene(dir.path(), "grid", "900");
     let args = [
         "compare",
         &mesh,

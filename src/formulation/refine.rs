@@ -164,7 +164,7 @@ pub fn refine_with_memory(
             }
             break;
         }
-        let floor = CONVERGED_ULPS * f64::EPSILON * max_row_norm(x) / scale;
+        let floor = CONVERGED_ULPS * f64::EPSILON * x_size;
         // A correction that does not shrink is rounding noise: every
         // iteration here contracts (the exact formulations' by `ε κ(N)`,
         // the method of multipliers' by `max_i 1/(1 + w²μ_i)`).

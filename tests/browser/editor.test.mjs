@@ -156,7 +156,14 @@ try {
   await applied(groups.fixed.length + groups['handle 1'].length);
   const before = await positions();
 
-  assert.ok(await page.evaluate(() => window.editor.state.basisGroups?.includes('handle 1')), 'the page took the client path');
+  // The basis is downloaded after the report and the positions arrive, so
+  // wait for it (a slow machine may still be downloading); if it never comes,
+  // say what the page showed.
+  const onClient = await page
+    .waitForFunction(() => window.editor.state.basisGroups?.includes('handle 1'), null, { timeout: 60000 })
+    .then(() => true, () => false);
+  const why = onClient ? '' : await page.evaluate(() => JSON.stringify({ error: document.getElementById('error').textContent, basis: window.editor.state.report?.editor?.basis ?? null, settings: window.editor.state.report?.editor?.settings ?? null }));
+  assert.ok(onClient, `the page took the client path ${why}`);
   const sentBefore = await page.evaluate(() => window.editor.traffic.requests);
   await page.click('button[data-tool=move]');
   await page.mouse.move(high.x, high.y);
