@@ -3,7 +3,11 @@
 //! constraints' targets ([`Deformer::set_target`]) and solves without
 //! refactoring. Per method and back end: per-frame latency p50 / p99 of the
 //! solve phase and of the whole frame (targets + solve + the library's
-//! per-solve diagnostics), and the frames per second they imply.
+//! per-solve diagnostics), and the frames per second they imply. A second
+//! row of the library default drags with refinement off through
+//! [`Deformer::solve_into`] (no correction, no diagnostics): what a frame
+//! costs when it skips refinement, and how far its shape is from the
+//! refined one's.
 
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -12,6 +16,7 @@ use std::time::Instant;
 
 use faer::Mat;
 use lse_deform::constraints::ConstraintSet;
+use lse_deform::formulation::{Refine, max_hard_residual};
 use lse_deform::mesh::Mesh;
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method};
@@ -34,6 +39,10 @@ struct Config {
     label: String,
     choice: FormulationChoice,
     formulation: Box<dyn Formulation>,
+    /// Frames through [`Deformer::solve_into`] with [`Refine::Off`] (no
+    /// correction, no diagnostics) instead of [`Deformer::solve_matrix`]
+    /// with the method's default refinement.
+    unrefined_solve_into: bool,
 }
 
 impl Config {
@@ -42,12 +51,14 @@ impl Config {
             label,
             formulation: choice.build()?,
             choice,
+            unrefined_solve_into: false,
         })
     }
 }
 
 /// The configurations, the library default (null-space QR with the default
-/// QR and SPD back ends) first: null-space QR with the default QR back end
+/// QR and SPD back ends) first, then the same with refinement off through
+/// `solve_into`; null-space QR with the default QR back end
 /// on every SPD back end but `faer-supernodal` (what `faer-auto` selects on
 /// meshes of this size: the same factor, see `scaling`), with every other QR
 /// back end on the default SPD back end; penalty, KKT (faer LDLᵀ, automatic
@@ -77,6 +88,15 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
             format!("null-space {default_qr} + {s}"),
             choice,
         )?);
+        if s == default_spd {
+            out.push(Config {
+                unrefined_solve_into: true,
+                ..Config::new(
+                    format!("null-space {default_qr} + {s}, refine off, solve_into"),
+                    choice,
+                )?
+            });
+        }
     }
     for q in qr_backends().into_iter().filter(|&q| q != default_qr) {
         let choice = FormulationChoice {
@@ -120,6 +140,10 @@ struct Row {
     method: &'static str,
     qr_backend: Option<String>,
     spd_backend: String,
+    /// What a frame calls: `solve_matrix` (the method's default
+    /// refinement, then the diagnostics) or `solve_into` (refinement off,
+    /// no diagnostics).
+    frame_call: &'static str,
     precompute_s: Option<f64>,
     frames: usize,
     solve_p50_s: Option<f64>,
@@ -169,6 +193,8 @@ struct Frames {
     frame: Vec<f64>,
     max_residual: f64,
     middle: Option<Mat<f64>>,
+    /// The output of `solve_into`, reused from frame to frame.
+    buffer: Option<Mat<f64>>,
 }
 
 /// The drag's scene: the regions, constraints and path.
@@ -211,6 +237,8 @@ struct Slot {
     error: Option<String>,
     precompute: Option<f64>,
     nnz_factor: Option<usize>,
+    /// As [`Config::unrefined_solve_into`].
+    unrefined_solve_into: bool,
 }
 
 /// One deformer per configuration, precomputed, with a warm-up solve (not
@@ -219,7 +247,10 @@ fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
     configs
         .iter()
         .map(|c| {
-            let mut slot = Slot::default();
+            let mut slot = Slot {
+                unrefined_solve_into: c.unrefined_solve_into,
+                ..Slot::default()
+            };
             let outcome = (|| -> Result<Deformer, AnyError> {
                 let mut d = Deformer::new(
                     mesh.clone(),
@@ -229,6 +260,9 @@ fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
                 d.precompute(c.formulation.as_ref())?;
                 slot.precompute = Some(d.report().timings_s.precompute());
                 slot.nnz_factor = d.report().nnz.factor;
+                if c.unrefined_solve_into {
+                    d.set_refine(Some(Refine::Off));
+                }
                 d.solve_matrix()?;
                 Ok(d)
             })();
@@ -241,8 +275,18 @@ fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
         .collect()
 }
 
-/// Frame `f`: the handle's targets moved along the path, then a solve.
-fn frame(deformer: &mut Deformer, drag: &Drag, f: usize, rec: &mut Frames) -> Result<(), AnyError> {
+/// Frame `f`: the handle's targets moved along the path, then a solve:
+/// `solve_matrix` (the method's default refinement and the diagnostics),
+/// or, for `unrefined_solve_into`, `solve_into` with refinement off into a
+/// buffer kept across frames (the hard-constraint residual is then measured
+/// after the frame's clock has stopped).
+fn frame(
+    deformer: &mut Deformer,
+    drag: &Drag,
+    f: usize,
+    unrefined_solve_into: bool,
+    rec: &mut Frames,
+) -> Result<(), AnyError> {
     let d = path(
         (f + 1) as f64 / drag.frames as f64,
         drag.axis,
@@ -257,17 +301,34 @@ fn frame(deformer: &mut Deformer, drag: &Drag, f: usize, rec: &mut Frames) -> Re
         )?;
     }
     let set = start.elapsed().as_secs_f64();
-    let x = deformer.solve_matrix()?;
+    let x = if unrefined_solve_into {
+        let n = deformer.problem().n();
+        let mut x = rec.buffer.take().unwrap_or_else(|| Mat::zeros(n, 3));
+        deformer.solve_into(x.as_mut())?;
+        x
+    } else {
+        deformer.solve_matrix()?
+    };
     let frame = start.elapsed().as_secs_f64();
     let r = deformer.report();
     rec.set_target.push(set);
     rec.solve.push(r.timings_s.solve);
     rec.refine.push(r.timings_s.refine);
-    rec.diagnostics.push(r.timings_s.diagnostics);
     rec.frame.push(frame);
-    rec.max_residual = rec.max_residual.max(r.max_constraint_residual_relative);
+    if unrefined_solve_into {
+        rec.diagnostics.push(0.0);
+        let p = deformer.problem();
+        let residual = max_hard_residual(p, &x) / p.length_scale();
+        rec.max_residual = rec.max_residual.max(residual);
+    } else {
+        rec.diagnostics.push(r.timings_s.diagnostics);
+        rec.max_residual = rec.max_residual.max(r.max_constraint_residual_relative);
+    }
     if f + 1 == drag.frames / 2 {
-        rec.middle = Some(x);
+        rec.middle = Some(x.clone());
+    }
+    if unrefined_solve_into {
+        rec.buffer = Some(x);
     }
     Ok(())
 }
@@ -282,7 +343,8 @@ fn run_frames(ctx: &Context, drag: &Drag, slots: &mut [Slot]) {
             let Some(deformer) = slot.deformer.as_mut() else {
                 continue;
             };
-            if let Err(e) = frame(deformer, drag, f, &mut slot.rec) {
+            let unrefined = slot.unrefined_solve_into;
+            if let Err(e) = frame(deformer, drag, f, unrefined, &mut slot.rec) {
                 slot.error = Some(e.to_string());
                 slot.deformer = None;
             }
@@ -333,6 +395,11 @@ fn rows(configs: &[Config], slots: &mut [Slot], diag: f64, notes: &mut Vec<Strin
             qr_backend: (c.choice.method == Method::NullSpaceQr)
                 .then(|| c.choice.qr.name().to_string()),
             spd_backend: c.choice.spd.name().to_string(),
+            frame_call: if c.unrefined_solve_into {
+                "solve_into"
+            } else {
+                "solve_matrix"
+            },
             precompute_s: slot.precompute,
             frames: slot.rec.frame.len(),
             nnz_factor: slot.nnz_factor,
@@ -561,13 +628,14 @@ fn method_text(ctx: &Context, case: &MeshCase, drag: &Drag) -> String {
          each frame calls `set_target` for every handle constraint, then `solve`. \
          All configurations are precomputed first and the frames run round-robin (frame f of every configuration before frame f + 1 of any), \
          so that the load of this shared machine falls on all of them alike. \
-         Configurations: the library default first; null-space QR on every SPD back end but faer-supernodal (what faer-auto selects at this size{}) and with every QR back end; \
+         Configurations: the library default first, then the library default with refinement off, whose frames call `solve_into` \
+         (no correction and no diagnostics: the cost of a frame that skips refinement, and in \"deviation\" its error); null-space QR on every SPD back end but faer-supernodal (what faer-auto selects at this size{}) and with every QR back end; \
          penalty, KKT and elimination on the default SPD back end only (their solve phase is that back end's; `scaling` compares the back ends). \
-         Each frame calls `Deformer::solve_matrix`: the solve phase, the refine phase of each method's default refinement (`auto` for the exact methods: \
+         Every other frame calls `Deformer::solve_matrix`: the solve phase, the refine phase of each method's default refinement (`auto` for the exact methods: \
          after the warm-up solve has measured the factor's rounding floor, a frame stops refining on the prediction of docs/refinement.md §6; `off` for penalty, \
          which still computes one correction for the forward-error estimate), then the solution diagnostics; an interactive caller that does not want the diagnostics calls `solve_into`. \
-         **Solve** is the library's solve phase (`report.timings_s.solve`), **refine** its refine phase (`timings_s.refine`); **frame** is the wall time of the targets + `solve_matrix` call, which includes the \
-         diagnostics the library computes after every solve (constraint residuals, ‖AX − C‖). fps = 1 / latency. \
+         **Solve** is the library's solve phase (`report.timings_s.solve`), **refine** its refine phase (`timings_s.refine`); **frame** is the wall time of the targets + `solve_matrix` (or `solve_into`) call; `solve_matrix`'s includes the \
+         diagnostics the library computes after every such solve (constraint residuals, ‖AX − C‖). fps = 1 / latency. \
          Penalty weight w = {:.3e} (100 × median |L_ii|).\n",
         case.name,
         case.mesh.n_vertices(),
@@ -619,6 +687,24 @@ fn findings(rows: &[Row]) -> String {
             ms(Some(refine)),
             refine / solve,
             ms(Some(diag)),
+        );
+    }
+    if let (Some(d), Some(u)) = (
+        rows.first(),
+        rows.iter().find(|r| r.frame_call == "solve_into"),
+    ) && let (Some(solve), Some(frame), Some(default_frame), Some(off_by)) = (
+        u.solve_p50_s,
+        u.frame_p50_s,
+        d.frame_p50_s,
+        u.deviation_from_reference,
+    ) {
+        let _ = writeln!(
+            s,
+            "Without refinement ({}): the frame p50 is {:.2}× its solve p50 and {:.2}× the default's frame, and the mid-drag shape is {:.1e} of the diagonal from the refined one (the default's refinement reaches the rounding floor: every correction repeats the solve's two triangular solves, so a refined frame costs at least two solves).",
+            u.label,
+            frame / solve,
+            frame / default_frame,
+            off_by,
         );
     }
     let diag_share: Vec<f64> = rows

@@ -139,6 +139,9 @@ pub struct Timings {
     pub solve: f64,
     /// Iterative refinement after the last solve, including the
     /// forward-error estimate (one more correction when refinement is off).
+    /// `0` after a solve that neither refined nor estimated
+    /// (`solve_into` with refinement off), and after a solve of other than
+    /// three columns, whose refinement of each block is timed in `solve`.
     pub refine: f64,
     /// Residual checks and conflict classification after the last solve
     /// (not part of the paper's phases).

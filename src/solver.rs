@@ -320,6 +320,7 @@ impl LseSolver {
             })?;
         let t = Instant::now();
         let mut refinements = Vec::new();
+        self.report.timings_s.refine = 0.0;
         if k == RHS_BLOCK {
             system.solve_into(&self.problem, x.as_mut())?;
             self.report.timings_s.solve = t.elapsed().as_secs_f64();

@@ -7,7 +7,7 @@
 use faer::Mat;
 use faer::sparse::{SparseColMat, Triplet};
 use lse_deform::error::{Error, NumericalError, ProblemError};
-use lse_deform::formulation::{Formulation, FormulationChoice, Method};
+use lse_deform::formulation::{Formulation, FormulationChoice, Method, Refine};
 use lse_deform::problem::LseProblem;
 use lse_deform::testing::{dense_reference, random_lse, relative_difference};
 use lse_deform::{
@@ -229,6 +229,12 @@ fn solve_into_matches_solve_and_checks_its_output_shape() {
     let mut y = Mat::<f64>::zeros(25, 3);
     solver.solve_into(y.as_mut()).unwrap();
     assert_eq!(relative_difference(&y, &x), 0.0);
+    assert!(solver.report().timings_s.refine > 0.0, "auto refined");
+    // Without refinement, the report does not keep the last refine phase.
+    solver.set_refine(Some(Refine::Off));
+    solver.solve_into(y.as_mut()).unwrap();
+    assert_eq!(solver.report().timings_s.refine, 0.0);
+    solver.set_refine(None);
     let mut wrong = Mat::<f64>::zeros(25, 2);
     assert!(matches!(
         solver.solve_into(wrong.as_mut()),
