@@ -39,10 +39,29 @@ struct Config {
     label: String,
     choice: FormulationChoice,
     formulation: Box<dyn Formulation>,
-    /// Frames through [`Deformer::solve_into`] with [`Refine::Off`] (no
-    /// correction, no diagnostics) instead of [`Deformer::solve_matrix`]
-    /// with the method's default refinement.
-    unrefined_solve_into: bool,
+    /// What every frame calls.
+    frame_call: FrameCall,
+}
+
+/// What a frame of the drag calls.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum FrameCall {
+    /// [`Deformer::solve_matrix`]: the method's default refinement, then
+    /// the diagnostics.
+    SolveMatrix,
+    /// [`Deformer::solve_into`] with [`Refine::Off`] into a buffer kept
+    /// across frames: no correction, no diagnostics.
+    UnrefinedSolveInto,
+}
+
+impl FrameCall {
+    /// The library call's name, for the rows.
+    fn name(self) -> &'static str {
+        match self {
+            FrameCall::SolveMatrix => "solve_matrix",
+            FrameCall::UnrefinedSolveInto => "solve_into",
+        }
+    }
 }
 
 impl Config {
@@ -51,7 +70,7 @@ impl Config {
             label,
             formulation: choice.build()?,
             choice,
-            unrefined_solve_into: false,
+            frame_call: FrameCall::SolveMatrix,
         })
     }
 }
@@ -90,7 +109,7 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
         )?);
         if s == default_spd {
             out.push(Config {
-                unrefined_solve_into: true,
+                frame_call: FrameCall::UnrefinedSolveInto,
                 ..Config::new(
                     format!("null-space {default_qr} + {s}, refine off, solve_into"),
                     choice,
@@ -237,8 +256,6 @@ struct Slot {
     error: Option<String>,
     precompute: Option<f64>,
     nnz_factor: Option<usize>,
-    /// As [`Config::unrefined_solve_into`].
-    unrefined_solve_into: bool,
 }
 
 /// One deformer per configuration, precomputed, with a warm-up solve (not
@@ -247,10 +264,7 @@ fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
     configs
         .iter()
         .map(|c| {
-            let mut slot = Slot {
-                unrefined_solve_into: c.unrefined_solve_into,
-                ..Slot::default()
-            };
+            let mut slot = Slot::default();
             let outcome = (|| -> Result<Deformer, AnyError> {
                 let mut d = Deformer::new(
                     mesh.clone(),
@@ -260,7 +274,7 @@ fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
                 d.precompute(c.formulation.as_ref())?;
                 slot.precompute = Some(d.report().timings_s.precompute());
                 slot.nnz_factor = d.report().nnz.factor;
-                if c.unrefined_solve_into {
+                if c.frame_call == FrameCall::UnrefinedSolveInto {
                     d.set_refine(Some(Refine::Off));
                 }
                 d.solve_matrix()?;
@@ -276,15 +290,13 @@ fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
 }
 
 /// Frame `f`: the handle's targets moved along the path, then a solve:
-/// `solve_matrix` (the method's default refinement and the diagnostics),
-/// or, for `unrefined_solve_into`, `solve_into` with refinement off into a
-/// buffer kept across frames (the hard-constraint residual is then measured
-/// after the frame's clock has stopped).
+/// as `call` says (after `solve_into`, the hard-constraint residual is
+/// measured once the frame's clock has stopped).
 fn frame(
     deformer: &mut Deformer,
     drag: &Drag,
     f: usize,
-    unrefined_solve_into: bool,
+    call: FrameCall,
     rec: &mut Frames,
 ) -> Result<(), AnyError> {
     let d = path(
@@ -301,7 +313,8 @@ fn frame(
         )?;
     }
     let set = start.elapsed().as_secs_f64();
-    let x = if unrefined_solve_into {
+    let unrefined = call == FrameCall::UnrefinedSolveInto;
+    let x = if unrefined {
         let n = deformer.problem().n();
         let mut x = rec.buffer.take().unwrap_or_else(|| Mat::zeros(n, 3));
         deformer.solve_into(x.as_mut())?;
@@ -315,7 +328,7 @@ fn frame(
     rec.solve.push(r.timings_s.solve);
     rec.refine.push(r.timings_s.refine);
     rec.frame.push(frame);
-    if unrefined_solve_into {
+    if unrefined {
         rec.diagnostics.push(0.0);
         let p = deformer.problem();
         let residual = max_hard_residual(p, &x) / p.length_scale();
@@ -327,7 +340,7 @@ fn frame(
     if f + 1 == drag.frames / 2 {
         rec.middle = Some(x.clone());
     }
-    if unrefined_solve_into {
+    if unrefined {
         rec.buffer = Some(x);
     }
     Ok(())
@@ -336,15 +349,14 @@ fn frame(
 /// The frames, round-robin over the configurations (frame f of every
 /// configuration before frame f + 1 of any), so that the load of this
 /// shared machine falls on all of them alike.
-fn run_frames(ctx: &Context, drag: &Drag, slots: &mut [Slot]) {
+fn run_frames(ctx: &Context, drag: &Drag, configs: &[Config], slots: &mut [Slot]) {
     let bar = ctx.bar(drag.frames, &format!("{NAME}: frames"));
     for f in 0..drag.frames {
-        for slot in slots.iter_mut() {
+        for (c, slot) in configs.iter().zip(slots.iter_mut()) {
             let Some(deformer) = slot.deformer.as_mut() else {
                 continue;
             };
-            let unrefined = slot.unrefined_solve_into;
-            if let Err(e) = frame(deformer, drag, f, unrefined, &mut slot.rec) {
+            if let Err(e) = frame(deformer, drag, f, c.frame_call, &mut slot.rec) {
                 slot.error = Some(e.to_string());
                 slot.deformer = None;
             }
@@ -395,11 +407,7 @@ fn rows(configs: &[Config], slots: &mut [Slot], diag: f64, notes: &mut Vec<Strin
             qr_backend: (c.choice.method == Method::NullSpaceQr)
                 .then(|| c.choice.qr.name().to_string()),
             spd_backend: c.choice.spd.name().to_string(),
-            frame_call: if c.unrefined_solve_into {
-                "solve_into"
-            } else {
-                "solve_matrix"
-            },
+            frame_call: c.frame_call.name(),
             precompute_s: slot.precompute,
             frames: slot.rec.frame.len(),
             nnz_factor: slot.nnz_factor,
@@ -770,7 +778,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let drag = Drag::new(ctx, &case.mesh)?;
     let configs = configs(PENALTY_RELATIVE_WEIGHT, ctx.has_user_meshes())?;
     let mut slots = precompute_all(&case.mesh, &drag, &configs);
-    run_frames(ctx, &drag, &mut slots);
+    run_frames(ctx, &drag, &configs, &mut slots);
     let mut notes: Vec<String> = Vec::new();
     let rows = rows(&configs, &mut slots, case.mesh.bbox_diagonal(), &mut notes);
     write_data(ctx, &dir, &case, &drag, &rows, &slots)?;
