@@ -227,6 +227,7 @@ pub fn failure_kind(e: &Error) -> &'static str {
         Error::Mesh(_) => "bad mesh",
         Error::Io { .. } => "I/O error",
         Error::MatrixFile(_) => "bad matrix file",
+        Error::MemoryLimit(_) => "bad LSE_MEMORY_LIMIT",
     }
 }
 

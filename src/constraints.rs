@@ -588,27 +588,38 @@ pub fn read_constraints(path: &Path, n_vertices: usize) -> Result<ConstraintSet,
 
 /// Reads a constraints file without checking vertex ranges (so that a
 /// caller can first compare the file's `"mesh"` with the mesh at hand; see
-/// [`ConstraintSet::mesh_mismatch`], then [`ConstraintSet::check_vertices`]).
+/// [`ConstraintSet::mesh_mismatch`], then [`ConstraintSet::check_vertices`]),
+/// within the default memory budget ([`read_constraints_file_within`]).
+pub fn read_constraints_file(path: &Path) -> Result<ConstraintSet, Error> {
+    read_constraints_file_within(path, crate::limits::MemoryBudget::default())
+}
+
+/// [`read_constraints_file`] within `budget`.
 ///
 /// The file is parsed as it is read, never held whole: a regular file's
-/// size is checked against the memory budget first
+/// size is checked against the budget first
 /// ([`crate::limits::CONSTRAINT_BYTES_PER_FILE_BYTE`] per byte), and a
-/// stream (a pipe, a device) is read up to the size that estimate allows
-/// and refused beyond ([`ConstraintError::TooLarge`]).
-pub fn read_constraints_file(path: &Path) -> Result<ConstraintSet, Error> {
+/// stream (a pipe, a device) is read up to the size that estimate allows;
+/// one that reaches it is refused ([`ConstraintError::TooLarge`], naming
+/// the budget and the bytes read), whatever its first part parses as.
+pub fn read_constraints_file_within(
+    path: &Path,
+    budget: crate::limits::MemoryBudget,
+) -> Result<ConstraintSet, Error> {
     use std::io::{BufRead, BufReader, Read};
     let io = |e| Error::io(path, e);
     let file = std::fs::File::open(path).map_err(io)?;
     let per_byte = crate::limits::CONSTRAINT_BYTES_PER_FILE_BYTE;
     let too_large = |size: u64| {
-        crate::limits::check(size.saturating_mul(per_byte), || {
-            format!(
-                "{} ({}) would need",
-                path.display(),
-                crate::limits::format_bytes(size)
-            )
-        })
-        .map_err(|detail| ConstraintError::TooLarge { detail })
+        budget
+            .check(size.saturating_mul(per_byte), || {
+                format!(
+                    "{} ({}) would need",
+                    path.display(),
+                    crate::limits::format_bytes(size)
+                )
+            })
+            .map_err(|detail| ConstraintError::TooLarge { detail })
     };
     let size = file
         .metadata()
@@ -618,7 +629,7 @@ pub fn read_constraints_file(path: &Path) -> Result<ConstraintSet, Error> {
     if let Some(size) = size {
         too_large(size)?;
     }
-    let cap = crate::limits::memory_budget() / per_byte;
+    let cap = budget.limit() / per_byte;
     let mut reader = BufReader::with_capacity(1 << 16, file.take(cap.saturating_add(1)));
     if reader.fill_buf().map_err(io)?.starts_with(BOM) {
         reader.consume(BOM.len());
@@ -626,16 +637,14 @@ pub fn read_constraints_file(path: &Path) -> Result<ConstraintSet, Error> {
     let mut de = serde_json::Deserializer::from_reader(&mut reader);
     let result = parse::parse(&mut de);
     drop(de);
-    let beyond_cap = reader.get_ref().limit() == 0;
+    if reader.get_ref().limit() == 0 {
+        // The stream went on past the cap: refused, parsed or not.
+        let name = path.display().to_string();
+        let detail = crate::limits::beyond_the_cap(budget, &name, cap, "", per_byte, "parsing");
+        return Err(ConstraintError::TooLarge { detail }.into());
+    }
     match result {
         Ok(set) => Ok(set),
-        // The stream went on past the cap (and so broke off mid-document).
-        Err(_) if beyond_cap => Err(too_large(cap.saturating_add(1))
-            .err()
-            .unwrap_or_else(|| ConstraintError::TooLarge {
-                detail: format!("{} delivered more than {} bytes", path.display(), cap),
-            })
-            .into()),
         Err(parse::Failure::Constraint(e)) => Err(e.into()),
         Err(parse::Failure::Json(e)) if e.is_io() => Err(io(e.into())),
         Err(parse::Failure::Json(e)) => Err(parse::json_error(&e).into()),

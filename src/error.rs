@@ -33,6 +33,10 @@ pub enum Error {
     /// A Matrix Market file is invalid.
     #[error(transparent)]
     MatrixFile(#[from] MatrixFileError),
+    /// `LSE_MEMORY_LIMIT` is set to something that is not a size
+    /// ([`crate::limits::MemoryBudget::from_environment`]).
+    #[error(transparent)]
+    MemoryLimit(#[from] crate::limits::MemoryLimitError),
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
     Io {
@@ -160,18 +164,26 @@ pub enum MeshError {
         /// 1-based file line of the face, if read from a line-based file.
         line: Option<usize>,
     },
-    /// A face has (numerically) zero area.
+    /// A face has (numerically) zero area: twice its area is at most
+    /// `64 ε` times its longest edge squared
+    /// ([`crate::mesh::quality::TriangleSize`]).
     #[error(
-        "face {face}{} (vertices {vertices:?}) has zero area ({area:e}): its angles and cotangent weights are undefined, so no cotangent Laplacian can be built on this rest shape (the uniform Laplacian needs no angles)",
-        at_line(line)
+        "face {face}{} (vertices {vertices:?}) has zero area for its size (area {}, longest edge {}: twice the area over the longest edge squared is {relative_area:.1e}, not above 64ε = 1.4e-14): its angles and cotangent weights are undefined, so no cotangent Laplacian can be built on this rest shape (the uniform Laplacian needs no angles)",
+        at_line(line),
+        show_magnitude(*area),
+        show_magnitude(*longest_edge)
     )]
     DegenerateFace {
         /// Face index.
         face: usize,
         /// Its vertices.
         vertices: [usize; 3],
-        /// Its area.
+        /// Its area (infinite when beyond the largest double).
         area: f64,
+        /// Its longest edge (infinite when beyond the largest double).
+        longest_edge: f64,
+        /// Twice its area over its longest edge squared (unit-free).
+        relative_area: f64,
         /// 1-based file line of the face, if read from a line-based file.
         line: Option<usize>,
     },
@@ -228,6 +240,16 @@ pub enum MeshError {
         /// The estimate and the limit.
         detail: String,
     },
+}
+
+/// A length or an area for a message: `{:e}`, or "beyond the largest
+/// double" when it is infinite.
+fn show_magnitude(x: f64) -> String {
+    if x.is_infinite() {
+        "beyond the largest double (1.8e308)".into()
+    } else {
+        format!("{x:.3e}")
+    }
 }
 
 /// `" (line N)"`, or nothing.

@@ -1,34 +1,49 @@
-//! The memory budget: inputs and systems that would not fit are refused up
-//! front, with the estimate, instead of the process being killed.
+//! The memory budget: inputs and systems that would not fit are refused
+//! up front, with the estimate, instead of the process being killed.
 //!
-//! A solve's budget is a [`MemoryBudget`], one of its options
-//! (`SolveOptions`). Its default, which is also the budget of reading input
-//! files, is `LSE_MEMORY_LIMIT` when set (bytes, with an optional `K`, `M`,
-//! `G` or `T` suffix, powers of 1024), otherwise the memory the kernel
-//! reports as available (`MemAvailable` in `/proc/meminfo`) when the process
-//! starts using it, otherwise unlimited. These estimates are checked against
-//! it, each before the memory is allocated:
+//! One [`MemoryBudget`] bounds a whole run: reading the inputs (the bytes
+//! read, decompressed and assembled into a mesh) and the solve's
+//! precompute alike. The readers take it as a parameter (their `_within`
+//! variants; the plain ones use the default) and a solve takes it with its
+//! options (`SolveOptions`). The default ([`MemoryBudget::default`]) is
+//! `LSE_MEMORY_LIMIT` when set (bytes, with an optional `K`, `M`, `G` or
+//! `T` suffix, powers of 1024; anything else, an empty value included, is
+//! a [`MemoryLimitError`] from [`MemoryBudget::from_environment`]),
+//! otherwise the smallest of three limits of the system, read when the
+//! process first asks: the memory the kernel reports as available
+//! (`MemAvailable` in `/proc/meminfo`), the process's address-space limit
+//! (`RLIMIT_AS`, `ulimit -v`, from `/proc/self/limits`) and the memory
+//! limit of its cgroup (v2 `memory.max`, v1 `memory.limit_in_bytes`, the
+//! smallest along the cgroup's path); otherwise unlimited. The budget's
+//! [`BudgetSource`] names which applied. These estimates are checked
+//! against it, each before the memory is allocated:
 //!
 //! | what | estimate | where |
 //! |---|---|---|
-//! | a mesh file | [`MESH_BYTES_PER_FILE_BYTE`] × file size (× [`GZIP_EXPANSION`] when compressed) | [`crate::mesh::read_mesh`] |
+//! | a mesh file | [`MESH_BYTES_PER_FILE_BYTE`] × file size (× [`GZIP_EXPANSION`] when compressed) | [`crate::mesh::read_mesh_within`] |
+//! | the bytes of a mesh read from a stream or decompressed | at most budget / [`MESH_BYTES_PER_FILE_BYTE`] bytes are read; one more is a refusal, never a parse of the prefix | [`crate::mesh::read_mesh_within`], [`crate::mesh::read_mesh_bytes_within`] |
 //! | a mesh header's counts (OFF, PLY) | [`MESH_BYTES_PER_VERTEX`] × vertices + [`MESH_BYTES_PER_FACE`] × faces | the OFF and PLY readers |
-//! | a constraints file | [`CONSTRAINT_BYTES_PER_FILE_BYTE`] × file size | [`crate::constraints::read_constraints`] |
+//! | a mesh as it is assembled | the same per vertex and per triangle read so far (a polygon's fan counts its triangles) | every mesh reader, at each vertex and polygon |
+//! | a constraints file | [`CONSTRAINT_BYTES_PER_FILE_BYTE`] × file size; a stream at most budget / that many bytes, one more is a refusal | [`crate::constraints::read_constraints_file_within`] |
 //! | a dense Householder block | its reflectors, `8 k min(k, m)` bytes, and its dense `(k − m)²` block of the normal matrix | [`crate::backend::qr::DenseHouseholder`] |
 //! | a Cholesky factor | [`FACTOR_BYTES_PER_ENTRY`] × the factor's nnz from the symbolic analysis | every formulation, between analysis and numeric factorisation |
 //! | the `R` of a sparse QR of `Bᵀ` | 16 bytes × `nnz(R)` counted from the column elimination tree of `Bᵀ` (never forming `B Bᵀ`) | `sparse-givens` (each column order it tries) and `spqr`, before factoring |
 //! | a response basis of `G` groups | `8 k (3 (l + m) + 6 n)` bytes, `k = 3 + 4G` columns ([`crate::handle::HandleBasis::estimated_bytes`]) | [`crate::handle::HandleBasis::new`]; the editor before its precompute |
-//! | the four Matrix Market files of `solve` | from their headers together: 48 bytes per announced entry and 8 per column of `A` and `B`, and `C`, `D` dense | [`crate::mtx::read_system`], before any entry is read |
+//! | the four Matrix Market files of `solve` | from their headers together: 48 bytes per announced entry and 8 per column of `A` and `B`, and `C`, `D` dense | [`crate::mtx::read_system_within`], before any entry is read |
 //!
 //! What has no size up front is bounded as it is read: a stream (a pipe, a
-//! device) given as a mesh or constraints file is read up to the bytes
-//! whose estimate fits the budget and refused beyond, a line of a text mesh
-//! or Matrix Market file is at most 16 MiB or 1 MiB, and a Matrix Market
-//! file at most 256 bytes per value its size line announces.
+//! device, gzip-compressed data) given as a mesh or constraints file is
+//! read up to the bytes whose estimate fits the budget, and reaching that
+//! cap is a refusal that names the budget and the bytes read (what was
+//! read is never used: a prefix of a mesh can parse as a smaller mesh); a
+//! line of a text mesh or Matrix Market file is at most 16 MiB or 1 MiB,
+//! and a Matrix Market file at most 256 bytes per value its size line
+//! announces.
 //!
 //! The estimates are deliberately rough (within a small factor): their job
 //! is to turn "killed by the kernel" into a message with numbers in it.
 
+use std::path::Path;
 use std::sync::OnceLock;
 
 /// Bytes of a loaded mesh per byte of an uncompressed file, an upper
@@ -62,56 +77,126 @@ pub const FACTOR_BYTES_PER_ENTRY: u64 = 12;
 /// The default memory budget in bytes (see the module documentation), read
 /// once per process: what [`MemoryBudget::default`] holds.
 pub fn memory_budget() -> u64 {
-    default_budget().bytes
+    MemoryBudget::default().bytes
 }
 
-/// The default budget with its source, read once.
-fn default_budget() -> MemoryBudget {
-    static BUDGET: OnceLock<MemoryBudget> = OnceLock::new();
-    *BUDGET.get_or_init(|| {
-        let from_env = std::env::var("LSE_MEMORY_LIMIT")
-            .ok()
-            .and_then(|s| parse_bytes(&s));
-        match (from_env, available_memory()) {
-            (Some(bytes), _) => MemoryBudget {
-                bytes,
-                source: BudgetSource::Environment,
-            },
-            (None, Some(bytes)) => MemoryBudget {
-                bytes,
-                source: BudgetSource::Available,
-            },
-            (None, None) => MemoryBudget::unlimited(),
-        }
-    })
+/// `LSE_MEMORY_LIMIT` read once per process: the budget it sets, the
+/// process's ([`MemoryBudget::system`]) when it is not set, or the error
+/// when it is set to something that is not a size.
+fn environment_budget() -> &'static Result<MemoryBudget, MemoryLimitError> {
+    static BUDGET: OnceLock<Result<MemoryBudget, MemoryLimitError>> = OnceLock::new();
+    BUDGET.get_or_init(|| budget_from_variable(std::env::var_os(MEMORY_LIMIT_VARIABLE)))
 }
 
-/// Where a [`MemoryBudget`] comes from, for messages.
+/// The environment variable of the default budget.
+pub const MEMORY_LIMIT_VARIABLE: &str = "LSE_MEMORY_LIMIT";
+
+/// The budget `LSE_MEMORY_LIMIT`'s value (`None`: not set) names.
+fn budget_from_variable(
+    value: Option<std::ffi::OsString>,
+) -> Result<MemoryBudget, MemoryLimitError> {
+    let Some(value) = value else {
+        return Ok(MemoryBudget::system());
+    };
+    match value.to_str().and_then(parse_bytes) {
+        Some(bytes) => Ok(MemoryBudget {
+            bytes,
+            source: BudgetSource::Environment,
+        }),
+        None => Err(MemoryLimitError {
+            value: value.to_string_lossy().into_owned(),
+        }),
+    }
+}
+
+/// `LSE_MEMORY_LIMIT` is set to something that is not a size: a positive
+/// number of bytes with an optional `K`, `M`, `G` or `T` suffix
+/// ([`parse_bytes`]). An empty value is such a value too: unset the
+/// variable for the default budget.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "LSE_MEMORY_LIMIT={value:?} is not a size (a positive number of bytes, optionally with K, M, G or T, powers of 1024); unset it for the default budget"
+)]
+pub struct MemoryLimitError {
+    /// The variable's value (lossily decoded if it is not UTF-8).
+    pub value: String,
+}
+
+/// Where a [`MemoryBudget`] comes from, for messages and reports
+/// (serialised as its lowercase word, [`BudgetSource::word`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum BudgetSource {
-    /// Given with the solve ([`MemoryBudget::bytes`], the solve options).
+    /// Given with the call ([`MemoryBudget::bytes`]: the solve options,
+    /// the CLI's `--memory-limit`).
     Option,
     /// `LSE_MEMORY_LIMIT`.
     Environment,
-    /// The memory the kernel reported as available when first asked.
+    /// The memory the kernel reported as available (`MemAvailable`) when
+    /// first asked.
     Available,
-    /// No limit (no environment variable and no `/proc/meminfo`, or
-    /// [`MemoryBudget::unlimited`]).
+    /// The process's address-space limit (`RLIMIT_AS`, `ulimit -v`).
+    AddressSpace,
+    /// The memory limit of the process's cgroup (`memory.max` of cgroup
+    /// v2, `memory.limit_in_bytes` of v1).
+    Cgroup,
+    /// No limit (no environment variable and none of the system's limits
+    /// known, or [`MemoryBudget::unlimited`]).
     Unlimited,
 }
 
-/// The memory a solve may use: every estimate of its precompute (the
-/// Cholesky or `LDLᵀ` factor's size, the QR factor's `R`, dense Householder
-/// blocks, a response basis) is checked against it before the memory is
-/// allocated, and a solve beyond it is refused with
-/// [`crate::error::ProblemError::TooLarge`].
+impl BudgetSource {
+    /// `option`, `environment`, `available`, `rlimit`, `cgroup` or
+    /// `unlimited`: the word of reports.
+    pub fn word(self) -> &'static str {
+        match self {
+            BudgetSource::Option => "option",
+            BudgetSource::Environment => "environment",
+            BudgetSource::Available => "available",
+            BudgetSource::AddressSpace => "rlimit",
+            BudgetSource::Cgroup => "cgroup",
+            BudgetSource::Unlimited => "unlimited",
+        }
+    }
+
+    /// The source as messages name it.
+    fn describe(self) -> &'static str {
+        match self {
+            BudgetSource::Option => "the memory budget of the solve options",
+            BudgetSource::Environment => "LSE_MEMORY_LIMIT",
+            BudgetSource::Available => {
+                "the available memory; set LSE_MEMORY_LIMIT or the solve options' memory budget to change it"
+            }
+            BudgetSource::AddressSpace => {
+                "the process's address-space limit (RLIMIT_AS); set LSE_MEMORY_LIMIT or the solve options' memory budget to a smaller budget"
+            }
+            BudgetSource::Cgroup => {
+                "the memory limit of the process's cgroup; set LSE_MEMORY_LIMIT or the solve options' memory budget to a smaller budget"
+            }
+            BudgetSource::Unlimited => "no limit",
+        }
+    }
+}
+
+/// The memory a run may use: every estimate of reading its inputs (the
+/// bytes read, decompressed and assembled), and of a solve's precompute
+/// (the Cholesky or `LDLᵀ` factor's size, the QR factor's `R`, dense
+/// Householder blocks, a response basis) is checked against it before the
+/// memory is allocated, and what is beyond it is refused with a `TooLarge`
+/// error ([`crate::error::ProblemError::TooLarge`],
+/// [`crate::error::MeshError::TooLarge`],
+/// [`crate::error::ConstraintError::TooLarge`]).
 ///
 /// The default ([`MemoryBudget::default`]) is the process's:
-/// `LSE_MEMORY_LIMIT` when set, otherwise the available memory, otherwise
-/// unlimited (the module documentation), so a solve given no budget
-/// behaves as one did before budgets were options. [`MemoryBudget::bytes`]
-/// sets one for a solve, whatever the environment says. Input files are
-/// read before any solve and are checked against the default.
+/// `LSE_MEMORY_LIMIT` when set, otherwise the smallest of the available
+/// memory, the address-space limit and the cgroup's memory limit,
+/// otherwise unlimited (the module documentation).
+/// [`MemoryBudget::from_environment`] is the same but reports a malformed
+/// `LSE_MEMORY_LIMIT`. [`MemoryBudget::bytes`] sets one for a call,
+/// whatever the environment says; the readers' `_within` variants
+/// ([`crate::mesh::read_mesh_within`],
+/// [`crate::constraints::read_constraints_file_within`],
+/// [`crate::mtx::read_system_within`]) take it, so one budget can bound a
+/// whole run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MemoryBudget {
     bytes: u64,
@@ -120,14 +205,31 @@ pub struct MemoryBudget {
 
 impl Default for MemoryBudget {
     /// The process's budget: `LSE_MEMORY_LIMIT` when set, otherwise the
-    /// available memory, otherwise unlimited (read once per process).
+    /// smallest of the system's limits ([`MemoryBudget::system`]), read
+    /// once per process. A malformed `LSE_MEMORY_LIMIT` is ignored here;
+    /// [`MemoryBudget::from_environment`] reports it, and front doors call
+    /// that first.
     fn default() -> MemoryBudget {
-        default_budget()
+        environment_budget()
+            .clone()
+            .unwrap_or_else(|_| MemoryBudget::system())
+    }
+}
+
+impl serde::Serialize for MemoryBudget {
+    /// `{"bytes": N, "source": "word"}`, `bytes` `null` when unlimited.
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut out = s.serialize_struct("MemoryBudget", 2)?;
+        let bytes = (self.bytes != u64::MAX).then_some(self.bytes);
+        out.serialize_field("bytes", &bytes)?;
+        out.serialize_field("source", self.source.word())?;
+        out.end()
     }
 }
 
 impl MemoryBudget {
-    /// A budget of `bytes` for one solve, whatever the environment says.
+    /// A budget of `bytes` for one call, whatever the environment says.
     pub fn bytes(bytes: u64) -> MemoryBudget {
         MemoryBudget {
             bytes,
@@ -141,6 +243,29 @@ impl MemoryBudget {
             bytes: u64::MAX,
             source: BudgetSource::Unlimited,
         }
+    }
+
+    /// The process's budget, or the error of a malformed
+    /// `LSE_MEMORY_LIMIT` (read once per process; set but empty is
+    /// malformed too). What a front door calls before anything else.
+    pub fn from_environment() -> Result<MemoryBudget, MemoryLimitError> {
+        environment_budget().clone()
+    }
+
+    /// The system's budget, whatever `LSE_MEMORY_LIMIT` says: the smallest
+    /// of `MemAvailable` ([`available_memory`]), the address-space limit
+    /// ([`address_space_limit`]) and the cgroup's memory limit
+    /// ([`cgroup_memory_limit`]), the source naming which; unlimited when
+    /// none is known. Read once per process.
+    pub fn system() -> MemoryBudget {
+        static SYSTEM: OnceLock<MemoryBudget> = OnceLock::new();
+        *SYSTEM.get_or_init(|| {
+            smallest(&[
+                (available_memory(), BudgetSource::Available),
+                (address_space_limit(), BudgetSource::AddressSpace),
+                (cgroup_memory_limit(), BudgetSource::Cgroup),
+            ])
+        })
     }
 
     /// The budget in bytes (`u64::MAX` when unlimited).
@@ -160,28 +285,126 @@ impl MemoryBudget {
         if estimate <= self.bytes {
             return Ok(());
         }
-        let source = match self.source {
-            BudgetSource::Option => "the memory budget of the solve options",
-            BudgetSource::Environment => "LSE_MEMORY_LIMIT",
-            BudgetSource::Available | BudgetSource::Unlimited => {
-                "the available memory; set LSE_MEMORY_LIMIT or the solve options' memory budget to change it"
-            }
-        };
         Err(format!(
-            "{} about {}, more than the memory budget of {} ({source})",
+            "{} about {}, more than the memory budget of {} ({})",
             what(),
             format_bytes(estimate),
             format_bytes(self.bytes),
+            self.source.describe(),
         ))
     }
 }
 
+/// The detail of a refusal of `name`, a stream that went on beyond `cap`,
+/// the bytes read (`after`: e.g. " after decompression"), the most that
+/// `budget` allows at `per_byte` bytes of memory (of `of`) per byte read.
+pub fn beyond_the_cap(
+    budget: MemoryBudget,
+    name: &str,
+    cap: u64,
+    after: &str,
+    per_byte: u64,
+    of: &str,
+) -> String {
+    format!(
+        "{name} goes on beyond the {} read{after}, the most that the memory budget of {} ({}) allows at {per_byte} bytes of {of} per byte",
+        format_bytes(cap),
+        format_bytes(budget.bytes),
+        budget.source.describe(),
+    )
+}
+
+/// The smallest known limit (the first of equal ones), unlimited when none
+/// is known.
+fn smallest(limits: &[(Option<u64>, BudgetSource)]) -> MemoryBudget {
+    limits
+        .iter()
+        .filter_map(|&(bytes, source)| bytes.map(|bytes| MemoryBudget { bytes, source }))
+        .reduce(|best, b| if b.bytes < best.bytes { b } else { best })
+        .unwrap_or_else(MemoryBudget::unlimited)
+}
+
 /// `MemAvailable` of `/proc/meminfo`, bytes (Linux only).
 pub fn available_memory() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    parse_meminfo(&std::fs::read_to_string("/proc/meminfo").ok()?)
+}
+
+/// `MemAvailable` of the text of `/proc/meminfo` (kB, i.e. KiB), bytes.
+fn parse_meminfo(info: &str) -> Option<u64> {
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     kib.checked_mul(1024)
+}
+
+/// The soft limit of the process's address space (`RLIMIT_AS`, what
+/// `ulimit -v` sets), bytes, from `/proc/self/limits` (Linux only; read
+/// there rather than through `getrlimit` so the crate needs no `libc`);
+/// `None` when unlimited or unknown.
+pub fn address_space_limit() -> Option<u64> {
+    parse_address_space(&std::fs::read_to_string("/proc/self/limits").ok()?)
+}
+
+/// The soft limit of the line `Max address space  SOFT  HARD  bytes` of
+/// `/proc/self/limits`; `None` for `unlimited`.
+fn parse_address_space(limits: &str) -> Option<u64> {
+    let line = limits
+        .lines()
+        .find(|l| l.starts_with("Max address space"))?;
+    line["Max address space".len()..]
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// The memory limit of the process's cgroup, bytes: the smallest
+/// `memory.max` (cgroup v2) or `memory.limit_in_bytes` (v1) of its cgroup
+/// and the cgroup's ancestors under `/sys/fs/cgroup` (a limit applies to
+/// everything below it), as named in `/proc/self/cgroup`; `None` when
+/// there is no limit (`max`, or v1's near-`i64::MAX` "no limit") or no
+/// cgroup file (Linux only).
+pub fn cgroup_memory_limit() -> Option<u64> {
+    let membership = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    cgroup_limit_under(Path::new("/sys/fs/cgroup"), &membership)
+}
+
+/// [`cgroup_memory_limit`] with the cgroup file system mounted at `root`
+/// and `membership` the text of `/proc/self/cgroup`: lines
+/// `ID:CONTROLLERS:PATH`, `0::PATH` for v2 (files under `root`), a
+/// `memory` controller for v1 (files under `root/memory`).
+fn cgroup_limit_under(root: &Path, membership: &str) -> Option<u64> {
+    /// Values from here up mean "no limit" (v1 writes `i64::MAX` rounded
+    /// down to a page).
+    const NO_LIMIT: u64 = 1 << 62;
+    let mut limits = Vec::new();
+    for line in membership.lines() {
+        let mut fields = line.splitn(3, ':');
+        let (Some(id), Some(controllers), Some(path)) =
+            (fields.next(), fields.next(), fields.next())
+        else {
+            continue;
+        };
+        let (dir, file) = if id == "0" && controllers.is_empty() {
+            (root.to_path_buf(), "memory.max")
+        } else if controllers.split(',').any(|c| c == "memory") {
+            (root.join("memory"), "memory.limit_in_bytes")
+        } else {
+            continue;
+        };
+        let mut cgroup = dir.join(path.trim_start_matches('/'));
+        loop {
+            if let Ok(text) = std::fs::read_to_string(cgroup.join(file))
+                && let Ok(bytes) = text.trim().parse::<u64>()
+                && bytes < NO_LIMIT
+            {
+                limits.push(bytes);
+            }
+            if cgroup == dir || !cgroup.pop() {
+                break;
+            }
+        }
+    }
+    limits.into_iter().min()
 }
 
 /// `"8G"`, `"512M"`, `"1000000"` → bytes (powers of 1024); `None` if
@@ -265,5 +488,87 @@ mod tests {
             e.ends_with("(the memory budget of the solve options)"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_malformed_environment_value_is_an_error_naming_it() {
+        for value in ["abc", "-1", "0", "1.5G", "", " ", "12X"] {
+            let e = budget_from_variable(Some(value.into())).unwrap_err();
+            assert_eq!(e.value, value);
+            let message = e.to_string();
+            assert!(
+                message.starts_with(&format!("LSE_MEMORY_LIMIT={value:?} is not a size")),
+                "{message}"
+            );
+        }
+        let b = budget_from_variable(Some("2G".into())).unwrap();
+        assert_eq!(
+            (b.limit(), b.source()),
+            (2 << 30, BudgetSource::Environment)
+        );
+        assert_eq!(budget_from_variable(None), Ok(MemoryBudget::system()));
+    }
+
+    #[test]
+    fn the_system_budget_is_the_smallest_known_limit() {
+        use BudgetSource::*;
+        let b = smallest(&[
+            (Some(8 << 30), Available),
+            (None, AddressSpace),
+            (Some(1 << 30), Cgroup),
+        ]);
+        assert_eq!((b.limit(), b.source()), (1 << 30, Cgroup));
+        let b = smallest(&[
+            (Some(8 << 30), Available),
+            (Some(4 << 30), AddressSpace),
+            (None, Cgroup),
+        ]);
+        assert_eq!((b.limit(), b.source()), (4 << 30, AddressSpace));
+        let b = smallest(&[(Some(1 << 30), Available), (Some(1 << 30), Cgroup)]);
+        assert_eq!(b.source(), Available);
+        assert_eq!(smallest(&[(None, Available)]), MemoryBudget::unlimited());
+    }
+
+    #[test]
+    fn reads_meminfo_and_the_address_space_limit() {
+        let meminfo = "MemTotal:       32000000 kB\nMemAvailable:   2048 kB\n";
+        assert_eq!(parse_meminfo(meminfo), Some(2 << 20));
+        let limits = "Limit                     Soft Limit           Hard Limit           Units     \n\
+                      Max stack size            8388608              unlimited            bytes     \n\
+                      Max address space         1073741824           unlimited            bytes     \n";
+        assert_eq!(parse_address_space(limits), Some(1 << 30));
+        let unlimited = limits.replace("1073741824", "unlimited ");
+        assert_eq!(parse_address_space(&unlimited), None);
+    }
+
+    #[test]
+    fn reads_the_cgroup_limit_along_the_path_in_v1_and_v2() {
+        let root = tempfile::tempdir().unwrap();
+        let write = |path: &str, text: &str| {
+            let path = root.path().join(path);
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(path, text).unwrap();
+        };
+        // v2: the smallest along /a/b, "max" meaning none.
+        write("a/memory.max", "1073741824\n");
+        write("a/b/memory.max", "max\n");
+        assert_eq!(cgroup_limit_under(root.path(), "0::/a/b\n"), Some(1 << 30));
+        write("a/b/memory.max", "536870912\n");
+        assert_eq!(cgroup_limit_under(root.path(), "0::/a/b\n"), Some(1 << 29));
+        // v1: the memory controller's hierarchy; near i64::MAX means none.
+        write("memory/p/memory.limit_in_bytes", "9223372036854771712\n");
+        let v1 = "4:memory:/p\n3:cpuset:/\n";
+        assert_eq!(cgroup_limit_under(root.path(), v1), None);
+        write("memory/p/memory.limit_in_bytes", "268435456\n");
+        assert_eq!(cgroup_limit_under(root.path(), v1), Some(256 << 20));
+        assert_eq!(cgroup_limit_under(root.path(), "1:cpu:/\n"), None);
+    }
+
+    #[test]
+    fn a_budget_serialises_as_bytes_and_the_source_word() {
+        let json = serde_json::to_string(&MemoryBudget::bytes(1024)).unwrap();
+        assert_eq!(json, r#"{"bytes":1024,"source":"option"}"#);
+        let json = serde_json::to_string(&MemoryBudget::unlimited()).unwrap();
+        assert_eq!(json, r#"{"bytes":null,"source":"unlimited"}"#);
     }
 }

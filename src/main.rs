@@ -56,6 +56,12 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // A malformed LSE_MEMORY_LIMIT is bad input, before anything is read
+    // (the default budget of every command comes from it).
+    if let Err(e) = lse_deform::MemoryBudget::from_environment() {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     let result = match cli.command {
         Command::Deform(a) => cli::deform::deform(a),
         Command::Generate(a) => cli::generate::generate(a),

@@ -46,6 +46,7 @@ use faer::{Mat, MatRef};
 
 use crate::error::{Error, MatrixFileError, ProblemError};
 use crate::interop::faer_to_sprs;
+use crate::limits::MemoryBudget;
 
 /// A matrix read from a Matrix Market file, in the form the file has.
 #[derive(Debug, Clone)]
@@ -96,6 +97,11 @@ impl MatrixFile {
     /// The matrix as a dense one; a sparse file is expanded after a check of
     /// `rows × cols × 8` bytes against the memory budget.
     pub fn into_dense(self, path: &Path) -> Result<Mat<f64>, Error> {
+        self.into_dense_within(path, MemoryBudget::default())
+    }
+
+    /// [`MatrixFile::into_dense`] within `budget`.
+    fn into_dense_within(self, path: &Path, budget: MemoryBudget) -> Result<Mat<f64>, Error> {
         match self {
             MatrixFile::Dense(m) => Ok(m),
             MatrixFile::Sparse(m) => {
@@ -104,6 +110,7 @@ impl MatrixFile {
                     (m.nrows() as u64)
                         .saturating_mul(m.ncols() as u64)
                         .saturating_mul(8),
+                    budget,
                 )?;
                 Ok(m.to_dense())
             }
@@ -111,8 +118,9 @@ impl MatrixFile {
     }
 }
 
-fn check_memory(path: &Path, bytes: u64) -> Result<(), Error> {
-    crate::limits::check(bytes, || format!("the matrix of {}", path.display()))
+fn check_memory(path: &Path, bytes: u64, budget: MemoryBudget) -> Result<(), Error> {
+    budget
+        .check(bytes, || format!("the matrix of {}", path.display()))
         .map_err(|detail| ProblemError::TooLarge { detail }.into())
 }
 
@@ -188,7 +196,7 @@ pub fn read_matrix(path: &Path) -> Result<MatrixFile, Error> {
 
 /// [`read_matrix`] from any reader; `path` names it in errors.
 pub fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile, Error> {
-    open(reader, path)?.read_entries()
+    open(reader, path)?.read_entries(MemoryBudget::default())
 }
 
 /// The header and size line of a Matrix Market file, without its entries.
@@ -337,8 +345,8 @@ fn open<R: BufRead>(reader: R, path: &Path) -> Result<Opened<'_, R>, Error> {
 }
 
 impl<R: BufRead> Opened<'_, R> {
-    /// Reads the entries (after checking their memory against the budget).
-    fn read_entries(mut self) -> Result<MatrixFile, Error> {
+    /// Reads the entries (after checking their memory against `budget`).
+    fn read_entries(mut self, budget: MemoryBudget) -> Result<MatrixFile, Error> {
         let MatrixHeader {
             rows,
             cols,
@@ -354,8 +362,9 @@ impl<R: BufRead> Opened<'_, R> {
                 self.pattern,
                 self.symmetry,
                 self.size_line,
+                budget,
             ),
-            None => read_array(&mut self.lines, rows, cols, self.size_line),
+            None => read_array(&mut self.lines, rows, cols, self.size_line, budget),
         }
     }
 }
@@ -381,7 +390,19 @@ pub type SystemMatrices = (
 /// reading all four (with the dense expansions) must fit the memory
 /// budget ([`ProblemError::TooLarge`]). So a few bytes of header cannot
 /// make the reader allocate for a matrix that would be refused anyway.
+/// Within the default memory budget; see [`read_system_within`].
 pub fn read_system(a: &Path, c: &Path, b: &Path, d: &Path) -> Result<SystemMatrices, Error> {
+    read_system_within(a, c, b, d, MemoryBudget::default())
+}
+
+/// [`read_system`] within `budget`.
+pub fn read_system_within(
+    a: &Path,
+    c: &Path,
+    b: &Path,
+    d: &Path,
+    budget: MemoryBudget,
+) -> Result<SystemMatrices, Error> {
     fn open_file(path: &Path) -> Result<Opened<'_, BufReader<File>>, Error> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
         open(BufReader::new(file), path)
@@ -434,17 +455,18 @@ pub fn read_system(a: &Path, c: &Path, b: &Path, d: &Path) -> Result<SystemMatri
         .saturating_add(sparse(&hb))
         .saturating_add(dense(&hc))
         .saturating_add(dense(&hd));
-    crate::limits::check(total, || {
-        format!(
-            "reading A ({} × {}), C ({} × {}), B ({} × {}) and D ({} × {}) would need",
-            ha.rows, ha.cols, hc.rows, hc.cols, hb.rows, hb.cols, hd.rows, hd.cols
-        )
-    })
-    .map_err(|detail| Error::from(ProblemError::TooLarge { detail }))?;
-    let ma = fa.read_entries()?.into_sparse();
-    let mc = fc.read_entries()?.into_dense(c)?;
-    let mb = fb.read_entries()?.into_sparse();
-    let md = fd.read_entries()?.into_dense(d)?;
+    budget
+        .check(total, || {
+            format!(
+                "reading A ({} × {}), C ({} × {}), B ({} × {}) and D ({} × {}) would need",
+                ha.rows, ha.cols, hc.rows, hc.cols, hb.rows, hb.cols, hd.rows, hd.cols
+            )
+        })
+        .map_err(|detail| Error::from(ProblemError::TooLarge { detail }))?;
+    let ma = fa.read_entries(budget)?.into_sparse();
+    let mc = fc.read_entries(budget)?.into_dense_within(c, budget)?;
+    let mb = fb.read_entries(budget)?.into_sparse();
+    let md = fd.read_entries(budget)?.into_dense_within(d, budget)?;
     Ok((ma, mc, mb, md))
 }
 
@@ -471,6 +493,7 @@ fn read_coordinate(
     pattern: bool,
     symmetry: Symmetry,
     size_line: usize,
+    budget: MemoryBudget,
 ) -> Result<MatrixFile, Error> {
     let path = lines.path;
     // A symmetric or skew-symmetric file stores each off-diagonal entry
@@ -486,6 +509,7 @@ fn read_coordinate(
         stored
             .saturating_mul(BYTES_PER_SPARSE_ENTRY)
             .saturating_add((cols as u64).saturating_mul(8)),
+        budget,
     )?;
     let mut triplets = Vec::with_capacity(stored.min(1 << 20) as usize);
     let mut count = 0usize;
@@ -574,14 +598,15 @@ fn read_array(
     rows: usize,
     cols: usize,
     size_line: usize,
+    budget: MemoryBudget,
 ) -> Result<MatrixFile, Error> {
     let path = lines.path;
     let total = (rows as u64).saturating_mul(cols as u64);
-    check_memory(path, total.saturating_mul(8))?;
+    check_memory(path, total.saturating_mul(8), budget)?;
     // An empty array may still announce a huge dimension (0 × 10¹²): no
     // dimension may exceed what the budget holds, or every loop over the
     // columns of the empty matrix runs for hours.
-    check_memory(path, (rows.max(cols) as u64).saturating_mul(8))?;
+    check_memory(path, (rows.max(cols) as u64).saturating_mul(8), budget)?;
     let total = usize::try_from(total)
         .map_err(|_| lines.error(Some(size_line), "rows × cols overflows".into()))?;
     let mut values = Vec::with_capacity(total.min(1 << 24));

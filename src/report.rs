@@ -271,6 +271,12 @@ pub struct Report {
     pub kkt_multiplier_scale: Option<f64>,
     /// The as-rigid-as-possible iterations (`deform --energy arap` only).
     pub arap: Option<ArapReport>,
+    /// The memory budget the precompute was checked against (serialised
+    /// as `{"bytes": N, "source": "option"}`, `bytes` `null` when
+    /// unlimited, the source one of `option`, `environment`, `available`,
+    /// `rlimit`, `cgroup`, `unlimited`: [`crate::limits::BudgetSource`]);
+    /// `None` before a precompute.
+    pub memory_budget: Option<crate::limits::MemoryBudget>,
 }
 
 /// What the ARAP iterations did ([`crate::arap::ArapDeformer`]).

@@ -68,7 +68,8 @@ use crate::report::{
 /// ([`FormulationChoice::new`] of [`Method::NullSpaceQr`]), the
 /// formulation's default refinement (`refine: None`) and the process's
 /// memory budget ([`MemoryBudget::default`]: `LSE_MEMORY_LIMIT` when set,
-/// otherwise the available memory), which is what a solve without options
+/// otherwise the smallest of the available memory, the address-space limit
+/// and the cgroup's memory limit), which is what a solve without options
 /// does.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolveOptions {
@@ -216,6 +217,7 @@ impl LseSolver {
         self.system = None;
         self.rounding = FactorRounding::default();
         let mut report = self.base.clone();
+        report.memory_budget = Some(self.memory_budget);
         let system = formulation
             .precompute_within(&self.problem, &mut report, self.memory_budget)
             .map_err(|e| name_free_unknown(e, &self.problem))?;

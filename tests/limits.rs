@@ -199,9 +199,9 @@ fn the_memory_limit_flag_sets_the_solve_budget_over_the_environment() {
     assert!(stderr(&o).contains("'12X' is not a size"), "{}", stderr(&o));
 }
 
-/// `compare --memory-limit` bounds every configuration's precompute: the
-/// reference's factor beyond 1 KiB is refused with the budget's source,
-/// and the same comparison without the flag runs.
+/// `compare --memory-limit` bounds the run (reading its inputs and every
+/// configuration's precompute): beyond 1 KiB the mesh is refused with the
+/// budget's source, and the same comparison without the flag runs.
 #[test]
 fn compare_takes_the_memory_limit_flag() {
     let dir = tempfile::tempdir().unwrap();
@@ -219,10 +219,301 @@ fn compare_takes_the_memory_limit_flag() {
     assert_refused(
         &o,
         &[
-            "Cholesky factor",
+            "mesh file too large",
             "budget of 1.0 KiB (the memory budget of the solve options)",
         ],
     );
     let o = run(None, &args);
     assert!(o.status.success(), "{}", stderr(&o));
+}
+
+// ---------------------------------------------------------------------------
+// A read is whole or refused; one budget bounds the whole run
+
+/// `text` gzip-compressed.
+fn gzip(text: &[u8]) -> Vec<u8> {
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    gz.write_all(text).unwrap();
+    gz.finish().unwrap()
+}
+
+/// A FIFO `dir/name` that a thread fills with `bytes` once a reader opens
+/// it (never joined: a reader that stops early leaves it blocked or broken
+/// off, which ends with the test process).
+fn fifo_with(dir: &Path, name: &str, bytes: Vec<u8>) -> String {
+    let path = p(dir, name);
+    let made = Command::new("mkfifo").arg(&path).status().unwrap();
+    assert!(made.success(), "mkfifo {path}");
+    let writer_path = path.clone();
+    std::thread::spawn(move || {
+        if let Ok(mut f) = std::fs::OpenOptions::new().write(true).open(writer_path) {
+            let _ = f.write_all(&bytes);
+        }
+    });
+    path
+}
+
+/// `LSE_MEMORY_LIMIT` whose reading cap (budget / 4 bytes of mesh) is
+/// `cap` bytes.
+fn budget_with_cap(cap: usize) -> String {
+    (4 * cap).to_string()
+}
+
+/// A mesh read from a pipe, or decompressed from gzip, and cut short by
+/// the reading cap is refused (exit 2, the budget and the bytes read
+/// named), never parsed: cut before its final newline, the text is the
+/// whole mesh, which the old reader took silently, with exit 0, because
+/// what it had read parsed (and a cut three bytes earlier changed the
+/// last face).
+#[test]
+fn a_mesh_cut_short_by_the_reading_cap_is_refused_not_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "grid", "100");
+    let text = std::fs::read(&mesh).unwrap();
+    assert!(text.ends_with(b"\n"));
+    let cap = budget_with_cap(text.len() - 1);
+    let o = run(
+        Some(&cap),
+        &["info", &fifo_with(dir.path(), "pipe.obj", text.clone())],
+    );
+    assert_refused(
+        &o,
+        &[
+            "mesh file too large",
+            "pipe.obj goes on beyond the",
+            "LSE_MEMORY_LIMIT",
+        ],
+    );
+    // gzip-compressed, with comments that compress it far more than 4×:
+    // the file's size passes the check, its decompressed bytes reach the
+    // cap.
+    let mut padded = b"# padding\n".repeat(20_000);
+    padded.extend_from_slice(&text);
+    let gz = p(dir.path(), "padded.obj.gz");
+    std::fs::write(&gz, gzip(&padded)).unwrap();
+    let o = run(Some(&budget_with_cap(padded.len() - 1)), &["info", &gz]);
+    assert_refused(&o, &["mesh file too large", "read after decompression"]);
+    // The same data within a cap that holds it is read.
+    let o = run(Some(&budget_with_cap(padded.len())), &["info", &gz]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // deform writes nothing.
+    let (_, scene) = mesh_and_scene(dir.path(), "grid", "100");
+    let out = p(dir.path(), "out.obj");
+    let pipe = fifo_with(dir.path(), "pipe2.obj", text.clone());
+    let budget = budget_with_cap(text.len() - 1);
+    let o = run(
+        None,
+        &[
+            "deform",
+            &pipe,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--memory-limit",
+            &budget,
+        ],
+    );
+    assert_refused(&o, &["mesh file too large", "pipe2.obj goes on beyond the"]);
+    assert!(!Path::new(&out).exists());
+}
+
+/// A polygon of short indices is 2 bytes a triangle in the file and 32 in
+/// memory: the mesh being assembled is checked against the budget, not
+/// only the bytes read.
+#[test]
+fn a_fan_of_many_triangles_is_checked_as_it_is_assembled() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut text = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf".to_vec();
+    text.extend_from_slice(&b" 1 2 3".repeat(40_000));
+    text.push(b'\n');
+    let mesh = p(dir.path(), "fan.obj");
+    std::fs::write(&mesh, &text).unwrap();
+    // 240 kB of file within 1 MiB; 80 000 triangles need 2.4 MiB.
+    let o = run(Some("1M"), &["info", &mesh]);
+    assert_refused(
+        &o,
+        &[
+            "mesh too large",
+            "triangles read so far",
+            "budget of 1.0 MiB",
+        ],
+    );
+}
+
+/// A malformed `LSE_MEMORY_LIMIT` is an error naming the variable and the
+/// value (exit 2), as `--memory-limit` refuses the same words; it used to
+/// be ignored silently.
+#[test]
+fn a_malformed_memory_limit_variable_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "grid", "100");
+    for value in ["abc", "-1", "0", "1.5G", ""] {
+        let o = run(Some(value), &["info", &mesh]);
+        assert_refused(&o, &[&format!("LSE_MEMORY_LIMIT={value:?} is not a size")]);
+    }
+}
+
+/// `--memory-limit` bounds reading the inputs too: a mesh file beyond it
+/// is refused before it is read (it was read in full with the default
+/// budget and only the factor was checked against the flag).
+#[test]
+fn the_memory_limit_flag_bounds_reading_the_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = mesh_and_scene(dir.path(), "grid", "10000");
+    let out = p(dir.path(), "out.obj");
+    let o = run(
+        None,
+        &[
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--memory-limit",
+            "1M",
+        ],
+    );
+    assert_refused(
+        &o,
+        &[
+            "mesh file too large",
+            "budget of 1.0 MiB (the memory budget of the solve options)",
+        ],
+    );
+    assert!(!Path::new(&out).exists());
+}
+
+/// A gzip bomb (a few kB of `.obj.gz` that expand to 16 MB of
+/// vertices) under `--memory-limit 4M` is refused as the decompressed
+/// bytes reach the cap (1 MiB), not read to the end.
+#[test]
+fn a_gzip_bomb_is_refused_within_the_memory_limit_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, scene) = mesh_and_scene(dir.path(), "grid", "100");
+    let bomb = p(dir.path(), "bomb.obj.gz");
+    std::fs::write(&bomb, gzip(&b"v 0 0 0\n".repeat(2 << 20))).unwrap();
+    let out = p(dir.path(), "out.obj");
+    let o = run(
+        None,
+        &[
+            "deform",
+            &bomb,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--memory-limit",
+            "4M",
+        ],
+    );
+    assert_refused(
+        &o,
+        &[
+            "mesh file too large",
+            "bomb.obj.gz goes on beyond the 1.0 MiB read after decompression",
+            "budget of 4.0 MiB",
+        ],
+    );
+    assert!(!Path::new(&out).exists());
+}
+
+/// The report names the budget the run was checked against: its bytes
+/// and its source's word.
+#[test]
+fn the_report_names_the_memory_budget_and_its_source() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = mesh_and_scene(dir.path(), "grid", "100");
+    let out = p(dir.path(), "out.obj");
+    let report = p(dir.path(), "report.json");
+    let budget = |args: &[&str], limit: Option<&str>| {
+        let mut all = vec![
+            "deform", &mesh, "-c", &scene, "-o", &out, "--report", &report,
+        ];
+        all.extend_from_slice(args);
+        let o = run(limit, &all);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        json["memory_budget"].clone()
+    };
+    assert_eq!(
+        budget(&["--memory-limit", "64M"], None),
+        serde_json::json!({"bytes": 64 << 20, "source": "option"})
+    );
+    assert_eq!(
+        budget(&[], Some("1G")),
+        serde_json::json!({"bytes": 1 << 30, "source": "environment"})
+    );
+}
+
+/// The default budget is the smallest of the system's limits: under
+/// `ulimit -v` (1 GiB of address space, less than the memory available
+/// where this runs) it is the address-space limit, named `rlimit`.
+#[test]
+fn the_default_budget_is_bounded_by_the_address_space_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = mesh_and_scene(dir.path(), "grid", "100");
+    let report = p(dir.path(), "report.json");
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 1048576 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_lse-deform"))
+        .args([
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &p(dir.path(), "out.obj"),
+        ])
+        .args(["--report", &report])
+        .env_remove("LSE_MEMORY_LIMIT")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(
+        json["memory_budget"],
+        serde_json::json!({"bytes": 1u64 << 30, "source": "rlimit"})
+    );
+}
+
+/// A constraints file from a pipe that reaches the reading cap is refused
+/// even when what was read parses (cut before its final newline it is the
+/// whole document).
+#[test]
+fn a_constraints_stream_cut_by_the_cap_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = generate(dir.path(), "grid", "100");
+    // Blanks in front make the cap hold the mesh, read within the same
+    // budget.
+    let mut text = b" ".repeat(100_000);
+    text.extend_from_slice(
+        b"{\"constraints\": [{\"type\": \"position\", \"vertex\": 0, \"target\": [0, 0, 0]}]}\n",
+    );
+    let pipe = fifo_with(dir.path(), "pipe.json", text.clone());
+    let out = p(dir.path(), "out.obj");
+    // 8 bytes of parsing per byte of a constraints file.
+    let budget = (8 * (text.len() - 1)).to_string();
+    let o = run(
+        None,
+        &[
+            "deform",
+            &mesh,
+            "-c",
+            &pipe,
+            "-o",
+            &out,
+            "--memory-limit",
+            &budget,
+        ],
+    );
+    assert_refused(
+        &o,
+        &["constraints file too large", "pipe.json goes on beyond the"],
+    );
+    assert!(!Path::new(&out).exists());
 }

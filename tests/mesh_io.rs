@@ -1062,3 +1062,36 @@ fn every_seed_file_is_valid_and_every_single_truncation_is_handled() {
         }
     }
 }
+
+/// A face named as of zero area for its size says its true area: a sliver
+/// of edges 1 and 1e308 has area 5e307 (it was reported as "zero area
+/// (0e0)": its cross product, computed on edges scaled to the longer one,
+/// underflowed), and a tetrahedron of corners more than the largest
+/// double apart has no face of zero area (its faces were "zero area
+/// (NaN)": the edge vectors overflowed).
+#[test]
+fn a_degenerate_face_near_the_range_of_doubles_is_named_with_its_true_area() {
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1e308],
+    ];
+    let faces = vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+    let mesh = Mesh::new(positions, faces).unwrap();
+    let e = mesh.degenerate_face().expect("the sliver is degenerate");
+    let MeshError::DegenerateFace { face, area, .. } = e.clone() else {
+        panic!("{e:?}");
+    };
+    assert_eq!(face, 1);
+    assert!((area / 5e307 - 1.0).abs() < 1e-12, "{area:e}");
+    let message = e.to_string();
+    assert!(message.contains("area 5.000e307"), "{message}");
+    assert!(!message.contains("0e0)"), "{message}");
+    // Corners 3e308 apart: the edge vectors overflow a double.
+    let v = 1.5e308;
+    let positions = vec![[-v, 0.0, 0.0], [v, 0.0, 0.0], [0.0, v, 0.0], [0.0, 0.0, v]];
+    let faces = vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+    let mesh = Mesh::new(positions, faces).unwrap();
+    assert_eq!(mesh.degenerate_face(), None);
+}

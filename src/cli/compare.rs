@@ -55,8 +55,9 @@ pub struct CompareArgs {
     /// Also write every report as a JSON array here.
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Memory budget of every precompute, as for `deform` (default:
-    /// LSE_MEMORY_LIMIT when set, else the available memory).
+    /// Memory budget of the run (reading the inputs and every
+    /// precompute), as for `deform` (default: LSE_MEMORY_LIMIT when set,
+    /// else the smallest of the system's limits).
     #[arg(long, value_parser = super::memory_budget)]
     memory_limit: Option<lse_deform::MemoryBudget>,
 }
@@ -86,10 +87,11 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
         .map_err(|e| ProblemError::InvalidArgument {
             message: format!("--methods/--qr/--spd/--weights: {e}"),
         })?;
-    let mesh = load(&a.mesh)?;
-    let constraints = constraints_for(&a.constraints, &mesh, false)?;
+    let budget = a.memory_limit.unwrap_or_default();
+    let mesh = load(&a.mesh, budget)?;
+    let constraints = constraints_for(&a.constraints, &mesh, false, budget)?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    deformer.set_memory_budget(a.memory_limit.unwrap_or_default());
+    deformer.set_memory_budget(budget);
     let bar =
         ProgressBar::with_draw_target(Some(configs.len() as u64 + 1), ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {

@@ -97,8 +97,9 @@ impl EnergyArgs {
 /// Runs `deform`: Laplacian editing, or ARAP with `--energy arap`.
 pub fn deform(a: DeformArgs) -> Result<(), Error> {
     check_outputs(Some(&a.output), a.report.as_deref())?;
-    let mesh = load(&a.mesh)?;
-    let constraints = constraints_for(&a.constraints, &mesh, a.strict)?;
+    let budget = a.method.budget();
+    let mesh = load(&a.mesh, budget)?;
+    let constraints = constraints_for(&a.constraints, &mesh, a.strict, budget)?;
     let options = a.method.options()?;
     for warning in a.energy.inapplicable() {
         eprintln!("warning: {warning}");

@@ -33,8 +33,9 @@ pub fn export_system(a: ExportArgs) -> Result<(), Error> {
     // files before the mesh is read and the system factored.
     std::fs::create_dir_all(&a.output).map_err(|e| Error::io(&a.output, e))?;
     mesh::check_writable(&a.output.join("A.mtx"))?;
-    let mesh = load(&a.mesh)?;
-    let constraints = constraints_for(&a.constraints, &mesh, false)?;
+    let budget = a.method.budget();
+    let mesh = load(&a.mesh, budget)?;
+    let constraints = constraints_for(&a.constraints, &mesh, false, budget)?;
     let options = a.method.options()?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
     deformer.precompute_with(&options)?;

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use lse_deform::constraints::{ConstraintSet, read_constraints_file};
+use lse_deform::constraints::{ConstraintSet, read_constraints_file_within};
 use lse_deform::error::{ProblemError, SolveOption};
 use lse_deform::formulation::Refine;
 use lse_deform::limits::{MemoryBudget, parse_bytes};
@@ -58,10 +58,12 @@ pub struct MethodArgs {
     /// refinement is the method of multipliers and makes it exact).
     #[arg(long)]
     pub refine: Option<Refine>,
-    /// Memory budget of the precompute (bytes, or with a K, M, G or T
-    /// suffix, powers of 1024): a factor estimated beyond it is refused
-    /// before it is allocated. Default: LSE_MEMORY_LIMIT when set, else
-    /// the available memory (which also bound reading the inputs).
+    /// Memory budget of the run (bytes, or with a K, M, G or T suffix,
+    /// powers of 1024): reading the inputs (decompressed and assembled)
+    /// and the precompute; what is estimated beyond it is refused before
+    /// it is allocated. Default: LSE_MEMORY_LIMIT when set, else the
+    /// smallest of the available memory, the address-space limit and the
+    /// cgroup's memory limit.
     #[arg(long, value_parser = memory_budget)]
     pub memory_limit: Option<MemoryBudget>,
 }
@@ -91,8 +93,13 @@ impl MethodArgs {
         Ok(SolveOptions {
             formulation,
             refine: self.refine,
-            memory_budget: self.memory_limit.unwrap_or_default(),
+            memory_budget: self.budget(),
         })
+    }
+
+    /// The run's memory budget: `--memory-limit`, else the default.
+    pub fn budget(&self) -> MemoryBudget {
+        self.memory_limit.unwrap_or_default()
     }
 
     /// The options given that the chosen method does not use: each is
@@ -176,10 +183,11 @@ pub fn show_after_a_second(bar: &ProgressBar) {
     });
 }
 
-/// Reads a mesh with a spinner, printing its notes and warnings.
-pub fn load(path: &Path) -> Result<mesh::Mesh, Error> {
+/// Reads a mesh within the run's memory budget with a spinner, printing
+/// its notes and warnings.
+pub fn load(path: &Path, budget: MemoryBudget) -> Result<mesh::Mesh, Error> {
     let bar = phase(&format!("reading {}", path.display()));
-    let loaded = mesh::read_mesh(path)?;
+    let loaded = mesh::read_mesh_within(path, budget)?;
     bar.finish_and_clear();
     for note in &loaded.notes {
         eprintln!("note: {note}");
@@ -208,16 +216,17 @@ pub fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result
     Ok(())
 }
 
-/// Reads a constraints file for `mesh`: a `"mesh"` object in it that names
-/// another mesh is a warning, or with `strict` an error (exit code 2); then
-/// the vertex ranges are checked.
+/// Reads a constraints file for `mesh` within the run's memory budget: a
+/// `"mesh"` object in it that names another mesh is a warning, or with
+/// `strict` an error (exit code 2); then the vertex ranges are checked.
 pub fn constraints_for(
     path: &Path,
     mesh: &mesh::Mesh,
     strict: bool,
+    budget: MemoryBudget,
 ) -> Result<ConstraintSet, Error> {
     let bar = phase(&format!("reading {}", path.display()));
-    let set = read_constraints_file(path)?;
+    let set = read_constraints_file_within(path, budget)?;
     bar.finish_and_clear();
     if let Some(detail) = set.mesh_mismatch(mesh) {
         if strict {

@@ -136,7 +136,7 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 fn run(a: &RenderArgs) -> Result<(), RenderCommandError> {
     check_arguments(a)?;
     mesh::check_writable(&a.output)?;
-    let original = super::load(&a.mesh)?;
+    let original = super::load(&a.mesh, lse_deform::MemoryBudget::default())?;
     let deformed = a
         .deformed
         .as_deref()
@@ -204,7 +204,7 @@ fn check_arguments(a: &RenderArgs) -> Result<(), RenderCommandError> {
 
 /// Reads a mesh that must have the vertices of `original`.
 fn load_like(path: &Path, original: &Mesh) -> Result<Mesh, RenderCommandError> {
-    let mesh = super::load(path)?;
+    let mesh = super::load(path, lse_deform::MemoryBudget::default())?;
     if mesh.n_vertices() != original.n_vertices() {
         return Err(RenderError::VertexCount {
             what: path.display().to_string(),
@@ -222,7 +222,7 @@ fn constraint_groups(
     path: &Path,
     mesh: &Mesh,
 ) -> Result<Vec<(String, Vec<usize>)>, RenderCommandError> {
-    let set = super::constraints_for(path, mesh, false)?;
+    let set = super::constraints_for(path, mesh, false, lse_deform::MemoryBudget::default())?;
     let mut groups: Vec<(String, Vec<usize>)> = Vec::new();
     for c in set.as_slice() {
         let name = c.group.as_deref().unwrap_or("constrained");

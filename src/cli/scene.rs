@@ -74,7 +74,7 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
 /// Runs `scene`.
 pub fn scene(a: SceneArgs) -> Result<(), Error> {
     check_outputs(None, Some(&a.output))?;
-    let mesh = load(&a.mesh)?;
+    let mesh = load(&a.mesh, lse_deform::MemoryBudget::default())?;
     let mut s = FixedAndHandle::paper_default(&mesh);
     if let Some(axis) = &a.axis {
         let (descending, name) = match axis.strip_prefix('-') {

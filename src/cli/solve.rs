@@ -94,7 +94,7 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
         .unwrap_or_default();
     let bar = phase("reading the matrices");
     let t = std::time::Instant::now();
-    let (ma, mc, mb, md) = mtx::read_system(&pa, &pc, &pb, &pd)?;
+    let (ma, mc, mb, md) = mtx::read_system_within(&pa, &pc, &pb, &pd, options.memory_budget)?;
     let mut problem = LseProblem::from_parts(ma.as_ref(), mc.as_ref(), mb.as_ref(), md.as_ref())?;
     if let Some(rows) = meta.laplacian_rows {
         problem = problem.with_laplacian_rows(rows);

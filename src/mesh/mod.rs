@@ -43,7 +43,7 @@ pub mod topology;
 pub use fingerprint::MeshSignature;
 pub use io::{
     LoadedMesh, MeshFormat, PlyEncoding, check_mesh_output, check_writable, read_mesh,
-    read_mesh_bytes, write_mesh,
+    read_mesh_bytes, read_mesh_bytes_within, read_mesh_within, write_mesh,
 };
 pub use quality::Quality;
 pub use topology::Topology;
@@ -232,20 +232,22 @@ impl Mesh {
     /// angles returns, or `None`.
     pub fn degenerate_face(&self) -> Option<MeshError> {
         self.first_degenerate_face()
-            .map(|(face, area)| MeshError::DegenerateFace {
+            .map(|(face, size)| MeshError::DegenerateFace {
                 face,
                 vertices: self.faces[face],
-                area,
+                area: size.area,
+                longest_edge: size.longest_edge,
+                relative_area: size.relative_area,
                 line: None,
             })
     }
 
-    /// The first face of zero area and its area.
-    fn first_degenerate_face(&self) -> Option<(usize, f64)> {
+    /// The first face of zero area and its size.
+    fn first_degenerate_face(&self) -> Option<(usize, quality::TriangleSize)> {
         let p = &self.positions;
         self.faces.iter().enumerate().find_map(|(f, &[a, b, c])| {
-            let (clearly_positive, area) = quality::area_is_clearly_positive(p[a], p[b], p[c]);
-            (!clearly_positive).then_some((f, area))
+            let size = quality::triangle_size(p[a], p[b], p[c]);
+            (!size.clearly_positive).then_some((f, size))
         })
     }
 

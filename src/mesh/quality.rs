@@ -189,44 +189,102 @@ pub fn longest_edge_sq(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
         .max(norm_sq(sub(a, c)))
 }
 
-/// The power of two `2^e` nearest to the largest coordinate difference of
-/// `abc` (1 if the three points coincide). Dividing the edge vectors by it
-/// is exact and brings them to unit size, so that areas and squared lengths
-/// neither overflow (coordinates of 1e200) nor underflow (1e-200).
-fn edge_unit(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    let m = sub(b, a)
-        .iter()
-        .chain(sub(c, a).iter())
-        .chain(sub(c, b).iter())
-        .fold(0.0f64, |m, v| m.max(v.abs()));
-    power_of_two_unit(m)
+/// The largest absolute component of `vectors`.
+fn max_abs(vectors: &[[f64; 3]]) -> f64 {
+    vectors.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()))
 }
 
-/// `2^round(log2 x)` for a finite `x > 0`, else 1: the exact unit that
-/// normalises a length of size `x` to `[0.7, 1.4]`.
+/// The edge vectors `b − a`, `c − a`, `c − b` of the triangle `abc`, and
+/// the factor `h` they are to be multiplied by: 1, or 2 when a difference
+/// overflows (corners more than `f64::MAX` apart in a coordinate) and the
+/// vectors are those of the halved corners, `b/2 − a/2`, … (halving is
+/// exact for normal numbers: only the overflow is avoided).
+fn edge_vectors(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> ([[f64; 3]; 3], f64) {
+    let plain = [sub(b, a), sub(c, a), sub(c, b)];
+    if plain.iter().flatten().all(|v| v.is_finite()) {
+        return (plain, 1.0);
+    }
+    let half = |p: [f64; 3]| p.map(|x| 0.5 * x);
+    let (a, b, c) = (half(a), half(b), half(c));
+    ([sub(b, a), sub(c, a), sub(c, b)], 2.0)
+}
+
+/// `2^round(log2 x)` for a finite `x > 0` (at most `2^1023`, the largest
+/// power of two a double holds), else 1: the exact unit that normalises a
+/// length of size `x` to `[0.7, 1.4]` (to `[0.7, 2]` above `2^1023`).
 pub fn power_of_two_unit(x: f64) -> f64 {
     if x > 0.0 && x.is_finite() {
-        2f64.powi(x.log2().round() as i32)
+        2f64.powi((x.log2().round() as i32).min(f64::MAX_EXP - 1))
     } else {
         1.0
     }
 }
 
-/// Whether the triangle `abc` has clearly non-zero area, `|e1 × e2| > 64 ε
-/// ℓ²` (ℓ the longest edge; the rounding error of the cross product is a
-/// few `ε ℓ²`), and its area. Scale-invariant: the test runs on the edge
-/// vectors divided by an exact power of two ([`power_of_two_unit`]), so it
-/// decides the same for a mesh in any unit from 1e-300 to 1e300.
+/// `‖v‖₂` without overflow or underflow of the squares.
+fn norm(v: [f64; 3]) -> f64 {
+    let m = max_abs(&[v]);
+    if m == 0.0 {
+        return 0.0;
+    }
+    m * norm_sq(v.map(|x| x / m)).sqrt()
+}
+
+/// A triangle's area against its size ([`triangle_size`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TriangleSize {
+    /// `2·area > 64 ε ℓ²` (ℓ the longest edge; the rounding error of the
+    /// cross product is a few `ε ℓ²`): the area is clearly not zero.
+    pub clearly_positive: bool,
+    /// The area (infinite when beyond the largest double).
+    pub area: f64,
+    /// The longest edge ℓ (infinite when beyond the largest double).
+    pub longest_edge: f64,
+    /// `2·area / ℓ²`, which does not depend on the unit (0 for collinear
+    /// corners; `≤ √3/2`, the equilateral triangle's).
+    pub relative_area: f64,
+}
+
+/// Whether the triangle `abc` has clearly non-zero area,
+/// `2·area > 64 ε ℓ²` ([`TriangleSize`]), with its area and longest edge.
+///
+/// Scale-invariant and free of overflow and underflow for any finite
+/// corners: each edge vector is divided by an exact power of two that
+/// brings it to unit size ([`power_of_two_unit`]) before the cross
+/// product, so `2·area / ℓ² = |ê₁ × ê₂| (u₁/u)(u₂/u) / ℓ̂²` (`u` the unit of
+/// the longest coordinate difference) is computed alike for a mesh in any
+/// unit, and a sliver of edges 1 and 1e308 has its area (5e307), not the
+/// 0 of a cross product of unit-scaled edges that underflows.
+pub fn triangle_size(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> TriangleSize {
+    let ([e1, e2, e3], h) = edge_vectors(a, b, c);
+    let u = power_of_two_unit(max_abs(&[e1, e2, e3]));
+    let l2 = [e1, e2, e3]
+        .map(|e| norm_sq(e.map(|x| x / u)))
+        .into_iter()
+        .fold(0.0, f64::max);
+    let (u1, u2) = (
+        power_of_two_unit(max_abs(&[e1])),
+        power_of_two_unit(max_abs(&[e2])),
+    );
+    let twice = norm(cross(e1.map(|x| x / u1), e2.map(|x| x / u2)));
+    let relative_area = if l2 > 0.0 {
+        twice * (u1 / u) * (u2 / u) / l2
+    } else {
+        0.0
+    };
+    TriangleSize {
+        // Written so that a NaN counts as degenerate.
+        clearly_positive: relative_area > 64.0 * f64::EPSILON,
+        area: 0.5 * twice * u1 * u2 * h * h,
+        longest_edge: l2.sqrt() * u * h,
+        relative_area,
+    }
+}
+
+/// Whether the triangle `abc` has clearly non-zero area, and its area
+/// ([`triangle_size`]).
 pub fn area_is_clearly_positive(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> (bool, f64) {
-    let u = edge_unit(a, b, c);
-    let (e1, e2, e3) = (sub(b, a), sub(c, a), sub(c, b));
-    let scale = |e: [f64; 3]| [e[0] / u, e[1] / u, e[2] / u];
-    let (e1, e2, e3) = (scale(e1), scale(e2), scale(e3));
-    let twice_area = norm_sq(cross(e1, e2)).sqrt();
-    let l2 = norm_sq(e1).max(norm_sq(e2)).max(norm_sq(e3));
-    // Written so that a NaN area also counts as degenerate.
-    let clearly_positive = twice_area > 64.0 * f64::EPSILON * l2;
-    (clearly_positive, 0.5 * twice_area * u * u)
+    let size = triangle_size(a, b, c);
+    (size.clearly_positive, size.area)
 }
 
 /// `‖a − b‖₂` without overflow or underflow of the squares (scaled by the
@@ -238,4 +296,34 @@ pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
         return m;
     }
     m * norm_sq([d[0] / m, d[1] / m, d[2] / m]).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn triangle_size_is_free_of_overflow_and_underflow() {
+        let s = triangle_size([0.0; 3], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]);
+        assert!(s.clearly_positive);
+        assert_eq!((s.area, s.relative_area), (2.0, 0.5));
+        assert_eq!(s.longest_edge, 8f64.sqrt());
+        // The same triangle at 2^1000 times the size: the same decision
+        // and relative area, the area beyond the largest double.
+        let k = 2f64.powi(1000);
+        let big = triangle_size([0.0; 3], [2.0 * k, 0.0, 0.0], [0.0, 2.0 * k, 0.0]);
+        assert!((big.relative_area - 0.5).abs() < 1e-15);
+        assert!(big.area.is_infinite());
+        // Collinear: zero.
+        let flat = triangle_size([0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]);
+        assert!(!flat.clearly_positive);
+        assert_eq!((flat.area, flat.relative_area), (0.0, 0.0));
+        // Corners 3e308 apart: edges of the halved corners, doubled.
+        let v = 1.5e308;
+        let wide = triangle_size([-v, 0.0, 0.0], [v, 0.0, 0.0], [0.0, v, 0.0]);
+        assert!(wide.clearly_positive);
+        assert!(wide.area.is_infinite() && wide.longest_edge.is_infinite());
+        assert!((wide.relative_area - 0.5).abs() < 1e-15);
+        assert_eq!(power_of_two_unit(f64::MAX), 2f64.powi(1023));
+    }
 }

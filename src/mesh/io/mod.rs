@@ -73,7 +73,7 @@ use flate2::write::GzEncoder;
 
 use super::Mesh;
 use crate::error::{Error, MeshError};
-use crate::limits;
+use crate::limits::{self, MemoryBudget};
 
 use obj::read_obj;
 pub use obj::write_obj;
@@ -172,7 +172,21 @@ const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 /// Reads a mesh, choosing the format from the extension (`.obj`, `.ply`,
 /// `.off`, each optionally followed by `.gz`; gzip is detected from the
 /// content). See the module documentation for what each reader accepts.
+/// Within the default memory budget ([`MemoryBudget::default`]); see
+/// [`read_mesh_within`].
 pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
+    read_mesh_within(path, MemoryBudget::default())
+}
+
+/// [`read_mesh`] within `budget` ([`crate::limits`]): a regular file whose
+/// size (× [`limits::GZIP_EXPANSION`] when compressed) would need more is
+/// refused before it is read; whatever the source (a pipe, a device,
+/// gzip-compressed data), at most `budget / `[`limits::MESH_BYTES_PER_FILE_BYTE`]
+/// bytes are read (after decompression), and data that goes on beyond is
+/// refused ([`MeshError::TooLarge`], naming the budget and the bytes read),
+/// never parsed as the mesh its first part may be; the mesh assembled is
+/// checked as it grows.
+pub fn read_mesh_within(path: &Path, budget: MemoryBudget) -> Result<LoadedMesh, Error> {
     let (format, gzip_ext) = MeshFormat::from_path(path)?;
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     // Only a regular file's length is the number of bytes it will deliver
@@ -190,50 +204,27 @@ pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
         let estimate = size
             .saturating_mul(expansion)
             .saturating_mul(limits::MESH_BYTES_PER_FILE_BYTE);
-        limits::check(estimate, || {
-            format!(
-                "{} ({}{}) would need",
-                path.display(),
-                limits::format_bytes(size),
-                if gzip { ", gzip-compressed" } else { "" }
-            )
-        })
-        .map_err(|detail| MeshError::TooLarge {
-            what: "mesh file",
-            detail,
-        })?;
-    }
-    // Whatever the source (a pipe, a device, a gzip bomb), no more is read
-    // than the memory budget allows for a file.
-    let cap = limits::memory_budget() / limits::MESH_BYTES_PER_FILE_BYTE;
-    let (result, beyond_cap) = if gzip {
-        let decoder = BufReader::with_capacity(1 << 16, MultiGzDecoder::new(reader));
-        let mut capped = io::Read::take(decoder, cap + 1);
-        (read_from(&mut capped, format, None), capped.limit() == 0)
-    } else {
-        let mut capped = io::Read::take(reader, cap + 1);
-        (read_from(&mut capped, format, size), capped.limit() == 0)
-    };
-    if beyond_cap && result.is_err() {
-        let detail = limits::check(
-            (cap + 1).saturating_mul(limits::MESH_BYTES_PER_FILE_BYTE),
-            || {
+        budget
+            .check(estimate, || {
                 format!(
-                    "{} (more than {}{}) would need",
+                    "{} ({}{}) would need",
                     path.display(),
-                    limits::format_bytes(cap),
-                    if gzip { " decompressed" } else { "" }
+                    limits::format_bytes(size),
+                    if gzip { ", gzip-compressed" } else { "" }
                 )
-            },
-        )
-        .err()
-        .unwrap_or_else(|| format!("{} delivered more than {cap} bytes", path.display()));
-        return Err(MeshError::TooLarge {
-            what: "mesh file",
-            detail,
-        }
-        .into());
+            })
+            .map_err(|detail| MeshError::TooLarge {
+                what: "mesh file",
+                detail,
+            })?;
     }
+    let name = path.display().to_string();
+    let result = if gzip {
+        let decoder = BufReader::with_capacity(1 << 16, MultiGzDecoder::new(reader));
+        read_capped(decoder, format, None, budget, &name, true)
+    } else {
+        read_capped(reader, format, size, budget, &name, false)
+    };
     match result {
         Ok(mut loaded) => {
             if gzip != gzip_ext {
@@ -261,14 +252,72 @@ pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
     }
 }
 
+/// Reads a mesh of `format` from `reader`, at most the bytes whose
+/// estimate fits `budget`: data that reaches the cap is refused whatever
+/// its first part parses as (a mesh cut short at a line or a face can be
+/// a valid smaller mesh). `name` names the source in the refusal;
+/// `decompressed` says the bytes counted are gzip's output.
+fn read_capped<R: BufRead>(
+    reader: R,
+    format: MeshFormat,
+    size: Option<u64>,
+    budget: MemoryBudget,
+    name: &str,
+    decompressed: bool,
+) -> Result<LoadedMesh, ReadError> {
+    let cap = budget.limit() / limits::MESH_BYTES_PER_FILE_BYTE;
+    let mut capped = io::Read::take(reader, cap.saturating_add(1));
+    let result = read_from(&mut capped, format, size, budget);
+    if capped.limit() > 0 {
+        return result;
+    }
+    let after = if decompressed {
+        " after decompression"
+    } else {
+        ""
+    };
+    Err(MeshError::TooLarge {
+        what: "mesh file",
+        detail: limits::beyond_the_cap(
+            budget,
+            name,
+            cap,
+            after,
+            limits::MESH_BYTES_PER_FILE_BYTE,
+            "mesh",
+        ),
+    }
+    .into())
+}
+
 /// Reads a mesh of the given format from bytes in memory (gzip-compressed
 /// data, recognised by its magic number, is decompressed first). Never
-/// panics, whatever the bytes.
+/// panics, whatever the bytes. Within the default memory budget; see
+/// [`read_mesh_bytes_within`].
 pub fn read_mesh_bytes(bytes: &[u8], format: MeshFormat) -> Result<LoadedMesh, MeshError> {
+    read_mesh_bytes_within(bytes, format, MemoryBudget::default())
+}
+
+/// [`read_mesh_bytes`] within `budget`: what is decompressed is capped as
+/// [`read_mesh_within`] caps a stream, and refused beyond the cap.
+pub fn read_mesh_bytes_within(
+    bytes: &[u8],
+    format: MeshFormat,
+    budget: MemoryBudget,
+) -> Result<LoadedMesh, MeshError> {
+    let name = "the data";
     let result = if bytes.starts_with(&GZIP_MAGIC) {
-        read_from(BufReader::new(MultiGzDecoder::new(bytes)), format, None)
+        let decoder = BufReader::new(MultiGzDecoder::new(bytes));
+        read_capped(decoder, format, None, budget, name, true)
     } else {
-        read_from(bytes, format, u64::try_from(bytes.len()).ok())
+        read_capped(
+            bytes,
+            format,
+            u64::try_from(bytes.len()).ok(),
+            budget,
+            name,
+            false,
+        )
     };
     result.map_err(|e| match e {
         ReadError::Mesh(e) => e,
@@ -286,21 +335,22 @@ fn read_from<R: BufRead>(
     mut reader: R,
     format: MeshFormat,
     size: Option<u64>,
+    budget: MemoryBudget,
 ) -> Result<LoadedMesh, ReadError> {
     match format {
-        MeshFormat::Obj => read_obj(reader),
-        MeshFormat::Off => read_off(reader, size),
+        MeshFormat::Obj => read_obj(reader, budget),
+        MeshFormat::Off => read_off(reader, size, budget),
         MeshFormat::Ply => {
             let head = reader.fill_buf()?;
             let n = head.len().min(3);
             if head[..n] != b"ply"[..n] {
                 // Not a PLY file: the parser's message on what has arrived,
                 // without reading the rest of the stream (which may not end).
-                return read_ply(head);
+                return read_ply(head, budget);
             }
             let mut bytes = Vec::new();
             reader.read_to_end(&mut bytes)?;
-            read_ply(&bytes)
+            read_ply(&bytes, budget)
         }
     }
 }
@@ -408,7 +458,7 @@ fn parse_error(format: &'static str, line: usize, message: impl Into<String>) ->
 
 /// Positions and triangles being assembled by a reader, with the source line
 /// of every vertex and triangle (empty for binary formats) so that
-/// validation errors can name the line.
+/// validation errors can name the line, within a memory budget.
 #[derive(Default)]
 struct Builder {
     positions: Vec<[f64; 3]>,
@@ -417,9 +467,37 @@ struct Builder {
     face_lines: Vec<usize>,
     polygons_split: usize,
     triangles_from_polygons: usize,
+    budget: MemoryBudget,
 }
 
 impl Builder {
+    /// An empty mesh to assemble within `budget`.
+    fn within(budget: MemoryBudget) -> Builder {
+        Builder {
+            budget,
+            ..Builder::default()
+        }
+    }
+
+    /// Refuses growing to `vertices` vertices and `faces` triangles when
+    /// their estimate ([`limits::MESH_BYTES_PER_VERTEX`],
+    /// [`limits::MESH_BYTES_PER_FACE`]) exceeds the budget: a polygon of
+    /// short indices (`f 1 2 3 4 …`) is 2 bytes a triangle in the file
+    /// and 32 in memory, beyond what the cap on the bytes read bounds.
+    fn check_growth(&self, vertices: usize, faces: usize) -> Result<(), MeshError> {
+        let estimate = (vertices as u64)
+            .saturating_mul(limits::MESH_BYTES_PER_VERTEX)
+            .saturating_add((faces as u64).saturating_mul(limits::MESH_BYTES_PER_FACE));
+        self.budget
+            .check(estimate, || {
+                format!("the {vertices} vertices and {faces} triangles read so far would need")
+            })
+            .map_err(|detail| MeshError::TooLarge {
+                what: "mesh",
+                detail,
+            })
+    }
+
     /// Adds a vertex, refusing non-finite coordinates.
     fn vertex(&mut self, p: [f64; 3], line: Option<usize>) -> Result<(), MeshError> {
         if let Some(&value) = p.iter().find(|c| !c.is_finite()) {
@@ -429,6 +507,7 @@ impl Builder {
                 line,
             });
         }
+        self.check_growth(self.positions.len() + 1, self.faces.len())?;
         self.positions.push(p);
         if let Some(l) = line {
             self.vertex_lines.push(l);
@@ -457,6 +536,7 @@ impl Builder {
                 line,
             });
         }
+        self.check_growth(self.positions.len(), self.faces.len() + poly.len() - 2)?;
         if poly.len() > 3 {
             self.polygons_split += 1;
             self.triangles_from_polygons += poly.len() - 2;
@@ -479,6 +559,7 @@ impl Builder {
             face_lines,
             polygons_split,
             triangles_from_polygons,
+            budget: _,
         } = self;
         if polygons_split > 0 {
             notes.push(format!(
@@ -502,17 +583,22 @@ impl Builder {
 
 /// Refuses a header whose counts would not fit in the memory budget
 /// ([`crate::limits`]), before anything is reserved.
-fn check_declared_counts(n_vertices: usize, n_faces: usize) -> Result<(), MeshError> {
+fn check_declared_counts(
+    n_vertices: usize,
+    n_faces: usize,
+    budget: MemoryBudget,
+) -> Result<(), MeshError> {
     let estimate = (n_vertices as u64)
         .saturating_mul(limits::MESH_BYTES_PER_VERTEX)
         .saturating_add((n_faces as u64).saturating_mul(limits::MESH_BYTES_PER_FACE));
-    limits::check(estimate, || {
-        format!("the header's {n_vertices} vertices and {n_faces} faces would need")
-    })
-    .map_err(|detail| MeshError::TooLarge {
-        what: "mesh",
-        detail,
-    })
+    budget
+        .check(estimate, || {
+            format!("the header's {n_vertices} vertices and {n_faces} faces would need")
+        })
+        .map_err(|detail| MeshError::TooLarge {
+            what: "mesh",
+            detail,
+        })
 }
 
 // ---------------------------------------------------------------------------

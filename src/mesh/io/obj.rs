@@ -7,12 +7,16 @@ use super::{
     Builder, LineReader, LoadedMesh, ReadError, parse_error, parse_f64, parse_i64, show,
     strip_comment, tokens,
 };
+use crate::limits::MemoryBudget;
 use crate::mesh::Mesh;
 
-pub(super) fn read_obj<R: BufRead>(reader: R) -> Result<LoadedMesh, ReadError> {
+pub(super) fn read_obj<R: BufRead>(
+    reader: R,
+    budget: MemoryBudget,
+) -> Result<LoadedMesh, ReadError> {
     const F: &str = "OBJ";
     let mut lines = LineReader::new(reader, F);
-    let mut b = Builder::default();
+    let mut b = Builder::within(budget);
     let mut poly: Vec<usize> = Vec::new();
     let mut unknown: Vec<(String, usize)> = Vec::new();
     let mut n_unknown = 0usize;
@@ -123,7 +127,7 @@ mod tests {
     use crate::mesh::io::{MeshFormat, read_mesh_bytes, unwrap_io};
 
     fn obj(text: &str) -> Result<LoadedMesh, MeshError> {
-        unwrap_io(read_obj(text.as_bytes()))
+        unwrap_io(read_obj(text.as_bytes(), MemoryBudget::unlimited()))
     }
 
     fn parse_error_at(line: usize, message: &str) -> MeshError {
@@ -340,7 +344,7 @@ mod tests {
     fn write_then_read_is_bit_identical() {
         let mut out = Vec::new();
         write_obj(&awkward_triangle(), &mut out).unwrap();
-        let back = unwrap_io(read_obj(&out[..])).unwrap();
+        let back = unwrap_io(read_obj(&out[..], MemoryBudget::unlimited())).unwrap();
         assert_eq!(back.notes, Vec::<String>::new());
         assert_eq!(back.mesh.faces(), &[[0, 1, 2]]);
         let bits: Vec<[u64; 3]> = back

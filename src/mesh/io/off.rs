@@ -8,6 +8,7 @@ use super::{
     parse_i64, show, strip_comment, tokens,
 };
 use crate::error::MeshError;
+use crate::limits::MemoryBudget;
 use crate::mesh::Mesh;
 
 /// Bytes needed at least by one OFF vertex line (`"0 0 0\n"`) and one face
@@ -37,7 +38,11 @@ fn next_content<R: BufRead>(
     }
 }
 
-pub(super) fn read_off<R: BufRead>(reader: R, size: Option<u64>) -> Result<LoadedMesh, ReadError> {
+pub(super) fn read_off<R: BufRead>(
+    reader: R,
+    size: Option<u64>,
+    budget: MemoryBudget,
+) -> Result<LoadedMesh, ReadError> {
     const F: &str = "OFF";
     let mut notes = Vec::new();
     let mut lines = LineReader::new(reader, F);
@@ -151,7 +156,7 @@ pub(super) fn read_off<R: BufRead>(reader: R, size: Option<u64>) -> Result<Loade
         }
         .into());
     }
-    check_declared_counts(n_vertices, n_faces)?;
+    check_declared_counts(n_vertices, n_faces, budget)?;
     let needed = n_vertices as u128 * OFF_MIN_VERTEX_BYTES + n_faces as u128 * OFF_MIN_FACE_BYTES;
     let reserve_cap = match size {
         Some(size) => {
@@ -169,7 +174,7 @@ pub(super) fn read_off<R: BufRead>(reader: R, size: Option<u64>) -> Result<Loade
         }
         None => MAX_BLIND_RESERVE,
     };
-    let mut b = Builder::default();
+    let mut b = Builder::within(budget);
     b.positions.reserve(n_vertices.min(reserve_cap));
     b.vertex_lines.reserve(n_vertices.min(reserve_cap));
     for v in 0..n_vertices {
@@ -280,7 +285,11 @@ mod tests {
 
     /// Reads `text` as a file of known size (the size check applies).
     fn off(text: &str) -> Result<LoadedMesh, MeshError> {
-        unwrap_io(read_off(text.as_bytes(), Some(text.len() as u64)))
+        unwrap_io(read_off(
+            text.as_bytes(),
+            Some(text.len() as u64),
+            MemoryBudget::unlimited(),
+        ))
     }
 
     fn parse_error_at(line: usize, message: &str) -> MeshError {
@@ -371,7 +380,7 @@ mod tests {
         );
         // Of unknown size (a gzip stream), the same file is read until it
         // ends, and the error is where it ends.
-        match read_off(text.as_bytes(), None) {
+        match read_off(text.as_bytes(), None, MemoryBudget::unlimited()) {
             Err(ReadError::Mesh(e)) => assert_eq!(
                 e,
                 parse_error_at(
@@ -479,7 +488,12 @@ mod tests {
     fn write_then_read_is_bit_identical() {
         let mut out = Vec::new();
         write_off(&awkward_triangle(), &mut out).unwrap();
-        let back = unwrap_io(read_off(&out[..], Some(out.len() as u64))).unwrap();
+        let back = unwrap_io(read_off(
+            &out[..],
+            Some(out.len() as u64),
+            MemoryBudget::unlimited(),
+        ))
+        .unwrap();
         assert_eq!(back.notes, Vec::<String>::new());
         assert_eq!(back.mesh.faces(), &[[2, 0, 1]]);
         let bits: Vec<[u64; 3]> = back

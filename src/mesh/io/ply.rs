@@ -10,6 +10,7 @@ use ply_rs_bw::ply::{
 
 use super::{Builder, LoadedMesh, ReadError, check_declared_counts, tokens};
 use crate::error::MeshError;
+use crate::limits::MemoryBudget;
 use crate::mesh::Mesh;
 
 /// Encoding of a written PLY file.
@@ -214,7 +215,7 @@ fn ply_header_error(line: Option<usize>, message: impl Into<String>) -> MeshErro
     }
 }
 
-pub(super) fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
+pub(super) fn read_ply(bytes: &[u8], budget: MemoryBudget) -> Result<LoadedMesh, ReadError> {
     const F: &str = "PLY";
     let parser = Parser::<PlyElement>::new();
     let mut reader = Reader::new(bytes);
@@ -313,8 +314,8 @@ pub(super) fn read_ply(bytes: &[u8]) -> Result<LoadedMesh, ReadError> {
         }
     }
 
-    check_declared_counts(vertex_def.count, face_def.count)?;
-    let mut b = Builder::default();
+    check_declared_counts(vertex_def.count, face_def.count, budget)?;
+    let mut b = Builder::within(budget);
     b.positions.reserve(vertex_def.count);
     let ascii = header.encoding == Encoding::Ascii;
     let mut line = header_lines;
@@ -478,7 +479,7 @@ mod tests {
     use crate::mesh::io::unwrap_io;
 
     fn ply(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
-        unwrap_io(read_ply(bytes))
+        unwrap_io(read_ply(bytes, MemoryBudget::unlimited()))
     }
 
     fn parse_error(line: Option<usize>, message: &str) -> MeshError {
