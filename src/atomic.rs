@@ -19,7 +19,17 @@
 //!   such as `/dev/null` or `/dev/stdout`, a FIFO) is written in place, as
 //!   before: it cannot be replaced by a rename, and nothing there can be
 //!   left truncated.
+//!
+//! [`staged`] makes the writes of a whole run one unit: inside it every
+//! [`write`] on this thread fills and syncs its temporary file as above but
+//! defers the rename; the renames are done together when the run succeeded,
+//! and on any error every temporary file is removed, so that no output is
+//! replaced and none is left behind. Writes to a non-regular target (a
+//! device, a FIFO) cannot be deferred: they happen when asked, which is
+//! before the renames, so that a failing `/dev/full` still prevents every
+//! rename.
 
+use std::cell::RefCell;
 use std::fs::{File, OpenOptions};
 use std::io::{self, BufWriter};
 use std::path::{Path, PathBuf};
@@ -57,7 +67,66 @@ where
     }
     file.sync_all()?;
     drop(file);
-    temp.rename_to(&target)?;
+    if let Some(temp) = defer(temp, &target) {
+        temp.rename_to(&target)?;
+    }
+    Ok(value)
+}
+
+thread_local! {
+    /// The renames deferred by [`staged`] on this thread (`None` outside
+    /// it), in the order of the writes.
+    static STAGE: RefCell<Option<Vec<(TempFile, PathBuf)>>> = const { RefCell::new(None) };
+}
+
+/// Inside [`staged`]: keeps `temp` to be renamed over `target` at the end
+/// and returns `None`; outside: returns `temp` to be renamed now.
+fn defer(temp: TempFile, target: &Path) -> Option<TempFile> {
+    STAGE.with(|stage| match stage.borrow_mut().as_mut() {
+        Some(set) => {
+            set.push((temp, target.to_path_buf()));
+            None
+        }
+        None => Some(temp),
+    })
+}
+
+/// Runs `run` with every [`write`] of this thread staged (see the module
+/// documentation): when `run` returns `Ok`, the staged files are renamed
+/// over their targets, in the order they were written; when it returns an
+/// error (or panics), they are removed and no target changes. A rename
+/// that fails (the directory removed meanwhile) is returned through
+/// `rename_error` with its target, and the files not yet renamed are
+/// removed; renames done before it stay done — the one window left, after
+/// every write has succeeded. Inside another `staged`, `run` joins the
+/// outer set.
+pub fn staged<T, E>(
+    run: impl FnOnce() -> Result<T, E>,
+    rename_error: impl FnOnce(&Path, io::Error) -> E,
+) -> Result<T, E> {
+    if STAGE.with(|stage| stage.borrow().is_some()) {
+        return run();
+    }
+    /// Ends the stage however `run` ends: the files left in it are
+    /// dropped, which removes them.
+    struct Stage;
+    impl Drop for Stage {
+        fn drop(&mut self) {
+            STAGE.with(|stage| stage.borrow_mut().take());
+        }
+    }
+    STAGE.with(|stage| *stage.borrow_mut() = Some(Vec::new()));
+    let guard = Stage;
+    let value = run()?;
+    let set = STAGE
+        .with(|stage| stage.borrow_mut().take())
+        .unwrap_or_default();
+    drop(guard);
+    for (temp, target) in set {
+        if let Err(e) = temp.rename_to(&target) {
+            return Err(rename_error(&target, e));
+        }
+    }
     Ok(value)
 }
 
@@ -66,9 +135,10 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> io::Result<()> {
     write(path, |w| io::Write::write_all(w, bytes))
 }
 
-/// The file to replace: the target of a symbolic link (followed to the
-/// end), otherwise `path` itself.
-fn resolve(path: &Path) -> PathBuf {
+/// The file a [`write`] to `path` replaces: the target of a symbolic link
+/// (followed to the end, also when it does not exist yet), otherwise `path`
+/// itself.
+pub fn resolve(path: &Path) -> PathBuf {
     let is_link = path
         .symlink_metadata()
         .is_ok_and(|m| m.file_type().is_symlink());
@@ -230,6 +300,58 @@ mod tests {
         let mode = std::fs::metadata(&real).unwrap().permissions().mode();
         assert_eq!(mode & 0o777, 0o600);
         assert_eq!(names(dir.path()), ["link.json", "real.json"]);
+    }
+
+    /// A staged set: nothing is replaced until the run succeeds, then
+    /// everything is; an error after some writes leaves every previous
+    /// file and no temporary one.
+    #[test]
+    fn a_staged_set_is_replaced_together_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.obj"), dir.path().join("b.json"));
+        std::fs::write(&a, "old a").unwrap();
+        let failed: io::Result<()> = staged(
+            || {
+                write_bytes(&a, b"new a")?;
+                assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
+                write_bytes(&b, b"new b")?;
+                Err(io::Error::other("the run failed after its writes"))
+            },
+            |_, e| e,
+        );
+        assert!(failed.is_err());
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "old a");
+        assert_eq!(names(dir.path()), ["a.obj"]);
+        staged(
+            || {
+                write_bytes(&a, b"new a")?;
+                write_bytes(&b, b"new b")
+            },
+            |_, e| e,
+        )
+        .unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "new a");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "new b");
+        assert_eq!(names(dir.path()), ["a.obj", "b.json"]);
+    }
+
+    /// A device in a staged set is written when asked, before the renames:
+    /// a full one (`/dev/full`) fails the set and nothing is replaced.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_full_device_in_a_staged_set_replaces_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.obj");
+        let e = staged(
+            || {
+                write_bytes(&a, b"new a")?;
+                write_bytes(Path::new("/dev/full"), b"the report")
+            },
+            |_, e| e,
+        )
+        .unwrap_err();
+        assert_eq!(e.kind(), io::ErrorKind::StorageFull);
+        assert!(names(dir.path()).is_empty());
     }
 
     #[cfg(unix)]

@@ -674,7 +674,7 @@ pub enum NumericalError {
     /// completed: an ill-conditioned system, or a penalty weight too small
     /// to hold the hard constraints.
     #[error(
-        "{matrix}: the solution's estimated forward error {estimate:.2e} (relative to the length scale) exceeds {tolerance:.0e} (refine it with refinement `auto`, lower the condition number, or use the null-space method)"
+        "{matrix}: the solution's estimated forward error {estimate:.2e} (relative to the length scale) exceeds {tolerance:.0e} ({advice})"
     )]
     LostAccuracy {
         /// Which matrix.
@@ -683,6 +683,9 @@ pub enum NumericalError {
         estimate: f64,
         /// The largest accepted value.
         tolerance: f64,
+        /// What could lower the error, for the method and refinement in
+        /// use ([`crate::solver::lost_accuracy_advice`]).
+        advice: String,
     },
     /// The matrix a formulation factored for a general problem (one built
     /// by [`LseProblem::from_parts`](crate::problem::LseProblem::from_parts))

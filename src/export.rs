@@ -24,8 +24,11 @@
 
 use std::path::{Path, PathBuf};
 
+use faer::MatRef;
+use faer::sparse::SparseColMatRef;
+
 use crate::choice::Method;
-use crate::error::Error;
+use crate::error::{Error, MatrixFileError};
 use crate::formulation::Prepared;
 use crate::interop::faer_rows_to_sprs;
 use crate::mtx::write_sprs;
@@ -48,15 +51,37 @@ pub struct ExportedFiles {
     pub factored: Option<PathBuf>,
 }
 
+/// Creates the directory `dir` (and its parents) if missing. A `dir` that
+/// exists and is not a directory (a file, a device such as `/dev/full`) is
+/// an error that says so, where the system's own would say "File exists".
+pub fn create_output_dir(dir: &Path) -> Result<(), Error> {
+    if let Ok(m) = std::fs::metadata(dir)
+        && !m.is_dir()
+    {
+        let what = if m.is_file() {
+            "a regular file"
+        } else {
+            "a device, FIFO or socket"
+        };
+        let e = std::io::Error::new(
+            std::io::ErrorKind::NotADirectory,
+            format!("exists and is {what}, not a directory (the export is a directory of files)"),
+        );
+        return Err(Error::io(dir, e));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))
+}
+
 /// Writes `A`, `C`, `B`, `D` of `problem` and, if given, the matrix
-/// `prepared` factored, into `dir` (created if missing). Existing files of
-/// the same names are overwritten.
+/// `prepared` factored, into `dir` (created if missing,
+/// [`create_output_dir`]). Existing files of the same names are
+/// overwritten.
 pub fn export_problem(
     dir: &Path,
     problem: &LseProblem,
     prepared: Option<&dyn Prepared>,
 ) -> Result<ExportedFiles, Error> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    create_output_dir(dir)?;
     let files = ExportedFiles {
         a: dir.join("A.mtx"),
         c: dir.join("C.mtx"),
@@ -99,12 +124,15 @@ pub const META_FILE: &str = "meta.json";
 ///   weights, docs/units.md §3), `constraint_of_b_row`,
 ///   `constraint_of_soft_row` and `soft_weight_of_row` (the constraint
 ///   index of each row of `B` and of each soft row of `A`, and the soft
-///   weight as given).
+///   weight as given);
+/// - `fingerprint`: [`matrices_fingerprint`] of the `A`, `C`, `B`, `D`
+///   written beside it.
 ///
 /// `lse-deform solve` reads `laplacian_rows` and `length_scale` back
 /// ([`LseProblem::with_laplacian_rows`], [`LseProblem::with_length_scale`]),
 /// so that the files solve to the same positions and the same report as
-/// the mesh problem.
+/// the mesh problem; it first checks the file against the matrices
+/// ([`check_meta`]).
 pub fn export_meta(
     dir: &Path,
     problem: &LseProblem,
@@ -157,6 +185,7 @@ pub fn export_meta(
         "soft_weight_scale": report.soft_weight_scale,
         "constraint_of_soft_row": problem.soft_constraints().iter().map(|s| s.index).collect::<Vec<_>>(),
         "soft_weight_of_row": problem.soft_constraints().iter().map(|s| s.weight).collect::<Vec<_>>(),
+        "fingerprint": problem_fingerprint(problem),
     });
     let path = dir.join(META_FILE);
     let text = serde_json::to_string_pretty(&meta).map_err(|e| Error::io(&path, e.into()))?;
@@ -165,8 +194,9 @@ pub fn export_meta(
 }
 
 /// What `lse-deform solve` takes from a `meta.json`: the Laplacian rows and
-/// the length scale (either may be absent).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+/// the length scale, and what it checks the matrices against (any may be
+/// absent).
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct ProblemMeta {
     /// `laplacian_rows`.
     pub laplacian_rows: Option<usize>,
@@ -175,47 +205,273 @@ pub struct ProblemMeta {
     /// `length_unit`: reports of the solve give lengths times it, as the
     /// mesh problem's report does.
     pub length_unit: Option<f64>,
+    /// `unknowns` (the columns of `A` and `B`).
+    pub unknowns: Option<usize>,
+    /// `rhs_columns` (the columns of `C` and `D`).
+    pub rhs_columns: Option<usize>,
+    /// The length of `constraint_of_b_row` (the rows of `B`).
+    pub hard_rows: Option<usize>,
+    /// The length of `constraint_of_soft_row` (the rows of `A` after the
+    /// Laplacian).
+    pub soft_rows: Option<usize>,
+    /// `fingerprint` ([`matrices_fingerprint`]).
+    pub fingerprint: Option<String>,
 }
 
 /// Reads the fields of [`ProblemMeta`] from a `meta.json`; a file that is
 /// not JSON, or a field of the wrong type, is an error naming the file.
 pub fn read_meta(path: &Path) -> Result<ProblemMeta, Error> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let bad = |message: String| -> Error {
-        crate::error::MatrixFileError {
-            path: path.to_path_buf(),
-            line: None,
-            message,
-        }
-        .into()
-    };
+    let bad = |message: String| -> Error { meta_error(path, message) };
     let value: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
-    let mut meta = ProblemMeta::default();
-    match value.get("laplacian_rows") {
-        None | Some(serde_json::Value::Null) => {}
-        Some(v) => {
-            meta.laplacian_rows = Some(
+    let present = |key: &str| value.get(key).filter(|v| !v.is_null());
+    let count = |key: &str| -> Result<Option<usize>, Error> {
+        present(key)
+            .map(|v| {
                 v.as_u64()
                     .and_then(|u| usize::try_from(u).ok())
-                    .ok_or_else(|| bad("'laplacian_rows' must be a non-negative integer".into()))?,
-            )
+                    .ok_or_else(|| bad(format!("'{key}' must be a non-negative integer")))
+            })
+            .transpose()
+    };
+    let length = |key: &str| -> Result<Option<usize>, Error> {
+        present(key)
+            .map(|v| {
+                v.as_array()
+                    .map(Vec::len)
+                    .ok_or_else(|| bad(format!("'{key}' must be an array")))
+            })
+            .transpose()
+    };
+    let positive = |key: &str| -> Result<Option<f64>, Error> {
+        present(key)
+            .map(|v| {
+                v.as_f64()
+                    .filter(|s| s.is_finite() && *s > 0.0)
+                    .ok_or_else(|| bad(format!("'{key}' must be a finite number > 0")))
+            })
+            .transpose()
+    };
+    let fingerprint = present("fingerprint")
+        .map(|v| {
+            v.as_str()
+                .map(str::to_string)
+                .ok_or_else(|| bad("'fingerprint' must be a string".into()))
+        })
+        .transpose()?;
+    Ok(ProblemMeta {
+        laplacian_rows: count("laplacian_rows")?,
+        length_scale: positive("length_scale")?,
+        length_unit: positive("length_unit")?,
+        unknowns: count("unknowns")?,
+        rhs_columns: count("rhs_columns")?,
+        hard_rows: length("constraint_of_b_row")?,
+        soft_rows: length("constraint_of_soft_row")?,
+        fingerprint,
+    })
+}
+
+/// An error about the `meta.json` at `path`.
+fn meta_error(path: &Path, message: String) -> Error {
+    MatrixFileError {
+        path: path.to_path_buf(),
+        line: None,
+        message,
+    }
+    .into()
+}
+
+/// Checks a `meta.json` (read from `path`) against the matrices it is to
+/// describe, as read from their files: the counts it records (unknowns,
+/// right-hand sides, rows of `B`, Laplacian and soft rows of `A`) and, when
+/// it has one, its [`matrices_fingerprint`]. A meta.json left from another
+/// export would otherwise change the Laplacian rows and the length scale of
+/// the conflict test without a word; any difference is an error naming the
+/// file and what differs.
+pub fn check_meta(
+    meta: &ProblemMeta,
+    path: &Path,
+    a: SparseColMatRef<'_, usize, f64>,
+    c: MatRef<'_, f64>,
+    b: SparseColMatRef<'_, usize, f64>,
+    d: MatRef<'_, f64>,
+) -> Result<(), Error> {
+    let counts = [
+        ("unknowns", meta.unknowns, a.ncols(), "the columns of A"),
+        (
+            "rhs_columns",
+            meta.rhs_columns,
+            c.ncols(),
+            "the columns of C",
+        ),
+        (
+            "constraint_of_b_row",
+            meta.hard_rows,
+            b.nrows(),
+            "the rows of B",
+        ),
+        (
+            "laplacian_rows + constraint_of_soft_row",
+            meta.laplacian_rows
+                .and_then(|l| meta.soft_rows.map(|s| l.saturating_add(s))),
+            a.nrows(),
+            "the rows of A",
+        ),
+    ];
+    for (key, recorded, actual, what) in counts {
+        if let Some(recorded) = recorded
+            && recorded != actual
+        {
+            return Err(meta_error(
+                path,
+                format!(
+                    "written for another system: its {key} is {recorded}, {what} are {actual} (a meta.json left from another export?)"
+                ),
+            ));
         }
     }
-    for (key, field) in [
-        ("length_scale", &mut meta.length_scale),
-        ("length_unit", &mut meta.length_unit),
-    ] {
-        match value.get(key) {
-            None | Some(serde_json::Value::Null) => {}
-            Some(v) => {
-                *field = Some(
-                    v.as_f64()
-                        .filter(|s| s.is_finite() && *s > 0.0)
-                        .ok_or_else(|| bad(format!("'{key}' must be a finite number > 0")))?,
-                )
-            }
+    if let Some(rows) = meta.laplacian_rows
+        && rows > a.nrows()
+    {
+        return Err(meta_error(
+            path,
+            format!(
+                "laplacian_rows is {rows}, more than the {} rows of A",
+                a.nrows()
+            ),
+        ));
+    }
+    if let Some(recorded) = &meta.fingerprint {
+        let actual = matrices_fingerprint(a, c, b, d);
+        if *recorded != actual {
+            return Err(meta_error(
+                path,
+                format!(
+                    "written for other matrices: its fingerprint is {recorded}, the matrices read have {actual} (a meta.json left from another export, or matrices changed since)"
+                ),
+            ));
         }
     }
-    Ok(meta)
+    Ok(())
+}
+
+/// Applies a checked `meta.json` ([`check_meta`]) to `problem`, built by
+/// [`LseProblem::from_parts`] from the same matrices: its Laplacian rows
+/// and its length scale.
+///
+/// The length scale `s` is the unit of the conflict test: a skipped hard
+/// row with a residual above `CONFLICT_RELATIVE_TOLERANCE · s` (`1e-8 s`,
+/// [`crate::report::CONFLICT_RELATIVE_TOLERANCE`]) conflicts, below it is
+/// redundant. The targets of `B` imply a size `s₀` of `X`
+/// ([`LseProblem::length_scale`] of `from_parts`). A tolerance above `s₀`
+/// would call every conflict between the targets redundant, and one below
+/// their rounding, `ε s₀`, would call every redundant row conflicting; so
+/// `s` must lie in `[ε s₀ / 1e-8, s₀ / 1e-8]`, else it is refused (an
+/// error naming the file). An export of a mesh has `s` the bounding-box
+/// diagonal and `s₀` the size of the constrained positions, well inside.
+pub fn apply_meta(
+    meta: &ProblemMeta,
+    path: &Path,
+    mut problem: LseProblem,
+) -> Result<LseProblem, Error> {
+    if let Some(rows) = meta.laplacian_rows {
+        problem = problem.with_laplacian_rows(rows);
+    }
+    if let Some(scale) = meta.length_scale {
+        let s0 = problem.length_scale();
+        let tolerance = crate::report::CONFLICT_RELATIVE_TOLERANCE;
+        let (low, high) = (f64::EPSILON * s0 / tolerance, s0 / tolerance);
+        if !(low..=high).contains(&scale) {
+            return Err(meta_error(
+                path,
+                format!(
+                    "length_scale {scale:e} is implausible for these matrices: the targets of B imply a size of X of {s0:.3e}, and the conflict tolerance ({tolerance:e} of the length scale) must lie between their rounding and their size, so the length scale in [{low:.3e}, {high:.3e}]"
+                ),
+            ));
+        }
+        problem = problem.with_length_scale(scale);
+    }
+    Ok(problem)
+}
+
+/// The fingerprint of `A`, `C`, `B` and `D` of `min ‖AX − C‖ s.t. BX = D`
+/// as written to (and read back from) Matrix Market files: 64-bit FNV-1a
+/// over each matrix's shape and its nonzero entries `(row, column, bits of
+/// the value)` in row-major order (stored zeros and the order of a file's
+/// entries do not count; the writers give every value in shortest
+/// round-trip form, so a value read back has the same bits).
+/// `"fnv1a64-v1:"` and 16 hexadecimal digits.
+pub fn matrices_fingerprint(
+    a: SparseColMatRef<'_, usize, f64>,
+    c: MatRef<'_, f64>,
+    b: SparseColMatRef<'_, usize, f64>,
+    d: MatRef<'_, f64>,
+) -> String {
+    let entries = |m: SparseColMatRef<'_, usize, f64>| -> Vec<(usize, usize, f64)> {
+        m.triplet_iter().map(|t| (t.row, t.col, *t.val)).collect()
+    };
+    fingerprint(
+        [
+            ((a.nrows(), a.ncols()), entries(a)),
+            ((b.nrows(), b.ncols()), entries(b)),
+        ],
+        [c, d],
+    )
+}
+
+/// [`matrices_fingerprint`] of the matrices [`export_problem`] writes for
+/// `problem` (`B` is held by rows).
+fn problem_fingerprint(problem: &LseProblem) -> String {
+    let (a, b) = (problem.a().as_ref(), problem.b().as_ref());
+    let b_entries = b.triplet_iter().map(|t| (t.row, t.col, *t.val)).collect();
+    fingerprint(
+        [
+            (
+                (a.nrows(), a.ncols()),
+                a.triplet_iter().map(|t| (t.row, t.col, *t.val)).collect(),
+            ),
+            ((b.nrows(), b.ncols()), b_entries),
+        ],
+        [problem.c().as_ref(), problem.d().as_ref()],
+    )
+}
+
+/// A sparse matrix as its shape and its `(row, column, value)` entries.
+type SparseEntries = ((usize, usize), Vec<(usize, usize, f64)>);
+
+/// The hash of [`matrices_fingerprint`]: the sparse `A` and `B` as shapes
+/// and entries, then the dense `C` and `D`.
+fn fingerprint(sparse: [SparseEntries; 2], dense: [MatRef<'_, f64>; 2]) -> String {
+    let mut h = crate::mesh::fingerprint::Fnv1a::new();
+    h.bytes(b"lse-deform system v1");
+    for (shape, entries) in sparse {
+        hash_entries(&mut h, shape, entries);
+    }
+    for m in dense {
+        let entries = (0..m.ncols())
+            .flat_map(|j| (0..m.nrows()).map(move |i| (i, j, m[(i, j)])))
+            .collect();
+        hash_entries(&mut h, (m.nrows(), m.ncols()), entries);
+    }
+    format!("fnv1a64-v1:{:016x}", h.0)
+}
+
+/// Feeds a matrix's shape and its nonzero entries, sorted by row and then
+/// column, into `h`.
+fn hash_entries(
+    h: &mut crate::mesh::fingerprint::Fnv1a,
+    (rows, cols): (usize, usize),
+    mut entries: Vec<(usize, usize, f64)>,
+) {
+    entries.retain(|e| e.2 != 0.0);
+    entries.sort_unstable_by_key(|e| (e.0, e.1));
+    for x in [rows, cols, entries.len()] {
+        h.bytes(&(x as u64).to_le_bytes());
+    }
+    for (i, j, v) in entries {
+        h.bytes(&(i as u64).to_le_bytes());
+        h.bytes(&(j as u64).to_le_bytes());
+        h.bytes(&v.to_bits().to_le_bytes());
+    }
 }

@@ -632,6 +632,37 @@ pub fn refinement_warnings(r: &Refinement, method: Method) -> Vec<String> {
     out
 }
 
+/// What could lower a forward error above the accepted one
+/// ([`NumericalError::LostAccuracy`]) for the `method` and the refinement
+/// `r` that produced it: refinement when it was off (or absent), more
+/// steps when it hit its limit, a lower condition number always, and the
+/// null-space method (which is tested to `1e-10`, docs/formulations.md)
+/// only when another method was in use; for the penalty method also a
+/// larger weight.
+pub fn lost_accuracy_advice(method: Method, r: Option<&Refinement>) -> String {
+    let mut ways = Vec::new();
+    match r {
+        None => ways.push("refine it with refinement `auto`"),
+        Some(r) if r.mode == Refine::Off => ways.push("refine it with refinement `auto`"),
+        Some(r) if r.stop_reason == RefineStop::StepLimit => {
+            ways.push("allow more refinement steps")
+        }
+        Some(_) => {}
+    }
+    ways.push("lower the condition number");
+    if method == Method::Penalty {
+        ways.push("raise the penalty weight");
+    }
+    if method != Method::NullSpaceQr {
+        ways.push("use the null-space method (nullspace-qr)");
+    }
+    match ways.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, rest)) => format!("{}, or {last}", rest.join(", ")),
+        None => String::new(),
+    }
+}
+
 /// For a general problem, a zero or lost pivot names the free unknown of
 /// `X` ([`NumericalError::FreeUnknown`]); other errors pass unchanged.
 fn name_free_unknown(e: Error, problem: &LseProblem) -> Error {

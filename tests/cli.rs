@@ -593,21 +593,27 @@ fn generate_says_which_vertex_count_it_produced() {
     assert!(!stderr(&o).contains("asked for"), "{}", stderr(&o));
 }
 
+/// The mesh at `mesh` bent, as `dir/other.obj`: the same counts and faces,
+/// other positions (so another fingerprint).
+fn bent_copy(dir: &Path, mesh: &str) -> String {
+    let grid = read_mesh(Path::new(mesh)).unwrap().mesh;
+    let bent: Vec<[f64; 3]> = grid
+        .positions()
+        .iter()
+        .map(|q| [q[0], q[1], q[2] + 0.2 * q[0] * q[0]])
+        .collect();
+    let other = path_in(dir, "other.obj");
+    lse_deform::mesh::write_mesh(&grid.with_positions(bent).unwrap(), Path::new(&other)).unwrap();
+    other
+}
+
 /// `scene` records the mesh; `deform` on another mesh with the same vertex
 /// count warns, and with `--strict` refuses (exit 2).
 #[test]
 fn a_scene_for_another_mesh_warns_or_with_strict_fails() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, scene) = grid_and_scene(dir.path());
-    // The same grid, bent: same counts and faces, other positions.
-    let grid = read_mesh(Path::new(&mesh)).unwrap().mesh;
-    let bent: Vec<[f64; 3]> = grid
-        .positions()
-        .iter()
-        .map(|q| [q[0], q[1], q[2] + 0.2 * q[0] * q[0]])
-        .collect();
-    let other = path_in(dir.path(), "other.obj");
-    lse_deform::mesh::write_mesh(&grid.with_positions(bent).unwrap(), Path::new(&other)).unwrap();
+    let other = bent_copy(dir.path(), &mesh);
     let out = path_in(dir.path(), "out.obj");
     let o = run(&["deform", &mesh, "-c", &scene, "-o", &out]);
     assert!(!stderr(&o).contains("made for"), "{}", stderr(&o));
@@ -832,4 +838,133 @@ fn scene_axis_takes_a_direction() {
         "{}",
         stderr(&o)
     );
+}
+
+/// The warning that a constraints file was made for another mesh is in
+/// the report as well as on stderr: in `deform --report` (Laplacian and
+/// ARAP) and in every report of `compare --json`. (Before: on stderr only,
+/// the report's `warnings` empty.)
+#[test]
+fn a_scene_for_another_mesh_is_warned_about_in_the_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = grid_and_scene(dir.path());
+    let other = bent_copy(dir.path(), &mesh);
+    let out = path_in(dir.path(), "out.obj");
+    let report = path_in(dir.path(), "report.json");
+    let warnings = |json: &serde_json::Value| -> Vec<String> {
+        json["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect()
+    };
+    let read = |path: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+    };
+    for energy in ["laplacian", "arap"] {
+        let o = run(&[
+            "deform",
+            &other,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--report",
+            &report,
+            "--energy",
+            energy,
+            "--iterations",
+            "1",
+        ]);
+        let err = stderr(&o);
+        assert!(o.status.success(), "{energy}: {err}");
+        assert_eq!(err.matches("fingerprint").count(), 1, "{energy}: {err}");
+        let w = warnings(&read(&report));
+        assert!(
+            w.first().is_some_and(|w| w.contains("fingerprint")),
+            "{energy}: {w:?}"
+        );
+    }
+    let json = path_in(dir.path(), "compare.json");
+    let o = run(&[
+        "compare",
+        &other,
+        "-c",
+        &scene,
+        "--methods",
+        "nullspace-qr",
+        "--qr",
+        "sparse-givens",
+        "--spd",
+        "faer-auto",
+        "--repeat",
+        "1",
+        "--no-condition",
+        "--json",
+        &json,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows = read(&json);
+    let rows = rows.as_array().unwrap();
+    assert!(!rows.is_empty());
+    for row in rows {
+        let w = warnings(&row["report"]);
+        assert!(w.iter().any(|w| w.contains("fingerprint")), "{w:?}");
+    }
+}
+
+/// `--strict` on an inaccurate solution advises what could help with the
+/// method in use: never "use the null-space method" when that method is in
+/// use, and it is named when another method is. A sliver grid with
+/// refinement off gives a forward error of about 2e-2. (Before: the same
+/// advice, null-space method included, whatever the method.)
+#[test]
+fn strict_advice_depends_on_the_method_in_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = path_in(dir.path(), "sliver.obj");
+    let o = run(&["generate", "sliver", "--vertices", "3000", "-o", &mesh]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = path_in(dir.path(), "scene.json");
+    assert!(run(&["scene", &mesh, "-o", &scene]).status.success());
+    let out = path_in(dir.path(), "out.obj");
+    let strict = |method: &str| {
+        let o = run(&[
+            "deform", &mesh, "-c", &scene, "-o", &out, "--method", method, "--refine", "off",
+            "--strict",
+        ]);
+        assert_eq!(o.status.code(), Some(3), "{method}: {}", stderr(&o));
+        stderr(&o)
+    };
+    let err = strict("nullspace-qr");
+    assert!(err.contains("refinement `auto`"), "{err}");
+    assert!(!err.contains("null-space method"), "{err}");
+    let err = strict("kkt");
+    assert!(
+        err.contains("refinement `auto`") && err.contains("use the null-space method"),
+        "{err}"
+    );
+    assert!(!Path::new(&out).exists());
+}
+
+/// `export-system -o /dev/full` says that the path is not a directory
+/// (before: "File exists", from creating a directory on a device).
+#[cfg(unix)]
+#[test]
+fn export_system_to_a_device_says_it_is_not_a_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = grid_and_scene(dir.path());
+    let o = run(&["export-system", &mesh, "-c", &scene, "-o", "/dev/full"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("/dev/full") && err.contains("not a directory"),
+        "{err}"
+    );
+    assert!(!err.contains("File exists"), "{err}");
+    // A regular file in the way says so too.
+    let o = run(&["export-system", &mesh, "-c", &scene, "-o", &mesh]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("a regular file, not a directory"), "{err}");
 }

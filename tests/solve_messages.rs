@@ -202,3 +202,97 @@ fn a_full_rank_a_scaled_by_1e_pm300_is_not_called_free() {
         }
     }
 }
+
+/// The conflicting system x₀ = 0.5, x₀ = 0.6 (A = I on two unknowns) as a
+/// directory `solve` reads: A.mtx, C.mtx, B.mtx, D.mtx in `dir`.
+fn conflicting_system(dir: &Path) {
+    mtx(dir, "A.mtx", &coordinate(2, 2, &[(1, 1, 1.0), (2, 2, 1.0)]));
+    mtx(dir, "C.mtx", &array(2, &[1.0, 2.0]));
+    mtx(dir, "B.mtx", &coordinate(2, 2, &[(1, 1, 1.0), (2, 1, 1.0)]));
+    mtx(dir, "D.mtx", &array(2, &[0.5, 0.6]));
+}
+
+/// A meta.json left from another export (here: of a 900-vertex grid, on
+/// the 2-unknown conflicting system) is refused (exit 2, naming the file
+/// and what differs), as is one whose matrices changed since the export
+/// (same shapes, other values: the fingerprint differs); the export's own
+/// meta.json is accepted. (Before: used silently, exit 0, the conflict's
+/// residual reported in the wrong length scale.)
+#[test]
+fn a_stale_meta_json_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mesh = path_in(d, "grid.obj");
+    assert!(
+        run(&["generate", "grid", "--vertices", "900", "-o", &mesh])
+            .status
+            .success()
+    );
+    let scene = path_in(d, "scene.json");
+    assert!(run(&["scene", &mesh, "-o", &scene]).status.success());
+    let export = path_in(d, "export");
+    let o = run(&["export-system", &mesh, "-c", &scene, "-o", &export]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let x = path_in(d, "x.mtx");
+    let o = run(&["solve", &export, "-o", &x]);
+    assert!(o.status.success(), "the export's own meta: {}", stderr(&o));
+    let meta = Path::new(&export).join("meta.json");
+    // Another system with the grid's meta.json beside it.
+    let small = d.join("small");
+    std::fs::create_dir(&small).unwrap();
+    conflicting_system(&small);
+    std::fs::copy(&meta, small.join("meta.json")).unwrap();
+    let o = run(&["solve", small.to_str().unwrap(), "-o", &x]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("meta.json") && err.contains("unknowns is 900"),
+        "{err}"
+    );
+    // The grid's matrices with D changed (same shape): the fingerprint.
+    let dpath = Path::new(&export).join("D.mtx");
+    let text = std::fs::read_to_string(&dpath).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let last = lines.len() - 1;
+    lines[last] = "1.25e-1".into();
+    std::fs::write(&dpath, lines.join("\n") + "\n").unwrap();
+    let o = run(&["solve", &export, "-o", &x]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("meta.json") && err.contains("fingerprint"),
+        "{err}"
+    );
+}
+
+/// A meta.json whose length_scale makes the conflict test meaningless
+/// (1e300 for targets of size 0.6: the tolerance 1e-8 × 1e300 would call
+/// the conflict x₀ = 0.5, x₀ = 0.6 redundant) is refused, exit 2, naming
+/// the file and the key; one that fits is used. (Before: exit 0, "1
+/// redundant, 0 conflicting", forward error ~4e-316.)
+#[test]
+fn an_implausible_length_scale_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    conflicting_system(d);
+    let x = path_in(d, "x.mtx");
+    let meta = path_in(d, "meta.json");
+    std::fs::write(&meta, r#"{"length_scale": 1e300}"#).unwrap();
+    let dir_arg = d.to_str().unwrap();
+    let o = run(&["solve", dir_arg, "-o", &x]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("meta.json") && err.contains("length_scale 1e300 is implausible"),
+        "{err}"
+    );
+    assert!(!err.contains("0 conflicting"), "{err}");
+    std::fs::write(&meta, r#"{"length_scale": 1e-30}"#).unwrap();
+    let o = run(&["solve", dir_arg, "-o", &x]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    std::fs::write(&meta, r#"{"length_scale": 2.0}"#).unwrap();
+    let o = run(&["solve", dir_arg, "-o", &x]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("1 conflicting"), "{err}");
+}

@@ -11,7 +11,8 @@ use lse_deform::error::ProblemError;
 use lse_deform::formulation::Refine;
 use lse_deform::{Deformer, Error, LaplacianKind, Method, QrKind, SpdKind};
 
-use super::{check_outputs, constraints_for, load, show_after_a_second, write_text};
+use super::files::{check_distinct, mesh_and_constraints};
+use super::{check_outputs, constraints_with_warnings, load, show_after_a_second, write_text};
 
 /// Arguments of `compare`.
 #[derive(Args)]
@@ -79,6 +80,12 @@ impl CompareArgs {
 
 /// Runs `compare` and prints its table (and writes the rows as JSON).
 pub fn compare(a: CompareArgs) -> Result<(), Error> {
+    if let Some(json) = &a.json {
+        check_distinct(
+            &mesh_and_constraints(&a.mesh, &a.constraints),
+            &[("--json", json.as_path())],
+        )?;
+    }
     check_outputs(None, a.json.as_deref())?;
     let options = a.options();
     // Fail before any work when the filters leave nothing to run.
@@ -89,7 +96,7 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
         })?;
     let budget = a.memory_limit.unwrap_or_default();
     let mesh = load(&a.mesh, budget)?;
-    let constraints = constraints_for(&a.constraints, &mesh, false, budget)?;
+    let (constraints, warnings) = constraints_with_warnings(&a.constraints, &mesh, false, budget)?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
     deformer.set_memory_budget(budget);
     let bar =
@@ -126,6 +133,10 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     }
     bar.finish_and_clear();
     print_compare_table(&rows);
+    // The warnings of reading the inputs belong to every report.
+    for report in rows.iter_mut().filter_map(|r| r.report.as_mut()) {
+        report.warnings.splice(0..0, warnings.iter().cloned());
+    }
     if let Some(path) = &a.json {
         let json = serde_json::to_string_pretty(&rows).map_err(|e| Error::io(path, e.into()))?;
         write_text(path, json)?;

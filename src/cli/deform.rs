@@ -8,8 +8,9 @@ use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::choice::Energy;
 use lse_deform::{ConstraintSet, Deformer, Error, LaplacianKind, SolveOptions, mesh};
 
-use super::summary::{check_strict, check_strict_conflicts, finish_report};
-use super::{MethodArgs, check_outputs, constraints_for, load, phase, write_text};
+use super::files::{check_distinct, mesh_and_constraints};
+use super::summary::{check_strict, check_strict_conflicts, finish_report, write_report};
+use super::{MethodArgs, check_outputs, constraints_with_warnings, load, phase};
 
 /// Arguments of `deform`.
 #[derive(Args)]
@@ -96,10 +97,14 @@ impl EnergyArgs {
 
 /// Runs `deform`: Laplacian editing, or ARAP with `--energy arap`.
 pub fn deform(a: DeformArgs) -> Result<(), Error> {
+    let mut outputs = vec![("-o", a.output.as_path())];
+    outputs.extend(a.report.as_deref().map(|r| ("--report", r)));
+    check_distinct(&mesh_and_constraints(&a.mesh, &a.constraints), &outputs)?;
     check_outputs(Some(&a.output), a.report.as_deref())?;
     let budget = a.method.budget();
     let mesh = load(&a.mesh, budget)?;
-    let constraints = constraints_for(&a.constraints, &mesh, a.strict, budget)?;
+    let (constraints, warnings) =
+        constraints_with_warnings(&a.constraints, &mesh, a.strict, budget)?;
     let options = a.method.options()?;
     for warning in a.energy.inapplicable() {
         eprintln!("warning: {warning}");
@@ -110,7 +115,7 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
                 "warning: --laplacian applies to --energy laplacian only; ignored with --energy arap (cotangent weights)"
             );
         }
-        return deform_arap(&a, mesh, constraints, &options);
+        return deform_arap(&a, mesh, (constraints, &warnings), &options);
     }
     let bar = phase("set-up");
     let laplacian = a.laplacian.unwrap_or(LaplacianKind::Cotangent);
@@ -127,26 +132,32 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
     if a.strict && !solution.report.conflicting.is_empty() {
         // The warnings and the summary line with its counts still go to
         // stderr; nothing is written.
-        finish_report(&solution.report, None, "vertices", "constraints")?;
+        finish_report(&solution.report, &warnings, None, NAMES, || Ok(()))?;
         check_strict_conflicts(&solution.report, a.strict)?;
     }
     check_strict(&solution.report, a.strict)?;
     let out = deformer.mesh().with_positions(solution.positions)?;
-    let bar = phase(&format!("writing {}", a.output.display()));
-    mesh::write_mesh(&out, &a.output)?;
-    bar.finish_and_clear();
     finish_report(
         &solution.report,
+        &warnings,
         a.report.as_deref(),
-        "vertices",
-        "constraints",
+        NAMES,
+        || {
+            let bar = phase(&format!("writing {}", a.output.display()));
+            mesh::write_mesh(&out, &a.output)?;
+            bar.finish_and_clear();
+            Ok(())
+        },
     )
 }
+
+/// What the summary line of a mesh calls the unknowns and the rows of `B`.
+const NAMES: (&str, &str) = ("vertices", "constraints");
 
 fn deform_arap(
     a: &DeformArgs,
     mesh: mesh::Mesh,
-    constraints: ConstraintSet,
+    (constraints, warnings): (ConstraintSet, &[String]),
     options: &SolveOptions,
 ) -> Result<(), Error> {
     let e = &a.energy;
@@ -197,11 +208,14 @@ fn deform_arap(
         return check_strict_conflicts(&report, a.strict);
     }
     let out = arap.mesh().with_positions(arap.positions())?;
-    mesh::write_mesh(&out, &a.output)?;
-    if let Some(path) = &a.report {
-        let json = serde_json::to_string_pretty(&report).map_err(|e| Error::io(path, e.into()))?;
-        write_text(path, json)?;
-    }
+    // Staged together: a report that cannot be written leaves no mesh.
+    super::staged(|| {
+        mesh::write_mesh(&out, &a.output)?;
+        match &a.report {
+            Some(path) => write_report(&report, warnings, path),
+            None => Ok(()),
+        }
+    })?;
     eprintln!("{summary}");
     Ok(())
 }

@@ -4,9 +4,10 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lse_deform::export::{export_meta, export_problem};
+use lse_deform::export::{META_FILE, create_output_dir, export_meta, export_problem};
 use lse_deform::{Deformer, Error, LaplacianKind, mesh};
 
+use super::files::{check_distinct, mesh_and_constraints};
 use super::{MethodArgs, constraints_for, load};
 
 /// Arguments of `export-system`.
@@ -29,18 +30,35 @@ pub struct ExportArgs {
 
 /// Runs `export-system`.
 pub fn export_system(a: ExportArgs) -> Result<(), Error> {
-    // Fail fast: the directory (created now, as the export would) must take
-    // files before the mesh is read and the system factored.
-    std::fs::create_dir_all(&a.output).map_err(|e| Error::io(&a.output, e))?;
-    mesh::check_writable(&a.output.join("A.mtx"))?;
+    // Fail fast: no file of the export may be an input, and the directory
+    // (created now, as the export would) must take files, before the mesh
+    // is read and the system factored.
+    let names = [
+        "A.mtx",
+        "C.mtx",
+        "B.mtx",
+        "D.mtx",
+        "factored.mtx",
+        META_FILE,
+    ];
+    let paths = names.map(|n| a.output.join(n));
+    let outputs: Vec<_> = paths.iter().map(|p| ("-o", p.as_path())).collect();
+    check_distinct(&mesh_and_constraints(&a.mesh, &a.constraints), &outputs)?;
+    create_output_dir(&a.output)?;
+    mesh::check_writable(&paths[0])?;
     let budget = a.method.budget();
     let mesh = load(&a.mesh, budget)?;
     let constraints = constraints_for(&a.constraints, &mesh, false, budget)?;
     let options = a.method.options()?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
     deformer.precompute_with(&options)?;
-    let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
-    let meta = export_meta(&a.output, deformer.problem(), deformer.report())?;
+    // Staged: a failed write leaves no file of this export, and the files
+    // of an earlier one as they were.
+    let (files, meta) = super::staged(|| {
+        let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
+        let meta = export_meta(&a.output, deformer.problem(), deformer.report())?;
+        Ok((files, meta))
+    })?;
     eprintln!(
         "wrote {}, {}, {}, {}, {}{}",
         files.a.display(),

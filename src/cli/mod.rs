@@ -28,6 +28,7 @@ pub mod deform;
 #[cfg(feature = "editor")]
 pub mod edit;
 pub mod export;
+pub mod files;
 pub mod generate;
 pub mod info;
 pub mod render;
@@ -204,6 +205,13 @@ pub fn write_text(path: &Path, text: String) -> Result<(), Error> {
     lse_deform::atomic::write_bytes(path, (text + "\n").as_bytes()).map_err(|e| Error::io(path, e))
 }
 
+/// Runs `write` with its outputs staged ([`lse_deform::atomic::staged`]):
+/// they replace their files together when it succeeds, and none does when
+/// it fails.
+pub fn staged<T>(write: impl FnOnce() -> Result<T, Error>) -> Result<T, Error> {
+    lse_deform::atomic::staged(write, |path, e| Error::io(path, e))
+}
+
 /// Fail fast: the output mesh (its format and its directory) and any other
 /// output file are checked before the input is read or anything is solved.
 pub fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result<(), Error> {
@@ -225,18 +233,32 @@ pub fn constraints_for(
     strict: bool,
     budget: MemoryBudget,
 ) -> Result<ConstraintSet, Error> {
+    constraints_with_warnings(path, mesh, strict, budget).map(|(set, _)| set)
+}
+
+/// [`constraints_for`], also returning the warning it printed (a file made
+/// for another mesh), for the command's report.
+pub fn constraints_with_warnings(
+    path: &Path,
+    mesh: &mesh::Mesh,
+    strict: bool,
+    budget: MemoryBudget,
+) -> Result<(ConstraintSet, Vec<String>), Error> {
     let bar = phase(&format!("reading {}", path.display()));
     let set = read_constraints_file_within(path, budget)?;
     bar.finish_and_clear();
+    let mut warnings = Vec::new();
     if let Some(detail) = set.mesh_mismatch(mesh) {
         if strict {
             return Err(lse_deform::error::ConstraintError::MeshMismatch { detail }.into());
         }
-        eprintln!(
-            "warning: {} was {detail} (--strict makes this an error)",
+        let warning = format!(
+            "{} was {detail} (--strict makes this an error)",
             path.display()
         );
+        eprintln!("warning: {warning}");
+        warnings.push(warning);
     }
     set.check_vertices(mesh.n_vertices())?;
-    Ok(set)
+    Ok((set, warnings))
 }

@@ -135,6 +135,20 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 
 fn run(a: &RenderArgs) -> Result<(), RenderCommandError> {
     check_arguments(a)?;
+    let inputs = [
+        ("the input mesh", Some(&a.mesh)),
+        ("the deformed mesh", a.deformed.as_ref()),
+        ("the mesh given with --against", a.against.as_ref()),
+        (
+            "the constraints file given with --constraints",
+            a.constraints.as_ref(),
+        ),
+    ];
+    let inputs: Vec<_> = inputs
+        .into_iter()
+        .filter_map(|(what, p)| p.map(|p| (what, p.as_path())))
+        .collect();
+    super::files::check_distinct(&inputs, &[("-o", a.output.as_path())])?;
     mesh::check_writable(&a.output)?;
     let original = super::load(&a.mesh, lse_deform::MemoryBudget::default())?;
     let deformed = a

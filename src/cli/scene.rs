@@ -8,6 +8,7 @@ use clap::Args;
 use lse_deform::Error;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
 
+use super::files::check_distinct;
 use super::{check_outputs, load};
 
 /// Arguments of `scene`.
@@ -73,6 +74,10 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
 
 /// Runs `scene`.
 pub fn scene(a: SceneArgs) -> Result<(), Error> {
+    check_distinct(
+        &[("the input mesh", a.mesh.as_path())],
+        &[("-o", a.output.as_path())],
+    )?;
     check_outputs(None, Some(&a.output))?;
     let mesh = load(&a.mesh, lse_deform::MemoryBudget::default())?;
     let mut s = FixedAndHandle::paper_default(&mesh);

@@ -4,10 +4,11 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lse_deform::export::{META_FILE, read_meta};
+use lse_deform::export::{META_FILE, apply_meta, check_meta, read_meta};
 use lse_deform::problem::LseProblem;
 use lse_deform::{Error, LseSolver, Report, mtx};
 
+use super::files::check_distinct;
 use super::summary::finish_report;
 use super::{MethodArgs, check_outputs, phase};
 
@@ -68,10 +69,6 @@ fn matrix_path(
 
 /// Runs `solve`.
 pub fn solve(a: SolveArgs) -> Result<(), Error> {
-    // Fail fast, as `deform` does: both outputs must be writable before
-    // the matrices are read and factored.
-    check_outputs(None, Some(&a.output))?;
-    check_outputs(None, a.report.as_deref())?;
     let path = |flag: &Option<PathBuf>, name: &str| matrix_path(flag, &a.dir, name);
     let (pa, pc, pb, pd) = (
         path(&a.a, "A.mtx")?,
@@ -79,31 +76,52 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
         path(&a.b, "B.mtx")?,
         path(&a.d, "D.mtx")?,
     );
-    let m = &a.method;
-    let options = m.options()?;
     let meta_path = a.meta.clone().or_else(|| {
         a.dir
             .as_ref()
             .map(|d| d.join(META_FILE))
             .filter(|p| p.exists())
     });
+    // Fail fast, as `deform` does: both outputs must be other files than
+    // the inputs, and writable, before the matrices are read and factored.
+    let mut inputs = vec![
+        ("the matrix A", pa.as_path()),
+        ("the matrix C", pc.as_path()),
+        ("the matrix B", pb.as_path()),
+        ("the matrix D", pd.as_path()),
+    ];
+    inputs.extend(meta_path.as_deref().map(|p| ("the meta.json read", p)));
+    let mut outputs = vec![("-o", a.output.as_path())];
+    outputs.extend(a.report.as_deref().map(|r| ("--report", r)));
+    check_distinct(&inputs, &outputs)?;
+    check_outputs(None, Some(&a.output))?;
+    check_outputs(None, a.report.as_deref())?;
+    let m = &a.method;
+    let options = m.options()?;
     let meta = meta_path
         .as_deref()
-        .map(read_meta)
-        .transpose()?
-        .unwrap_or_default();
+        .map(|p| read_meta(p).map(|m| (m, p)))
+        .transpose()?;
     let bar = phase("reading the matrices");
     let t = std::time::Instant::now();
     let (ma, mc, mb, md) = mtx::read_system_within(&pa, &pc, &pb, &pd, options.memory_budget)?;
+    if let Some((meta, path)) = &meta {
+        check_meta(
+            meta,
+            path,
+            ma.as_ref(),
+            mc.as_ref(),
+            mb.as_ref(),
+            md.as_ref(),
+        )?;
+    }
     let mut problem = LseProblem::from_parts(ma.as_ref(), mc.as_ref(), mb.as_ref(), md.as_ref())?;
-    if let Some(rows) = meta.laplacian_rows {
-        problem = problem.with_laplacian_rows(rows);
+    if let Some((meta, path)) = &meta {
+        problem = apply_meta(meta, path, problem)?;
     }
-    if let Some(scale) = meta.length_scale {
-        problem = problem.with_length_scale(scale);
-    }
+    let length_unit = meta.as_ref().and_then(|(m, _)| m.length_unit);
     let mut base = Report {
-        length_unit: meta.length_unit.unwrap_or(1.0),
+        length_unit: length_unit.unwrap_or(1.0),
         ..Report::default()
     };
     base.timings_s.setup = t.elapsed().as_secs_f64();
@@ -117,11 +135,11 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
     bar.set_message("solve");
     let x = solver.solve()?;
     bar.finish_and_clear();
-    mtx::write_dense(&a.output, x.as_ref())?;
     finish_report(
         solver.report(),
+        &[],
         a.report.as_deref(),
-        "unknowns",
-        "rows of B",
+        ("unknowns", "rows of B"),
+        || mtx::write_dense(&a.output, x.as_ref()),
     )
 }

@@ -8,25 +8,45 @@ use lse_deform::{Error, Report};
 
 use super::write_text;
 
-/// Conflict warnings, the `--report` file and the summary line of
-/// `deform` and `solve`.
+/// Conflict warnings, the outputs and the summary line of `deform` and
+/// `solve`. `write_output` writes the command's result; it and the
+/// `--report` file are staged together ([`lse_deform::atomic::staged`]):
+/// either both replace their files or neither does. `input_warnings` were
+/// printed when the inputs were read; they go first into the report file.
 pub fn finish_report(
     report: &Report,
+    input_warnings: &[String],
     path: Option<&Path>,
-    unknowns: &str,
-    constraints: &str,
+    (unknowns, constraints): (&str, &str),
+    write_output: impl FnOnce() -> Result<(), Error>,
 ) -> Result<(), Error> {
     // The conflicting constraints are among the warnings (the first few one
     // by one, the rest counted: a file can hold 10⁵ of them).
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
-    if let Some(path) = path {
-        let json = serde_json::to_string_pretty(report).map_err(|e| Error::io(path, e.into()))?;
-        write_text(path, json)?;
-    }
+    super::staged(|| {
+        write_output()?;
+        match path {
+            Some(path) => write_report(report, input_warnings, path),
+            None => Ok(()),
+        }
+    })?;
     eprintln!("{}", summary_line(report, unknowns, constraints));
     Ok(())
+}
+
+/// Writes `report` as JSON to `path`, `input_warnings` before its own.
+pub fn write_report(report: &Report, input_warnings: &[String], path: &Path) -> Result<(), Error> {
+    let json = if input_warnings.is_empty() {
+        serde_json::to_string_pretty(report)
+    } else {
+        let mut full = report.clone();
+        full.warnings.splice(0..0, input_warnings.iter().cloned());
+        serde_json::to_string_pretty(&full)
+    }
+    .map_err(|e| Error::io(path, e.into()))?;
+    write_text(path, json)
 }
 
 /// `--strict`: a conflicting hard constraint is an error (exit 2) before
@@ -70,6 +90,10 @@ pub fn check_strict(report: &Report, strict: bool) -> Result<(), Error> {
             matrix: format!("{} (--strict)", report.method),
             estimate,
             tolerance: FORWARD_ERROR_WARNING,
+            advice: lse_deform::solver::lost_accuracy_advice(
+                report.method,
+                report.refinement.as_ref(),
+            ),
         }
         .into());
     }

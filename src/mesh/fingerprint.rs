@@ -46,14 +46,16 @@ pub struct MeshSignature {
 /// deliberate change of shape.
 const QUANTUM_BITS_BELOW_DIAGONAL: i64 = 20;
 
-struct Fnv1a(u64);
+/// 64-bit FNV-1a (Fowler–Noll–Vo): a fingerprint against mix-ups, not a
+/// cryptographic hash.
+pub(crate) struct Fnv1a(pub(crate) u64);
 
 impl Fnv1a {
-    fn new() -> Fnv1a {
+    pub(crate) fn new() -> Fnv1a {
         Fnv1a(0xcbf2_9ce4_8422_2325)
     }
 
-    fn bytes(&mut self, bytes: &[u8]) {
+    pub(crate) fn bytes(&mut self, bytes: &[u8]) {
         for &b in bytes {
             self.0 ^= u64::from(b);
             self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
