@@ -30,6 +30,7 @@ about a second; a ``Deformer`` stays usable (an interrupted
 """
 
 import functools as _functools
+import inspect as _inspect
 
 from . import _native
 from ._native import (
@@ -94,6 +95,11 @@ class Deformer(_native.Deformer):
 for _name, _method in vars(_native.Deformer).items():
     if not _name.startswith("_") and callable(_method):
         setattr(Deformer, _name, _translated(_method))
+
+try:  # the keywords of the native constructor, for help() and inspect
+    Deformer.__signature__ = _inspect.signature(_native.Deformer)
+except (TypeError, ValueError):
+    pass
 
 __all__ = [
     "Deformer",
