@@ -18,7 +18,9 @@
 //!
 //! The one exception outside these classes is a signal handler's: Ctrl-C
 //! during a call raises `KeyboardInterrupt` (a `BaseException`, as Python
-//! raises it everywhere) within about a second ([`released`]).
+//! raises it everywhere) at the library's next check ([`released`],
+//! [`crate::interrupt`]: after the numeric factorisation under way, if
+//! any).
 
 use std::any::Any;
 use std::cell::Cell;

@@ -1,6 +1,7 @@
-"""Ctrl-C during a long native call raises ``KeyboardInterrupt`` within
-about a second (the library checks for signals between phases and
-iterations, at most every 50 ms), not when the call returns; afterwards a
+"""Ctrl-C during a long native call raises ``KeyboardInterrupt`` at the
+library's next check for signals (between phases and iterations, at most
+50 ms apart; a numeric factorisation under way ends first), not when the
+call returns; afterwards a
 ``Deformer`` is usable (an interrupted ``precompute()`` leaves it to be
 precomputed again).
 

@@ -24,9 +24,11 @@ dtype that cannot be converted and ``TooLargeError`` (also a
 failed; ``NumericalError`` (an ``ArithmeticError``) for numerical failure.
 An argument of the wrong type (``method=None``) is an ``InputTypeError``,
 an integer out of range (``iterations=-1``) an ``InputError``, whichever
-keyword it is. Ctrl-C during a call raises ``KeyboardInterrupt`` within
-about a second; a ``Deformer`` stays usable (an interrupted
-``precompute()`` leaves it to be precomputed again).
+keyword it is. Ctrl-C during a call raises ``KeyboardInterrupt`` at the
+library's next check (between phases and iterations, at most 50 ms apart;
+a numeric factorisation under way runs to its end first); a ``Deformer``
+stays usable (an interrupted ``precompute()`` leaves it to be
+precomputed again).
 """
 
 import functools as _functools
