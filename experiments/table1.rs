@@ -221,12 +221,14 @@ pub fn failure_kind(e: &Error) -> &'static str {
         Error::Numerical(N::NonFiniteEnergy { .. }) => "non-finite ARAP energy",
         Error::Numerical(N::TargetOutOfRange { .. }) => "target out of range",
         Error::Numerical(N::SoftWeightOutOfRange { .. }) => "soft weight out of range",
+        Error::Numerical(N::SoftWeightTooLarge { .. }) => "soft weight too large",
         Error::Numerical(N::Backend { .. }) => "back-end error",
         Error::Problem(_) => "unsupported problem",
         Error::Constraint(_) => "bad constraint",
         Error::Mesh(_) => "bad mesh",
         Error::Io { .. } => "I/O error",
         Error::MatrixFile(_) => "bad matrix file",
+        Error::Interrupted => "interrupted",
     }
 }
 
