@@ -221,6 +221,7 @@ pub fn failure_kind(e: &Error) -> &'static str {
         Error::Numerical(N::NonFiniteEnergy { .. }) => "non-finite ARAP energy",
         Error::Numerical(N::TargetOutOfRange { .. }) => "target out of range",
         Error::Numerical(N::SoftWeightOutOfRange { .. }) => "soft weight out of range",
+        Error::Numerical(N::SoftWeightTooLarge { .. }) => "soft weight too large",
         Error::Numerical(N::Backend { .. }) => "back-end error",
         Error::Problem(_) => "unsupported problem",
         Error::Constraint(_) => "bad constraint",
@@ -228,6 +229,7 @@ pub fn failure_kind(e: &Error) -> &'static str {
         Error::Io { .. } => "I/O error",
         Error::MatrixFile(_) => "bad matrix file",
         Error::MemoryLimit(_) => "bad LSE_MEMORY_LIMIT",
+        Error::Interrupted => "interrupted",
     }
 }
 

@@ -254,6 +254,7 @@ fn measure(
     let mut times = Vec::new();
     let mut x = Mat::<f64>::zeros(0, 0);
     for _ in 0..options.repeat.max(1) {
+        crate::interrupt::check()?;
         x = deformer.solve_matrix()?;
         times.push(deformer.report().timings_s.solve);
     }
@@ -283,13 +284,16 @@ pub fn compare(
 ) -> Result<(Reference, Vec<CompareRow>), Error> {
     let configs = options.configurations()?;
     let reference = reference(deformer)?;
-    let rows = configs
-        .iter()
-        .map(|config| {
-            progress(config);
-            run_one(deformer, config, options, &reference)
-        })
-        .collect();
+    let mut rows = Vec::with_capacity(configs.len());
+    for config in &configs {
+        // An interruption is no configuration's failure: it ends the
+        // comparison (a row that recorded one is not kept).
+        crate::interrupt::check()?;
+        progress(config);
+        let row = run_one(deformer, config, options, &reference);
+        crate::interrupt::check()?;
+        rows.push(row);
+    }
     Ok((reference, rows))
 }
 

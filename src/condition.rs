@@ -140,6 +140,7 @@ pub fn lanczos_largest_magnitude(
         converged: false,
     };
     for k in 0..cap {
+        crate::interrupt::check()?;
         op.apply(v.as_ref(), w.as_mut())?;
         if !w.is_all_finite() {
             return Err(NumericalError::Backend {

@@ -30,12 +30,12 @@ use std::time::Instant;
 use faer::{Mat, MatMut, MatRef};
 
 use crate::constraints::ConstraintSet;
-use crate::error::{ConstraintError, Error, NumericalError, ProblemError};
+use crate::error::{ConstraintError, Error, ProblemError};
 use crate::formulation::{Formulation, Prepared, Refine};
 use crate::laplacian::{self, LaplacianKind};
 use crate::limits::MemoryBudget;
 use crate::mesh::{Mesh, topology};
-use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
+use crate::problem::{LseProblem, SoftWeightScale, check_pinned, target_in_unit};
 use crate::report::Report;
 use crate::solver::{LseSolver, SolveOptions};
 
@@ -110,23 +110,13 @@ impl Deformer {
                 .map(|p| [p[0] / unit, p[1] / unit, p[2] / unit])
                 .collect(),
         )?;
+        crate::interrupt::check()?;
         let l = laplacian::laplacian(&unit_mesh, laplacian)?;
+        crate::interrupt::check()?;
         let delta = laplacian::apply(&l, unit_mesh.positions());
         let mut unit_constraints = constraints.clone();
         for (i, c) in constraints.as_slice().iter().enumerate() {
-            let r = c.kind.rhs();
-            let scaled = r.map(|v| v / unit);
-            if scaled.iter().any(|v| !v.is_finite()) {
-                let value = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                return Err(NumericalError::TargetOutOfRange {
-                    index: i,
-                    value,
-                    unit,
-                    ratio: value / unit,
-                }
-                .into());
-            }
-            unit_constraints.set_rhs(i, scaled)?;
+            unit_constraints.set_rhs(i, target_in_unit(i, c.kind.rhs(), unit)?)?;
         }
         let soft_scale = SoftWeightScale {
             length: unit,
@@ -371,6 +361,8 @@ impl Deformer {
             }
             .into());
         }
+        // Finite, but perhaps not in the problem's unit.
+        target_in_unit(index, target, self.unit)?;
         Ok(())
     }
 

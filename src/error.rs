@@ -37,6 +37,11 @@ pub enum Error {
     /// ([`crate::limits::MemoryBudget::from_environment`]).
     #[error(transparent)]
     MemoryLimit(#[from] crate::limits::MemoryLimitError),
+    /// The caller's interruption hook asked the call to stop
+    /// ([`crate::interrupt`]; the Python module's hook when Ctrl-C is
+    /// pressed). Nothing is wrong with the input.
+    #[error("interrupted")]
+    Interrupted,
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
     Io {
@@ -50,15 +55,20 @@ pub enum Error {
 
 impl Error {
     /// `true` for errors caused by the input (mesh, constraints, files),
-    /// `false` for numerical failures.
+    /// `false` for numerical failures and an interruption.
     pub fn is_input_error(&self) -> bool {
-        !matches!(self, Error::Numerical(_))
+        !matches!(self, Error::Numerical(_) | Error::Interrupted)
     }
 
     /// The process exit code the CLI uses for this error: 2 for bad input,
-    /// 3 for numerical failure.
+    /// 3 for numerical failure, 130 (128 + SIGINT, the shell's convention)
+    /// for an interruption.
     pub fn exit_code(&self) -> i32 {
-        if self.is_input_error() { 2 } else { 3 }
+        match self {
+            Error::Interrupted => 130,
+            e if e.is_input_error() => 2,
+            _ => 3,
+        }
     }
 
     /// Wraps an I/O error with the path it happened on.
@@ -334,6 +344,18 @@ pub enum ConstraintError {
         column: usize,
         /// What the parser said.
         message: String,
+    },
+    /// A key appears twice in one JSON object of the file, at any depth
+    /// (a reader of JSON objects keeps one of the two values, silently).
+    #[error("constraints file, line {line}: key '{key}' appears twice in one object {place}")]
+    DuplicateKey {
+        /// The key.
+        key: String,
+        /// 1-based line of its second appearance.
+        line: usize,
+        /// Where the object is: "at the top level", "in constraint 3",
+        /// "in 'mesh'".
+        place: String,
     },
     /// The top level is not an object with a `constraints` array.
     #[error("constraints file: {message}")]
@@ -732,6 +754,30 @@ pub enum NumericalError {
         /// The length unit `ℓ`.
         length: f64,
         /// The power `a`.
+        power: i32,
+    },
+    /// A soft weight whose row weight `w ℓᵃ` (the weight in the problem's
+    /// units, [`crate::problem::SoftWeightScale`]) has a square beyond
+    /// double precision. Every formulation forms normal equations (`AᵀA`,
+    /// or `(AQ2)ᵀ(AQ2)` for the null-space method), whose diagonal at the
+    /// row's unknowns holds `(w ℓᵃ b_i)²` with coefficients `|b_i| ≤ 1`
+    /// for positions, relative vectors and edge and face points inside
+    /// their element: beyond `(w ℓᵃ)² = ∞`, i.e. `w ℓᵃ > √(f64::MAX) ≈
+    /// 1.34e154`, the factorisation would meet an infinite entry and fail
+    /// late as "not positive definite". Refused at assembly, as a weight
+    /// whose product underflows to zero is
+    /// ([`NumericalError::SoftWeightOutOfRange`]).
+    #[error(
+        "constraint {index}: its soft weight {weight:e} is too large: times the mesh's length unit to the power {power} (which keeps the energy in the mesh's units) it is {row_weight:e}, above √(largest double) ≈ 1.34e154, so its square in the normal equations overflows"
+    )]
+    SoftWeightTooLarge {
+        /// Constraint index.
+        index: usize,
+        /// The weight as given.
+        weight: f64,
+        /// `w ℓᵃ`.
+        row_weight: f64,
+        /// The power `a` of the length unit.
         power: i32,
     },
     /// The solve produced a non-finite value.

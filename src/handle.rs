@@ -102,9 +102,11 @@ impl HandleBasis {
         for name in names {
             members.push(deformer.group_members(name)?);
         }
+        crate::interrupt::check()?;
         let (c, d) = basis_right_hand_sides(deformer, &members)?;
         let (x, forward_error_estimate) = solve_basis(deformer, c.as_ref(), d.as_ref())?;
         drop((c, d));
+        crate::interrupt::check()?;
         let blocks = into_blocks(&x, deformer.length_unit(), names.len())?;
         Ok(HandleBasis {
             groups: names.iter().map(|s| s.to_string()).collect(),

@@ -17,7 +17,8 @@
 //! Module map, imports pointing down:
 //! - foundations: [`error`], [`choice`] (typed configuration words and
 //!   their one parse error), [`limits`] (the memory budget), [`atomic`]
-//!   (every output file written whole or not at all), [`sparse`] (sparse
+//!   (every output file written whole or not at all), [`interrupt`]
+//!   (cancellation of long calls by a caller's hook), [`sparse`] (sparse
 //!   kernels: products, normal matrices), [`mtx`] (Matrix Market I/O);
 //! - [`mesh`] (types, I/O, validation, generators) → [`laplacian`] →
 //!   [`constraints`] (model and JSON file) → [`problem`] (assembly of
@@ -61,6 +62,7 @@ pub mod export;
 pub mod formulation;
 pub mod handle;
 pub mod interop;
+pub mod interrupt;
 pub mod laplacian;
 pub mod limits;
 pub mod mesh;

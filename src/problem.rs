@@ -201,7 +201,10 @@ impl LseProblem {
     /// the unit of absolute tolerances on constraint residuals. Soft row
     /// `k` carries `soft_scale.apply(w_k)` ([`SoftWeightScale::NONE`] for a
     /// problem in the mesh's own units); a product that is not a finite
-    /// positive number is a [`NumericalError::SoftWeightOutOfRange`].
+    /// positive number is a [`NumericalError::SoftWeightOutOfRange`], and
+    /// one whose square overflows (`(w ℓᵃ)² = ∞`, which the normal
+    /// equations of every formulation would hold) a
+    /// [`NumericalError::SoftWeightTooLarge`].
     pub fn new(
         l: &SparseColMat<usize, f64>,
         delta: &Mat<f64>,
@@ -228,6 +231,15 @@ impl LseProblem {
                             index: i,
                             weight: w,
                             length: soft_scale.length,
+                            power: soft_scale.power,
+                        }
+                        .into());
+                    }
+                    if (row_weight * row_weight).is_infinite() {
+                        return Err(NumericalError::SoftWeightTooLarge {
+                            index: i,
+                            weight: w,
+                            row_weight,
                             power: soft_scale.power,
                         }
                         .into());
@@ -895,4 +907,22 @@ fn equilibrate_objective(a: &mut SparseColMat<usize, f64>, c: &mut Mat<f64>) -> 
         }
     }
     s
+}
+
+/// Target `value` of constraint `index` divided by the length unit, or
+/// [`NumericalError::TargetOutOfRange`] if that is not finite (a finite
+/// target so large that dividing by a unit below 1 overflows).
+pub(crate) fn target_in_unit(index: usize, value: [f64; 3], unit: f64) -> Result<[f64; 3], Error> {
+    let scaled = value.map(|v| v / unit);
+    if scaled.iter().all(|v| v.is_finite()) {
+        return Ok(scaled);
+    }
+    let largest = value.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    Err(NumericalError::TargetOutOfRange {
+        index,
+        value: largest,
+        unit,
+        ratio: largest / unit,
+    }
+    .into())
 }

@@ -215,6 +215,7 @@ impl LseSolver {
     /// succeeds).
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
         self.system = None;
+        crate::interrupt::check()?;
         self.rounding = FactorRounding::default();
         let mut report = self.base.clone();
         report.memory_budget = Some(self.memory_budget);
@@ -324,6 +325,7 @@ impl LseSolver {
         let mut refinements = Vec::new();
         self.report.timings_s.refine = 0.0;
         if k == RHS_BLOCK {
+            crate::interrupt::check()?;
             system.solve_into(&self.problem, x.as_mut())?;
             self.report.timings_s.solve = t.elapsed().as_secs_f64();
             if refining {
@@ -550,6 +552,7 @@ fn solve_blocks_of(
     let mut x_block = Mat::<f64>::zeros(n, RHS_BLOCK);
     let mut refinements = Vec::new();
     for start in (0..k).step_by(RHS_BLOCK) {
+        crate::interrupt::check()?;
         let width = RHS_BLOCK.min(k - start);
         let mut c_block = Mat::from_fn(l, RHS_BLOCK, |i, j| {
             if j < width { c[(i, start + j)] } else { 0.0 }

@@ -818,6 +818,36 @@ fn a_foreign_host_gets_403() {
 }
 
 #[test]
+fn two_host_headers_get_400() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    let before = positions_f64(c);
+    // RFC 9112 §3.2: more than one Host line is a 400, whether the first
+    // names this server (the second is what a proxy may obey) or both do.
+    for second in ["evil.example", c.addr.as_str()] {
+        for (method, path, body) in [
+            ("GET", "/api/mesh", Vec::new()),
+            ("GET", "/", Vec::new()),
+            (
+                "POST",
+                "/api/transform",
+                transform_body("handle", rotation_x(0.3, [0.0, 0.0, 0.5])),
+            ),
+        ] {
+            let head = head_of(c, method, path, &[], body.len()) + &format!("Host: {second}\r\n");
+            let a = exchange(&c.addr, &head, &body);
+            assert_eq!(
+                assert_json_error(&a, 400, &format!("{method} {path}, second Host {second}")),
+                "bad-request"
+            );
+            let message = String::from_utf8_lossy(&a.body).to_string();
+            assert!(message.contains("Host"), "{message}");
+        }
+    }
+    assert_eq!(positions_f64(c), before, "nothing moved");
+}
+
+#[test]
 fn api_requests_need_the_session_token() {
     let server = start(1 << 20);
     let c = &server.client;

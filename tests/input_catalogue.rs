@@ -446,6 +446,95 @@ fn malformed_json_names_line_and_column() {
     );
 }
 
+/// A key repeated in one object, at any depth, is refused with the key
+/// and the line of its second appearance (a reader that keeps the last
+/// value would move vertex 3000's constraint to vertex 5, silently).
+#[test]
+fn a_repeated_key_at_any_depth_is_refused_with_its_line() {
+    let cases: [(&str, &str, usize, &str); 8] = [
+        (
+            "{\"constraints\": [\n {\"type\": \"position\",\n  \"vertex\": 3000,\n  \"vertex\": 5, \"target\": [0, 0, 0]}\n]}",
+            "vertex",
+            4,
+            "in constraint 0",
+        ),
+        (
+            "{\"constraints\": [{\"type\": \"position\", \"vertex\": 1, \"target\": [0, 0, 0]},\n{\"type\": \"position\", \"vertex\": 2, \"target\": [0, 0, 0],\n \"comment\": \"a\", \"comment\": \"b\"}]}",
+            "comment",
+            3,
+            "in constraint 1",
+        ),
+        (
+            "{\"constraints\": [{\"type\": \"position\", \"vertex\": 1, \"target\": [0, 0, 0],\n \"weight\": 1, \"weight\": 2}]}",
+            "weight",
+            2,
+            "in constraint 0",
+        ),
+        (
+            "{\"constraints\": [{\"type\": \"position\", \"vertex\": 1, \"target\": [0, 0, 0],\n \"extra\": {\"a\": 1,\n \"a\": 2}}]}",
+            "a",
+            3,
+            "in constraint 0",
+        ),
+        (
+            "{\"constraints\": [], \"constraints\": []}",
+            "constraints",
+            1,
+            "at the top level",
+        ),
+        (
+            "{\"note\": 1,\n\"constraints\": [],\n\"note\": 2}",
+            "note",
+            3,
+            "at the top level",
+        ),
+        (
+            "{\"constraints\": [], \"about\": [{\"x\": 1, \"y\": 2},\n {\"x\": 1, \"x\": 2}]}",
+            "x",
+            2,
+            "at the top level",
+        ),
+        (
+            "{\"mesh\": {\"vertices\": 4,\n \"faces\": 2, \"vertices\": 4, \"fingerprint\": \"f\"}, \"constraints\": []}",
+            "vertices",
+            2,
+            "in 'mesh'",
+        ),
+    ];
+    for (json, key, line, place) in cases {
+        let e = constraint_err(json, 10_000);
+        assert!(
+            matches!(&e, ConstraintError::DuplicateKey { key: k, line: l, .. } if k == key && *l == line),
+            "{json}: {e:?}"
+        );
+        let message = e.to_string();
+        for word in [
+            format!("'{key}'"),
+            format!("line {line}"),
+            place.to_string(),
+        ] {
+            assert!(message.contains(&word), "{word} in: {message}");
+        }
+    }
+    // Equal keys in different objects are not repeated keys.
+    let ok = "{\"constraints\": [{\"type\": \"position\", \"vertex\": 1, \"target\": [0, 0, 0], \"comment\": {\"a\": {\"a\": 1}}},\n{\"type\": \"position\", \"vertex\": 2, \"target\": [0, 0, 0], \"comment\": [{\"a\": 1}, {\"a\": 2}]}], \"a\": {\"constraints\": 1}}";
+    assert_eq!(parse_constraints(ok).unwrap().len(), 2);
+    // A file read from disk says the same.
+    let dir = std::env::temp_dir().join(format!("lse-duplicate-key-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("c.json");
+    std::fs::write(&path, cases[0].0).unwrap();
+    let e = lse_deform::constraints::read_constraints_file(&path).unwrap_err();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(
+        matches!(
+            &e,
+            Error::Constraint(ConstraintError::DuplicateKey { line: 4, .. })
+        ),
+        "{e:?}"
+    );
+}
+
 #[test]
 fn each_bad_constraint_names_its_index() {
     let cases: &[(&str, &str)] = &[
@@ -621,6 +710,92 @@ fn target_updates_are_checked_and_change_nothing_when_refused() {
     // The refused updates changed nothing.
     let s = d.solve().unwrap();
     assert_eq!(s.positions[8], [1.0, 1.0, 0.3]);
+}
+
+/// A finite target too large for the problem's unit (the mesh's mean edge
+/// length, below 1: the largest double divided by it overflows) is named
+/// for what it is, not as "not finite", by the update as by set-up.
+#[test]
+fn a_target_too_large_for_the_mesh_units_says_so() {
+    let mesh = generate::grid(2, 2).unwrap();
+    let cs = set(vec![pos(0, [0.0; 3]), pos(8, [1.0, 1.0, 0.3])]);
+    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs).unwrap();
+    assert!(d.length_unit() < 1.0);
+    d.precompute(&NullSpaceQr::default()).unwrap();
+    let huge = [f64::MAX, 0.0, 0.0];
+    for e in [
+        d.set_target(1, huge).unwrap_err(),
+        d.set_targets(&[(0, [0.0; 3]), (1, huge)]).unwrap_err(),
+        Deformer::new(
+            mesh,
+            LaplacianKind::Cotangent,
+            set(vec![pos(0, [0.0; 3]), pos(8, huge)]),
+        )
+        .err()
+        .unwrap(),
+    ] {
+        let msg = expect!(
+            e,
+            Error::Numerical(NumericalError::TargetOutOfRange { index: 1, .. }),
+            "constraint 1",
+            "1.7976931348623157e308",
+            "length unit"
+        );
+        assert!(!msg.contains("not finite"), "{msg}");
+    }
+    let s = d.solve().unwrap();
+    assert_eq!(
+        s.positions[8],
+        [1.0, 1.0, 0.3],
+        "the refused updates changed nothing"
+    );
+}
+
+/// A soft weight whose square overflows in the normal equations is
+/// refused at set-up (as one whose product with the unit underflows is),
+/// by every formulation alike, instead of failing in the factorisation as
+/// "not positive definite".
+#[test]
+fn a_soft_weight_too_large_is_refused_up_front() {
+    let mesh = generate::grid(8, 8).unwrap();
+    let soft = |w: f64| {
+        let mut s = vec![pos(0, [0.0; 3]), pos(80, [1.0, 1.0, 0.3])];
+        s.push(Constraint::soft(
+            ConstraintKind::Position {
+                vertex: 40,
+                target: [0.5, 0.5, 0.2],
+            },
+            w,
+        ));
+        set(s)
+    };
+    for kind in [LaplacianKind::Cotangent, LaplacianKind::Uniform] {
+        let unit_power = kind.inverse_length_power();
+        let unit = Deformer::new(mesh.clone(), kind, soft(1.0))
+            .unwrap()
+            .length_unit();
+        // The row weight is w ℓᵃ: refused above √(f64::MAX) ≈ 1.34e154.
+        let scale = unit.powi(unit_power);
+        for w in [1e308, 1e200 / scale, 1.35e154 / scale] {
+            let e = Deformer::new(mesh.clone(), kind, soft(w)).err().unwrap();
+            let msg = expect!(
+                e,
+                Error::Numerical(NumericalError::SoftWeightTooLarge { index: 2, .. }),
+                "constraint 2",
+                "too large",
+                "1.34e154"
+            );
+            assert!(!msg.contains("positive definite"), "{msg}");
+        }
+        // Below the bound: accepted at set-up (whether a factorisation
+        // then keeps its digits is the solve's business), and a large
+        // weight that does keep them holds the soft target.
+        assert!(Deformer::new(mesh.clone(), kind, soft(1.3e154 / scale)).is_ok());
+        let mut d = Deformer::new(mesh.clone(), kind, soft(1e100 / scale)).unwrap();
+        d.precompute(&NullSpaceQr::default()).unwrap();
+        let x = d.solve().unwrap().positions[40];
+        assert!((x[2] - 0.2).abs() < 1e-6, "{kind:?}: {x:?}");
+    }
 }
 
 // ---------------------------------------------------------------------------

@@ -77,7 +77,7 @@ use crate::cpu::clear_upper_vector_state;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Refine};
 use crate::mesh::{Mesh, topology};
-use crate::problem::{LseProblem, SoftWeightScale, check_pinned};
+use crate::problem::{LseProblem, SoftWeightScale, check_pinned, target_in_unit};
 use crate::report::{ArapReport, ArapStop, EnergyOperator, Report, first_non_finite};
 use crate::solver::{LseSolver, SolveOptions};
 
@@ -169,7 +169,7 @@ impl ArapDeformer {
         )?;
         let mut unit_constraints = constraints.clone();
         for (i, c) in constraints.as_slice().iter().enumerate() {
-            unit_constraints.set_rhs(i, in_unit(i, c.kind.rhs(), unit)?)?;
+            unit_constraints.set_rhs(i, target_in_unit(i, c.kind.rhs(), unit)?)?;
         }
         let triangles = ArapTriangles::new(&unit_mesh, energy);
         let rows = triangles.rows();
@@ -285,6 +285,7 @@ impl ArapDeformer {
     pub fn iterate(&mut self, n: usize) -> Result<Option<Step>, Error> {
         let mut last = None;
         for _ in 0..n {
+            crate::interrupt::check()?;
             let t = Instant::now();
             self.global_step()?;
             let global_s = t.elapsed().as_secs_f64();
@@ -407,7 +408,7 @@ impl ArapDeformer {
             }
             .into());
         }
-        let scaled = in_unit(index, target, self.unit)?;
+        let scaled = target_in_unit(index, target, self.unit)?;
         self.solver.set_rhs(index, scaled)?;
         self.unit_constraints.set_rhs(index, scaled)?;
         self.constraints.set_rhs(index, target)?;
@@ -618,23 +619,6 @@ fn decreased_by_more_than(before: f64, after: f64, tolerance: f64) -> bool {
         (before - after).partial_cmp(&(tolerance * before.abs())),
         Some(std::cmp::Ordering::Greater)
     )
-}
-
-/// Target `value` of constraint `index` divided by the length unit, or
-/// [`NumericalError::TargetOutOfRange`] if that is not finite.
-fn in_unit(index: usize, value: [f64; 3], unit: f64) -> Result<[f64; 3], Error> {
-    let scaled = value.map(|v| v / unit);
-    if scaled.iter().all(|v| v.is_finite()) {
-        return Ok(scaled);
-    }
-    let largest = value.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    Err(NumericalError::TargetOutOfRange {
-        index,
-        value: largest,
-        unit,
-        ratio: largest / unit,
-    }
-    .into())
 }
 
 #[cfg(test)]

@@ -10,12 +10,18 @@
 //! byte order), `weight`, `group`. Constraints are checked in file order
 //! as they are read, so the first invalid one is reported even when the
 //! text after it is not JSON.
+//!
+//! A key repeated in one object, at any depth (a constraint's field, a key
+//! of the top level or of `"mesh"`, a key inside an ignored value), is
+//! [`ConstraintError::DuplicateKey`] with its line: a reader that keeps the
+//! last value would silently drop the first.
 
 use std::cell::RefCell;
+use std::collections::HashSet;
 use std::fmt;
 
 use serde::Deserialize;
-use serde::de::{self, DeserializeSeed, IgnoredAny, MapAccess, SeqAccess, Visitor};
+use serde::de::{self, DeserializeSeed, MapAccess, SeqAccess, Visitor};
 
 use super::{Constraint, ConstraintKind, ConstraintSet};
 use crate::error::ConstraintError;
@@ -39,9 +45,130 @@ pub(super) fn parse<'de, R: serde_json::de::Read<'de>>(
     .deserialize(&mut *de)
     .and_then(|set| de.end().map(|()| set));
     result.map_err(|e| match failure.into_inner() {
-        Some(c) => Failure::Constraint(c),
+        Some(c) => Failure::Constraint(at_line(c, e.line())),
         None => Failure::Json(e),
     })
+}
+
+/// A [`ConstraintError::DuplicateKey`] gets its line from serde_json's
+/// error, whose position is where the visitor failed: right after the
+/// repeated key.
+fn at_line(e: ConstraintError, line: usize) -> ConstraintError {
+    match e {
+        ConstraintError::DuplicateKey { key, place, .. } => {
+            ConstraintError::DuplicateKey { key, line, place }
+        }
+        other => other,
+    }
+}
+
+/// Where an object is, for [`ConstraintError::DuplicateKey`].
+#[derive(Clone, Copy)]
+enum Place {
+    Top,
+    Mesh,
+    Constraint(usize),
+}
+
+impl fmt::Display for Place {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Place::Top => f.write_str("at the top level"),
+            Place::Mesh => f.write_str("in 'mesh'"),
+            Place::Constraint(i) => write!(f, "in constraint {i}"),
+        }
+    }
+}
+
+/// The keys of one object seen so far, for those that are not a fixed
+/// field (unknown keys, keys inside ignored values).
+#[derive(Default)]
+struct Keys(HashSet<Box<str>>);
+
+impl Keys {
+    /// Records `key`, or fails when it was seen.
+    fn insert<E: de::Error>(
+        &mut self,
+        key: &str,
+        failure: Slot<'_>,
+        place: Place,
+    ) -> Result<(), E> {
+        if self.0.insert(key.into()) {
+            Ok(())
+        } else {
+            Err(duplicate(failure, key, place))
+        }
+    }
+}
+
+/// The failure for `key` repeated in an object at `place` (its line is
+/// filled in by [`parse`]).
+fn duplicate<E: de::Error>(failure: Slot<'_>, key: &str, place: Place) -> E {
+    failure.fail(ConstraintError::DuplicateKey {
+        key: key.to_string(),
+        line: 0,
+        place: place.to_string(),
+    })
+}
+
+/// Any JSON value, skipped, every object in it checked for a repeated key.
+#[derive(Clone, Copy)]
+struct Checked<'a> {
+    failure: Slot<'a>,
+    place: Place,
+}
+
+impl<'de> DeserializeSeed<'de> for Checked<'_> {
+    type Value = ();
+    fn deserialize<D: de::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> Visitor<'de> for Checked<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("a JSON value")
+    }
+
+    fn visit_bool<E: de::Error>(self, _: bool) -> Result<(), E> {
+        Ok(())
+    }
+
+    fn visit_i64<E: de::Error>(self, _: i64) -> Result<(), E> {
+        Ok(())
+    }
+
+    fn visit_u64<E: de::Error>(self, _: u64) -> Result<(), E> {
+        Ok(())
+    }
+
+    fn visit_f64<E: de::Error>(self, _: f64) -> Result<(), E> {
+        Ok(())
+    }
+
+    fn visit_str<E: de::Error>(self, _: &str) -> Result<(), E> {
+        Ok(())
+    }
+
+    fn visit_unit<E: de::Error>(self) -> Result<(), E> {
+        Ok(())
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        while seq.next_element_seed(self)?.is_some() {}
+        Ok(())
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        let mut keys = Keys::default();
+        while let Some(key) = map.next_key::<String>()? {
+            keys.insert::<A::Error>(&key, self.failure, self.place)?;
+            map.next_value_seed(self)?;
+        }
+        Ok(())
+    }
 }
 
 /// [`ConstraintError::Json`] from serde_json's error: its message without
@@ -144,28 +271,34 @@ impl<'de> Visitor<'de> for FileSeed<'_> {
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<ConstraintSet, A::Error> {
         let mut set = ConstraintSet::new();
         let mut mesh = None;
-        let mut listed = false;
+        let (mut listed, mut meshed) = (false, false);
+        let mut keys = Keys::default();
+        let failure = self.failure;
         while let Some(key) = map.next_key_seed(KeySeed(TOP_KEYS))? {
             match key {
                 Key::Known(TopKey::Constraints) => {
                     if listed {
-                        return Err(self.failure.fail(ConstraintError::Shape {
-                            message: "'constraints' appears twice".into(),
-                        }));
+                        return Err(duplicate(failure, "constraints", Place::Top));
                     }
                     map.next_value_seed(ListSeed {
-                        failure: self.failure,
+                        failure,
                         set: &mut set,
                     })?;
                     listed = true;
                 }
                 Key::Known(TopKey::Mesh) => {
-                    mesh = map.next_value_seed(MeshSeed {
-                        failure: self.failure,
-                    })?;
+                    if meshed {
+                        return Err(duplicate(failure, "mesh", Place::Top));
+                    }
+                    mesh = map.next_value_seed(MeshSeed { failure })?;
+                    meshed = true;
                 }
-                Key::Unknown(_) => {
-                    map.next_value::<IgnoredAny>()?;
+                Key::Unknown(name) => {
+                    keys.insert::<A::Error>(&name, failure, Place::Top)?;
+                    map.next_value_seed(Checked {
+                        failure,
+                        place: Place::Top,
+                    })?;
                 }
             }
         }
@@ -197,9 +330,18 @@ impl<'de> DeserializeSeed<'de> for MeshSeed<'_> {
         d: D,
     ) -> Result<Option<MeshSignature>, D::Error> {
         Option::<MeshSignature>::deserialize(d).map_err(|e| {
+            let text = e.to_string();
+            let said = strip_position(&text);
+            // serde's derived reader refuses a repeated field with
+            // "duplicate field `name`".
+            if let Some(key) = said
+                .strip_prefix("duplicate field `")
+                .and_then(|k| k.strip_suffix('`'))
+            {
+                return duplicate(self.failure, key, Place::Mesh);
+            }
             let message = format!(
-                "'mesh' must be {{\"vertices\": n, \"faces\": m, \"fingerprint\": \"…\"}}: {}",
-                strip_position(&e.to_string())
+                "'mesh' must be {{\"vertices\": n, \"faces\": m, \"fingerprint\": \"…\"}}: {said}"
             );
             self.failure.fail(ConstraintError::Shape { message })
         })
@@ -267,8 +409,10 @@ enum Field {
     Vector,
     Weight,
     Group,
-    /// `name` and `comment`: free text, ignored.
-    Ignored,
+    /// `name`: free text, ignored.
+    Name,
+    /// `comment`: free text, ignored.
+    Comment,
 }
 
 const FIELDS: &[(&str, Field)] = &[
@@ -281,8 +425,8 @@ const FIELDS: &[(&str, Field)] = &[
     ("vector", Field::Vector),
     ("weight", Field::Weight),
     ("group", Field::Group),
-    ("name", Field::Ignored),
-    ("comment", Field::Ignored),
+    ("name", Field::Name),
+    ("comment", Field::Comment),
 ];
 
 /// The fields that belong to one type or another (a field of another type
@@ -387,20 +531,32 @@ fn number_word(s: &str) -> Option<f64> {
 }
 
 /// Reads a [`Loose`]; `nested` inside an array (where only numbers and
-/// number words matter).
+/// number words matter); objects in it are checked for repeated keys
+/// ([`Checked`]) as constraint `index`'s.
 #[derive(Clone, Copy)]
-struct LooseSeed {
+struct LooseSeed<'a> {
     nested: bool,
+    failure: Slot<'a>,
+    index: usize,
 }
 
-impl<'de> DeserializeSeed<'de> for LooseSeed {
+impl<'a> LooseSeed<'a> {
+    fn checked(&self) -> Checked<'a> {
+        Checked {
+            failure: self.failure,
+            place: Place::Constraint(self.index),
+        }
+    }
+}
+
+impl<'de> DeserializeSeed<'de> for LooseSeed<'_> {
     type Value = Loose;
     fn deserialize<D: de::Deserializer<'de>>(self, d: D) -> Result<Loose, D::Error> {
         d.deserialize_any(self)
     }
 }
 
-impl<'de> Visitor<'de> for LooseSeed {
+impl<'de> Visitor<'de> for LooseSeed<'_> {
     type Value = Loose;
 
     fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -437,18 +593,21 @@ impl<'de> Visitor<'de> for LooseSeed {
 
     fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Loose, A::Error> {
         if self.nested {
-            while seq.next_element::<IgnoredAny>()?.is_some() {}
+            while seq.next_element_seed(self.checked())?.is_some() {}
             return Ok(Loose::Other);
         }
         let mut items = Vec::new();
         let mut len = 0usize;
         loop {
             let more = if len < KEPT_ITEMS {
-                seq.next_element_seed(LooseSeed { nested: true })?
-                    .map(|item| items.push(item))
-                    .is_some()
+                seq.next_element_seed(LooseSeed {
+                    nested: true,
+                    ..self
+                })?
+                .map(|item| items.push(item))
+                .is_some()
             } else {
-                seq.next_element::<IgnoredAny>()?.is_some()
+                seq.next_element_seed(self.checked())?.is_some()
             };
             if !more {
                 return Ok(Loose::Array { items, len });
@@ -457,8 +616,8 @@ impl<'de> Visitor<'de> for LooseSeed {
         }
     }
 
-    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Loose, A::Error> {
-        while map.next_entry::<IgnoredAny, IgnoredAny>()?.is_some() {}
+    fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<Loose, A::Error> {
+        self.checked().visit_map(map)?;
         Ok(Loose::Other)
     }
 }
@@ -501,17 +660,34 @@ impl<'de> Visitor<'de> for ItemSeed<'_> {
 
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Constraint, A::Error> {
         let mut raw = Raw::default();
+        let (failure, index) = (self.failure, self.index);
+        let place = Place::Constraint(index);
+        let loose = LooseSeed {
+            nested: false,
+            failure,
+            index,
+        };
+        // The fields seen (bit `field as usize`) and the unknown keys.
+        let mut seen = 0u32;
+        let mut unknown = Keys::default();
         while let Some(key) = map.next_key_seed(KeySeed(FIELDS))? {
             match key {
-                Key::Known(Field::Ignored) => {
-                    map.next_value::<IgnoredAny>()?;
-                }
                 Key::Known(field) => {
-                    let value = map.next_value_seed(LooseSeed { nested: false })?;
-                    raw.values[field as usize] = Some(value);
+                    let bit = 1u32 << field as usize;
+                    if seen & bit != 0 {
+                        let name = FIELDS.iter().find(|(_, f)| *f == field).map(|(n, _)| *n);
+                        return Err(duplicate(failure, name.unwrap_or("?"), place));
+                    }
+                    seen |= bit;
+                    if matches!(field, Field::Name | Field::Comment) {
+                        map.next_value_seed(loose.checked())?;
+                    } else {
+                        raw.values[field as usize] = Some(map.next_value_seed(loose)?);
+                    }
                 }
                 Key::Unknown(name) => {
-                    map.next_value::<IgnoredAny>()?;
+                    unknown.insert::<A::Error>(&name, failure, place)?;
+                    map.next_value_seed(loose.checked())?;
                     if raw.unknown.as_ref().is_none_or(|u| name < *u) {
                         raw.unknown = Some(name);
                     }
@@ -523,8 +699,7 @@ impl<'de> Visitor<'de> for ItemSeed<'_> {
     }
 }
 
-/// The fields of one constraint object as read (a repeated key: the last
-/// value, as a JSON object's reader keeps it).
+/// The fields of one constraint object as read (each at most once).
 #[derive(Default)]
 struct Raw {
     values: [Option<Loose>; 9],

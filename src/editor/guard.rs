@@ -3,7 +3,8 @@
 //! requests to `127.0.0.1`, and a name the attacker controls can be
 //! re-pointed there (DNS rebinding). Every request passes [`check`]:
 //!
-//! 1. `Host` must name this server: the bound address with its port, and
+//! 1. `Host` must appear once (400 otherwise) and name this server: the
+//!    bound address with its port, and
 //!    for a loopback (or unspecified) address also `localhost:PORT`,
 //!    `127.0.0.1:PORT` and `[::1]:PORT`, or the `--host` name with the port
 //!    (an unspecified address also takes any IP literal with the port: a
@@ -150,6 +151,16 @@ impl Guard {
     /// not.
     pub fn admit(&self, request: &mut Request) -> Result<(), ApiError> {
         let headers = request.headers();
+        // RFC 9112 §3.2: a request with more than one Host line gets 400
+        // (which one the server would obey is what an attacker picks).
+        let hosts = headers.get_all(header::HOST).iter().count();
+        if hosts > 1 {
+            return Err(ApiError::new(
+                StatusCode::BAD_REQUEST,
+                "bad-request",
+                format!("{hosts} Host headers: a request has exactly one (RFC 9112 §3.2)"),
+            ));
+        }
         let host = match headers.get(header::HOST).map(HeaderValue::to_str) {
             Some(Ok(h)) if self.host_allowed(h) => h.to_string(),
             other => {

@@ -382,10 +382,12 @@ impl Formulation for Kkt {
         report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
         report.nnz.normal = Some(2 * k_lower.val().len() - (n + m));
 
+        crate::interrupt::check()?;
         let t = Instant::now();
         let order = ordering_from_pattern(problem, &pattern)?;
         report.timings_s.preparation = t.elapsed().as_secs_f64();
 
+        crate::interrupt::check()?;
         let t = Instant::now();
         let backend = self.ldlt.backend();
         let symbolic = backend.analyze(k_lower.symbolic(), &order)?;
@@ -397,8 +399,10 @@ impl Formulation for Kkt {
             budget,
         )?;
 
+        crate::interrupt::check()?;
         let t = Instant::now();
         let factor = symbolic.factorize(k_lower.as_ref())?;
+        crate::interrupt::check()?;
         check_pivots(factor.as_ref(), &k_lower, problem)?;
         report.timings_s.numeric = t.elapsed().as_secs_f64();
         report.nnz.factor = Some(factor.nnz());

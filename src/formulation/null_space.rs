@@ -92,6 +92,7 @@ impl Formulation for NullSpaceQr {
         report.rank = Some(qr.rank());
         report.nnz.qr = Some(qr.storage_nnz());
 
+        crate::interrupt::check()?;
         let t = Instant::now();
         let aq2 = qr.mul_a_q2(problem.a().as_ref());
         report.timings_s.preparation = t.elapsed().as_secs_f64();

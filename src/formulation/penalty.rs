@@ -126,8 +126,10 @@ impl Formulation for Penalty {
         report.timings_s.normal_matrix = sweep.normal_matrix_s;
         report.timings_s.symbolic = sweep.symbolic_s;
         report.nnz.normal = Some(sweep.full_nnz());
+        crate::interrupt::check()?;
         let t = Instant::now();
         let prepared = sweep.factorize(self.weight)?;
+        crate::interrupt::check()?;
         report.timings_s.numeric = t.elapsed().as_secs_f64();
         report.nnz.factor = Some(prepared.factor.nnz());
         report.nnz.factor_bytes = Some(prepared.factor.bytes());
@@ -224,6 +226,7 @@ impl PenaltySweep {
         let (pattern, ata, btb) = split_normal(problem);
         let normal_matrix_s = t.elapsed().as_secs_f64();
 
+        crate::interrupt::check()?;
         let t = Instant::now();
         let symbolic = spd.analyze(pattern.as_ref())?;
         let symbolic_s = t.elapsed().as_secs_f64();

@@ -135,6 +135,7 @@ pub fn refine_with_memory(
     let cap = mode.max_steps();
     let mut stalled = 0;
     loop {
+        crate::interrupt::check()?;
         let Some(dx) = system.correction(problem, x)? else {
             out.stop_reason = RefineStop::Exact;
             return Ok(out);

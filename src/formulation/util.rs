@@ -84,21 +84,27 @@ pub(crate) fn factor_normal_matrix(
     report: &mut Report,
     budget: MemoryBudget,
 ) -> Result<FactoredNormal, Error> {
+    crate::interrupt::check()?;
     let t = Instant::now();
     let pattern = NormalPattern::new(m);
     let normal = pattern.numeric(m);
     report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
     report.nnz.normal = Some(pattern.full_nnz());
 
+    crate::interrupt::check()?;
     let t = Instant::now();
     let symbolic = spd.analyze(normal.symbolic())?;
     report.timings_s.symbolic = t.elapsed().as_secs_f64();
     check_factor_size(symbolic.factor_nnz(), normal.ncols(), matrix, budget)?;
 
+    // The numeric factorisation is one back-end call: not interruptible
+    // inside (crate::interrupt), checked before and after.
+    crate::interrupt::check()?;
     let t = Instant::now();
     let factor = symbolic
         .factorize(normal.as_ref())
         .map_err(|e| with_context(e, matrix, vertex_of))?;
+    crate::interrupt::check()?;
     report.timings_s.numeric = t.elapsed().as_secs_f64();
     report.nnz.factor = Some(factor.nnz());
     report.nnz.factor_bytes = Some(factor.bytes());

@@ -15,12 +15,21 @@
 //!
 //! A residual panic (a bug) becomes a `RuntimeError` naming it, or a
 //! `TooLargeError` when it reports a failed allocation.
+//!
+//! The one exception outside these classes is a signal handler's: Ctrl-C
+//! during a call raises `KeyboardInterrupt` (a `BaseException`, as Python
+//! raises it everywhere) at the library's next check ([`released`],
+//! [`crate::interrupt`]: after the numeric factorisation under way, if
+//! any).
 
 use std::any::Any;
+use std::cell::Cell;
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::rc::Rc;
 
 use pyo3::exceptions::{
-    PyArithmeticError, PyMemoryError, PyRuntimeError, PyTypeError, PyValueError,
+    PyArithmeticError, PyKeyboardInterrupt, PyMemoryError, PyRuntimeError, PyTypeError,
+    PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
@@ -114,7 +123,11 @@ fn is_too_large(e: &Error) -> bool {
 /// against the memory budget, [`InputError`] for other bad input,
 /// [`NumericalError`] for numerical failure, with the CLI's message.
 pub(crate) fn to_py(e: Error) -> PyErr {
-    if is_too_large(&e) {
+    if matches!(e, Error::Interrupted) {
+        // Only [`released`]'s hook interrupts, and it raises the signal
+        // handler's own exception; this is the fallback.
+        PyKeyboardInterrupt::new_err("interrupted")
+    } else if is_too_large(&e) {
         raise(too_large_error_class, e.to_string())
     } else if e.is_input_error() {
         InputError::new_err(e.to_string())
@@ -188,12 +201,36 @@ pub(crate) fn guarded<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
 /// Runs `f` with the GIL released. A library error becomes [`to_py`]'s
 /// exception; a panic (a bug: the library does not panic on input)
 /// becomes [`panic_to_py`]'s instead of unwinding into Python.
+///
+/// Signals: while `f` runs, the library's interruption checks
+/// ([`crate::interrupt`]) re-attach to the interpreter and run Python's
+/// signal handlers (`PyErr_CheckSignals`, at most every
+/// [`crate::interrupt::CONSULT_INTERVAL`]); the first exception a handler
+/// raises (`KeyboardInterrupt` for Ctrl-C) stops `f` at its next check and
+/// is raised here, whatever `f` returned. Python runs handlers on the main
+/// thread only: a call made from another thread is not interrupted.
 pub(crate) fn released<T, F>(py: Python<'_>, f: F) -> PyResult<T>
 where
     T: Send,
     F: FnOnce() -> Result<T, Error> + Send,
 {
-    match py.detach(|| catch_unwind(AssertUnwindSafe(f))) {
+    let (outcome, signalled) = py.detach(|| {
+        let signalled = Rc::new(Cell::new(None::<PyErr>));
+        let slot = signalled.clone();
+        let stop = move || match Python::attach(|py| py.check_signals()) {
+            Ok(()) => false,
+            Err(e) => {
+                slot.set(Some(e));
+                true
+            }
+        };
+        let outcome = crate::interrupt::with_hook(stop, || catch_unwind(AssertUnwindSafe(f)));
+        (outcome, signalled.take())
+    });
+    if let Some(e) = signalled {
+        return Err(e);
+    }
+    match outcome {
         Ok(result) => result.map_err(to_py),
         Err(payload) => Err(panic_to_py(payload)),
     }

@@ -122,6 +122,8 @@ fn parse_memory_limit(limit: Option<&Bound<'_, PyAny>>) -> PyResult<MemoryBudget
     };
     let bytes = match l.extract::<u64>() {
         Ok(bytes) => Some(bytes).filter(|&b| b > 0),
+        // An integer out of u64's range: a value error, not a type error.
+        Err(_) if l.is_instance_of::<pyo3::types::PyInt>() => None,
         Err(_) => parse_bytes(&l.extract::<String>().map_err(|_| type_error(EXPECTED))?),
     };
     bytes
@@ -141,6 +143,9 @@ fn parse_refine(refine: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Refine>> {
     };
     if let Ok(steps) = r.extract::<usize>() {
         return Ok(Some(Refine::Steps(steps)));
+    }
+    if r.is_instance_of::<pyo3::types::PyInt>() {
+        return Err(input(format!("refine=: {EXPECTED}, got {r}")));
     }
     let word: String = r.extract().map_err(|_| type_error(EXPECTED))?;
     word.parse::<Refine>()
@@ -482,7 +487,7 @@ struct DeformerState {
 /// A mesh with constraints, deformed again and again: `precompute()` once,
 /// then `set_targets` / `transform_group` and `solve()` per frame, reusing
 /// the factorisation.
-#[pyclass(name = "Deformer", module = "lse_deform")]
+#[pyclass(name = "Deformer", module = "lse_deform", subclass)]
 struct PyDeformer {
     state: Mutex<DeformerState>,
 }

@@ -172,3 +172,115 @@ def test_a_bad_memory_limit_is_an_input_error(bad):
     with pytest.raises(InputError) as e:
         lse_deform.deform(V, F, (B_IDX, BC), memory_limit=bad)
     assert "memory_limit" in str(e.value), str(e.value)
+
+
+# Every keyword of every entry point, given a value of the wrong type or an
+# integer out of range: the documented classes only (never the plain
+# TypeError or OverflowError of the argument conversion).
+def _deformer_call(method):
+    return lambda **kw: getattr(deformer(), method)(**kw)
+
+
+ENTRY_POINTS = {
+    "deform": (lse_deform.deform, lambda **kw: lse_deform.deform(V, F, (B_IDX, BC), **kw)),
+    "compare": (
+        lse_deform.compare,
+        lambda **kw: lse_deform.compare(V, F, (B_IDX, BC), **{"repeat": 1, "condition": False, **kw}),
+    ),
+    "laplacian": (lse_deform.laplacian, lambda **kw: lse_deform.laplacian(V, F, **kw)),
+    "solve_lse": (lse_deform.solve_lse, lambda **kw: lse_deform.solve_lse(A, C, B, D, **kw)),
+    "Deformer": (lse_deform.Deformer, lambda **kw: lse_deform.Deformer(V, F, (B_IDX, BC), **kw)),
+}
+
+
+def _keywords(function):
+    import inspect
+
+    return [
+        p.name
+        for p in inspect.signature(function).parameters.values()
+        if p.default is not inspect.Parameter.empty
+    ]
+
+
+KEYWORD_CASES = [
+    (entry, keyword, value)
+    for entry, (function, _) in ENTRY_POINTS.items()
+    for keyword in _keywords(function)
+    for value in (object(), -1, 2**64, -(2**64), 1.5, "bogus", [None])
+]
+
+
+def test_every_entry_point_has_keywords():
+    for entry, (function, _) in ENTRY_POINTS.items():
+        assert _keywords(function), entry
+
+
+@pytest.mark.parametrize(
+    "entry, keyword, value",
+    KEYWORD_CASES,
+    ids=[f"{e}-{k}-{v!r}"[:60] for e, k, v in KEYWORD_CASES],
+)
+def test_a_bad_keyword_value_raises_a_documented_class(entry, keyword, value):
+    import warnings
+
+    _, call = ENTRY_POINTS[entry]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            call(**{keyword: value})
+        except Exception as e:
+            assert isinstance(e, FAMILIES), f"{type(e).__mro__}: {e}"
+
+
+# (call, class, words of the message)
+WRONG_TYPES = [
+    (lambda: lse_deform.deform(V, F, (B_IDX, BC), method=None), "method"),
+    (lambda: lse_deform.deform(V, F, (B_IDX, BC), energy=None), "energy"),
+    (lambda: lse_deform.deform(V, F, (B_IDX, BC), laplacian=3), "laplacian"),
+    (lambda: lse_deform.deform(V, F, (B_IDX, BC), weight="heavy"), "weight"),
+    (lambda: lse_deform.deform(V, F, (B_IDX, BC), energy="arap", iterations="ten"), "iterations"),
+    (lambda: lse_deform.compare(V, F, (B_IDX, BC), methods="nullspace-qr", repeat=1), "methods"),
+    (lambda: lse_deform.compare(V, F, (B_IDX, BC), condition=None, repeat=1), "condition"),
+    (lambda: lse_deform.laplacian(V, F, kind=None), "kind"),
+    (lambda: lse_deform.solve_lse(A, C, B, D, method=None), "method"),
+    (lambda: lse_deform.Deformer(V, F, (B_IDX, BC), method=None), "method"),
+    (lambda: deformer().group(None), "name"),
+    (lambda: deformer().transform_group(None, np.eye(4)), "name"),
+]
+
+
+@pytest.mark.parametrize("call, keyword", WRONG_TYPES, ids=[w[1] for w in WRONG_TYPES])
+def test_a_wrong_type_is_an_input_type_error_naming_the_keyword(call, keyword):
+    with pytest.raises(InputTypeError) as e:
+        call()
+    assert isinstance(e.value, InputError) and isinstance(e.value, TypeError)
+    if sys.version_info >= (3, 11):  # the keyword comes from a note (3.11+)
+        assert keyword in str(e.value), str(e.value)
+
+
+OUT_OF_RANGE = [
+    (lambda v: lse_deform.deform(V, F, (B_IDX, BC), energy="arap", iterations=v), "iterations"),
+    (lambda v: lse_deform.deform(V, F, (B_IDX, BC), refine=v), "refine"),
+    (lambda v: lse_deform.deform(V, F, (B_IDX, BC), memory_limit=v), "memory_limit"),
+    (lambda v: lse_deform.compare(V, F, (B_IDX, BC), repeat=v), "repeat"),
+    (lambda v: lse_deform.solve_lse(A, C, B, D, refine=v), "refine"),
+    (lambda v: lse_deform.Deformer(V, F, (B_IDX, BC), refine=v), "refine"),
+]
+
+
+@pytest.mark.parametrize("value", [-1, 2**64, -(2**70)])
+@pytest.mark.parametrize("call, keyword", OUT_OF_RANGE, ids=[o[1] for o in OUT_OF_RANGE])
+def test_an_integer_out_of_range_is_an_input_error(call, keyword, value):
+    with pytest.raises(InputError) as e:
+        call(value)
+    assert not isinstance(e.value, TypeError), f"{type(e.value).__mro__}: {e.value}"
+    if sys.version_info >= (3, 11):
+        assert keyword in str(e.value), str(e.value)
+
+
+def test_the_translation_keeps_what_the_entry_points_are():
+    d = lse_deform.Deformer(V, F, (B_IDX, BC))
+    assert isinstance(d, lse_deform._native.Deformer)
+    assert lse_deform.deform.__doc__ == lse_deform._native.deform.__doc__
+    assert lse_deform.Deformer.precompute.__doc__ == lse_deform._native.Deformer.precompute.__doc__

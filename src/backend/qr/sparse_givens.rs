@@ -308,7 +308,11 @@ impl GivensQr {
         let mut row = SparseRow::default();
         let mut new_r = SparseRow::default();
         let mut new_row = SparseRow::default();
-        for &u in &rows {
+        for (i, &u) in rows.iter().enumerate() {
+            // A row's rotations can be few: check every 256th row.
+            if i % 256 == 0 {
+                crate::interrupt::check()?;
+            }
             row.cols.clear();
             row.vals.clear();
             for p in bt_ptr[u]..bt_ptr[u + 1] {

@@ -22,20 +22,86 @@ dtype that cannot be converted and ``TooLargeError`` (also a
 ``MemoryError``) for an array or system beyond the memory budget
 (``LSE_MEMORY_LIMIT``, or the available memory) or an allocation that
 failed; ``NumericalError`` (an ``ArithmeticError``) for numerical failure.
+An argument of the wrong type (``method=None``) is an ``InputTypeError``,
+an integer out of range (``iterations=-1``) an ``InputError``, whichever
+keyword it is. Ctrl-C during a call raises ``KeyboardInterrupt`` at the
+library's next check (between phases and iterations, at most 50 ms apart;
+a numeric factorisation under way runs to its end first); a ``Deformer``
+stays usable (an interrupted ``precompute()`` leaves it to be
+precomputed again).
 """
 
+import functools as _functools
+import inspect as _inspect
+
+from . import _native
 from ._native import (
-    Deformer,
     InputError,
     InputTypeError,
     NumericalError,
     TooLargeError,
     __version__,
-    compare,
-    deform,
-    laplacian,
-    solve_lse,
 )
+
+_NOTE = "while processing '"
+
+
+def _documented(e):
+    """The documented exception for one that the conversion of an argument
+    raised before the call began (a ``TypeError`` for a wrong type, an
+    ``OverflowError`` for an integer out of range, the argument named in
+    a note), or None when ``e`` is one of the module's own."""
+    if isinstance(e, InputError):
+        return None
+    if isinstance(e, OverflowError):
+        cls = InputError
+    elif isinstance(e, TypeError):
+        cls = InputTypeError
+    else:
+        return None
+    notes = [n[len(_NOTE):].rstrip("'") for n in getattr(e, "__notes__", ()) if n.startswith(_NOTE)]
+    return cls(f"{notes[0]}=: {e}" if notes else str(e))
+
+
+def _translated(native):
+    """``native`` raising only the documented classes (see the module)."""
+
+    @_functools.wraps(native)
+    def call(*args, **kwargs):
+        try:
+            return native(*args, **kwargs)
+        except (TypeError, OverflowError) as e:
+            documented = _documented(e)
+            if documented is None:
+                raise
+            raise documented from None
+
+    return call
+
+
+compare = _translated(_native.compare)
+deform = _translated(_native.deform)
+laplacian = _translated(_native.laplacian)
+solve_lse = _translated(_native.solve_lse)
+
+
+class Deformer(_native.Deformer):
+    __doc__ = _native.Deformer.__doc__
+    __slots__ = ()
+
+    @_translated
+    def __new__(cls, *args, **kwargs):
+        return _native.Deformer.__new__(cls, *args, **kwargs)
+
+
+for _name, _method in vars(_native.Deformer).items():
+    if not _name.startswith("_") and callable(_method):
+        setattr(Deformer, _name, _translated(_method))
+
+try:  # the keywords of the native constructor, for help() and inspect
+    Deformer.__signature__ = _inspect.signature(_native.Deformer)
+except (TypeError, ValueError):
+    pass
 
 __all__ = [
     "Deformer",

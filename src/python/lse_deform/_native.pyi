@@ -22,6 +22,15 @@ class TooLargeError(InputError, MemoryError):
     """An input or system beyond the memory budget (LSE_MEMORY_LIMIT or
     the available memory), or an allocation that failed."""
 
+# Every call raises only these classes: a keyword of the wrong type is an
+# InputTypeError, an integer keyword out of range an InputError (the
+# package lse_deform translates the conversion's TypeError and
+# OverflowError). Ctrl-C during a call raises KeyboardInterrupt at the
+# library's next check (between phases and iterations, at most 50 ms
+# apart; a numeric factorisation under way runs to its end first); a
+# Deformer stays usable (after an interrupted precompute(), precompute
+# again).
+
 Report = Dict[str, Any]
 """The CLI's JSON report as a dict: method, rank, redundant, conflicting,
 max_constraint_residual, forward_error_estimate, timings_s, warnings, ..."""
