@@ -167,7 +167,7 @@ def test_evaluate_errors():
     d.transform_group("handle", nearly)
 
     for bad, error, message in [
-        (np.zeros((n, 3), dtype=np.float32), InputTypeError, "float32"),
+        (np.zeros((n, 3), dtype=np.float32), InputTypeError, "dtype"),
         (np.zeros((n, 3)).tolist(), InputTypeError, "list"),
         (np.zeros((n + 1, 3)), InputError, "shape"),
         (np.zeros((n, 3), order="F"), InputError, "C-contiguous"),
@@ -221,7 +221,7 @@ def test_cheap_frame_skips_the_estimate_and_the_diagnostics():
     assert report["refinement"]["mode"] == "off" and report["forward_error_estimate"] is not None
 
     cheap = d.solve(refine="off", estimate=False)
-    assert np.array_equal(cheap, off)
+    assert np.abs(cheap - off).max() <= 1e-14 * diagonal(V)  # the same solve, uncorrected
     assert np.abs(cheap - refined).max() <= 1e-8 * diagonal(V)
     report = d.report
     assert report["forward_error_estimate"] is None and report["refinement"] is None
