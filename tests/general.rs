@@ -226,13 +226,15 @@ fn solve_into_matches_solve_and_checks_its_output_shape() {
     let mut solver = LseSolver::new(lse.problem.clone());
     solver.precompute(&NullSpaceQr::default()).unwrap();
     let x = solver.solve().unwrap();
+    assert!(solver.report().forward_error_estimate.is_some());
     let mut y = Mat::<f64>::zeros(25, 3);
     solver.solve_into(y.as_mut()).unwrap();
     assert_eq!(relative_difference(&y, &x), 0.0);
     assert!(solver.report().timings_s.refine > 0.0, "auto refined");
-    // Without refinement, the report does not keep the last refine phase,
-    // nor the estimate and residuals of the solve before: not computed.
-    assert!(solver.report().forward_error_estimate.is_some());
+    // The report does not keep the estimate and residuals of the solve
+    // before (not computed: no diagnostics), and without refinement not
+    // the last refine phase either.
+    assert_eq!(solver.report().forward_error_estimate, None);
     solver.set_refine(Some(Refine::Off));
     solver.solve_into(y.as_mut()).unwrap();
     let report = solver.report();
