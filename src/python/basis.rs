@@ -243,9 +243,10 @@ impl PyHandleBasis {
         self.basis.build_time_s()
     }
 
-    /// The forward-error estimate of the basis columns relative to the
-    /// bounding-box diagonal: the largest over the columns, so a bound of
-    /// the combination's up to the size of the maps' entries.
+    /// The forward-error estimate of the basis relative to the length
+    /// scale: the largest over its 3 + 4G refined columns (the library's
+    /// `HandleBasis::forward_error_estimate`). Positions combine the
+    /// columns with the maps' entries as weights.
     #[getter]
     fn forward_error_estimate(&self) -> f64 {
         self.basis.forward_error_estimate()

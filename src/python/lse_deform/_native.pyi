@@ -201,5 +201,7 @@ class HandleBasis:
         """Seconds the basis took to build."""
     @property
     def forward_error_estimate(self) -> float:
-        """The largest forward-error estimate of its columns, relative to
-        the bounding-box diagonal."""
+        """The largest forward-error estimate of its 3 + 4G refined
+        columns, relative to the length scale (the bounding-box
+        diagonal); positions combine the columns with the maps' entries
+        as weights."""
