@@ -27,7 +27,8 @@ use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use serde_json::Value;
 
 use super::errors::{allocation_failed, input, type_error};
-use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
+use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file_within};
+use crate::limits::MemoryBudget;
 use crate::error::{MeshError, ProblemError};
 use crate::report::Report;
 
@@ -278,7 +279,7 @@ pub(crate) fn indices(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<usize>
 /// a constraints file, or libigl's position-only pair `(b, bc)`.
 /// Returns the set and, for a file, the file's `"mesh"` record check is
 /// left to the caller.
-pub(crate) fn constraints(obj: &Bound<'_, PyAny>) -> PyResult<ConstraintSet> {
+pub(crate) fn constraints(obj: &Bound<'_, PyAny>, budget: MemoryBudget) -> PyResult<ConstraintSet> {
     let py = obj.py();
     if obj.is_instance_of::<PyString>() || obj.hasattr("__fspath__")? {
         let path: String = py
@@ -286,7 +287,7 @@ pub(crate) fn constraints(obj: &Bound<'_, PyAny>) -> PyResult<ConstraintSet> {
             .call_method1("fspath", (obj,))?
             .extract()
             .map_err(|_| type_error("a constraints path must be a str or an os.PathLike of str"))?;
-        return read_constraints_file(path.as_ref()).map_err(super::errors::to_py);
+        return read_constraints_file_within(path.as_ref(), budget).map_err(super::errors::to_py);
     }
     if let Some((b, bc)) = libigl_pair(obj)? {
         let vertices = indices(&b, "b")?;

@@ -116,8 +116,8 @@ fn parse_memory_limit(limit: Option<&Bound<'_, PyAny>>) -> PyResult<MemoryBudget
     const EXPECTED: &str =
         "memory_limit must be a positive number of bytes, a size such as '2G', or None";
     let l = match limit {
-        None => return Ok(MemoryBudget::default()),
-        Some(l) if l.is_none() => return Ok(MemoryBudget::default()),
+        None => return environment_budget(),
+        Some(l) if l.is_none() => return environment_budget(),
         Some(l) if l.is_instance_of::<pyo3::types::PyBool>() => return Err(type_error(EXPECTED)),
         Some(l) => l,
     };
@@ -130,6 +130,12 @@ fn parse_memory_limit(limit: Option<&Bound<'_, PyAny>>) -> PyResult<MemoryBudget
     bytes
         .map(MemoryBudget::bytes)
         .ok_or_else(|| input(format!("memory_limit=: {EXPECTED}")))
+}
+
+/// The process's budget (`LSE_MEMORY_LIMIT`, else the system's), or an
+/// `InputError` when the variable is malformed.
+fn environment_budget() -> PyResult<MemoryBudget> {
+    MemoryBudget::from_environment().map_err(|e| to_py(e.into()))
 }
 
 /// The `refine` keyword: `None`, a number of steps, or a word of
@@ -180,8 +186,12 @@ fn mesh(py: Python<'_>, v: &Bound<'_, PyAny>, f: &Bound<'_, PyAny>) -> PyResult<
 
 /// The constraints argument for `mesh`; a file made for another mesh is a
 /// `UserWarning`, as the CLI warns.
-fn constraints_for(obj: &Bound<'_, PyAny>, mesh: &Mesh) -> PyResult<ConstraintSet> {
-    let set = convert::constraints(obj)?;
+fn constraints_for(
+    obj: &Bound<'_, PyAny>,
+    mesh: &Mesh,
+    budget: MemoryBudget,
+) -> PyResult<ConstraintSet> {
+    let set = convert::constraints(obj, budget)?;
     if let Some(detail) = set.mesh_mismatch(mesh) {
         warn::<PyUserWarning>(obj.py(), &format!("the constraints file was {detail}"))?;
     }
@@ -329,7 +339,7 @@ fn deform<'py>(
         };
         let arap = keywords.parse(py, laplacian)?;
         let mesh = mesh(py, V, F)?;
-        let set = constraints_for(constraints, &mesh)?;
+        let set = constraints_for(constraints, &mesh, m.memory_budget)?;
         let (positions, report) = match arap {
             Some(options) => deform_arap(py, mesh, set, m, options)?,
             None => {
@@ -397,7 +407,7 @@ fn compare_rows<'py>(
             .configurations()
             .map_err(|e| input(format!("methods=/qr=/spd=/weights=: {e}")))?;
         let mesh = mesh(py, V, F)?;
-        let set = constraints_for(constraints, &mesh)?;
+        let set = constraints_for(constraints, &mesh, environment_budget()?)?;
         let (reference, rows) = released(py, move || {
             let mut deformer = Deformer::new(mesh, kind, set)?;
             compare::compare(&mut deformer, &options, &mut |_| {})
@@ -547,7 +557,7 @@ impl PyDeformer {
             }
             .options()?;
             let mesh = mesh(py, V, F)?;
-            let set = constraints_for(constraints, &mesh)?;
+            let set = constraints_for(constraints, &mesh, options.memory_budget)?;
             let deformer = released(py, move || {
                 let mut deformer = Deformer::new(mesh, kind, set)?;
                 deformer.set_refine(options.refine);

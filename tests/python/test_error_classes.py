@@ -284,3 +284,30 @@ def test_the_translation_keeps_what_the_entry_points_are():
     assert isinstance(d, lse_deform._native.Deformer)
     assert lse_deform.deform.__doc__ == lse_deform._native.deform.__doc__
     assert lse_deform.Deformer.precompute.__doc__ == lse_deform._native.Deformer.precompute.__doc__
+
+
+@pytest.mark.parametrize("value", ["abc", "-1", "0", "1.5G", ""])
+def test_a_malformed_memory_limit_variable_is_an_input_error(value):
+    """A malformed ``LSE_MEMORY_LIMIT`` is refused by every call that takes
+    the process's budget (``memory_limit=None``), naming the variable --
+    never silently replaced by the available memory."""
+    code = textwrap.dedent(
+        """
+        import numpy as np, lse_deform
+        V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+        F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+        for call in (
+            lambda: lse_deform.deform(V, F, ([0], V[:1])),
+            lambda: lse_deform.Deformer(V, F, ([0], V[:1])),
+        ):
+            try:
+                call()
+                print("accepted")
+            except lse_deform.InputError as e:
+                print(type(e).__name__, "LSE_MEMORY_LIMIT" in str(e))
+        """
+    )
+    env = {"LSE_MEMORY_LIMIT": value, "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split("\n")[:2] == ["InputError True"] * 2, out.stdout + out.stderr
