@@ -200,14 +200,29 @@ impl Deformer {
     /// Solve phase: positions for the current targets, in the mesh's units.
     pub fn solve(&mut self) -> Result<Solution, Error> {
         let x = self.solve_matrix()?;
-        let u = self.unit;
-        let positions = (0..x.nrows())
-            .map(|i| [x[(i, 0)] * u, x[(i, 1)] * u, x[(i, 2)] * u])
-            .collect();
         Ok(Solution {
-            positions,
+            positions: self.positions_of(&x),
             report: self.report().clone(),
         })
+    }
+
+    /// [`Deformer::solve_into`] as positions in the mesh's units: refined
+    /// unless the mode is [`Refine::Off`] (then no correction at all, so no
+    /// forward-error estimate), without the solution diagnostics (the
+    /// report's solution fields read "not computed",
+    /// [`Report::clear_solution_diagnostics`], until [`Deformer::diagnose`]).
+    pub fn solve_undiagnosed(&mut self) -> Result<Vec<[f64; 3]>, Error> {
+        let mut x = Mat::zeros(self.problem().n(), 3);
+        self.solve_into(x.as_mut())?;
+        Ok(self.positions_of(&x))
+    }
+
+    /// The rows of `x` (problem units) as positions in the mesh's units.
+    fn positions_of(&self, x: &Mat<f64>) -> Vec<[f64; 3]> {
+        let u = self.unit;
+        (0..x.nrows())
+            .map(|i| [x[(i, 0)] * u, x[(i, 1)] * u, x[(i, 2)] * u])
+            .collect()
     }
 
     /// Solve phase returning `X` (n × 3) of the assembled problem — in its

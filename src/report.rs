@@ -273,6 +273,30 @@ pub struct Report {
     pub arap: Option<ArapReport>,
 }
 
+impl Report {
+    /// Marks the solution diagnostics as not computed, for a solve that
+    /// skipped them ([`crate::solver::LseSolver::solve_into`]): the
+    /// forward-error estimate and the refinement become `None`, the four
+    /// residuals (`max_constraint_residual`, `least_squares_residual` and
+    /// their relative forms) NaN (`null` in JSON), the soft residuals
+    /// empty, the diagnostics time 0 and the warnings those of set-up and
+    /// precompute (`warnings`). What the earlier solve measured would
+    /// describe another solution. `redundant` and `conflicting` keep the
+    /// classification of the last diagnosed solve (the rows skipped are the
+    /// factor's). [`crate::solver::LseSolver::diagnose`] fills them all.
+    pub fn clear_solution_diagnostics(&mut self, warnings: &[String]) {
+        self.forward_error_estimate = None;
+        self.refinement = None;
+        self.max_constraint_residual = f64::NAN;
+        self.max_constraint_residual_relative = f64::NAN;
+        self.least_squares_residual = f64::NAN;
+        self.least_squares_residual_relative = f64::NAN;
+        self.soft_residuals.clear();
+        self.timings_s.diagnostics = 0.0;
+        self.warnings = warnings.to_vec();
+    }
+}
+
 /// What the ARAP iterations did ([`crate::arap::ArapDeformer`]).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct ArapReport {

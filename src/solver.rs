@@ -241,7 +241,9 @@ impl LseSolver {
 
     /// Solve phase into `x` (n × k), refined unless the mode is
     /// [`Refine::Off`], without diagnostics (call [`LseSolver::diagnose`]
-    /// when they are wanted): what a drag loop calls every frame. Without
+    /// when they are wanted; until then the report's solution fields say
+    /// "not computed", [`Report::clear_solution_diagnostics`]): what a drag
+    /// loop calls every frame. Without
     /// refinement, a 3-column problem allocates no buffer with the
     /// null-space formulation on the faer back ends (they were sized at
     /// precompute or by the first solve; a factor solved on two threads
@@ -321,6 +323,10 @@ impl LseSolver {
         let t = Instant::now();
         let mut refinements = Vec::new();
         self.report.timings_s.refine = 0.0;
+        if !estimate {
+            self.report
+                .clear_solution_diagnostics(&self.precompute_warnings);
+        }
         if k == RHS_BLOCK {
             system.solve_into(&self.problem, x.as_mut())?;
             self.report.timings_s.solve = t.elapsed().as_secs_f64();

@@ -230,10 +230,25 @@ fn solve_into_matches_solve_and_checks_its_output_shape() {
     solver.solve_into(y.as_mut()).unwrap();
     assert_eq!(relative_difference(&y, &x), 0.0);
     assert!(solver.report().timings_s.refine > 0.0, "auto refined");
-    // Without refinement, the report does not keep the last refine phase.
+    // Without refinement, the report does not keep the last refine phase,
+    // nor the estimate and residuals of the solve before: not computed.
+    assert!(solver.report().forward_error_estimate.is_some());
     solver.set_refine(Some(Refine::Off));
     solver.solve_into(y.as_mut()).unwrap();
-    assert_eq!(solver.report().timings_s.refine, 0.0);
+    let report = solver.report();
+    assert_eq!(report.timings_s.refine, 0.0);
+    assert_eq!(report.forward_error_estimate, None);
+    assert!(report.refinement.is_none());
+    assert!(report.max_constraint_residual.is_nan() && report.least_squares_residual.is_nan());
+    let json = serde_json::to_value(report).unwrap();
+    assert!(json["max_constraint_residual"].is_null() && json["forward_error_estimate"].is_null());
+    // diagnose fills them again
+    solver.diagnose(y.as_ref());
+    assert!(
+        solver.report().forward_error_estimate.is_none(),
+        "no refinement ran"
+    );
+    assert!(solver.report().max_constraint_residual.is_finite());
     solver.set_refine(None);
     let mut wrong = Mat::<f64>::zeros(25, 2);
     assert!(matches!(

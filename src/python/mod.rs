@@ -16,6 +16,7 @@
 //! under [`errors::guarded`], so not even a bug raises pyo3's
 //! `PanicException`); report warnings become `RuntimeWarning`s.
 
+mod basis;
 mod convert;
 mod errors;
 
@@ -477,6 +478,8 @@ fn solve_lse<'py>(
 struct DeformerState {
     deformer: Deformer,
     options: SolveOptions,
+    /// What a `HandleBasis` of this deformer must know (basis.rs).
+    changes: basis::Changes,
 }
 
 /// A mesh with constraints, deformed again and again: `precompute()` once,
@@ -547,14 +550,21 @@ impl PyDeformer {
                 Ok(deformer)
             })?;
             Ok(PyDeformer {
-                state: Mutex::new(DeformerState { deformer, options }),
+                state: Mutex::new(DeformerState {
+                    deformer,
+                    options,
+                    changes: basis::Changes::default(),
+                }),
             })
         })
     }
 
     /// Precompute: factors the system (GIL released).
     fn precompute(&self, py: Python<'_>) -> PyResult<()> {
-        self.with_state(py, |s| s.deformer.precompute_with(&s.options))
+        self.with_state(py, |s| {
+            s.changes.reconfigured("precompute()");
+            s.deformer.precompute_with(&s.options)
+        })
     }
 
     /// New targets for the constraints `indices` (positions in the
@@ -578,12 +588,15 @@ impl PyDeformer {
                 )));
             }
             let updates: Vec<(usize, [f64; 3])> = indices.into_iter().zip(targets).collect();
-            self.with_state(py, move |s| s.deformer.set_targets(&updates))
+            self.with_state(py, move |s| {
+                s.changes.reconfigured("set_targets()");
+                s.deformer.set_targets(&updates)
+            })
         })
     }
 
     /// Applies the affine map `M` (3 × 4 `[R | t]`, or 4 × 4 with last row
-    /// `[0, 0, 0, 1]`) to the rest targets of group `name`: positions, edge
+    /// `[0, 0, 0, 1]` within 1e-12) to the rest targets of group `name`: positions, edge
     /// and face targets become `R u + t`, relative vectors `R v`. Calls do
     /// not accumulate; the identity puts the group back.
     #[pyo3(signature = (name, M))]
@@ -600,17 +613,32 @@ impl PyDeformer {
 
     /// Solve: the deformed positions (n × 3) for the current targets,
     /// reusing the factorisation (GIL released). Call `precompute()` first.
-    fn solve<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    /// `refine` (as for the constructor; None: the Deformer's own) applies
+    /// to this call only; `refine="off"` still computes one correction for
+    /// the forward-error estimate. `estimate=False` (with refinement off
+    /// only) skips it and the diagnostics: the cheap frame (basis.rs).
+    #[pyo3(signature = (refine=None, estimate=true))]
+    fn solve<'py>(
+        &self,
+        py: Python<'py>,
+        refine: Option<&Bound<'py, PyAny>>,
+        estimate: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
         guarded(|| {
-            let (positions, report) = self.with_state(py, |s| {
-                let solution = s.deformer.solve()?;
-                Ok((solution.positions, solution.report))
-            })?;
-            for w in &report.warnings {
+            let refine = parse_refine(refine)?;
+            let (positions, warnings) =
+                self.with_state(py, move |s| basis::solve_frame(s, refine, estimate))?;
+            for w in &warnings {
                 warn::<PyRuntimeWarning>(py, w)?;
             }
             Ok(convert::positions_to_numpy(py, &positions).into_any())
         })
+    }
+
+    /// The affine response basis of the constraint groups `groups` (a
+    /// list of names) on this deformer's factor: a `HandleBasis` (basis.rs).
+    fn basis(slf: &Bound<'_, Self>, groups: &Bound<'_, PyAny>) -> PyResult<basis::PyHandleBasis> {
+        guarded(|| basis::build(slf, groups))
     }
 
     /// The report of the last precompute and solve, a dict with the keys
@@ -632,22 +660,14 @@ impl PyDeformer {
         name: &str,
         M: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let (m, _) = convert::dense(M, "M", Some(4), false)?;
-        let homogeneous_ok = m.nrows() == 4 && (0..4).all(|j| m[(3, j)] == [0.0, 0.0, 0.0, 1.0][j]);
-        if !(m.nrows() == 3 || homogeneous_ok) {
-            return Err(input(format!(
-                "M must be 3 × 4 [R | t] or 4 × 4 with last row [0, 0, 0, 1], got {} × 4{}",
-                m.nrows(),
-                if m.nrows() == 4 {
-                    " with another last row"
-                } else {
-                    ""
-                }
-            )));
-        }
-        let affine = [0, 1, 2].map(|r| [0, 1, 2, 3].map(|c| m[(r, c)]));
+        let affine = basis::affine(M, "M")?;
         let name = name.to_string();
-        self.with_state(py, move |s| s.deformer.transform_group(&name, &affine))
+        self.with_state(py, move |s| {
+            if !s.deformer.constraints().group(&name).is_empty() {
+                s.changes.transformed(&name);
+            }
+            s.deformer.transform_group(&name, &affine)
+        })
     }
 }
 
@@ -662,6 +682,7 @@ pub fn native_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("InputTypeError", input_type_error_class(py)?)?;
     m.add("TooLargeError", too_large_error_class(py)?)?;
     m.add_class::<PyDeformer>()?;
+    m.add_class::<basis::PyHandleBasis>()?;
     m.add_function(wrap_pyfunction!(compare_rows, m)?)?;
     m.add_function(wrap_pyfunction!(deform, m)?)?;
     m.add_function(wrap_pyfunction!(laplacian_matrix, m)?)?;

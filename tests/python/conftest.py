@@ -57,6 +57,31 @@ def fixed_and_handle(V, fixed=0.2, handle=0.02):
     return b, bc
 
 
+def scene_items(V, fixed=0.2, handle=0.02):
+    """`fixed_and_handle`'s constraints as the CLI's `scene` writes them:
+    position constraints, the fixed ones in group "fixed", then the handle
+    in group "handle" (src/scene.rs)."""
+    b, bc = fixed_and_handle(V, fixed=fixed, handle=handle)
+    n_fixed = int(round(fixed * len(V)))
+    return [
+        {"type": "position", "vertex": int(v), "target": t.tolist(), "group": "fixed" if i < n_fixed else "handle"}
+        for i, (v, t) in enumerate(zip(b, bc))
+    ]
+
+
+def read_obj(path):
+    """V float64, F int64 of an OBJ with `v x y z` and `f i j k` records
+    only (../shared/meshes/README.md)."""
+    V, F = [], []
+    with open(path) as f:
+        for line in f:
+            if line.startswith("v "):
+                V.append([float(t) for t in line.split()[1:4]])
+            elif line.startswith("f "):
+                F.append([int(t.split("/")[0]) - 1 for t in line.split()[1:4]])
+    return np.array(V, dtype=np.float64), np.array(F, dtype=np.int64)
+
+
 def shared_mesh(name):
     """A mesh of ../shared/meshes (next to the repository), or None."""
     path = ROOT.parent / "shared" / "meshes" / name

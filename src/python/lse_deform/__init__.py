@@ -11,7 +11,11 @@ matrices from ``scipy.sparse``; C- and Fortran-ordered arrays alike.
 - ``compare(V, F, constraints, ...) -> rows``: every formulation and back
   end against one reference (``lse-deform compare --json``)
 - ``Deformer(V, F, constraints, ...)``: ``precompute()``, then
-  ``set_targets``/``transform_group`` and ``solve()`` per frame
+  ``set_targets``/``transform_group`` and ``solve()`` per frame;
+  ``solve(refine="off", estimate=False)`` for a frame without refinement,
+  estimate or diagnostics
+- ``Deformer.basis(groups) -> HandleBasis``: ``evaluate({group: M})``
+  gives the positions for affine maps of the groups without a solve
 - ``laplacian(V, F, kind) -> scipy.sparse.csc_matrix``
 - ``solve_lse(A, C, B, D, ...) -> (X, report)``: min ||AX - C|| s.t. BX = D
 
@@ -26,6 +30,7 @@ failed; ``NumericalError`` (an ``ArithmeticError``) for numerical failure.
 
 from ._native import (
     Deformer,
+    HandleBasis,
     InputError,
     InputTypeError,
     NumericalError,
@@ -39,6 +44,7 @@ from ._native import (
 
 __all__ = [
     "Deformer",
+    "HandleBasis",
     "InputError",
     "InputTypeError",
     "NumericalError",

@@ -144,11 +144,62 @@ class Deformer:
     def set_targets(self, indices: npt.ArrayLike, targets: npt.ArrayLike) -> None:
         """New targets (k x 3) for constraints `indices` (also the rest targets)."""
     def transform_group(self, name: str, M: npt.ArrayLike) -> None:
-        """Applies M (3 x 4 [R | t] or 4 x 4) to the rest targets of group `name`."""
+        """Applies M (3 x 4 [R | t] or 4 x 4, last row [0, 0, 0, 1] within
+        1e-12) to the rest targets of group `name`."""
     def group(self, name: str) -> List[int]:
         """The constraint indices of group `name`."""
-    def solve(self) -> npt.NDArray[np.float64]:
-        """The deformed positions (n x 3) for the current targets."""
+    def solve(self, refine: Refine = None, estimate: bool = True) -> npt.NDArray[np.float64]:
+        """The deformed positions (n x 3) for the current targets.
+
+        refine: this call's refinement (None: the Deformer's own).
+        refine='off' still computes one correction, not applied, for the
+        forward-error estimate. estimate=False (with refinement off only,
+        else InputError) skips it and the diagnostics: the cheap frame;
+        report then has forward_error_estimate, refinement and the
+        residuals None."""
+    def basis(self, groups: Sequence[str]) -> "HandleBasis":
+        """The affine response basis of the constraint groups `groups`, on
+        this deformer's factor with its refinement; TooLargeError beyond
+        the memory budget. See HandleBasis."""
     @property
     def report(self) -> Report:
         """The report of the last precompute and solve."""
+
+Affine = Union[npt.ArrayLike, Sequence[Sequence[float]]]
+"""A 3 x 4 [R | t] or a 4 x 4 map whose last row is [0, 0, 0, 1] (within
+1e-12), as an array or nested lists."""
+
+class HandleBasis:
+    """Positions for affine maps of some constraint groups without a solve
+    (Deformer.basis(groups)).
+
+    evaluate(T) equals, for every group g of the basis,
+    transform_group(g, T.get(g, identity)) followed by solve() (to the
+    forward error of the two): a group left out of T is at its rest pose,
+    and every other constraint keeps the target it had when the basis was
+    built. After precompute(), set_targets() of any constraint or
+    transform_group() of a group outside the basis, evaluate raises
+    InputError: build a new basis. transform_group() of a group of the
+    basis does not make it stale."""
+
+    def evaluate(
+        self,
+        transforms: Mapping[str, Affine],
+        out: Optional[npt.NDArray[np.float64]] = None,
+    ) -> npt.NDArray[np.float64]:
+        """The (n, 3) float64 positions for `transforms` (group name -> map),
+        into `out` (C-contiguous, writable, float64, (n, 3)) when given.
+        Releases the GIL for large n."""
+    @property
+    def groups(self) -> List[str]:
+        """The group names, in the order given."""
+    @property
+    def bytes(self) -> int:
+        """The bytes of the basis: what one evaluation reads."""
+    @property
+    def build_time_s(self) -> float:
+        """Seconds the basis took to build."""
+    @property
+    def forward_error_estimate(self) -> float:
+        """The largest forward-error estimate of its columns, relative to
+        the bounding-box diagonal."""
