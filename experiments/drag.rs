@@ -1026,7 +1026,7 @@ fn basis_findings(rows: &[Row]) -> String {
             s,
             "**Not measured:** {} — {} (the Python rows need a Python with this checkout's package, found or created as the `python` section says).",
             labels.join("; "),
-            first.status
+            first.status.trim_start_matches("not measured: ")
         );
     }
     let _ = writeln!(
