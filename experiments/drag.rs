@@ -49,7 +49,7 @@ struct Config {
 }
 
 /// What a frame of the drag calls.
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum FrameCall {
     /// [`Deformer::solve_matrix`]: the method's default refinement, then
     /// the diagnostics.
