@@ -1139,11 +1139,11 @@ mod tests {
             for t in [0.0, 0.3, 0.5, 0.9] {
                 let d = path(t, axis, 2.0);
                 let m = handle_transform(d, offset);
-                for r in 0..3 {
-                    for c in 0..3 {
-                        assert_eq!(m[r][c], if r == c { 1.0 } else { 0.0 });
+                for (r, row) in m.iter().enumerate() {
+                    for (c, &v) in row[..3].iter().enumerate() {
+                        assert_eq!(v, if r == c { 1.0 } else { 0.0 });
                     }
-                    let moved: f64 = (0..3).map(|c| m[r][c] * rest[c]).sum::<f64>() + m[r][3];
+                    let moved: f64 = (0..3).map(|c| row[c] * rest[c]).sum::<f64>() + row[3];
                     assert!((moved - (p[r] + d[r])).abs() < 1e-12);
                 }
             }
