@@ -1,13 +1,15 @@
 //! `drag`: an interactive drag — the handle of the paper's scene moved
-//! along a smooth closed path for 300 frames; each frame sets the handle
-//! constraints' targets ([`Deformer::set_target`]) and solves without
-//! refactoring. Per method and back end: per-frame latency p50 / p99 of the
-//! solve phase and of the whole frame (targets + solve + the library's
-//! per-solve diagnostics), and the frames per second they imply. A second
-//! row of the library default drags with refinement off through
-//! [`Deformer::solve_into`] (no correction, no diagnostics): what a frame
-//! costs when it skips refinement, and how far its shape is from the
-//! refined one's.
+//! along a smooth closed path for 300 frames; each frame translates the
+//! handle group ([`Deformer::transform_group`] with `[I | t]`) and solves
+//! without refactoring. Per method and back end: per-frame latency p50 /
+//! p99 of the solve phase and of the whole frame (targets + solve + the
+//! library's per-solve diagnostics), and the frames per second they imply.
+//! Further rows of the library default drag the same frames with
+//! refinement off through [`Deformer::solve_into`] (no correction, no
+//! diagnostics), by the handle basis ([`HandleBasis::evaluate`], built once:
+//! docs/handles.md), and through Python (`drag_python`: the basis and
+//! `transform_group` + `solve`): what each frame costs and how far its
+//! shape is from the refined one's.
 
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -16,9 +18,11 @@ use std::time::Instant;
 
 use faer::Mat;
 use lse_deform::constraints::ConstraintSet;
+use lse_deform::deform::Affine;
 use lse_deform::formulation::{Refine, max_hard_residual};
+use lse_deform::handle::HandleBasis;
 use lse_deform::mesh::Mesh;
-use lse_deform::scene::FixedAndHandle;
+use lse_deform::scene::{FixedAndHandle, HANDLE_GROUP};
 use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method};
 use serde::Serialize;
 
@@ -26,6 +30,7 @@ use crate::breakdown::{
     PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
 };
 use crate::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
+use crate::drag_python::{self, PythonRows};
 use crate::plot::{
     self, Axis, Category, LegendPosition, LineChart, Orientation, Output, Series, StackedBars,
 };
@@ -44,7 +49,7 @@ struct Config {
 }
 
 /// What a frame of the drag calls.
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum FrameCall {
     /// [`Deformer::solve_matrix`]: the method's default refinement, then
     /// the diagnostics.
@@ -52,6 +57,15 @@ enum FrameCall {
     /// [`Deformer::solve_into`] with [`Refine::Off`] into a buffer kept
     /// across frames: no correction, no diagnostics.
     UnrefinedSolveInto,
+    /// [`HandleBasis::evaluate`] of the handle group's basis (built once
+    /// after the warm-up solve) into a buffer kept across frames.
+    Basis,
+    /// Python, `Deformer.basis(["handle"]).evaluate({"handle": M})`
+    /// (`drag_python.py`).
+    PythonBasis,
+    /// Python, `transform_group("handle", M)` then `solve()` (the default
+    /// refinement, and the diagnostics).
+    PythonSolve,
 }
 
 impl FrameCall {
@@ -60,24 +74,55 @@ impl FrameCall {
         match self {
             FrameCall::SolveMatrix => "solve_matrix",
             FrameCall::UnrefinedSolveInto => "solve_into",
+            FrameCall::Basis => "HandleBasis::evaluate",
+            FrameCall::PythonBasis => "Python basis.evaluate",
+            FrameCall::PythonSolve => "Python transform_group + solve",
         }
+    }
+
+    /// Measured by `drag_python.py`, not in this process.
+    fn is_python(self) -> bool {
+        matches!(self, FrameCall::PythonBasis | FrameCall::PythonSolve)
     }
 }
 
 impl Config {
     fn new(label: String, choice: FormulationChoice) -> Result<Config, AnyError> {
+        Config::calling(label, choice, FrameCall::SolveMatrix)
+    }
+
+    fn calling(
+        label: String,
+        choice: FormulationChoice,
+        frame_call: FrameCall,
+    ) -> Result<Config, AnyError> {
         Ok(Config {
             label,
             formulation: choice.build()?,
             choice,
-            frame_call: FrameCall::SolveMatrix,
+            frame_call,
         })
     }
 }
 
+/// The library default's other frame calls, after its `solve_matrix` row:
+/// refinement off through `solve_into`, the handle basis in Rust and in
+/// Python, and Python's `transform_group` + `solve`.
+fn default_variants(prefix: &str, choice: FormulationChoice) -> Result<Vec<Config>, AnyError> {
+    [
+        ("refine off, solve_into", FrameCall::UnrefinedSolveInto),
+        ("handle basis (Rust)", FrameCall::Basis),
+        ("handle basis (Python)", FrameCall::PythonBasis),
+        ("Python transform_group + solve", FrameCall::PythonSolve),
+    ]
+    .into_iter()
+    .map(|(what, call)| Config::calling(format!("{prefix}, {what}"), choice, call))
+    .collect()
+}
+
 /// The configurations, the library default (null-space QR with the default
-/// QR and SPD back ends) first, then the same with refinement off through
-/// `solve_into`; null-space QR with the default QR back end
+/// QR and SPD back ends) first, then the same with the other frame calls
+/// ([`default_variants`]); null-space QR with the default QR back end
 /// on every SPD back end but `faer-supernodal` (what `faer-auto` selects on
 /// meshes of this size: the same factor, see `scaling`), with every other QR
 /// back end on the default SPD back end; penalty, KKT (faer LDLᵀ, automatic
@@ -108,13 +153,10 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
             choice,
         )?);
         if s == default_spd {
-            out.push(Config {
-                frame_call: FrameCall::UnrefinedSolveInto,
-                ..Config::new(
-                    format!("null-space {default_qr} + {s}, refine off, solve_into"),
-                    choice,
-                )?
-            });
+            out.extend(default_variants(
+                &format!("null-space {default_qr} + {s}"),
+                choice,
+            )?);
         }
     }
     for q in qr_backends().into_iter().filter(|&q| q != default_qr) {
@@ -152,6 +194,19 @@ fn path(t: f64, axis: usize, amplitude: f64) -> [f64; 3] {
     d
 }
 
+/// The handle's transform for the path displacement `d`: the translation
+/// `[I | d − offset]`, which takes the handle's rest targets (the scene's
+/// `p + offset`) to `p + d`. Every row drags by it: `transform_group`, the
+/// basis, and Python's both.
+fn handle_transform(d: [f64; 3], offset: [f64; 3]) -> Affine {
+    let mut m = [[0.0; 4]; 3];
+    for (k, row) in m.iter_mut().enumerate() {
+        row[k] = 1.0;
+        row[3] = d[k] - offset[k];
+    }
+    m
+}
+
 /// Summary of one configuration's drag.
 #[derive(Debug, Clone, Default, Serialize)]
 struct Row {
@@ -164,13 +219,18 @@ struct Row {
     /// no diagnostics).
     frame_call: &'static str,
     precompute_s: Option<f64>,
+    /// The handle basis rows: seconds to build it (once, after the
+    /// precompute and the warm-up solve).
+    basis_build_s: Option<f64>,
     frames: usize,
     solve_p50_s: Option<f64>,
     solve_p99_s: Option<f64>,
     solve_max_s: Option<f64>,
     frame_p50_s: Option<f64>,
     frame_p99_s: Option<f64>,
-    set_target_p50_s: Option<f64>,
+    /// Moving the handle's targets (`transform_group`), p50; 0 for the
+    /// basis rows, whose evaluation takes the transform.
+    targets_p50_s: Option<f64>,
     /// The refine phase (`timings_s.refine`), p50.
     refine_p50_s: Option<f64>,
     diagnostics_p50_s: Option<f64>,
@@ -195,25 +255,29 @@ struct Row {
 struct FrameRow {
     label: String,
     frame: usize,
-    set_target_s: f64,
+    targets_s: f64,
     solve_s: f64,
     refine_s: f64,
     diagnostics_s: f64,
     frame_s: f64,
 }
 
-/// Per-frame timings of one configuration.
+/// Per-frame timings of one configuration. For the basis rows, `solve`
+/// and `frame` are both the evaluation.
 #[derive(Debug, Clone, Default)]
 struct Frames {
-    set_target: Vec<f64>,
+    targets: Vec<f64>,
     solve: Vec<f64>,
     refine: Vec<f64>,
     diagnostics: Vec<f64>,
     frame: Vec<f64>,
     max_residual: f64,
-    middle: Option<Mat<f64>>,
+    /// The mid-drag shape, in the mesh's units.
+    middle: Option<Vec<[f64; 3]>>,
     /// The output of `solve_into`, reused from frame to frame.
     buffer: Option<Mat<f64>>,
+    /// The output of the basis, reused from frame to frame.
+    positions: Vec<[f64; 3]>,
 }
 
 /// The drag's scene: the regions, constraints and path.
@@ -223,7 +287,10 @@ struct Drag {
     handle: Vec<usize>,
     constraints: ConstraintSet,
     amplitude: f64,
+    /// The scene's handle offset: its rest targets are `p + offset`.
+    offset: [f64; 3],
     original: Vec<[f64; 3]>,
+    diagonal: f64,
     frames: usize,
 }
 
@@ -237,7 +304,9 @@ impl Drag {
             handle,
             constraints: scene.constraints(mesh)?,
             amplitude: 0.15 * mesh.bbox_diagonal(),
+            offset: scene.offset,
             original: mesh.positions().to_vec(),
+            diagonal: mesh.bbox_diagonal(),
             frames: match (ctx.quick, ctx.has_user_meshes()) {
                 (true, _) => 60,
                 (false, true) => 300,
@@ -246,73 +315,120 @@ impl Drag {
             },
         })
     }
+
+    /// The handle's transform at frame `f` (0-based): the path at
+    /// `t = (f + 1) / frames`.
+    fn transform(&self, f: usize) -> Affine {
+        let t = (f + 1) as f64 / self.frames as f64;
+        handle_transform(path(t, self.axis, self.amplitude), self.offset)
+    }
+
+    /// Every frame's transform.
+    fn transforms(&self) -> Vec<Affine> {
+        (0..self.frames).map(|f| self.transform(f)).collect()
+    }
+
+    /// The 0-based frame whose shape every row keeps.
+    fn middle(&self) -> usize {
+        self.frames / 2 - 1
+    }
+
+    /// The largest hard-constraint residual of `positions` (mesh units)
+    /// at the handle transform `m`, over the diagonal.
+    fn residual(&self, m: &Affine, positions: &[[f64; 3]]) -> f64 {
+        let off = |v: usize, target: [f64; 3]| {
+            let p = positions[v];
+            (0..3)
+                .map(|k| (p[k] - target[k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let fixed = self.fixed.iter().map(|&v| off(v, self.original[v]));
+        let handle = self.handle.iter().map(|&v| {
+            let p = self.original[v];
+            off(v, [0, 1, 2].map(|k| p[k] + self.offset[k] + m[k][3]))
+        });
+        fixed.chain(handle).fold(0.0, f64::max) / self.diagonal
+    }
 }
 
-/// One configuration's deformer (dropped when it fails) and record.
+/// One configuration's deformer (dropped when it fails), or its handle
+/// basis, and record.
 #[derive(Default)]
 struct Slot {
     deformer: Option<Deformer>,
+    basis: Option<HandleBasis>,
     rec: Frames,
     error: Option<String>,
+    /// Why a row was not measured (the Python rows without a Python).
+    not_measured: Option<String>,
     precompute: Option<f64>,
+    basis_build: Option<f64>,
     nnz_factor: Option<usize>,
 }
 
 /// One deformer per configuration, precomputed, with a warm-up solve (not
-/// counted: caches, and penalty's one-off accuracy check).
+/// counted: caches, penalty's one-off accuracy check, and the first
+/// refinement, which measures the factor's rounding floor); the basis rows
+/// then build the handle group's basis and keep only it. The Python rows
+/// are left empty (measured by [`python_frames`]).
 fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
     configs
         .iter()
         .map(|c| {
             let mut slot = Slot::default();
-            let outcome = (|| -> Result<Deformer, AnyError> {
-                let mut d = Deformer::new(
-                    mesh.clone(),
-                    LaplacianKind::Cotangent,
-                    drag.constraints.clone(),
-                )?;
-                d.precompute(c.formulation.as_ref())?;
-                slot.precompute = Some(d.report().timings_s.precompute());
-                slot.nnz_factor = d.report().nnz.factor;
-                if c.frame_call == FrameCall::UnrefinedSolveInto {
-                    d.set_refine(Some(Refine::Off));
-                }
-                d.solve_matrix()?;
-                Ok(d)
-            })();
-            match outcome {
-                Ok(d) => slot.deformer = Some(d),
-                Err(e) => slot.error = Some(e.to_string()),
+            if c.frame_call.is_python() {
+                return slot;
+            }
+            if let Err(e) = prepare(&mut slot, mesh, drag, c) {
+                slot.error = Some(e.to_string());
+                slot.deformer = None;
             }
             slot
         })
         .collect()
 }
 
-/// Frame `f`: the handle's targets moved along the path, then a solve:
-/// as `call` says (after `solve_into`, the hard-constraint residual is
-/// measured once the frame's clock has stopped).
-fn frame(
+/// The precompute, warm-up solve and, for the basis row, the basis of
+/// configuration `c` into `slot`.
+fn prepare(slot: &mut Slot, mesh: &Mesh, drag: &Drag, c: &Config) -> Result<(), AnyError> {
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        drag.constraints.clone(),
+    )?;
+    d.precompute(c.formulation.as_ref())?;
+    slot.precompute = Some(d.report().timings_s.precompute());
+    slot.nnz_factor = d.report().nnz.factor;
+    if c.frame_call == FrameCall::UnrefinedSolveInto {
+        d.set_refine(Some(Refine::Off));
+    }
+    d.solve_matrix()?;
+    if c.frame_call == FrameCall::Basis {
+        let basis = HandleBasis::new(&mut d, &[HANDLE_GROUP])?;
+        slot.basis_build = Some(basis.build_time_s());
+        slot.basis = Some(basis);
+    } else {
+        slot.deformer = Some(d);
+    }
+    Ok(())
+}
+
+/// Frame `f`: the handle's targets moved by the frame's transform
+/// (`transform_group`), then a solve as `call` says (after `solve_into`,
+/// the hard-constraint residual is measured once the frame's clock has
+/// stopped). The mid-drag shape is kept in the mesh's units.
+fn solve_frame(
     deformer: &mut Deformer,
     drag: &Drag,
     f: usize,
     call: FrameCall,
     rec: &mut Frames,
 ) -> Result<(), AnyError> {
-    let d = path(
-        (f + 1) as f64 / drag.frames as f64,
-        drag.axis,
-        drag.amplitude,
-    );
+    let m = drag.transform(f);
     let start = Instant::now();
-    for (j, &v) in drag.handle.iter().enumerate() {
-        let p = drag.original[v];
-        deformer.set_target(
-            drag.fixed.len() + j,
-            [p[0] + d[0], p[1] + d[1], p[2] + d[2]],
-        )?;
-    }
-    let set = start.elapsed().as_secs_f64();
+    deformer.transform_group(HANDLE_GROUP, &m)?;
+    let targets = start.elapsed().as_secs_f64();
     let unrefined = call == FrameCall::UnrefinedSolveInto;
     let x = if unrefined {
         let n = deformer.problem().n();
@@ -324,7 +440,7 @@ fn frame(
     };
     let frame = start.elapsed().as_secs_f64();
     let r = deformer.report();
-    rec.set_target.push(set);
+    rec.targets.push(targets);
     rec.solve.push(r.timings_s.solve);
     rec.refine.push(r.timings_s.refine);
     rec.frame.push(frame);
@@ -337,12 +453,42 @@ fn frame(
         rec.diagnostics.push(r.timings_s.diagnostics);
         rec.max_residual = rec.max_residual.max(r.max_constraint_residual_relative);
     }
-    if f + 1 == drag.frames / 2 {
-        rec.middle = Some(x.clone());
+    if f == drag.middle() {
+        let unit = deformer.length_unit();
+        let rows = (0..x.nrows()).map(|i| [0, 1, 2].map(|k| x[(i, k)] * unit));
+        rec.middle = Some(rows.collect());
     }
     if unrefined {
         rec.buffer = Some(x);
     }
+    Ok(())
+}
+
+/// Frame `f` of the basis: `evaluate` at the frame's transform into the
+/// buffer kept across frames (the clock covers the evaluation alone; the
+/// residual is measured after it).
+fn basis_frame(
+    basis: &HandleBasis,
+    drag: &Drag,
+    f: usize,
+    rec: &mut Frames,
+) -> Result<(), AnyError> {
+    let m = drag.transform(f);
+    let mut out = std::mem::take(&mut rec.positions);
+    out.resize(basis.n_vertices(), [0.0; 3]);
+    let start = Instant::now();
+    basis.evaluate(std::slice::from_ref(&m), &mut out)?;
+    let t = start.elapsed().as_secs_f64();
+    rec.targets.push(0.0);
+    rec.solve.push(t);
+    rec.refine.push(0.0);
+    rec.diagnostics.push(0.0);
+    rec.frame.push(t);
+    rec.max_residual = rec.max_residual.max(drag.residual(&m, &out));
+    if f == drag.middle() {
+        rec.middle = Some(out.clone());
+    }
+    rec.positions = out;
     Ok(())
 }
 
@@ -353,30 +499,97 @@ fn run_frames(ctx: &Context, drag: &Drag, configs: &[Config], slots: &mut [Slot]
     let bar = ctx.bar(drag.frames, &format!("{NAME}: frames"));
     for f in 0..drag.frames {
         for (c, slot) in configs.iter().zip(slots.iter_mut()) {
-            let Some(deformer) = slot.deformer.as_mut() else {
-                continue;
+            let outcome = match (&slot.basis, slot.deformer.as_mut()) {
+                (Some(b), _) => basis_frame(b, drag, f, &mut slot.rec),
+                (None, Some(d)) => solve_frame(d, drag, f, c.frame_call, &mut slot.rec),
+                (None, None) => continue,
             };
-            if let Err(e) = frame(deformer, drag, f, c.frame_call, &mut slot.rec) {
+            if let Err(e) = outcome {
                 slot.error = Some(e.to_string());
-                slot.deformer = None;
+                (slot.deformer, slot.basis) = (None, None);
             }
         }
         bar.inc(1);
     }
     bar.finish_and_clear();
     for slot in slots.iter_mut() {
-        slot.deformer = None;
+        (slot.deformer, slot.basis) = (None, None);
     }
 }
 
-/// Max vertex distance between two shapes over `diag`.
-fn deviation(a: &Mat<f64>, b: &Mat<f64>, diag: f64) -> f64 {
-    let mut worst = 0.0f64;
-    for i in 0..a.nrows() {
-        let d2: f64 = (0..3).map(|k| (a[(i, k)] - b[(i, k)]).powi(2)).sum();
-        worst = worst.max(d2.sqrt());
+/// The Python rows: `drag_python.py` drags the same frames after the Rust
+/// rows (in one process, its two rows alternating frame by frame), or
+/// each row says why it was not measured. Returns a note naming the
+/// Python when measured.
+fn python_frames(
+    case: &MeshCase,
+    drag: &Drag,
+    configs: &[Config],
+    slots: &mut [Slot],
+) -> Option<String> {
+    let measured = drag_python::measure(
+        &case.mesh,
+        &drag.constraints,
+        &drag.transforms(),
+        drag.middle() + 1,
+    );
+    for (c, slot) in configs.iter().zip(slots.iter_mut()) {
+        if !c.frame_call.is_python() {
+            continue;
+        }
+        match &measured {
+            Ok(p) => slot.rec = python_record(p, c.frame_call == FrameCall::PythonBasis),
+            Err(why) => slot.not_measured = Some(why.clone()),
+        }
+        slot.basis_build = match (&measured, c.frame_call) {
+            (Ok(p), FrameCall::PythonBasis) => Some(p.measured.basis_build_s),
+            _ => None,
+        };
     }
-    worst / diag
+    measured.ok().map(|p| {
+        format!(
+            "Python rows: Python {}, numpy {}, the package of this checkout in {}.",
+            p.measured.python_version, p.measured.numpy_version, p.origin
+        )
+    })
+}
+
+/// The record of a Python row from the script's measurements.
+fn python_record(p: &PythonRows, basis: bool) -> Frames {
+    let m = &p.measured;
+    let zeros = vec![0.0; m.basis_s.len()];
+    if basis {
+        Frames {
+            targets: zeros.clone(),
+            solve: m.basis_s.clone(),
+            refine: zeros.clone(),
+            diagnostics: zeros,
+            frame: m.basis_s.clone(),
+            max_residual: m.basis_residual,
+            middle: Some(p.basis_middle.clone()),
+            ..Frames::default()
+        }
+    } else {
+        Frames {
+            targets: zeros.clone(),
+            solve: m.solve_phase_s.clone(),
+            refine: m.refine_s.clone(),
+            diagnostics: zeros,
+            frame: m.solve_frame_s.clone(),
+            max_residual: m.solve_residual,
+            middle: Some(p.solve_middle.clone()),
+            ..Frames::default()
+        }
+    }
+}
+
+/// Max vertex distance between two shapes (mesh units) over `diag`.
+fn deviation(a: &[[f64; 3]], b: &[[f64; 3]], diag: f64) -> f64 {
+    let worst = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f64>().sqrt());
+    worst.fold(0.0, f64::max) / diag
 }
 
 /// The statistics of a completed drag, into `row`.
@@ -386,7 +599,7 @@ fn summarise(row: &mut Row, rec: &Frames) {
     row.solve_max_s = Some(percentile(&rec.solve, 1.0));
     row.frame_p50_s = Some(median(&rec.frame));
     row.frame_p99_s = Some(percentile(&rec.frame, 0.99));
-    row.set_target_p50_s = Some(median(&rec.set_target));
+    row.targets_p50_s = Some(median(&rec.targets));
     row.refine_p50_s = Some(median(&rec.refine));
     row.diagnostics_p50_s = Some(median(&rec.diagnostics));
     row.fps_p50 = row.frame_p50_s.map(|t| 1.0 / t);
@@ -399,7 +612,7 @@ fn summarise(row: &mut Row, rec: &Frames) {
 /// configuration's.
 fn rows(configs: &[Config], slots: &mut [Slot], diag: f64, notes: &mut Vec<String>) -> Vec<Row> {
     let mut rows: Vec<Row> = Vec::new();
-    let mut reference: Option<Mat<f64>> = None;
+    let mut reference: Option<Vec<[f64; 3]>> = None;
     for (c, slot) in configs.iter().zip(slots.iter_mut()) {
         let mut row = Row {
             label: c.label.clone(),
@@ -409,11 +622,17 @@ fn rows(configs: &[Config], slots: &mut [Slot], diag: f64, notes: &mut Vec<Strin
             spd_backend: c.choice.spd.name().to_string(),
             frame_call: c.frame_call.name(),
             precompute_s: slot.precompute,
+            basis_build_s: slot.basis_build,
             frames: slot.rec.frame.len(),
             nnz_factor: slot.nnz_factor,
             status: "ok".into(),
             ..Row::default()
         };
+        if let Some(why) = &slot.not_measured {
+            row.status = format!("not measured: {}", short_error(why));
+            rows.push(row);
+            continue;
+        }
         match &slot.error {
             None => {
                 summarise(&mut row, &slot.rec);
@@ -455,7 +674,7 @@ fn write_data(
             (0..rec.frame.len()).map(move |f| FrameRow {
                 label: r.label.clone(),
                 frame: f + 1,
-                set_target_s: rec.set_target[f],
+                targets_s: rec.targets[f],
                 solve_s: rec.solve[f],
                 refine_s: rec.refine[f],
                 diagnostics_s: rec.diagnostics[f],
@@ -583,6 +802,7 @@ fn table(rows: &[Row]) -> String {
             vec![
                 r.label.clone(),
                 fmt(r.precompute_s, fmt_time),
+                fmt(r.basis_build_s, fmt_time),
                 ms(r.solve_p50_s),
                 ms(r.solve_p99_s),
                 ms(r.refine_p50_s),
@@ -601,6 +821,7 @@ fn table(rows: &[Row]) -> String {
         &[
             "configuration",
             "precompute",
+            "basis build",
             "solve p50 (ms)",
             "solve p99 (ms)",
             "refine p50 (ms)",
@@ -633,11 +854,15 @@ fn method_text(ctx: &Context, case: &MeshCase, drag: &Drag) -> String {
         "Mesh: {} ({} vertices; {}). Scene: the paper's default (cotangent Laplacian, {} fixed vertices, a hard handle of {} vertices). \
          After one precompute per configuration and one warm-up solve, the handle is moved rigidly along a closed loop \
          (sideways by {:.0} % of the bounding-box diagonal × sin 2πt, along the long axis by the same × (1 − cos 2πt)/2) for {} frames: \
-         each frame calls `set_target` for every handle constraint, then `solve`. \
+         frame f moves the handle group by the translation `M = [I | t_f]` of its rest targets (`transform_group(\"handle\", M)`), then solves. \
          All configurations are precomputed first and the frames run round-robin (frame f of every configuration before frame f + 1 of any), \
          so that the load of this shared machine falls on all of them alike. \
          Configurations: the library default first, then the library default with refinement off, whose frames call `solve_into` \
-         (no correction and no diagnostics: the cost of a frame that skips refinement, and in \"deviation\" its error); null-space QR on every SPD back end but faer-supernodal (what faer-auto selects at this size{}) and with every QR back end; \
+         (no correction and no diagnostics: the cost of a frame that skips refinement, and in \"deviation\" its error); \
+         the library default's handle basis (`HandleBasis::new(deformer, [\"handle\"])` once after the warm-up solve, timed in \"basis build\"; each frame `HandleBasis::evaluate` at the same `M` into a buffer kept across frames: \
+         its solve and frame columns are that evaluation, docs/handles.md); the same two frames through Python after the Rust frames, in one warm process of `experiments/drag_python.py` \
+         (`Deformer.basis([\"handle\"]).evaluate({{\"handle\": M}}, out=buffer)`, and `transform_group(\"handle\", M)` + `solve()` with the default refinement, alternating frame by frame; \
+         Python's frame includes the conversion to numpy); null-space QR on every SPD back end but faer-supernodal (what faer-auto selects at this size{}) and with every QR back end; \
          penalty, KKT and elimination on the default SPD back end only (their solve phase is that back end's; `scaling` compares the back ends). \
          Every other frame calls `Deformer::solve_matrix`: the solve phase, the refine phase of each method's default refinement (`auto` for the exact methods: \
          after the warm-up solve has measured the factor's rounding floor, a frame stops refining on the prediction of docs/refinement.md §6; `off` for penalty, \
@@ -717,6 +942,7 @@ fn findings(rows: &[Row]) -> String {
     }
     let diag_share: Vec<f64> = rows
         .iter()
+        .filter(|r| r.frame_call == FrameCall::SolveMatrix.name())
         .filter_map(|r| Some(r.diagnostics_p50_s? / r.frame_p50_s?))
         .collect();
     if !diag_share.is_empty() {
@@ -728,6 +954,85 @@ fn findings(rows: &[Row]) -> String {
             100.0 * median(&diag_share)
         );
     }
+    s
+}
+
+/// Issue 31's target for the handle basis: its frame (p50) at most this
+/// fraction of the library default's solve phase (p50)…
+const BASIS_RATIO_LIMIT: f64 = 0.1;
+/// …and its mid-drag shape within this of the refined one's, relative to
+/// the bounding-box diagonal.
+const BASIS_DEVIATION_LIMIT: f64 = 1e-10;
+
+fn verdict(met: bool) -> &'static str {
+    if met { "met" } else { "**missed**" }
+}
+
+/// The row of the frame call `call`, if measured.
+fn row_of(rows: &[Row], call: FrameCall) -> Option<&Row> {
+    rows.iter()
+        .find(|r| r.frame_call == call.name() && r.frame_p50_s.is_some())
+}
+
+/// The sentence of one basis row: its build, its frame against the
+/// default's solve phase and its deviation, with the targets.
+fn basis_sentence(r: &Row, default_solve: f64) -> Option<String> {
+    let (frame, dev) = (r.frame_p50_s?, r.deviation_from_reference?);
+    let ratio = frame / default_solve;
+    Some(format!(
+        "{}: built once in {}; a frame p50 {} ms / p99 {} ms, **{ratio:.3}× the default's solve phase** (p50 {} ms; target ≤ {BASIS_RATIO_LIMIT}: {}), {dev:.1e} of the diagonal from the refined frame (target ≤ {BASIS_DEVIATION_LIMIT:.0e}: {}).",
+        r.label,
+        r.basis_build_s.map_or_else(|| "—".into(), fmt_time),
+        ms(Some(frame)),
+        ms(r.frame_p99_s),
+        ms(Some(default_solve)),
+        verdict(ratio <= BASIS_RATIO_LIMIT),
+        verdict(dev <= BASIS_DEVIATION_LIMIT),
+    ))
+}
+
+/// The handle basis against the solve, the Python rows, what was not
+/// measured, and which path to use for what.
+fn basis_findings(rows: &[Row]) -> String {
+    let mut s = String::new();
+    let Some(d) = rows.first() else {
+        return s;
+    };
+    if let Some(solve) = d.solve_p50_s {
+        for call in [FrameCall::Basis, FrameCall::PythonBasis] {
+            if let Some(line) = row_of(rows, call).and_then(|r| basis_sentence(r, solve)) {
+                let _ = writeln!(s, "{line}");
+            }
+        }
+    }
+    if let (Some(p), Some(frame)) = (row_of(rows, FrameCall::PythonSolve), d.frame_p50_s) {
+        let _ = writeln!(
+            s,
+            "{}: a frame p50 {} ms / p99 {} ms, {:.2}× the Rust default's frame; {:.1e} of the diagonal from it.",
+            p.label,
+            ms(p.frame_p50_s),
+            ms(p.frame_p99_s),
+            p.frame_p50_s.unwrap_or(f64::NAN) / frame,
+            p.deviation_from_reference.unwrap_or(f64::NAN),
+        );
+    }
+    let missing: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.status.starts_with("not measured"))
+        .collect();
+    if let Some(first) = missing.first() {
+        let labels: Vec<&str> = missing.iter().map(|r| r.label.as_str()).collect();
+        let _ = writeln!(
+            s,
+            "**Not measured:** {} — {} (the Python rows need a Python with this checkout's package, found or created as the `python` section says).",
+            labels.join("; "),
+            first.status.trim_start_matches("not measured: ")
+        );
+    }
+    let _ = writeln!(
+        s,
+        "Which path for what: a drag that moves handles by affine maps → the handle basis (`HandleBasis::evaluate`, Python's `Deformer.basis`; the refined solution for any transform of its groups without a solve); arbitrary edits of targets → `solve` (refinement `off` while dragging when the error of the refine-off row above is acceptable); the final shape → a refined solve (`auto`)."
+    );
     s
 }
 
@@ -750,6 +1055,7 @@ fn section(
     );
     s.push_str(&table(rows));
     s.push_str(&findings(rows));
+    s.push_str(&basis_findings(rows));
     let _ = writeln!(
         s,
         "\n**Figure: latency.** One bar per configuration: the first segment is the solve phase (p50), the first two the whole frame (p50), \
@@ -780,6 +1086,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let mut slots = precompute_all(&case.mesh, &drag, &configs);
     run_frames(ctx, &drag, &configs, &mut slots);
     let mut notes: Vec<String> = Vec::new();
+    notes.extend(python_frames(&case, &drag, &configs, &mut slots));
     let rows = rows(&configs, &mut slots, case.mesh.bbox_diagonal(), &mut notes);
     write_data(ctx, &dir, &case, &drag, &rows, &slots)?;
     latency_figure(&dir, &case, drag.frames, &rows, &mut notes)?;
@@ -821,6 +1128,43 @@ mod tests {
             let m = path(0.5, axis, 2.0);
             assert!((m[axis] - 2.0).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn the_handle_transform_translates_rest_targets_onto_the_path() {
+        let offset = [0.1, -0.2, 0.3];
+        let p = [1.0, 2.0, 3.0];
+        let rest = [0, 1, 2].map(|k| p[k] + offset[k]);
+        for axis in 0..3 {
+            for t in [0.0, 0.3, 0.5, 0.9] {
+                let d = path(t, axis, 2.0);
+                let m = handle_transform(d, offset);
+                for (r, row) in m.iter().enumerate() {
+                    for (c, &v) in row[..3].iter().enumerate() {
+                        assert_eq!(v, if r == c { 1.0 } else { 0.0 });
+                    }
+                    let moved: f64 = (0..3).map(|c| row[c] * rest[c]).sum::<f64>() + row[3];
+                    assert!((moved - (p[r] + d[r])).abs() < 1e-12);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_default_is_dragged_by_every_frame_call() {
+        let c = configs(1.0, false).unwrap();
+        for call in [
+            FrameCall::SolveMatrix,
+            FrameCall::UnrefinedSolveInto,
+            FrameCall::Basis,
+            FrameCall::PythonBasis,
+            FrameCall::PythonSolve,
+        ] {
+            let same = c.iter().filter(|c| c.frame_call == call);
+            assert!(same.clone().count() >= 1, "{}", call.name());
+            assert!(same.clone().all(|x| x.choice.method == Method::NullSpaceQr));
+        }
+        assert_eq!(c[0].frame_call, FrameCall::SolveMatrix);
     }
 
     #[test]

@@ -112,7 +112,7 @@ pub const EXPERIMENTS: &[Experiment] = &[
     Experiment {
         name: drag::NAME,
         title: "Interactive drag",
-        inputs: &[Input::OneMesh],
+        inputs: &[Input::OneMesh, Input::Python],
         run: drag::run,
     },
     Experiment {

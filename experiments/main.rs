@@ -22,6 +22,7 @@ mod conflicts;
 mod context;
 mod demo;
 mod drag;
+mod drag_python;
 mod editor;
 mod environment;
 mod harness;

@@ -17,7 +17,9 @@ pub enum Refine {
     /// computed and not applied).
     Off,
     /// Refine until a correction is below [`CONVERGED_ULPS`] ulps of the
-    /// solution's size, stops shrinking, or [`AUTO_MAX_STEPS`] steps.
+    /// solution's size, measures the rounding floor (exact formulations:
+    /// docs/refinement.md §8), stops shrinking, or [`AUTO_MAX_STEPS`]
+    /// steps.
     #[default]
     Auto,
     /// Exactly this many steps unless a correction stops shrinking or
@@ -108,7 +110,10 @@ pub enum RefineStop {
     /// Refinement was off (one correction was computed for the estimate).
     #[default]
     Off,
-    /// A correction fell below [`CONVERGED_ULPS`] ulps of the solution.
+    /// A correction fell below [`CONVERGED_ULPS`] ulps of the solution,
+    /// or (exact formulations) measured the rounding floor: it was far
+    /// above the error the correction before it was predicted to leave
+    /// (docs/refinement.md §8). It was applied.
     Converged,
     /// A correction was at most the tolerance of [`Refine::Until`].
     Tolerance,

@@ -888,3 +888,34 @@ fn a_nearly_dependent_kept_row_shows_in_the_estimate_and_is_refined_away() {
         assert!(error(&x) < 1e-14, "{qr}: refined {:e}", error(&x));
     }
 }
+
+/// A first `auto` refinement computes the corrections that bring the error
+/// to the rounding floor and one that measures the floor, no more
+/// (docs/refinement.md §8). On the paper's scene over the generated
+/// unsymmetric grid of about 3,000 vertices the solve leaves 4.5e-11 of the
+/// diagonal and the first correction reaches the floor; the second, at the
+/// floor and far above the error the first was predicted to leave
+/// (`ρ ≈ 4.5e-11`), ends the refinement as `converged`, applied, where
+/// `auto` used to apply it and compute a third only to see it not shrink
+/// (`stagnated`). The answer is that of a refinement that keeps going
+/// (three steps) to within the floor.
+#[test]
+fn a_first_refinement_stops_on_the_correction_that_measures_the_floor() {
+    use lse_deform::mesh::generate::{GeneratedKind, with_about_vertices};
+    use lse_deform::scene::FixedAndHandle;
+    let mesh = with_about_vertices(GeneratedKind::UnsymmetricGrid, 3000, 1).unwrap();
+    let cs = FixedAndHandle::paper_default(&mesh)
+        .constraints(&mesh)
+        .unwrap();
+    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs).unwrap();
+    let f = NullSpaceQr::default();
+    let auto = positions(&mut d, &f, Some(Refine::Auto));
+    let r = d.report().refinement.clone().unwrap();
+    assert_eq!(r.stop_reason, RefineStop::Converged, "{r:?}");
+    assert_eq!((r.steps, r.corrections.len()), (2, 2), "{r:?}");
+    assert!(r.corrections[1] > 1e3 * r.corrections[0].powi(2), "{r:?}");
+    assert_eq!(r.forward_error_estimate, r.corrections[1]);
+    let longer = positions(&mut d, &f, Some(Refine::Steps(3)));
+    let e = max_distance(&auto, &longer) / mesh.bbox_diagonal();
+    assert!(e <= 1e-13, "{e:e} from three steps, {r:?}");
+}
