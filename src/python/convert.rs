@@ -28,8 +28,8 @@ use serde_json::Value;
 
 use super::errors::{allocation_failed, input, type_error};
 use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file_within};
-use crate::limits::MemoryBudget;
 use crate::error::{MeshError, ProblemError};
+use crate::limits::MemoryBudget;
 use crate::report::Report;
 
 /// Which dtypes an array may have.
