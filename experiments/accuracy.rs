@@ -66,6 +66,10 @@ struct Row {
     steps: Option<usize>,
     /// Why refinement stopped.
     stop: Option<String>,
+    /// The size of every correction the refinement computed, in order
+    /// (`max_i ‖ΔX_i‖₂` over the length scale; one more than `steps` when
+    /// the last was not applied).
+    corrections: Vec<f64>,
     /// Seconds of the solve phase and of the refine phase.
     solve_s: Option<f64>,
     refine_s: Option<f64>,
@@ -93,6 +97,28 @@ struct Reference {
     laplacian: &'static str,
     /// `max_i ‖X_qr,i − X*_i‖ / diag` of the sparse-QR solution.
     sparse_qr_distance: Option<f64>,
+}
+
+/// The sizes of a refinement's corrections, in the section's notation,
+/// joined by `sep`.
+fn corrections_list(corrections: &[f64], sep: &str) -> String {
+    corrections
+        .iter()
+        .map(|&c| sci(c))
+        .collect::<Vec<_>>()
+        .join(sep)
+}
+
+/// A refined row's corrections and why its refinement stopped, e.g.
+/// `1e-10, 5.9e-15 (Converged)`.
+fn corrections_cell(r: &Row) -> String {
+    match &r.stop {
+        Some(stop) if !r.corrections.is_empty() => {
+            format!("{} ({stop})", corrections_list(&r.corrections, ", "))
+        }
+        Some(stop) => format!("none ({stop})"),
+        None => "–".into(),
+    }
 }
 
 /// `max_i ‖X_i − Y_i‖₂ / diag`.
@@ -153,6 +179,7 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
             estimate: None,
             steps: None,
             stop: None,
+            corrections: Vec::new(),
             solve_s: None,
             refine_s: None,
             failure: None,
@@ -186,6 +213,11 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
                         .refinement
                         .as_ref()
                         .map(|r| format!("{:?}", r.stop_reason));
+                    row.corrections = report
+                        .refinement
+                        .as_ref()
+                        .map(|r| r.corrections.clone())
+                        .unwrap_or_default();
                     row.solve_s = Some(report.timings_s.solve);
                     row.refine_s = Some(report.timings_s.refine);
                 }
@@ -267,6 +299,7 @@ fn write_data(
                 opt(&r.estimate),
                 opt(&r.steps),
                 opt(&r.stop),
+                corrections_list(&r.corrections, ";"),
                 opt(&r.solve_s),
                 opt(&r.refine_s),
                 opt(&r.failure),
@@ -287,6 +320,7 @@ fn write_data(
             "forward_error_estimate",
             "steps",
             "stop",
+            "corrections",
             "solve_s",
             "refine_s",
             "failure",
@@ -411,6 +445,40 @@ fn median_of(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// The findings, stated from the data.
+/// A finding on the refinements of the table (each the first `auto`
+/// refinement of its factor after one unrefined solve): how many stopped
+/// for which reason, and how many corrections they computed and applied
+/// (docs/refinement.md §8: a first refinement needs the corrections that
+/// reach the rounding floor and one that shows it).
+fn first_refinements(rows: &[Row]) -> String {
+    let auto: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.refine == "auto" && r.stop.is_some())
+        .collect();
+    if auto.is_empty() {
+        return String::new();
+    }
+    let mut stops: Vec<(&str, usize)> = Vec::new();
+    for r in &auto {
+        let stop = r.stop.as_deref().unwrap_or_default();
+        match stops.iter_mut().find(|(s, _)| *s == stop) {
+            Some((_, n)) => *n += 1,
+            None => stops.push((stop, 1)),
+        }
+    }
+    let computed: usize = auto.iter().map(|r| r.corrections.len()).sum();
+    let applied: usize = auto.iter().filter_map(|r| r.steps).sum();
+    format!(
+        "- **First refinements** (`auto`, every formulation): {} refined configurations stopped {}; they computed {computed} corrections and applied {applied} (the corrections column lists each one's size and the stop).\n",
+        auto.len(),
+        stops
+            .iter()
+            .map(|(s, n)| format!("{s} in {n}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+    )
+}
+
 fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String {
     let mut s = String::new();
     for name in FORMULATIONS.map(Method::name) {
@@ -475,6 +543,7 @@ fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String
             median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
         );
     }
+    s.push_str(&first_refinements(rows));
     let failures: Vec<String> = rows
         .iter()
         .filter_map(|r| {
@@ -606,6 +675,7 @@ fn section(
                 p[1].steps
                     .map(|v| v.to_string())
                     .unwrap_or_else(|| "–".into()),
+                corrections_cell(&p[1]),
                 match (p[1].refine_s, p[1].solve_s) {
                     (Some(r), Some(so)) if so > 0.0 => format!("{:.2}", r / so),
                     _ => "–".into(),
@@ -623,6 +693,7 @@ fn section(
             "error refined (digits lost)",
             "estimate (refined)",
             "steps",
+            "corrections computed (stop)",
             "refine / solve time",
         ],
         &table,

@@ -518,7 +518,8 @@ fn run_frames(ctx: &Context, drag: &Drag, configs: &[Config], slots: &mut [Slot]
 }
 
 /// The Python rows: `drag_python.py` drags the same frames after the Rust
-/// rows (in one process, its two rows alternating frame by frame), or
+/// rows (in one process, each of its two rows frame after frame, as a
+/// drag on that path runs), or
 /// each row says why it was not measured. Returns a note naming the
 /// Python when measured.
 fn python_frames(
@@ -861,7 +862,7 @@ fn method_text(ctx: &Context, case: &MeshCase, drag: &Drag) -> String {
          (no correction and no diagnostics: the cost of a frame that skips refinement, and in \"deviation\" its error); \
          the library default's handle basis (`HandleBasis::new(deformer, [\"handle\"])` once after the warm-up solve, timed in \"basis build\"; each frame `HandleBasis::evaluate` at the same `M` into a buffer kept across frames: \
          its solve and frame columns are that evaluation, docs/handles.md); the same two frames through Python after the Rust frames, in one warm process of `experiments/drag_python.py` \
-         (`Deformer.basis([\"handle\"]).evaluate({{\"handle\": M}}, out=buffer)`, and `transform_group(\"handle\", M)` + `solve()` with the default refinement, alternating frame by frame; \
+         (`Deformer.basis([\"handle\"]).evaluate({{\"handle\": M}}, out=buffer)`, and `transform_group(\"handle\", M)` + `solve()` with the default refinement, each path frame after frame as a drag on it runs: all basis frames, then all solve frames; \
          Python's frame includes the conversion to numpy); null-space QR on every SPD back end but faer-supernodal (what faer-auto selects at this size{}) and with every QR back end; \
          penalty, KKT and elimination on the default SPD back end only (their solve phase is that back end's; `scaling` compares the back ends). \
          Every other frame calls `Deformer::solve_matrix`: the solve phase, the refine phase of each method's default refinement (`auto` for the exact methods: \
