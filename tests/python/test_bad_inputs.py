@@ -133,7 +133,7 @@ def test_bad_constraint_file(tmp_path):
         (dict(qr="bogus"), InputError, "bogus"),
         (dict(spd="bogus"), InputError, "bogus"),
         (dict(refine="sometimes"), InputError, "refinement 'sometimes'"),
-        (dict(refine=-1), TypeError, "refine"),
+        (dict(refine=-1), InputError, "refine"),
         (dict(refine=True), TypeError, "refine"),
         (dict(refine=2.5), TypeError, "refine"),
     ],
