@@ -426,6 +426,29 @@ def find_binary(arg):
     return dbg
 
 
+def compare_outputs(work, earlier, emit, partial):
+    """Compare this run's output meshes with an earlier run's, byte for byte.
+
+    An output mesh is a `SCENE__RUN.obj` file (the inputs have no `__`).
+    Every output of either run must exist in the other (with `partial`, a
+    run of some scenes only, only this run's outputs are looked up) and be
+    identical; returns the number of meshes that are not (each a failure)."""
+    ours = {p.name for p in work.glob("*__*.obj")}
+    theirs = {p.name for p in earlier.glob("*__*.obj") if not partial or p.name in ours}
+    bad = same = 0
+    for name in sorted(ours | theirs):
+        if name not in ours or name not in theirs:
+            emit(f"FAIL  same outputs: {name} exists only in {'this run' if name in ours else earlier}")
+            bad += 1
+        elif (work / name).read_bytes() != (earlier / name).read_bytes():
+            emit(f"FAIL  same outputs: {name} differs from {earlier / name}")
+            bad += 1
+        else:
+            same += 1
+    emit(f"same outputs: {same} of {len(ours | theirs)} output meshes byte-identical to {earlier}")
+    return bad
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", help="lse-deform binary (default: $LSE_DEFORM_BIN, else target/{release,debug}/lse-deform)")
@@ -433,8 +456,16 @@ def main():
     ap.add_argument("--jobs", type=int, default=2, help="binary runs in parallel (default 2)")
     ap.add_argument("--keep", help="keep meshes, scenes and outputs in this directory")
     ap.add_argument("--only", help="run only scenes whose name contains this")
+    ap.add_argument(
+        "--same-outputs-as",
+        metavar="DIR",
+        help="with --keep: every output mesh (SCENE__RUN.obj) must be byte-identical to the file of the same name "
+        "in DIR, a --keep directory of an earlier run (a refactoring that may not change a computed number)",
+    )
     ap.add_argument("--no-real", action="store_true", help="generated meshes only (not allowed under CI)")
     args = ap.parse_args()
+    if args.same_outputs_as and not args.keep:
+        ap.error("--same-outputs-as needs --keep DIR (the outputs are compared after the run)")
     t_start = time.time()
     binary = find_binary(args.bin)
     failures = 0
@@ -651,6 +682,8 @@ def main():
                 st["fail"] += 1
                 st["fail_pos"] = max(st["fail_pos"], detail.get("pos", float("nan")))
     pool.shutdown()
+    if args.same_outputs_as:
+        failures += compare_outputs(work, pathlib.Path(args.same_outputs_as), emit, bool(args.only))
     if not args.keep:
         shutil.rmtree(work, ignore_errors=True)
 
