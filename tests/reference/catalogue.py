@@ -357,19 +357,19 @@ def run_binary(binary, mesh, cons, lap, label, args, workdir, tag):
 
 def expected_refusal(method, cons_kinds_hard, has_dependent):
     if method == "eliminate" and any(k != "position" for k in cons_kinds_hard):
-        return "eliminate does not support", "eliminate takes hard position constraints only (README: other kinds are refused)"
+        return "eliminate does not support", "eliminate takes hard position constraints only (docs/cli.md §2: other kinds are refused)"
     if method == "kkt" and has_dependent:
-        return "is singular", "kkt refuses dependent hard constraints (README: redundant constraints -> Singular error)"
+        return "is singular", "kkt refuses dependent hard constraints (docs/cli.md §2: redundant constraints -> Singular error)"
     return None
 
 
 # The penalty method with W = 1e4 relative to the largest column norm of A
-# (README, "The penalty weight is relative"): a soft row of weight 100 sets
+# (docs/cli.md §3, "The penalty weight is relative"): a soft row of weight 100 sets
 # that norm, and a hard relative, edge or face row then enters AᵀA + (Ws)²BᵀB
 # with a weight ~1e12 times the Laplacian's, so eliminating one of its
 # unknowns cancels the penalty term and the next pivot is rounding. The
-# library detects this and exits 3 (README: "numerical failure (a
-# non-positive pivot ...)"); recorded as not applicable, with the message.
+# library detects this and exits 3 (docs/cli.md §6: "numerical failure: a
+# non-positive pivot ..."); recorded as not applicable, with the message.
 PENALTY_BREAKDOWN = "the penalty normal matrix"
 
 
@@ -604,7 +604,7 @@ def main():
         for label, rargs in runs:
             method = rargs[1]
             if method == "penalty" and cls == "conflicting":
-                futures.append((label, method, None, "penalty has no rank detection and no exact solution under conflicting hard constraints (README)"))
+                futures.append((label, method, None, "penalty has no rank detection and no exact solution under conflicting hard constraints (docs/cli.md §5)"))
                 continue
             fut = pool.submit(run_binary, binary, mesh, cons_path, lap, label, rargs, work, f"{tag}__{label.replace(' ', '_')}")
             futures.append((label, method, fut, None))

@@ -2,12 +2,12 @@
 """An independent definition of what `lse-deform deform` computes.
 
 Reads only a mesh (OBJ, optionally gzip-compressed) and a constraints file
-(JSON, the format of the README's "Constraint files" section). It never
+(JSON, the format of docs/cli.md §9, "Constraint files"). It never
 reads `export-system` output and never imports the library or its Python
 module: the Laplacians, the constraint rows, the rank decision and the
 solution are all assembled and computed here, in the mesh's own units.
 
-The problem (README, "Constraint files"; src/laplacian for the operators):
+The problem (docs/cli.md §9, "Constraint files"; src/laplacian for the operators):
 
     minimise  E(X) = ||L (X - P)||_F^2 + sum_soft w_k^2 ||b_k X - d_k||^2
     subject to b_j X = d_j for every hard constraint j that is kept,
