@@ -1,4 +1,6 @@
-//! What happened in a deformation: the [`Report`] every formulation returns.
+//! What happened in a deformation: the [`Report`], which the solver
+//! assembles from a formulation's precompute record and its own solution
+//! diagnostics, and its parts (typed warnings, the method's own facts).
 
 use serde::{Serialize, Serializer};
 
