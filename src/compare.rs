@@ -17,7 +17,7 @@ use crate::choice::Method;
 use crate::deform::Deformer;
 use crate::error::{Error, ProblemError};
 use crate::formulation::{FormulationChoice, Kkt, NullSpaceQr};
-use crate::refinement::Refine;
+use crate::refinement_types::Refine;
 
 /// What to compare.
 #[derive(Debug, Clone, PartialEq)]
@@ -233,7 +233,14 @@ pub fn run_one(
             if let Some(r) = &row.report
                 && !r.warnings.is_empty()
             {
-                row.status = format!("ok, warning: {}", r.warnings.join("; "));
+                row.status = format!(
+                    "ok, warning: {}",
+                    r.warnings
+                        .iter()
+                        .map(|w| w.message.as_str())
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                );
             }
         }
     }

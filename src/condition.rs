@@ -59,6 +59,36 @@ pub const LANCZOS_MAX_ITERATIONS: usize = 200;
 /// Seed of the start vector (fixed so that estimates are reproducible).
 const SEED: u64 = 0x00c0_ffee_1a2c_705d;
 
+/// How a [`ConditionEstimate`] was obtained.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ConditionMethod {
+    /// Lanczos with full reorthogonalisation on the matrix for `|λ|max` and
+    /// on its inverse, applied by solves with the factor, for `|λ|min`
+    /// ([`estimate`]).
+    Lanczos {
+        /// The matrix, as the formulation names it (e.g. `(AQ2)ᵀ(AQ2)`).
+        matrix: String,
+    },
+}
+
+impl std::fmt::Display for ConditionMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ConditionMethod::Lanczos { matrix } => write!(
+                f,
+                "Lanczos with full reorthogonalisation on {matrix} for |λ|max and on its inverse (solves with the factor) for |λ|min"
+            ),
+        }
+    }
+}
+
+/// Serialised as its sentence (`Display`).
+impl Serialize for ConditionMethod {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// An estimate of `κ₂(M) = |λ|max / |λ|min` for the symmetric matrix `M`
 /// that a formulation factored.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -69,8 +99,9 @@ pub struct ConditionEstimate {
     pub lambda_max: f64,
     /// Smallest eigenvalue magnitude `|λ|min`.
     pub lambda_min: f64,
-    /// How it was obtained (operator and algorithm).
-    pub method: String,
+    /// How it was obtained (operator and algorithm), serialised as the
+    /// sentence [`ConditionMethod`]'s `Display` writes.
+    pub method: ConditionMethod,
     /// Lanczos steps taken, both extremes together.
     pub iterations: usize,
     /// Whether both extremes met the tolerance before the cap.
@@ -267,9 +298,9 @@ pub fn estimate(
         value: lambda_max / lambda_min,
         lambda_max,
         lambda_min,
-        method: format!(
-            "Lanczos with full reorthogonalisation on {what} for |λ|max and on its inverse (solves with the factor) for |λ|min"
-        ),
+        method: ConditionMethod::Lanczos {
+            matrix: what.to_string(),
+        },
         iterations: hi.iterations + lo.iterations,
         converged: hi.converged && lo.converged,
         tolerance: LANCZOS_RELATIVE_TOLERANCE,

@@ -130,8 +130,8 @@ impl Deformer {
             soft_scale,
         )?;
         let mut report = Report {
-            laplacian: Some(crate::report::EnergyOperator::Laplacian(laplacian)),
-            warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
+            energy: Some(crate::report::EnergyOperator::Laplacian(laplacian)),
+            warnings: mesh.warnings().iter().map(Into::into).collect(),
             length_unit: unit,
             soft_weight_scale: Some(soft_scale.factor()),
             ..Report::default()

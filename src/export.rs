@@ -110,8 +110,9 @@ pub const META_FILE: &str = "meta.json";
 /// Writes `meta.json` into `dir`: how the exported problem was set up and
 /// factored, from the `report` of its precompute:
 ///
-/// - `method`, `qr_backend`, `spd_backend`, `penalty_weight`, `laplacian`,
-///   `kkt_multiplier_scale` (null where they do not apply);
+/// - `method`, `qr_backend`, `factor_backend` (and `spd_backend`, its
+///   deprecated alias kept for one release), `penalty_weight`,
+///   `laplacian`, `kkt_multiplier_scale` (null where they do not apply);
 /// - `factored_unknowns`: the unknown order of `factored.mtx` in words, and
 ///   for elimination `factored_unknown_list`, the unknowns (vertices) in
 ///   that order;
@@ -170,10 +171,11 @@ pub fn export_meta(
         "format": "lse-deform export-system",
         "method": report.method,
         "qr_backend": report.qr_backend,
-        "spd_backend": report.spd_backend,
-        "penalty_weight": report.penalty_weight,
-        "laplacian": report.laplacian,
-        "kkt_multiplier_scale": report.kkt_multiplier_scale,
+        "spd_backend": report.factor_backend,
+        "factor_backend": report.factor_backend,
+        "penalty_weight": report.penalty_weight(),
+        "laplacian": report.energy,
+        "kkt_multiplier_scale": report.kkt_multiplier_scale(),
         "factored_unknowns": order,
         "factored_unknown_list": list,
         "unknowns": n,

@@ -26,7 +26,8 @@
 //! - [`backend`] (QR, SPD Cholesky and `LDLᵀ` traits and their
 //!   implementations),
 //!   [`condition`] (condition-number estimates of the factored matrix) and
-//!   [`refinement`] (refinement modes, stop reasons, thresholds) →
+//!   [`refinement_types`] (refinement modes, the record of a refinement,
+//!   stop reasons, thresholds) →
 //!   [`report`] (diagnostics of a solve) → [`formulation`] (the paper's
 //!   method and its alternatives, refinement) → [`solver`] (precompute and
 //!   solve of any problem, including general ones from their matrices, and
@@ -70,7 +71,11 @@ pub mod mtx;
 pub mod problem;
 #[cfg(feature = "python")]
 pub mod python;
-pub mod refinement;
+pub mod refinement_types;
+/// Deprecated alias of [`refinement_types`] (its name until the algorithm,
+/// `formulation::iterative_refinement`, moved beside it), kept for one
+/// release.
+pub use refinement_types as refinement;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod report;

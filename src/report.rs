@@ -1,4 +1,6 @@
-//! What happened in a deformation: the [`Report`] every formulation returns.
+//! What happened in a deformation: the [`Report`], which the solver
+//! assembles from a formulation's precompute record and its own solution
+//! diagnostics, and its parts (typed warnings, the method's own facts).
 
 use serde::{Serialize, Serializer};
 
@@ -8,7 +10,12 @@ use crate::choice::{ArapEnergy, ArapInit, Method};
 use crate::laplacian::LaplacianKind;
 
 mod conflicts;
+mod facts;
+mod warning;
+mod wire;
 pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources, conflict_warnings};
+pub use facts::MethodFacts;
+pub use warning::{Warning, WarningKind};
 
 /// A list that a method may or may not be able to produce — the redundant
 /// and conflicting hard constraints, which only the methods with rank
@@ -179,19 +186,30 @@ impl Serialize for EnergyOperator {
     }
 }
 
-/// The report of a deformation.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+/// The report of a deformation. Serialised (JSON) with one key per field
+/// under the field's name, except: `factor_backend` also as
+/// `spd_backend` (its deprecated alias, kept for one release), `energy` as
+/// `laplacian`, `warnings` as the array of their texts plus
+/// `warning_codes`, the array of their codes ([`WarningKind::code`]), and
+/// `method_facts` as the three keys `penalty_weight`,
+/// `penalty_weight_unit` and `kkt_multiplier_scale` (`null` where they do
+/// not apply).
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Report {
     /// The formulation (serialised as its word, e.g. `nullspace-qr`).
     pub method: Method,
     /// The QR back end, if the method uses one.
     pub qr_backend: Option<QrKind>,
-    /// The SPD back end's Cholesky, or the KKT method's `LDLᵀ`.
-    pub spd_backend: Option<FactorKind>,
+    /// The factorisation of the matrix factored: the SPD back end's
+    /// Cholesky, or the KKT method's `LDLᵀ`. Serialised as
+    /// `factor_backend` and, for one release, also as `spd_backend` (the
+    /// deprecated name, from when every method factored an SPD matrix).
+    pub factor_backend: Option<FactorKind>,
     /// The operator of the energy: a Laplacian kind, or ARAP's rows
-    /// (serialised as `cotan`, `uniform`, … or `arap-spokes`,
-    /// `arap-spokes-and-rims`); `None` for a problem given as matrices.
-    pub laplacian: Option<EnergyOperator>,
+    /// (serialised under the key `laplacian`, as `cotan`, `uniform`, … or
+    /// `arap-spokes`, `arap-spokes-and-rims`); `None` for a problem given
+    /// as matrices.
+    pub energy: Option<EnergyOperator>,
     /// Number of vertices (unknowns).
     pub vertices: usize,
     /// Number of constraints (hard + soft).
@@ -240,11 +258,11 @@ pub struct Report {
     pub soft_weight_scale: Option<f64>,
     /// Iterative refinement of the last solve: steps, the size of every
     /// correction, why it stopped.
-    pub refinement: Option<crate::refinement::Refinement>,
+    pub refinement: Option<crate::refinement_types::Refinement>,
     /// The estimated forward error of the last solution, as the largest
     /// vertex error over the length scale (docs/refinement.md §5 for how
     /// it is estimated); a warning is issued above
-    /// [`crate::refinement::FORWARD_ERROR_WARNING`].
+    /// [`crate::refinement_types::FORWARD_ERROR_WARNING`].
     pub forward_error_estimate: Option<f64>,
     /// The tolerance that classified skipped constraints as conflicting:
     /// a skipped constraint conflicts when its residual exceeds this times
@@ -254,21 +272,17 @@ pub struct Report {
     pub nnz: Nnz,
     /// Seconds per phase.
     pub timings_s: Timings,
-    /// Things the user should know.
-    pub warnings: Vec<String>,
+    /// Things the user should know (serialised as their texts under
+    /// `warnings` and their codes under `warning_codes`).
+    pub warnings: Vec<Warning>,
     /// Estimate of the 2-norm condition number of the factored matrix,
     /// when asked for (`Prepared::estimate_condition` of the formulation:
     /// it costs solves, so it is not computed by default).
     pub condition_estimate: Option<crate::condition::ConditionEstimate>,
-    /// The relative penalty weight `w` of hard rows (penalty formulation
-    /// only).
-    pub penalty_weight: Option<f64>,
-    /// `s`, the power of two the relative penalty weight is multiplied by:
-    /// hard rows enter with weight `w s` (penalty formulation only).
-    pub penalty_weight_unit: Option<f64>,
-    /// The power-of-two scale `s` of the multiplier rows and columns of the
-    /// KKT matrix `[AᵀA sBᵀ; sB 0]` (KKT formulation only).
-    pub kkt_multiplier_scale: Option<f64>,
+    /// What the precomputed method fixed that the others have no notion
+    /// of (the penalty weight, the KKT multiplier scale); `None` before a
+    /// precompute.
+    pub method_facts: Option<MethodFacts>,
     /// The as-rigid-as-possible iterations (`deform --energy arap` only).
     pub arap: Option<ArapReport>,
     /// The memory budget the precompute was checked against (serialised
@@ -280,6 +294,38 @@ pub struct Report {
 }
 
 impl Report {
+    /// The relative penalty weight `w` of hard rows (penalty formulation
+    /// only; key `penalty_weight`).
+    pub fn penalty_weight(&self) -> Option<f64> {
+        self.method_facts.and_then(|f| f.penalty_weight())
+    }
+
+    /// `s`, the power of two the relative penalty weight is multiplied by:
+    /// hard rows enter with weight `w s` (penalty formulation only; key
+    /// `penalty_weight_unit`).
+    pub fn penalty_weight_unit(&self) -> Option<f64> {
+        self.method_facts.and_then(|f| f.penalty_weight_unit())
+    }
+
+    /// The power-of-two scale `s` of the multiplier rows and columns of the
+    /// KKT matrix `[AᵀA sBᵀ; sB 0]` (KKT formulation only; key
+    /// `kkt_multiplier_scale`).
+    pub fn kkt_multiplier_scale(&self) -> Option<f64> {
+        self.method_facts.and_then(|f| f.kkt_multiplier_scale())
+    }
+
+    /// Deprecated alias of [`Report::factor_backend`] (the key
+    /// `spd_backend`, kept for one release).
+    pub fn spd_backend(&self) -> Option<FactorKind> {
+        self.factor_backend
+    }
+
+    /// The codes of [`Report::warnings`], in order (the key
+    /// `warning_codes`).
+    pub fn warning_codes(&self) -> Vec<&'static str> {
+        self.warnings.iter().map(Warning::code).collect()
+    }
+
     /// Marks the solution diagnostics as not computed, for a solve that
     /// skipped them ([`crate::solver::LseSolver::solve_into`]): the
     /// forward-error estimate and the refinement become `None`, the four
@@ -290,7 +336,7 @@ impl Report {
     /// describe another solution. `redundant` and `conflicting` keep the
     /// classification of the last diagnosed solve (the rows skipped are the
     /// factor's). [`crate::solver::LseSolver::diagnose`] fills them all.
-    pub fn clear_solution_diagnostics(&mut self, warnings: &[String]) {
+    pub fn clear_solution_diagnostics(&mut self, warnings: &[Warning]) {
         self.forward_error_estimate = None;
         self.refinement = None;
         self.max_constraint_residual = f64::NAN;
@@ -416,8 +462,11 @@ pub fn fill_solution_diagnostics(
             // Beyond the tolerance, or not even a finite number: never
             // "redundant" (satisfied anyway) unless it is.
             if !r.is_finite() {
-                report.warnings.push(format!(
-                    "hard constraint {index} is conflicting and its residual overflows a double (its coefficients or target are near the limit of the number range)"
+                report.warnings.push(Warning::new(
+                    WarningKind::ConflictResidualOverflow,
+                    format!(
+                        "hard constraint {index} is conflicting and its residual overflows a double (its coefficients or target are near the limit of the number range)"
+                    ),
                 ));
             }
             conflicting.push(Conflict {

@@ -49,13 +49,15 @@ use faer::{Mat, MatMut, MatRef};
 use crate::condition::ConditionEstimate;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{
-    FORWARD_ERROR_WARNING, FactorRounding, Formulation, FormulationChoice, Method, Prepared,
-    Refine, RefineStop, Refinement, refine, refine_with_memory,
+    FORWARD_ERROR_WARNING, FactorRounding, Formulation, FormulationChoice, Method,
+    PrecomputeRecord, Precomputed, Prepared, Refine, RefineStop, Refinement, refine,
+    refine_with_rounding,
 };
 use crate::limits::MemoryBudget;
 use crate::problem::{LseProblem, RHS_BLOCK};
 use crate::report::{
-    ConflictSources, Report, conflict_warnings, fill_solution_diagnostics, first_non_finite,
+    ConflictSources, Report, Warning, WarningKind, conflict_warnings, fill_solution_diagnostics,
+    first_non_finite,
 };
 
 /// How to solve: the formulation with its back ends, the refinement and the
@@ -110,10 +112,10 @@ pub struct LseSolver {
     base: Report,
     report: Report,
     /// `None`: the formulation's default ([`Refine::Auto`] for the exact
-    /// formulations, [`Refine::Off`] for penalty, the classical baseline).
+    /// formulations, [`Refine::EstimateOnly`] for penalty, the classical baseline).
     refine: Option<Refine>,
     /// The warnings of set-up and precompute; each solve adds its own.
-    precompute_warnings: Vec<String>,
+    precompute_warnings: Vec<Warning>,
     /// The refinement of the last solve.
     last_refinement: Option<Refinement>,
     /// The earlier constraints each conflicting one contradicts, found
@@ -179,7 +181,7 @@ impl LseSolver {
 
     /// Sets the refinement of every following solve (see
     /// [`crate::formulation::refine`]); `None` restores the formulation's
-    /// default ([`Refine::Auto`] for the exact formulations, [`Refine::Off`]
+    /// default ([`Refine::Auto`] for the exact formulations, [`Refine::EstimateOnly`]
     /// for penalty).
     pub fn set_refine(&mut self, refine: Option<Refine>) {
         self.refine = refine;
@@ -204,7 +206,7 @@ impl LseSolver {
     pub fn refine_mode(&self) -> Refine {
         match (self.refine, &self.system) {
             (Some(mode), _) => mode,
-            (None, Some(system)) if !system.exact() => Refine::Off,
+            (None, Some(system)) if !system.exact() => Refine::EstimateOnly,
             _ => Refine::Auto,
         }
     }
@@ -217,11 +219,12 @@ impl LseSolver {
         self.system = None;
         crate::interrupt::check()?;
         self.rounding = FactorRounding::default();
+        let Precomputed { system, record } = formulation
+            .precompute_within(&self.problem, self.memory_budget)
+            .map_err(|e| name_free_unknown(e, &self.problem))?;
         let mut report = self.base.clone();
         report.memory_budget = Some(self.memory_budget);
-        let system = formulation
-            .precompute_within(&self.problem, &mut report, self.memory_budget)
-            .map_err(|e| name_free_unknown(e, &self.problem))?;
+        apply_record(&mut report, record);
         self.conflict_sources = ConflictSources::new(system.skipped());
         self.system = Some(system);
         self.precompute_warnings = report.warnings.clone();
@@ -231,7 +234,7 @@ impl LseSolver {
     }
 
     /// Solve phase: `X` (n × k) for the current `C` and `D`, refined as
-    /// [`LseSolver::refine_mode`] says (with [`Refine::Off`] one correction
+    /// [`LseSolver::refine_mode`] says (with [`Refine::EstimateOnly`] one correction
     /// is still computed, for the forward-error estimate), with the report's
     /// diagnostics (residuals, redundant and conflicting rows, refinement,
     /// warnings).
@@ -243,7 +246,7 @@ impl LseSolver {
     }
 
     /// Solve phase into `x` (n × k), refined unless the mode is
-    /// [`Refine::Off`], without diagnostics (call [`LseSolver::diagnose`]
+    /// [`Refine::EstimateOnly`], without diagnostics (call [`LseSolver::diagnose`]
     /// when they are wanted; until then the report's solution fields say
     /// "not computed", [`Report::clear_solution_diagnostics`]): what a drag
     /// loop calls every frame. Without
@@ -266,12 +269,12 @@ impl LseSolver {
     /// global step, whose next local step absorbs the error of this solve),
     /// refined once at its end with [`LseSolver::refine_solution`].
     pub fn solve_unrefined_into(&mut self, x: MatMut<'_, f64>) -> Result<(), Error> {
-        self.solve_refined(x, Refine::Off, false)
+        self.solve_refined(x, Refine::EstimateOnly, false)
     }
 
     /// Refines `x` (the unrefined solution of the current right-hand
     /// sides, n × 3) as [`LseSolver::refine_mode`] says (with
-    /// [`Refine::Off`] one correction is computed for the forward-error
+    /// [`Refine::EstimateOnly`] one correction is computed for the forward-error
     /// estimate and not applied), times it (`timings_s.refine`) and keeps
     /// the refinement for [`LseSolver::diagnose`]'s estimate and warnings.
     pub fn refine_solution(&mut self, x: &mut Mat<f64>) -> Result<&Refinement, Error> {
@@ -285,7 +288,7 @@ impl LseSolver {
         check_finite(x.as_ref())?;
         let t = Instant::now();
         let rounding = Some(&mut self.rounding);
-        let refinement = refine_with_memory(system.as_mut(), &self.problem, x, mode, rounding)?;
+        let refinement = refine_with_rounding(system.as_mut(), &self.problem, x, mode, rounding)?;
         self.report.timings_s.refine = t.elapsed().as_secs_f64();
         Ok(self.last_refinement.insert(refinement))
     }
@@ -316,7 +319,7 @@ impl LseSolver {
             }
             .into());
         }
-        let refining = mode != Refine::Off || estimate;
+        let refining = mode != Refine::EstimateOnly || estimate;
         let system = self
             .system
             .as_mut()
@@ -339,7 +342,7 @@ impl LseSolver {
                 let t = Instant::now();
                 let mut refined = x.to_owned();
                 let rounding = Some(&mut self.rounding);
-                refinements.push(refine_with_memory(
+                refinements.push(refine_with_rounding(
                     system.as_mut(),
                     &self.problem,
                     &mut refined,
@@ -505,6 +508,39 @@ impl LseSolver {
     }
 }
 
+/// Writes what a precompute computed into `report` (a copy of the base
+/// report: Laplacian, set-up time and mesh warnings, which come first): the
+/// method and its back ends, the rank, the sizes, the phase timings, the
+/// method's own facts, and the precompute's warnings after the base's.
+fn apply_record(report: &mut Report, record: PrecomputeRecord) {
+    let PrecomputeRecord {
+        method,
+        qr_backend,
+        factor_backend,
+        rank,
+        sizes,
+        timings,
+        warnings,
+        facts,
+    } = record;
+    report.method = method;
+    report.qr_backend = qr_backend;
+    report.factor_backend = Some(factor_backend);
+    report.rank = rank;
+    report.method_facts = Some(facts);
+    report.nnz.aq2 = sizes.aq2;
+    report.nnz.normal = sizes.normal;
+    report.nnz.factor = sizes.factor;
+    report.nnz.factor_bytes = sizes.factor_bytes;
+    report.nnz.qr = sizes.qr;
+    report.timings_s.qr = timings.qr;
+    report.timings_s.preparation = timings.preparation;
+    report.timings_s.normal_matrix = timings.normal_matrix;
+    report.timings_s.symbolic = timings.symbolic;
+    report.timings_s.numeric = timings.numeric;
+    report.warnings.extend(warnings);
+}
+
 /// The first non-finite row of `x` as an error.
 fn check_finite(x: MatRef<'_, f64>) -> Result<(), Error> {
     match first_non_finite(x) {
@@ -613,29 +649,44 @@ fn solve_with_rhs(
 /// The warnings a refinement outcome calls for: an estimated forward error
 /// above [`FORWARD_ERROR_WARNING`], and conflicting hard constraints found
 /// by the method of multipliers.
-pub fn refinement_warnings(r: &Refinement, method: Method) -> Vec<String> {
+pub fn refinement_warnings(r: &Refinement, method: Method) -> Vec<Warning> {
     let mut out = Vec::new();
     if r.stop_reason == RefineStop::ConflictingConstraints {
-        out.push(format!(
-            "{method}: the multiplier updates stopped after {} steps because the hard-constraint residual stopped shrinking at {:.1e} of the length scale: the hard constraints conflict, and no weight satisfies them all (use nullspace-qr to find which)",
-            r.steps,
-            r.constraint_residuals.last().copied().unwrap_or(f64::NAN)
+        out.push(Warning::new(
+            WarningKind::RefinementStalled,
+            format!(
+                "{method}: the multiplier updates stopped after {} steps because the hard-constraint residual stopped shrinking at {:.1e} of the length scale: the hard constraints conflict, and no weight satisfies them all (use nullspace-qr to find which)",
+                r.steps,
+                r.constraint_residuals.last().copied().unwrap_or(f64::NAN)
+            ),
         ));
     }
     let e = r.forward_error_estimate;
     if (e.is_nan() || e > FORWARD_ERROR_WARNING)
         && r.stop_reason != RefineStop::ConflictingConstraints
     {
-        let how = if r.mode == Refine::Off {
-            "refinement is off; refinement `auto` would correct it"
+        let (kind, how) = if r.mode == Refine::EstimateOnly {
+            (
+                WarningKind::LostAccuracyUnrefined,
+                "refinement is off; refinement `auto` would correct it",
+            )
         } else if r.stop_reason == RefineStop::StepLimit {
-            "refinement reached its step limit; allow more steps"
+            (
+                WarningKind::LostAccuracyStepLimit,
+                "refinement reached its step limit; allow more steps",
+            )
         } else {
-            "after refinement: the conditioning puts the exact answer out of reach in double precision"
+            (
+                WarningKind::LostAccuracy,
+                "after refinement: the conditioning puts the exact answer out of reach in double precision",
+            )
         };
-        out.push(format!(
-            "{method}: estimated forward error {e:.1e} of the length scale exceeds {FORWARD_ERROR_WARNING:.0e} ({how}; {} refinement steps, stopped: {:?})",
-            r.steps, r.stop_reason
+        out.push(Warning::new(
+            kind,
+            format!(
+                "{method}: estimated forward error {e:.1e} of the length scale exceeds {FORWARD_ERROR_WARNING:.0e} ({how}; {} refinement steps, stopped: {:?})",
+                r.steps, r.stop_reason
+            ),
         ));
     }
     out
@@ -652,7 +703,7 @@ pub fn lost_accuracy_advice(method: Method, r: Option<&Refinement>) -> String {
     let mut ways = Vec::new();
     match r {
         None => ways.push("refine it with refinement `auto`"),
-        Some(r) if r.mode == Refine::Off => ways.push("refine it with refinement `auto`"),
+        Some(r) if r.mode == Refine::EstimateOnly => ways.push("refine it with refinement `auto`"),
         Some(r) if r.stop_reason == RefineStop::StepLimit => {
             ways.push("allow more refinement steps")
         }

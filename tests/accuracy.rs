@@ -706,7 +706,7 @@ proptest! {
             Box::new(Elimination::default()),
         ];
         for f in methods {
-            let mut system = f.precompute(problem, &mut lse_deform::Report::default()).unwrap();
+            let mut system = f.precompute(problem).unwrap().system;
             let mut x = system.solve(problem).unwrap();
             let size = 1e-3 * scale;
             let mut moved = 0.0f64;

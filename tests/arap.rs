@@ -435,13 +435,14 @@ fn arap_warns_about_its_forward_error_like_the_laplacian_path() {
         .build()
         .unwrap()
     };
-    let forward_error_warnings = |warnings: &[String]| -> Vec<String> {
-        warnings
-            .iter()
-            .filter(|w| w.contains("estimated forward error"))
-            .cloned()
-            .collect()
-    };
+    let forward_error_warnings =
+        |warnings: &[lse_deform::report::Warning]| -> Vec<lse_deform::report::Warning> {
+            warnings
+                .iter()
+                .filter(|w| w.contains("estimated forward error"))
+                .cloned()
+                .collect()
+        };
     for refine in [Refine::Off, Refine::Auto] {
         let mut laplacian =
             Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone()).unwrap();

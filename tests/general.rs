@@ -44,7 +44,7 @@ fn null_space_on_every_back_end_matches_the_dense_reference_and_names_dependent_
                 let conflicting: Vec<usize> = report.conflicting.iter().map(|c| c.index).collect();
                 assert_eq!(conflicting, lse.conflicting, "{q}/{s}");
                 assert!(report.max_constraint_residual < 1e-12, "{q}/{s}");
-                assert_eq!(report.laplacian, None);
+                assert_eq!(report.energy, None);
             }
         }
     }

@@ -188,8 +188,8 @@ impl ArapDeformer {
         )?;
         let x = Mat::from_fn(n, 3, |i, c| unit_mesh.positions()[i][c]);
         let mut report = Report {
-            laplacian: Some(EnergyOperator::Arap(energy)),
-            warnings: mesh.warnings().iter().map(|w| w.to_string()).collect(),
+            energy: Some(EnergyOperator::Arap(energy)),
+            warnings: mesh.warnings().iter().map(Into::into).collect(),
             length_unit: unit,
             soft_weight_scale: Some(soft_scale.factor()),
             ..Report::default()

@@ -135,7 +135,10 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     print_compare_table(&rows);
     // The warnings of reading the inputs belong to every report.
     for report in rows.iter_mut().filter_map(|r| r.report.as_mut()) {
-        report.warnings.splice(0..0, warnings.iter().cloned());
+        report.warnings.splice(
+            0..0,
+            warnings.iter().map(|w| super::summary::mismatch_warning(w)),
+        );
     }
     if let Some(path) = &a.json {
         let json = serde_json::to_string_pretty(&rows).map_err(|e| Error::io(path, e.into()))?;

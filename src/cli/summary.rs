@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use lse_deform::refinement::FORWARD_ERROR_WARNING;
+use lse_deform::report::{Warning, WarningKind};
 use lse_deform::{Error, Report};
 
 use super::write_text;
@@ -36,13 +37,20 @@ pub fn finish_report(
     Ok(())
 }
 
+/// An input warning (the constraints file names another mesh:
+/// [`super::constraints_with_warnings`]) as the report's typed warning.
+pub fn mismatch_warning(text: &str) -> Warning {
+    Warning::new(WarningKind::ConstraintsMeshMismatch, text)
+}
+
 /// Writes `report` as JSON to `path`, `input_warnings` before its own.
 pub fn write_report(report: &Report, input_warnings: &[String], path: &Path) -> Result<(), Error> {
     let json = if input_warnings.is_empty() {
         serde_json::to_string_pretty(report)
     } else {
         let mut full = report.clone();
-        full.warnings.splice(0..0, input_warnings.iter().cloned());
+        full.warnings
+            .splice(0..0, input_warnings.iter().map(|w| mismatch_warning(w)));
         serde_json::to_string_pretty(&full)
     }
     .map_err(|e| Error::io(path, e.into()))?;
@@ -66,7 +74,7 @@ pub fn check_strict_conflicts(report: &Report, strict: bool) -> Result<(), Error
                 report.conflicting[0].index
             ))
         })
-        .cloned()
+        .map(|w| w.message.clone())
         .unwrap_or_else(|| {
             format!(
                 "constraint {} conflicts with earlier constraints (residual {:.3e})",

@@ -22,7 +22,8 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::SparseColMat;
 
-use super::util::{factor_normal_matrix, nothing_factored, row_kind};
+use super::record::{PrecomputeRecord, Precomputed};
+use super::util::{RowKind, factor_normal_matrix, nothing_factored};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
@@ -30,7 +31,7 @@ use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricO
 use crate::error::{Error, ProblemError};
 use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
-use crate::report::Report;
+use crate::report::MethodFacts;
 use crate::sparse::{at_residual, at_times, gather_columns, lower_to_full, row_entries};
 
 /// Elimination of position-constrained vertices over an SPD back end.
@@ -71,11 +72,13 @@ impl Formulation for Elimination {
     fn precompute_within(
         &self,
         problem: &LseProblem,
-        report: &mut Report,
         budget: MemoryBudget,
-    ) -> Result<Box<dyn Prepared>, Error> {
-        report.method = self.method();
-        report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
+    ) -> Result<Precomputed, Error> {
+        let mut record = PrecomputeRecord::new(
+            self.method(),
+            FactorKind::Cholesky(self.spd.kind()),
+            MethodFacts::Eliminate,
+        );
         let n = problem.n();
         let b = problem.b().as_ref();
 
@@ -89,7 +92,7 @@ impl Formulation for Elimination {
                 return Err(ProblemError::Unsupported {
                     method: self.name(),
                     index: problem.hard_constraints()[k],
-                    kind: row_kind(b, k),
+                    kind: RowKind::of_row(b, k).name(),
                     reason: "elimination fixes unknowns by dropping their columns, which only a hard position constraint (one vertex, one target) allows; use nullspace-qr or kkt, or make it soft",
                 }
                 .into());
@@ -107,15 +110,15 @@ impl Formulation for Elimination {
             }
         }
         let unknown: Vec<usize> = (0..n).filter(|&v| fixed_by[v].is_none()).collect();
-        report.rank = Some(known.len());
+        record.rank = Some(known.len());
 
         // A_U: the columns of A on the unknown vertices.
         let a_u = gather_columns(problem.a().as_ref(), &unknown);
-        report.timings_s.preparation = t.elapsed().as_secs_f64();
+        record.timings.preparation = t.elapsed().as_secs_f64();
 
         let (lower, factor) = if unknown.is_empty() {
-            report.nnz.normal = Some(0);
-            report.nnz.factor = Some(0);
+            record.sizes.normal = Some(0);
+            record.sizes.factor = Some(0);
             (None, None)
         } else {
             let (lower, factor) = factor_normal_matrix(
@@ -123,18 +126,19 @@ impl Formulation for Elimination {
                 self.spd.as_ref(),
                 "the eliminated normal matrix A_UᵀA_U",
                 |k| unknown.get(k).copied(),
-                report,
+                &mut record,
                 budget,
             )?;
             (Some(lower), Some(factor))
         };
-        Ok(Box::new(PreparedElimination {
+        let system = Box::new(PreparedElimination {
             known,
             unknown,
             skipped,
             lower,
             factor,
-        }))
+        });
+        Ok(Precomputed { system, record })
     }
 }
 

@@ -19,7 +19,7 @@
 //! without pivoting commutes exactly with a power-of-two diagonal scaling
 //! (`L ↦ SLS⁻¹`, `D ↦ SDS`), so `s` changes neither the computed solution nor
 //! which pivot is flagged. [`Prepared::factored_matrix`] returns the scaled
-//! matrix; `s` is in [`Report::kkt_multiplier_scale`].
+//! matrix; `s` is in [`Report::kkt_multiplier_scale`](crate::report::Report::kkt_multiplier_scale).
 //!
 //! **Pivots and singularity.** With the order of [`kkt_ordering`] every
 //! leading block is nonsingular when the kept constraints are independent
@@ -59,7 +59,8 @@ use faer::sparse::linalg::amd;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Mat, MatMut};
 
-use super::util::{row_kind, split_normal};
+use super::record::{PrecomputeRecord, Precomputed};
+use super::util::{RowKind, split_normal};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
 use crate::backend::ldlt::{LdltFactor, LdltKind, Pivot};
@@ -69,7 +70,7 @@ use crate::error::{Error, NumericalError};
 use crate::limits::MemoryBudget;
 use crate::mesh::topology::UnionFind;
 use crate::problem::{LseProblem, pivot_columns};
-use crate::report::{Report, first_non_finite};
+use crate::report::{MethodFacts, first_non_finite};
 use crate::sparse::{
     add_bt_times, at_residual, at_times, hard_residual_compensated, lower_diag, lower_sym_mul,
     lower_sym_norm_inf, lower_to_full, row_entries,
@@ -355,15 +356,10 @@ impl Formulation for Kkt {
     fn precompute_within(
         &self,
         problem: &LseProblem,
-        report: &mut Report,
         budget: MemoryBudget,
-    ) -> Result<Box<dyn Prepared>, Error> {
-        report.method = self.method();
-        report.spd_backend = Some(FactorKind::Ldlt(self.ldlt));
+    ) -> Result<Precomputed, Error> {
         let n = problem.n();
-        let b = problem.b().as_ref();
-        let m = b.nrows();
-        report.rank = Some(m);
+        let m = problem.b().nrows();
 
         // Normal pattern and values, the scale, and K (lower, original order).
         let t = Instant::now();
@@ -377,21 +373,28 @@ impl Formulation for Kkt {
         } else {
             1.0
         };
-        report.kkt_multiplier_scale = Some(scale);
+        let mut record = PrecomputeRecord::new(
+            self.method(),
+            FactorKind::Ldlt(self.ldlt),
+            MethodFacts::Kkt {
+                multiplier_scale: scale,
+            },
+        );
+        record.rank = Some(m);
         let k_lower = assemble_kkt(&ata_lower, problem, scale);
-        report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
-        report.nnz.normal = Some(2 * k_lower.val().len() - (n + m));
+        record.timings.normal_matrix = t.elapsed().as_secs_f64();
+        record.sizes.normal = Some(2 * k_lower.val().len() - (n + m));
 
         crate::interrupt::check()?;
         let t = Instant::now();
         let order = ordering_from_pattern(problem, &pattern)?;
-        report.timings_s.preparation = t.elapsed().as_secs_f64();
+        record.timings.preparation = t.elapsed().as_secs_f64();
 
         crate::interrupt::check()?;
         let t = Instant::now();
         let backend = self.ldlt.backend();
         let symbolic = backend.analyze(k_lower.symbolic(), &order)?;
-        report.timings_s.symbolic = t.elapsed().as_secs_f64();
+        record.timings.symbolic = t.elapsed().as_secs_f64();
         check_factor_size(
             symbolic.factor_values(),
             n + m,
@@ -404,12 +407,12 @@ impl Formulation for Kkt {
         let factor = symbolic.factorize(k_lower.as_ref())?;
         crate::interrupt::check()?;
         check_pivots(factor.as_ref(), &k_lower, problem)?;
-        report.timings_s.numeric = t.elapsed().as_secs_f64();
-        report.nnz.factor = Some(factor.nnz());
-        report.nnz.factor_bytes = Some(factor.bytes());
+        record.timings.numeric = t.elapsed().as_secs_f64();
+        record.sizes.factor = Some(factor.nnz());
+        record.sizes.factor_bytes = Some(factor.bytes());
 
         let norm = lower_sym_norm_inf(k_lower.as_ref());
-        Ok(Box::new(PreparedKkt {
+        let system = Box::new(PreparedKkt {
             factor,
             k_lower,
             norm,
@@ -417,7 +420,8 @@ impl Formulation for Kkt {
             n,
             multipliers: Mat::zeros(m, problem.c().ncols()),
             pending_multipliers: None,
-        }))
+        });
+        Ok(Precomputed { system, record })
     }
 }
 
@@ -528,7 +532,7 @@ fn check_pivots(
             let index = problem.hard_constraints()[k];
             format!(
                 "hard constraint {index} (row {k} of B, {}) depends on the constraints eliminated before it: for its multiplier, {} (expected negative and above {KKT_PIVOT_TOLERANCE:e} of that magnitude); redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
-                row_kind(problem.b().as_ref(), k),
+                RowKind::of_row(problem.b().as_ref(), k),
                 describe_pivot(i, dim, d, magnitude)
             )
         };

@@ -1,5 +1,6 @@
 //! Formulations of the constrained least-squares problem: the same inputs
-//! (`A, C, B, D` of an [`LseProblem`]) and the same [`Report`], so that the
+//! (`A, C, B, D` of an [`LseProblem`]) and the same [`PrecomputeRecord`]
+//! (which the solver turns into the [`crate::report::Report`]), so that the
 //! paper's method can be compared with the alternatives on equal terms.
 //!
 //! | formulation | matrix factored | hard rows |
@@ -19,25 +20,28 @@ use crate::condition::ConditionEstimate;
 use crate::error::{Error, ProblemError, SolveOption};
 use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
-use crate::report::Report;
 
 mod elimination;
+mod iterative_refinement;
 mod kkt;
 mod null_space;
 mod penalty;
-mod refine;
+mod record;
 mod util;
 
 pub use elimination::Elimination;
+#[allow(deprecated)]
+pub use iterative_refinement::refine_with_memory;
+pub use iterative_refinement::{
+    AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, FactorRounding, REMEASURE_EVERY, Refine,
+    RefineStop, Refinement, max_hard_residual, refine, refine_with_rounding,
+};
 pub use kkt::{KKT_BACKWARD_ERROR_TOLERANCE, KKT_PIVOT_TOLERANCE, Kkt, kkt_ordering};
 pub use null_space::NullSpaceQr;
 pub use penalty::{
     PENALTY_FORWARD_ERROR_LIMIT, Penalty, PenaltyPoint, PenaltySolution, PenaltySweep,
 };
-pub use refine::{
-    AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, FactorRounding, REMEASURE_EVERY, Refine,
-    RefineStop, Refinement, max_hard_residual, refine, refine_with_memory,
-};
+pub use record::{FactorSizes, PhaseTimings, PrecomputeRecord, Precomputed};
 
 /// A way to solve `min ‖AX − C‖ s.t. BX = D`.
 pub trait Formulation: Send + Sync {
@@ -52,22 +56,18 @@ pub trait Formulation: Send + Sync {
     /// The precompute phase: factor everything that depends on the matrices
     /// only, refusing with [`ProblemError::TooLarge`] a factor whose
     /// estimated size exceeds `budget` (checked before it is allocated).
-    /// Fills the timings and sizes it knows into `report`.
+    /// Returns the system with the record of what was computed (sizes,
+    /// timings, rank, warnings, the method's own facts).
     fn precompute_within(
         &self,
         problem: &LseProblem,
-        report: &mut Report,
         budget: MemoryBudget,
-    ) -> Result<Box<dyn Prepared>, Error>;
+    ) -> Result<Precomputed, Error>;
 
     /// [`Formulation::precompute_within`] the default memory budget
     /// ([`MemoryBudget::default`]).
-    fn precompute(
-        &self,
-        problem: &LseProblem,
-        report: &mut Report,
-    ) -> Result<Box<dyn Prepared>, Error> {
-        self.precompute_within(problem, report, MemoryBudget::default())
+    fn precompute(&self, problem: &LseProblem) -> Result<Precomputed, Error> {
+        self.precompute_within(problem, MemoryBudget::default())
     }
 }
 
@@ -136,7 +136,7 @@ pub trait Prepared: Send {
     /// factored ([`Prepared::factored_matrix`]), by Lanczos on the matrix and
     /// on its inverse through the factor (see [`crate::condition`]). Costs
     /// up to a few hundred products and solves, hence on demand; store the
-    /// result in [`Report::condition_estimate`].
+    /// result in [`crate::report::Report::condition_estimate`].
     ///
     /// Fails when nothing was factored (every unknown fixed by the hard
     /// constraints) or when a solve produces a non-finite vector.

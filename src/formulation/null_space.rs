@@ -18,6 +18,7 @@ use faer::sparse::SparseColMatRef;
 use faer::{Mat, MatMut};
 use rayon::prelude::*;
 
+use super::record::{PrecomputeRecord, Precomputed};
 use super::util::{factor_normal_matrix, nothing_factored};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
@@ -28,7 +29,7 @@ use crate::cpu::clear_upper_vector_state;
 use crate::error::Error;
 use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
-use crate::report::Report;
+use crate::report::MethodFacts;
 use crate::sparse::NormalPattern;
 use crate::sparse::{gather_columns, hard_residual_compensated, lower_to_full, mt_residual};
 
@@ -77,31 +78,33 @@ impl Formulation for NullSpaceQr {
     fn precompute_within(
         &self,
         problem: &LseProblem,
-        report: &mut Report,
         budget: MemoryBudget,
-    ) -> Result<Box<dyn Prepared>, Error> {
-        report.method = self.method();
-        report.qr_backend = Some(self.qr.kind());
-        report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
+    ) -> Result<Precomputed, Error> {
+        let mut record = PrecomputeRecord::new(
+            self.method(),
+            FactorKind::Cholesky(self.spd.kind()),
+            MethodFacts::NullSpace,
+        );
+        record.qr_backend = Some(self.qr.kind());
 
         let t = Instant::now();
         let qr = self
             .qr
             .factor_within(problem.b().as_ref(), self.tolerance, budget)?;
-        report.timings_s.qr = t.elapsed().as_secs_f64();
-        report.rank = Some(qr.rank());
-        report.nnz.qr = Some(qr.storage_nnz());
+        record.timings.qr = t.elapsed().as_secs_f64();
+        record.rank = Some(qr.rank());
+        record.sizes.qr = Some(qr.storage_nnz());
 
         crate::interrupt::check()?;
         let t = Instant::now();
         let aq2 = qr.mul_a_q2(problem.a().as_ref());
-        report.timings_s.preparation = t.elapsed().as_secs_f64();
-        report.nnz.aq2 = Some(aq2.val().len());
+        record.timings.preparation = t.elapsed().as_secs_f64();
+        record.sizes.aq2 = Some(aq2.val().len());
 
         let factor = if aq2.ncols() == 0 {
             // Every degree of freedom is fixed by the hard constraints.
-            report.nnz.normal = Some(0);
-            report.nnz.factor = Some(0);
+            record.sizes.normal = Some(0);
+            record.sizes.factor = Some(0);
             None
         } else {
             let (_, factor) = factor_normal_matrix(
@@ -109,19 +112,20 @@ impl Formulation for NullSpaceQr {
                 self.spd.as_ref(),
                 "the reduced normal matrix (AQ2)ᵀ(AQ2)",
                 |k| Some(qr.free_unknown(k)),
-                report,
+                &mut record,
                 budget,
             )?;
             Some(factor)
         };
         let workspace = SolveWorkspace::new(qr.n(), qr.rank(), problem.a().nrows());
-        Ok(Box::new(PreparedNullSpace {
+        let system = Box::new(PreparedNullSpace {
             a_constrained: ConstrainedColumns::new(problem),
             qr,
             aq2,
             factor,
             workspace,
-        }))
+        });
+        Ok(Precomputed { system, record })
     }
 }
 

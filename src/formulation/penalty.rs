@@ -32,7 +32,8 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
-use super::refine::{Refine, Refinement, refine};
+use super::iterative_refinement::{Refine, Refinement, refine};
+use super::record::{PrecomputeRecord, Precomputed};
 use super::util::{split_normal, with_context};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
@@ -41,7 +42,7 @@ use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricO
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
-use crate::report::{Report, first_non_finite};
+use crate::report::{MethodFacts, Warning, WarningKind, first_non_finite};
 use crate::sparse::{
     add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_abs_mul,
     lower_sym_max_row_nnz, lower_sym_mul, lower_sym_norm_inf, lower_to_full,
@@ -114,33 +115,42 @@ impl Formulation for Penalty {
     fn precompute_within(
         &self,
         problem: &LseProblem,
-        report: &mut Report,
         budget: MemoryBudget,
-    ) -> Result<Box<dyn Prepared>, Error> {
+    ) -> Result<Precomputed, Error> {
         check_weight(self.weight, 1.0)?;
-        report.method = self.method();
-        report.spd_backend = Some(FactorKind::Cholesky(self.spd.kind()));
-        report.penalty_weight = Some(self.weight);
         let sweep = PenaltySweep::within(problem, self.spd.as_ref(), budget)?;
-        report.penalty_weight_unit = Some(sweep.weight_unit);
-        report.timings_s.normal_matrix = sweep.normal_matrix_s;
-        report.timings_s.symbolic = sweep.symbolic_s;
-        report.nnz.normal = Some(sweep.full_nnz());
+        let mut record = PrecomputeRecord::new(
+            self.method(),
+            FactorKind::Cholesky(self.spd.kind()),
+            MethodFacts::Penalty {
+                weight: self.weight,
+                weight_unit: sweep.weight_unit,
+            },
+        );
+        record.timings.normal_matrix = sweep.normal_matrix_s;
+        record.timings.symbolic = sweep.symbolic_s;
+        record.sizes.normal = Some(sweep.full_nnz());
         crate::interrupt::check()?;
         let t = Instant::now();
         let prepared = sweep.factorize(self.weight)?;
         crate::interrupt::check()?;
-        report.timings_s.numeric = t.elapsed().as_secs_f64();
-        report.nnz.factor = Some(prepared.factor.nnz());
-        report.nnz.factor_bytes = Some(prepared.factor.bytes());
+        record.timings.numeric = t.elapsed().as_secs_f64();
+        record.sizes.factor = Some(prepared.factor.nnz());
+        record.sizes.factor_bytes = Some(prepared.factor.bytes());
         if problem.b().nrows() > 0 {
-            report.warnings.push(format!(
-                "penalty method: the {} hard constraints are soft rows of relative weight {:e}; they hold only approximately (see max_constraint_residual) unless refined (refinement `auto`: the method of multipliers)",
-                problem.b().nrows(),
-                self.weight
+            record.warnings.push(Warning::new(
+                WarningKind::PenaltyApproximate,
+                format!(
+                    "penalty method: the {} hard constraints are soft rows of relative weight {:e}; they hold only approximately (see max_constraint_residual) unless refined (refinement `auto`: the method of multipliers)",
+                    problem.b().nrows(),
+                    self.weight
+                ),
             ));
         }
-        Ok(Box::new(prepared))
+        Ok(Precomputed {
+            system: Box::new(prepared),
+            record,
+        })
     }
 }
 
@@ -296,13 +306,13 @@ impl PenaltySweep {
     /// `D` of `problem` (the problem this sweep was built from), with the
     /// accuracy of the result measured from `X`.
     pub fn solve(&self, problem: &LseProblem, w: f64) -> Result<PenaltySolution, Error> {
-        self.solve_refined(problem, w, Refine::Off)
+        self.solve_refined(problem, w, Refine::EstimateOnly)
             .map(|(solution, _)| solution)
     }
 
     /// [`PenaltySweep::solve`] followed by refinement with the same factor
     /// (the method of multipliers, see [`super::refine`]): with
-    /// [`Refine::Off`] the plain penalty solution and the estimate of its
+    /// [`Refine::EstimateOnly`] the plain penalty solution and the estimate of its
     /// distance from the constrained solution; otherwise the refined one.
     /// The solution's `backward_error` and `forward_error_estimate` are
     /// those of the plain penalty solve (against the penalty system).

@@ -1,16 +1,17 @@
 //! Problem-aware helpers shared by the formulations: the split normal
 //! matrix `AᵀA`, `BᵀB` on one pattern, the analyse → size-check →
 //! factorise sequence of a normal matrix with its errors put in context,
-//! and naming a constraint row's kind from its coefficients. The plain sparse kernels are in [`crate::sparse`].
+//! and the kind of a constraint row read from its coefficients
+//! ([`RowKind`]). The plain sparse kernels are in [`crate::sparse`].
 
 use std::time::Instant;
 
 use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef, SymbolicSparseColMat};
 
+use super::record::PrecomputeRecord;
 use crate::backend::spd::{SpdBackend, SpdFactor, check_factor_size};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
-use crate::report::Report;
 use crate::sparse::{NormalPattern, stack_rows};
 
 /// `tril(pattern(AᵀA + BᵀB))` and the values of `AᵀA` and of `BᵀB` on it
@@ -43,27 +44,66 @@ pub(crate) fn split_normal(
     )
 }
 
-/// The kind of hard row `k` of `B`, inferred from its coefficients (the
-/// assembled problem keeps rows, not kinds): one entry → `position`, two
-/// entries summing to zero → `relative`, two other entries → `edge`, three →
-/// `face`. An edge with `t ∈ {0, 1}` has one nonzero coefficient and *is* a
-/// position constraint; a face with a zero barycentric coordinate is an edge.
-pub(crate) fn row_kind(b: SparseRowMatRef<'_, usize, f64>, k: usize) -> &'static str {
-    let range = b.symbolic().row_range(k);
-    let vals = &b.val()[range];
-    match vals.len() {
-        0 => "empty",
-        1 => "position",
-        2 => {
-            let norm = vals[0].abs() + vals[1].abs();
-            if (vals[0] + vals[1]).abs() <= 1e-12 * norm {
-                "relative"
-            } else {
-                "edge"
+/// The kind of a hard row of `B`, read from its coefficients (the
+/// assembled problem keeps rows, not the constraints' kinds): one entry →
+/// position, two entries summing to zero → relative, two other entries →
+/// edge, three → face. An edge with `t ∈ {0, 1}` has one nonzero
+/// coefficient and *is* a position constraint; a face with a zero
+/// barycentric coordinate is an edge. Named in messages by
+/// [`RowKind::name`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum RowKind {
+    /// No entry.
+    Empty,
+    /// One entry.
+    Position,
+    /// Two entries summing to zero (to `1e-12` of their magnitudes).
+    Relative,
+    /// Two other entries.
+    Edge,
+    /// Three entries.
+    Face,
+    /// More than three entries (a problem given as matrices).
+    General,
+}
+
+impl RowKind {
+    /// The kind of hard row `k` of `b`.
+    pub(crate) fn of_row(b: SparseRowMatRef<'_, usize, f64>, k: usize) -> RowKind {
+        let range = b.symbolic().row_range(k);
+        let vals = &b.val()[range];
+        match vals.len() {
+            0 => RowKind::Empty,
+            1 => RowKind::Position,
+            2 => {
+                let norm = vals[0].abs() + vals[1].abs();
+                if (vals[0] + vals[1]).abs() <= 1e-12 * norm {
+                    RowKind::Relative
+                } else {
+                    RowKind::Edge
+                }
             }
+            3 => RowKind::Face,
+            _ => RowKind::General,
         }
-        3 => "face",
-        _ => "general",
+    }
+
+    /// Its word in messages (the constraints file's kinds).
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            RowKind::Empty => "empty",
+            RowKind::Position => "position",
+            RowKind::Relative => "relative",
+            RowKind::Edge => "edge",
+            RowKind::Face => "face",
+            RowKind::General => "general",
+        }
+    }
+}
+
+impl std::fmt::Display for RowKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -73,7 +113,7 @@ pub(crate) type FactoredNormal = (SparseColMat<usize, f64>, Box<dyn SpdFactor>);
 /// `tril(MᵀM)` and its Cholesky factor by `spd`: the normal matrix, the
 /// symbolic analysis, the factor's size checked against the memory `budget`
 /// ([`check_factor_size`]) before the numeric factorisation, and the
-/// numeric factorisation, each phase's time and size recorded in `report`.
+/// numeric factorisation, each phase's time and size recorded in `record`.
 /// `matrix` names `MᵀM` in errors and `vertex_of` gives the vertex of one
 /// of its unknowns.
 pub(crate) fn factor_normal_matrix(
@@ -81,20 +121,20 @@ pub(crate) fn factor_normal_matrix(
     spd: &dyn SpdBackend,
     matrix: &str,
     vertex_of: impl Fn(usize) -> Option<usize>,
-    report: &mut Report,
+    record: &mut PrecomputeRecord,
     budget: MemoryBudget,
 ) -> Result<FactoredNormal, Error> {
     crate::interrupt::check()?;
     let t = Instant::now();
     let pattern = NormalPattern::new(m);
     let normal = pattern.numeric(m);
-    report.timings_s.normal_matrix = t.elapsed().as_secs_f64();
-    report.nnz.normal = Some(pattern.full_nnz());
+    record.timings.normal_matrix = t.elapsed().as_secs_f64();
+    record.sizes.normal = Some(pattern.full_nnz());
 
     crate::interrupt::check()?;
     let t = Instant::now();
     let symbolic = spd.analyze(normal.symbolic())?;
-    report.timings_s.symbolic = t.elapsed().as_secs_f64();
+    record.timings.symbolic = t.elapsed().as_secs_f64();
     check_factor_size(symbolic.factor_nnz(), normal.ncols(), matrix, budget)?;
 
     // The numeric factorisation is one back-end call: not interruptible
@@ -105,9 +145,9 @@ pub(crate) fn factor_normal_matrix(
         .factorize(normal.as_ref())
         .map_err(|e| with_context(e, matrix, vertex_of))?;
     crate::interrupt::check()?;
-    report.timings_s.numeric = t.elapsed().as_secs_f64();
-    report.nnz.factor = Some(factor.nnz());
-    report.nnz.factor_bytes = Some(factor.bytes());
+    record.timings.numeric = t.elapsed().as_secs_f64();
+    record.sizes.factor = Some(factor.nnz());
+    record.sizes.factor_bytes = Some(factor.bytes());
     Ok((normal, factor))
 }
 
@@ -161,8 +201,9 @@ mod tests {
             SymbolicSparseRowMat::new_checked(3, 3, vec![0, 1, 3, 5], None, vec![1, 0, 2, 0, 1]),
             vec![1.0, 0.3, 0.7, 1.0, -1.0],
         );
-        assert_eq!(row_kind(b.as_ref(), 0), "position");
-        assert_eq!(row_kind(b.as_ref(), 1), "edge");
-        assert_eq!(row_kind(b.as_ref(), 2), "relative");
+        assert_eq!(RowKind::of_row(b.as_ref(), 0), RowKind::Position);
+        assert_eq!(RowKind::of_row(b.as_ref(), 1), RowKind::Edge);
+        assert_eq!(RowKind::of_row(b.as_ref(), 2), RowKind::Relative);
+        assert_eq!(RowKind::Relative.to_string(), "relative");
     }
 }

@@ -363,7 +363,7 @@ pub(super) fn solve_frame(
     s: &mut DeformerState,
     refine: Option<Refine>,
     estimate: bool,
-) -> Result<(Vec<[f64; 3]>, Vec<String>), Error> {
+) -> Result<(Vec<[f64; 3]>, Vec<crate::report::Warning>), Error> {
     let mode = refine.unwrap_or_else(|| s.deformer.refine_mode());
     if !estimate && mode != Refine::Off {
         return Err(ProblemError::InvalidArgument {

@@ -18,7 +18,7 @@ use std::collections::HashMap;
 use faer::Mat;
 use faer::linalg::solvers::SolveLstsq;
 
-use super::Report;
+use super::{Report, Warning, WarningKind};
 use crate::problem::{LseProblem, RowPlace};
 
 /// How many conflicting constraints the warnings name one by one; the rest
@@ -97,7 +97,7 @@ pub fn conflict_warnings(
     report: &Report,
     problem: &LseProblem,
     sources: &mut ConflictSources,
-) -> Vec<String> {
+) -> Vec<Warning> {
     let mut out = Vec::new();
     for c in report.conflicting.iter().take(CONFLICT_WARNINGS_SHOWN) {
         let with = match sources.of(problem, c.index) {
@@ -105,9 +105,12 @@ pub fn conflict_warnings(
             Some(list) if !list.is_empty() => format!("constraints {}", name_list(list)),
             _ => "earlier constraints".to_string(),
         };
-        out.push(format!(
-            "constraint {} conflicts with {with} and was dropped (residual {:.3e})",
-            c.index, c.residual
+        out.push(Warning::new(
+            WarningKind::ConflictingConstraint,
+            format!(
+                "constraint {} conflicts with {with} and was dropped (residual {:.3e})",
+                c.index, c.residual
+            ),
         ));
     }
     let more = report
@@ -115,9 +118,12 @@ pub fn conflict_warnings(
         .len()
         .saturating_sub(CONFLICT_WARNINGS_SHOWN);
     if more > 0 {
-        out.push(format!(
-            "… and {more} more conflicting constraints were dropped ({} in all; every one is listed in the report's \"conflicting\")",
-            report.conflicting.len()
+        out.push(Warning::new(
+            WarningKind::MoreConflictingConstraints,
+            format!(
+                "… and {more} more conflicting constraints were dropped ({} in all; every one is listed in the report's \"conflicting\")",
+                report.conflicting.len()
+            ),
         ));
     }
     out

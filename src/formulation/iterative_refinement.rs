@@ -30,7 +30,7 @@
 //! bounding-box diagonal), estimates the error of the solution it corrects:
 //! to first order `ΔX = X* − X` when the factor is accurate enough for the
 //! iteration to contract, which is when refinement is useful at all. With
-//! [`Refine::Off`] one correction is computed and *not applied*: its size is
+//! [`Refine::EstimateOnly`] one correction is computed and *not applied*: its size is
 //! the estimate (the cost of one more solve). With refinement on, the
 //! estimate is the size of the last correction computed, which is an upper
 //! bound of the remaining error while the iteration contracts (it is the
@@ -42,7 +42,7 @@
 //! while the corrections still shrink by `ρ > ½` per step, the estimate is
 //! the rest of that geometric series, `ρ/(1 − ρ) ‖ΔX‖`. The method of
 //! multipliers can contract slowly (its rate is `max_i 1/(1 + w²μ_i)`), so
-//! for penalty with [`Refine::Off`] a second correction is computed from the
+//! for penalty with [`Refine::EstimateOnly`] a second correction is computed from the
 //! first applied to a copy, and the estimate is `‖ΔX₁‖ / (1 − ρ)` with
 //! `ρ = ‖ΔX₂‖/‖ΔX₁‖` (when `ρ < 1`). Above [`FORWARD_ERROR_WARNING`] a
 //! result is returned with a warning.
@@ -53,7 +53,7 @@ use crate::error::Error;
 use crate::problem::LseProblem;
 
 use super::Prepared;
-pub use crate::refinement::{
+pub use crate::refinement_types::{
     AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, FactorRounding, REMEASURE_EVERY, Refine,
     RefineStop, Refinement,
 };
@@ -99,16 +99,30 @@ pub fn refine(
     x: &mut Mat<f64>,
     mode: Refine,
 ) -> Result<Refinement, Error> {
-    refine_with_memory(system, problem, x, mode, None)
+    refine_with_rounding(system, problem, x, mode, None)
+}
+
+/// Deprecated alias of [`refine_with_rounding`] (the "memory" is what
+/// earlier refinements measured of the factor's rounding), kept for one
+/// release.
+#[deprecated(note = "renamed refine_with_rounding")]
+pub fn refine_with_memory(
+    system: &mut dyn Prepared,
+    problem: &LseProblem,
+    x: &mut Mat<f64>,
+    mode: Refine,
+    rounding: Option<&mut FactorRounding>,
+) -> Result<Refinement, Error> {
+    refine_with_rounding(system, problem, x, mode, rounding)
 }
 
 /// [`refine`], remembering in `rounding` what this refinement measured
-/// about the factor, and, for the exact formulations under
+/// about the factor's rounding, and, for the exact formulations under
 /// [`Refine::Auto`] or [`Refine::Until`] once a floor is known, stopping as
 /// soon as the error left is predicted to be at that floor
 /// ([`RefineStop::Predicted`], docs/refinement.md §6). `rounding` must
 /// belong to `system`'s factor (reset it at every precompute).
-pub fn refine_with_memory(
+pub fn refine_with_rounding(
     system: &mut dyn Prepared,
     problem: &LseProblem,
     x: &mut Mat<f64>,
@@ -120,138 +134,194 @@ pub fn refine_with_memory(
         .as_deref()
         .filter(|r| predictable && r.predicted_since_measured < REMEASURE_EVERY)
         .and_then(|r| r.floor.map(|floor| (r.contraction, floor)));
-    let mut rates = Vec::new();
-    let mut x_size;
-    let scale = positive_or_one(problem.length_scale());
+    let mut run = Run {
+        scale: positive_or_one(problem.length_scale()),
+        track_constraints: !system.exact() && problem.b().nrows() > 0,
+        predictable,
+        known_floor,
+        rates: Vec::new(),
+        x_size: 0.0,
+        stalled: 0,
+    };
     let mut out = Refinement {
         mode,
         ..Refinement::default()
     };
-    let track_constraints = !system.exact() && problem.b().nrows() > 0;
-    if track_constraints {
+    if run.track_constraints {
         out.constraint_residuals
-            .push(max_hard_residual(problem, x) / scale);
+            .push(max_hard_residual(problem, x) / run.scale);
     }
-    let cap = mode.max_steps();
-    let mut stalled = 0;
     loop {
         crate::interrupt::check()?;
         let Some(dx) = system.correction(problem, x)? else {
             out.stop_reason = RefineStop::Exact;
             return Ok(out);
         };
-        let size = max_row_norm(&dx) / scale;
+        if let Some(stop) = run.step(system, problem, x, &dx, &mut out)? {
+            out.stop_reason = stop;
+            break;
+        }
+    }
+    run.finish(&mut out, rounding);
+    Ok(out)
+}
+
+/// The state of one refinement between its steps.
+struct Run {
+    /// The length scale the sizes are relative to (1 if not positive).
+    scale: f64,
+    /// Penalty with hard rows: follow the hard-constraint residual.
+    track_constraints: bool,
+    /// Exact formulation under `auto` or `until`: the floor can be measured
+    /// and predicted.
+    predictable: bool,
+    /// The contraction and rounding floor measured earlier with this
+    /// factor, when a stop on a prediction is allowed.
+    known_floor: Option<(f64, f64)>,
+    /// The contraction of each applied correction.
+    rates: Vec<f64>,
+    /// The solution's size relative to the length scale, at the last step.
+    x_size: f64,
+    /// Steps in a row whose residual showed a conflict.
+    stalled: usize,
+}
+
+impl Run {
+    /// Records the correction `dx` of `x` in `out` and applies it unless
+    /// refinement stops before it; the reason to stop, if any.
+    fn step(
+        &mut self,
+        system: &mut dyn Prepared,
+        problem: &LseProblem,
+        x: &mut Mat<f64>,
+        dx: &Mat<f64>,
+        out: &mut Refinement,
+    ) -> Result<Option<RefineStop>, Error> {
+        let size = max_row_norm(dx) / self.scale;
         let size = if size.is_nan() { f64::INFINITY } else { size };
         let previous = out.corrections.last().copied();
-        x_size = max_row_norm(x) / scale;
+        self.x_size = max_row_norm(x) / self.scale;
         // This correction's contraction: the first's size over the
         // solution's, later ones' over the correction before.
-        let rate = size / previous.unwrap_or(x_size);
+        let rate = size / previous.unwrap_or(self.x_size);
         out.corrections.push(size);
         out.forward_error_estimate = size;
-        if mode == Refine::Off {
-            out.stop_reason = RefineStop::Off;
-            if track_constraints && size.is_finite() && size > 0.0 {
+        if out.mode == Refine::EstimateOnly {
+            if self.track_constraints && size.is_finite() && size > 0.0 {
                 // The method of multipliers can contract slowly: measure
                 // its rate with a second correction from the first applied
                 // to a copy (the next solve restarts the multipliers), and
                 // count the corrections still to come.
-                let trial = &*x + &dx;
+                let trial = &*x + dx;
                 system.accept_correction();
                 if let Some(next) = system.correction(problem, &trial)? {
-                    let rate = max_row_norm(&next) / scale / size;
+                    let rate = max_row_norm(&next) / self.scale / size;
                     out.forward_error_estimate = size * geometric_tail(rate);
                 }
             }
-            break;
+            return Ok(Some(RefineStop::Off));
         }
-        let floor = CONVERGED_ULPS * f64::EPSILON * x_size;
         // A correction that does not shrink is rounding noise: every
         // iteration here contracts (the exact formulations' by `ε κ(N)`,
         // the method of multipliers' by `max_i 1/(1 + w²μ_i)`).
         if !size.is_finite() || previous.is_some_and(|p| size >= p) {
-            out.stop_reason = RefineStop::Stagnated;
-            break;
+            return Ok(Some(RefineStop::Stagnated));
         }
-        *x += &dx;
+        *x += dx;
         system.accept_correction();
         out.steps += 1;
-        rates.push(rate);
-        if track_constraints {
-            let r = max_hard_residual(problem, x) / scale;
+        self.rates.push(rate);
+        if self.track_constraints {
+            let r = max_hard_residual(problem, x) / self.scale;
             out.constraint_residuals.push(r);
-            stalled = if conflict_shows(r, size) {
-                stalled + 1
+            self.stalled = if conflict_shows(r, size) {
+                self.stalled + 1
             } else {
                 0
             };
-            if stalled >= 3 {
-                out.stop_reason = RefineStop::ConflictingConstraints;
-                break;
+            if self.stalled >= 3 {
+                return Ok(Some(RefineStop::ConflictingConstraints));
             }
         }
+        Ok(self.stop_after(size, previous, rate, out))
+    }
+
+    /// Whether to stop after applying a correction of `size` (after one of
+    /// `previous`, contracting by `rate`): converged, at the tolerance, at
+    /// the measured or predicted floor, or at the step cap.
+    fn stop_after(
+        &self,
+        size: f64,
+        previous: Option<f64>,
+        rate: f64,
+        out: &mut Refinement,
+    ) -> Option<RefineStop> {
+        let floor = CONVERGED_ULPS * f64::EPSILON * self.x_size;
         if size <= floor {
-            out.stop_reason = RefineStop::Converged;
-            break;
+            return Some(RefineStop::Converged);
         }
-        if let Refine::Until(tolerance) = mode
+        if let Refine::Until(tolerance) = out.mode
             && size <= tolerance
         {
-            out.stop_reason = RefineStop::Tolerance;
-            break;
+            return Some(RefineStop::Tolerance);
         }
-        if predictable && at_measured_floor(size, previous, &rates, x_size) {
-            out.stop_reason = RefineStop::Converged;
-            break;
+        if self.predictable && at_measured_floor(size, previous, &self.rates, self.x_size) {
+            return Some(RefineStop::Converged);
         }
-        if let Some((contraction, floor_ratio)) = known_floor
-            && let Some(left) =
-                predicted_error(contraction.max(rate), size, floor_ratio * x_size, floor)
+        if let Some((contraction, floor_ratio)) = self.known_floor
+            && let Some(left) = predicted_error(
+                contraction.max(rate),
+                size,
+                floor_ratio * self.x_size,
+                floor,
+            )
         {
-            out.stop_reason = RefineStop::Predicted;
             out.forward_error_estimate = left;
-            break;
+            return Some(RefineStop::Predicted);
         }
-        if out.steps >= cap {
-            out.stop_reason = RefineStop::StepLimit;
-            break;
+        (out.steps >= out.mode.max_steps()).then_some(RefineStop::StepLimit)
+    }
+
+    /// After the last step: the estimate of the corrections still to come
+    /// at the step limit, what `rounding` learns, and (penalty) the
+    /// residual's bound on the error and the conflict verdict.
+    fn finish(&self, out: &mut Refinement, rounding: Option<&mut FactorRounding>) {
+        // Stopped while still contracting — at the step limit, or (the
+        // method of multipliers, whose slowest mode can contract by nearly
+        // 1 per step long before rounding matters) at a correction that did
+        // not shrink: the corrections still to come, at the rate of the
+        // last two applied.
+        let slow = out.stop_reason == RefineStop::StepLimit;
+        if slow && let [.., before, last] = out.corrections[..out.steps] {
+            let tail = last * (geometric_tail(last / before) - 1.0);
+            out.forward_error_estimate = out.forward_error_estimate.max(tail);
+        }
+        if let Some(r) = rounding
+            && self.predictable
+        {
+            remember(r, out, &self.rates, self.x_size);
+        }
+        if self.track_constraints {
+            // `‖B (X − X*)‖ = ‖B X − D‖` and the rows of `B` have norm of
+            // order one: the residual bounds the error from below.
+            let r = *out.constraint_residuals.last().unwrap_or(&0.0);
+            let last = *out.corrections.last().unwrap_or(&0.0);
+            out.forward_error_estimate = out.forward_error_estimate.max(r);
+            let first = out.constraint_residuals[0];
+            // A residual above the conflict tolerance that the multiplier
+            // updates did not reduce (stopped by a correction that did not
+            // shrink, or by the step limit) is a conflict too: for
+            // consistent rows each update removes a fixed fraction of it.
+            let flat = matches!(
+                out.stop_reason,
+                RefineStop::Stagnated | RefineStop::StepLimit
+            ) && r > crate::report::CONFLICT_RELATIVE_TOLERANCE
+                && r >= FLAT_RESIDUAL * first;
+            if out.mode != Refine::EstimateOnly && (conflict_shows(r, last) || flat) {
+                out.stop_reason = RefineStop::ConflictingConstraints;
+            }
         }
     }
-    // Stopped while still contracting — at the step limit, or (the method
-    // of multipliers, whose slowest mode can contract by nearly 1 per step
-    // long before rounding matters) at a correction that did not shrink:
-    // the corrections still to come, at the rate of the last two applied.
-    let slow = out.stop_reason == RefineStop::StepLimit;
-    if slow && let [.., before, last] = out.corrections[..out.steps] {
-        let tail = last * (geometric_tail(last / before) - 1.0);
-        out.forward_error_estimate = out.forward_error_estimate.max(tail);
-    }
-    if let Some(r) = rounding
-        && predictable
-    {
-        remember(r, &out, &rates, x_size);
-    }
-    if track_constraints {
-        // `‖B (X − X*)‖ = ‖B X − D‖` and the rows of `B` have norm of order
-        // one: the residual bounds the error from below.
-        let r = *out.constraint_residuals.last().unwrap_or(&0.0);
-        let last = *out.corrections.last().unwrap_or(&0.0);
-        out.forward_error_estimate = out.forward_error_estimate.max(r);
-        let first = out.constraint_residuals[0];
-        // A residual above the conflict tolerance that the multiplier
-        // updates did not reduce (stopped by a correction that did not
-        // shrink, or by the step limit) is a conflict too: for consistent
-        // rows each update removes a fixed fraction of it.
-        let flat = matches!(
-            out.stop_reason,
-            RefineStop::Stagnated | RefineStop::StepLimit
-        ) && r > crate::report::CONFLICT_RELATIVE_TOLERANCE
-            && r >= FLAT_RESIDUAL * first;
-        if mode != Refine::Off && (conflict_shows(r, last) || flat) {
-            out.stop_reason = RefineStop::ConflictingConstraints;
-        }
-    }
-    Ok(out)
 }
 
 /// A correction counts as a measurement of the rounding floor when it is

@@ -1,21 +1,24 @@
 //! What refinement is asked to do ([`Refine`]) and what it did
 //! ([`Refinement`], [`RefineStop`]), with its thresholds: the vocabulary the
 //! formulations, the report and the front doors share. The algorithm is
-//! `formulation::refine`; the mathematics is docs/refinement.md
-//! §1–§5.
+//! `formulation::iterative_refinement`; the mathematics is
+//! docs/refinement.md §1–§5. (This module was `refinement` until 0.1;
+//! `lse_deform::refinement` remains as its alias for one release.)
 
 use serde::Serialize;
 
 use crate::error::ParseWordError;
 
 /// Whether and how far to refine a solution (the CLI's `--refine
-/// off|auto|N`; [`Refine::Until`] is for callers with an accuracy target,
-/// such as the response basis of the `handle` module).
+/// estimate|off|auto|N`; [`Refine::Until`] is for callers with an accuracy
+/// target, such as the response basis of the `handle` module).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Refine {
-    /// No refinement; the forward error is still estimated (one correction
-    /// computed and not applied).
-    Off,
+    /// No refinement, only the forward-error estimate: one correction is
+    /// computed and not applied (two for penalty, module
+    /// `formulation::iterative_refinement`). Its words are `estimate` and
+    /// `off` (the name it had, kept); it is written `off`.
+    EstimateOnly,
     /// Refine until a correction is below [`CONVERGED_ULPS`] ulps of the
     /// solution's size, measures the rounding floor (exact formulations:
     /// docs/refinement.md §8), stops shrinking, or [`AUTO_MAX_STEPS`]
@@ -34,10 +37,15 @@ pub enum Refine {
 }
 
 impl Refine {
+    /// Deprecated alias of [`Refine::EstimateOnly`] (the variant's name
+    /// until it was named for what it does), kept for one release.
+    #[allow(non_upper_case_globals)]
+    pub const Off: Refine = Refine::EstimateOnly;
+
     /// The cap on steps.
     pub(crate) fn max_steps(self) -> usize {
         match self {
-            Refine::Off => 0,
+            Refine::EstimateOnly => 0,
             Refine::Auto | Refine::Until(_) => AUTO_MAX_STEPS,
             Refine::Steps(n) => n,
         }
@@ -46,12 +54,13 @@ impl Refine {
 
 impl std::str::FromStr for Refine {
     type Err = ParseWordError;
-    /// Parses `off`, `auto` or a step count (the CLI's and Python's words).
+    /// Parses `estimate` or its old word `off` ([`Refine::EstimateOnly`]),
+    /// `auto` or a step count (the CLI's and Python's words).
     ///
     /// Errors: [`ParseWordError`] listing them.
     fn from_str(word: &str) -> Result<Refine, ParseWordError> {
         match word {
-            "off" => Ok(Refine::Off),
+            "off" | "estimate" => Ok(Refine::EstimateOnly),
             "auto" => Ok(Refine::Auto),
             n => n
                 .parse::<usize>()
@@ -59,14 +68,14 @@ impl std::str::FromStr for Refine {
                 .map_err(|_| ParseWordError {
                     what: "refinement",
                     word: word.to_string(),
-                    expected: vec!["off", "auto", "a number of steps"],
+                    expected: vec!["off", "estimate", "auto", "a number of steps"],
                 }),
         }
     }
 }
 
-/// Serialised as its word (`off`, `auto`, a step count as a string,
-/// `until 1e-9`).
+/// Serialised as its word (`off` for [`Refine::EstimateOnly`], as before
+/// its rename, `auto`, a step count as a string, `until 1e-9`).
 impl Serialize for Refine {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         s.collect_str(self)
@@ -76,7 +85,7 @@ impl Serialize for Refine {
 impl std::fmt::Display for Refine {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Refine::Off => write!(f, "off"),
+            Refine::EstimateOnly => write!(f, "off"),
             Refine::Auto => write!(f, "auto"),
             Refine::Steps(n) => write!(f, "{n}"),
             Refine::Until(tolerance) => write!(f, "until {tolerance:e}"),
