@@ -82,7 +82,7 @@ impl HandleBasis {
     /// The memory it needs ([`HandleBasis::estimated_bytes`]: `3 + 4G`
     /// columns of the problem's height, several times over while they are
     /// solved and refined) is checked against the deformer's memory budget
-    /// ([`Deformer::memory_budget`]) before anything is allocated: beyond it, a
+    /// ([`crate::LseSolver::memory_budget`]) before anything is allocated: beyond it, a
     /// [`ProblemError::TooLarge`] with the estimate.
     pub fn new(deformer: &mut Deformer, names: &[&str]) -> Result<HandleBasis, Error> {
         let t = Instant::now();
@@ -97,7 +97,7 @@ impl HandleBasis {
         }
         let problem = deformer.problem();
         let (n, l, m) = (problem.n(), problem.c().nrows(), problem.d().nrows());
-        HandleBasis::check_memory(n, l, m, names.len(), deformer.memory_budget())?;
+        HandleBasis::check_memory(n, l, m, names.len(), deformer.solver().memory_budget())?;
         let mut members = Vec::with_capacity(names.len());
         for name in names {
             members.push(deformer.group_members(name)?);
@@ -319,11 +319,11 @@ fn solve_basis(
     c: MatRef<'_, f64>,
     d: MatRef<'_, f64>,
 ) -> Result<(Mat<f64>, f64), Error> {
-    let mode = match deformer.refine_mode() {
+    let mode = match deformer.solver().refine_mode() {
         Refine::Auto => Refine::Until(BASIS_FORWARD_ERROR),
         mode => mode,
     };
-    deformer.solve_columns(c, d, mode)
+    deformer.solver_mut().solve_columns(c, d, mode)
 }
 
 /// The `3 + 4G` right-hand-side columns of the basis, in the problem's

@@ -445,7 +445,7 @@ fn arap_warns_about_its_forward_error_like_the_laplacian_path() {
     for refine in [Refine::Off, Refine::Auto] {
         let mut laplacian =
             Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone()).unwrap();
-        laplacian.set_refine(Some(refine));
+        laplacian.solver_mut().set_refine(Some(refine));
         laplacian.precompute(penalty().as_ref()).unwrap();
         let deform = forward_error_warnings(&laplacian.solve().unwrap().report.warnings);
 

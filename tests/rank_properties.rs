@@ -407,7 +407,7 @@ fn check_mix(mix: &ConstructedMix, kind: LaplacianKind) -> Result<(), TestCaseEr
     for (label, method, qr) in configurations(mix.positions_only) {
         for refine in [Refine::Off, Refine::Auto] {
             let f = formulation(method, qr);
-            d.set_refine(Some(refine));
+            d.solver_mut().set_refine(Some(refine));
             let outcome = d
                 .precompute(f.as_ref())
                 .and_then(|()| d.solve_matrix())

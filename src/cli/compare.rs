@@ -106,7 +106,7 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh, budget)?;
     let (constraints, warnings) = constraints_with_warnings(&a.constraints, &mesh, false, budget)?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    deformer.set_memory_budget(budget);
+    deformer.solver_mut().set_memory_budget(budget);
     let bar =
         ProgressBar::with_draw_target(Some(configs.len() as u64 + 1), ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {

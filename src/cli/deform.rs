@@ -136,7 +136,7 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
     deformer.precompute_with(&options.solve)?;
     if a.condition {
         bar.set_message("condition estimate (Lanczos)");
-        deformer.estimate_condition()?;
+        deformer.solver_mut().estimate_condition()?;
     }
     bar.set_message("solve");
     let solution = deformer.solve()?;

@@ -56,7 +56,7 @@ pub fn export_system(a: ExportArgs) -> Result<(), Error> {
     // Staged: a failed write leaves no file of this export, and the files
     // of an earlier one as they were.
     let (files, meta) = super::staged(|| {
-        let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
+        let files = export_problem(&a.output, deformer.problem(), deformer.solver().prepared())?;
         let meta = export_meta(&a.output, deformer.problem(), deformer.report())?;
         Ok((files, meta))
     })?;

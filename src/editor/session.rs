@@ -232,7 +232,9 @@ fn build_linear(
     (t0, setup_s): (Instant, f64),
     stage: &dyn Fn(&str),
 ) -> Result<Built, Error> {
-    deformer.set_memory_budget(options.solve.memory_budget);
+    deformer
+        .solver_mut()
+        .set_memory_budget(options.solve.memory_budget);
     let groups = deformer.constraints().group_names();
     let movable: Vec<String> = groups
         .into_iter()
@@ -286,7 +288,10 @@ fn first_positions(
             b.evaluate(&vec![IDENTITY; b.groups().len()], &mut positions)?;
             let u = deformer.length_unit();
             let x = faer::Mat::from_fn(positions.len(), 3, |i, c| positions[i][c] / u);
-            Ok((positions, deformer.diagnose(x.as_ref()).clone()))
+            Ok((
+                positions,
+                deformer.solver_mut().diagnose(x.as_ref()).clone(),
+            ))
         }
         None => {
             stage("first solve");
@@ -311,7 +316,7 @@ fn check_basis_size(deformer: &Deformer, groups: usize) -> Result<(), Error> {
         }
         .into());
     }
-    HandleBasis::check_memory(n, l, m, groups, deformer.memory_budget())
+    HandleBasis::check_memory(n, l, m, groups, deformer.solver().memory_budget())
 }
 
 /// How a frame was computed.
@@ -550,7 +555,7 @@ impl Session {
                 let u = deformer.length_unit();
                 let x =
                     faer::Mat::from_fn(self.positions.len(), 3, |i, c| self.positions[i][c] / u);
-                serde_json::to_value(deformer.diagnose(x.as_ref())).ok()
+                serde_json::to_value(deformer.solver_mut().diagnose(x.as_ref())).ok()
             }
             Some(Engine::Arap { arap, .. }) => arap
                 .finish()

@@ -364,7 +364,7 @@ pub(super) fn solve_frame(
     refine: Option<Refine>,
     estimate: bool,
 ) -> Result<(Vec<[f64; 3]>, Vec<String>), Error> {
-    let mode = refine.unwrap_or_else(|| s.deformer.refine_mode());
+    let mode = refine.unwrap_or_else(|| s.deformer.solver().refine_mode());
     if !estimate && mode != Refine::Off {
         return Err(ProblemError::InvalidArgument {
             message: format!(
@@ -374,7 +374,7 @@ pub(super) fn solve_frame(
         .into());
     }
     if refine.is_some() {
-        s.deformer.set_refine(refine);
+        s.deformer.solver_mut().set_refine(refine);
     }
     let result = if estimate {
         s.deformer
@@ -384,7 +384,7 @@ pub(super) fn solve_frame(
         s.deformer.solve_undiagnosed().map(|p| (p, Vec::new()))
     };
     if refine.is_some() {
-        s.deformer.set_refine(s.options.refine);
+        s.deformer.solver_mut().set_refine(s.options.refine);
     }
     result
 }

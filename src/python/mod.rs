@@ -591,8 +591,10 @@ impl PyDeformer {
             let set = constraints_for(constraints, &mesh, options.memory_budget)?;
             let deformer = released(py, move || {
                 let mut deformer = Deformer::new(mesh, kind, set)?;
-                deformer.set_refine(options.refine);
-                deformer.set_memory_budget(options.memory_budget);
+                deformer.solver_mut().set_refine(options.refine);
+                deformer
+                    .solver_mut()
+                    .set_memory_budget(options.memory_budget);
                 Ok(deformer)
             })?;
             Ok(PyDeformer {
