@@ -195,6 +195,16 @@ impl ArapDeformer {
         })
     }
 
+    /// The global step's solver (in the problem's units: lengths divided
+    /// by [`ArapDeformer::length_unit`]): its refinement, memory budget,
+    /// prepared system and report of the last precompute. Read-only: the
+    /// precompute goes through [`ArapDeformer::precompute`] (which keeps
+    /// the ARAP report) and targets through [`ArapDeformer::set_target`]
+    /// (which keeps them in the mesh's units).
+    pub fn solver(&self) -> &LseSolver {
+        &self.solver
+    }
+
     /// Precompute: factors the global step's system with `formulation`,
     /// once for all iterations.
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
