@@ -115,7 +115,8 @@ mod tests {
     use crate::choice::Method;
     use crate::limits::MemoryBudget;
 
-    /// The documented defaults, value by value (docs/cli.md, docs/python.md).
+    /// The documented defaults, value by value (the CLI's `--help`, the
+    /// Python stub `_native.pyi`).
     #[test]
     fn the_defaults_are_the_documented_ones() {
         let d = DeformOptions::default();
