@@ -970,7 +970,7 @@ fn export_system_to_a_device_says_it_is_not_a_directory() {
 }
 
 /// `--factor` names the matrix factorisation; `--spd`, its old name, is
-/// still accepted and means the same (issue 30): the same output mesh
+/// still accepted and means the same: the same output mesh
 /// byte for byte, for KKT's LDLᵀ variant as for a Cholesky back end. With
 /// no option at all the run is the one with every documented default
 /// spelled out, and `--help` shows the library's defaults.

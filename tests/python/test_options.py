@@ -1,4 +1,4 @@
-"""The request layer from Python (issue 30): keywords left out mean the
+"""The request layer from Python: keywords left out mean the
 library's defaults (`DeformOptions::default()`, `ArapOptions::default()`,
 the documented values), and `factor=` is the name of the factorisation
 keyword with `spd=`, its old name, still accepted."""
