@@ -155,7 +155,7 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
     let constraints = FixedAndHandle::paper_default(&case.mesh).constraints(&case.mesh)?;
     let mut deformer = Deformer::new(case.mesh.clone(), kind, constraints)?;
     let diag = case.mesh.bbox_diagonal() / deformer.length_unit();
-    deformer.set_refine(Some(Refine::Auto));
+    deformer.solver_mut().set_refine(Some(Refine::Auto));
     deformer.precompute(&NullSpaceQr::default())?;
     let x_star = deformer.solve_matrix()?;
     let reference = Reference {
@@ -194,9 +194,13 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
             }
             continue;
         }
-        base.condition = deformer.estimate_condition().ok().map(|c| c.value);
+        base.condition = deformer
+            .solver_mut()
+            .estimate_condition()
+            .ok()
+            .map(|c| c.value);
         for mode in [Refine::Off, Refine::Auto] {
-            deformer.set_refine(Some(mode));
+            deformer.solver_mut().set_refine(Some(mode));
             let mut row = Row {
                 refine: mode.to_string(),
                 ..base.clone()

@@ -401,7 +401,7 @@ fn prepare(slot: &mut Slot, mesh: &Mesh, drag: &Drag, c: &Config) -> Result<(), 
     slot.precompute = Some(d.report().timings_s.precompute());
     slot.nnz_factor = d.report().nnz.factor;
     if c.frame_call == FrameCall::UnrefinedSolveInto {
-        d.set_refine(Some(Refine::Off));
+        d.solver_mut().set_refine(Some(Refine::Off));
     }
     d.solve_matrix()?;
     if c.frame_call == FrameCall::Basis {
@@ -433,7 +433,7 @@ fn solve_frame(
     let x = if unrefined {
         let n = deformer.problem().n();
         let mut x = rec.buffer.take().unwrap_or_else(|| Mat::zeros(n, 3));
-        deformer.solve_into(x.as_mut())?;
+        deformer.solver_mut().solve_into(x.as_mut())?;
         x
     } else {
         deformer.solve_matrix()?

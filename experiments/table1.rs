@@ -305,7 +305,7 @@ fn run_formulation(deformer: &mut Deformer, formulation: &dyn Formulation) -> Ou
         return out;
     }
     out.precompute_s = Some(deformer.report().timings_s.precompute());
-    out.condition = deformer.estimate_condition().ok().cloned();
+    out.condition = deformer.solver_mut().estimate_condition().ok().cloned();
     match deformer.solve_matrix() {
         Ok(x) => {
             out.x = Some(x);

@@ -194,9 +194,10 @@ fn equilibrated_condition(full: &SparseColMat<usize, f64>) -> Option<f64> {
 
 /// The condition numbers of the deformer's current factorisation.
 fn kappas(d: &mut Deformer, normal: bool) -> Kappas {
-    let factored = d.estimate_condition().ok().map(|c| c.value);
+    let factored = d.solver_mut().estimate_condition().ok().map(|c| c.value);
     let equilibrated = if normal {
-        d.prepared()
+        d.solver()
+            .prepared()
             .and_then(|p| p.factored_matrix())
             .and_then(|m| equilibrated_condition(&m))
     } else {
@@ -231,7 +232,8 @@ fn method_rows(d: &mut Deformer, judge: &Judge, choice: FormulationChoice) -> Ve
     [false, true]
         .into_iter()
         .map(|refined| {
-            d.set_refine(Some(if refined { Refine::Auto } else { Refine::Off }));
+            d.solver_mut()
+                .set_refine(Some(if refined { Refine::Auto } else { Refine::Off }));
             let x = d.solve_matrix();
             let x = x.as_ref().map_err(|e| (e, "solve"));
             judge.row(d.problem(), key(refined), x, k)
@@ -247,7 +249,7 @@ fn sweep_scene(case: &MeshCase, scene: Scene, quick: bool) -> Result<Vec<Row>, A
         Some(x) => x,
         None => {
             d.precompute(&*FormulationChoice::new(Method::NullSpaceQr).build()?)?;
-            d.set_refine(Some(Refine::Auto));
+            d.solver_mut().set_refine(Some(Refine::Auto));
             d.solve_matrix()?
         }
     };

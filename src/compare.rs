@@ -121,7 +121,7 @@ pub struct Reference {
 /// Solves the reference with `deformer`: the null-space method with its
 /// default back ends, refined until it converges.
 pub fn reference(deformer: &mut Deformer) -> Result<Reference, Error> {
-    deformer.set_refine(Some(Refine::Auto));
+    deformer.solver_mut().set_refine(Some(Refine::Auto));
     deformer.precompute(&NullSpaceQr::default())?;
     let x = deformer.solve_matrix()?;
     let r = deformer.report();
@@ -256,7 +256,7 @@ fn measure(
     row: &mut CompareRow,
 ) -> Result<(), Error> {
     let f = config.build()?;
-    deformer.set_refine(options.refine);
+    deformer.solver_mut().set_refine(options.refine);
     deformer.precompute(f.as_ref())?;
     let mut times = Vec::new();
     let mut x = Mat::<f64>::zeros(0, 0);
@@ -268,7 +268,7 @@ fn measure(
     times.sort_by(f64::total_cmp);
     row.solve_median_s = Some(times[times.len() / 2]);
     if options.condition {
-        row.condition = Some(deformer.estimate_condition()?.value);
+        row.condition = Some(deformer.solver_mut().estimate_condition()?.value);
     }
     let r = deformer.report().clone();
     // X and the reference are in the problem's units (solve_matrix).

@@ -27,16 +27,16 @@
 
 use std::time::Instant;
 
-use faer::{Mat, MatMut, MatRef};
+use faer::Mat;
+use faer::sparse::SparseColMat;
 
 use crate::constraints::ConstraintSet;
 use crate::error::{ConstraintError, Error, ProblemError};
-use crate::formulation::{Formulation, Prepared, Refine};
+use crate::formulation::Formulation;
 use crate::laplacian::{self, LaplacianKind};
-use crate::limits::MemoryBudget;
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, SoftWeightScale, check_pinned, target_in_unit};
-use crate::report::Report;
+use crate::report::{EnergyOperator, Report};
 use crate::solver::{LseSolver, SolveOptions};
 
 /// Deformed positions and the report of how they were obtained.
@@ -75,7 +75,7 @@ pub struct Solution {
 /// every soft weight is scaled by `s⁻ᵃ` too (the energy is not scale-free
 /// otherwise). Targets given to the deformer are in the mesh's units;
 /// [`Deformer::problem`], [`Deformer::solve_matrix`],
-/// [`Deformer::solve_into`] are in the problem's.
+/// [`Deformer::solver`] are in the problem's.
 pub struct Deformer {
     mesh: Mesh,
     constraints: ConstraintSet,
@@ -84,6 +84,88 @@ pub struct Deformer {
     /// by it.
     unit: f64,
     solver: LseSolver,
+}
+
+/// A mesh and its constraints in the problem's units — positions and
+/// targets divided by the mesh's [`Mesh::length_unit`] `ℓ` (docs/units.md
+/// §1–§3) — checked (vertex range, every component pinned): the set-up the
+/// Laplacian deformer and [`crate::arap::ArapDeformer`] share.
+pub(crate) struct UnitScaled {
+    /// `ℓ`, the mesh's mean edge length.
+    pub unit: f64,
+    /// The mesh with its positions divided by `ℓ`.
+    pub mesh: Mesh,
+    /// The constraints with their targets divided by `ℓ`.
+    pub constraints: ConstraintSet,
+}
+
+impl UnitScaled {
+    /// Checks `constraints` against `mesh` and divides both by the mesh's
+    /// length unit.
+    ///
+    /// Errors: those of the constraint checks, and
+    /// [`crate::error::NumericalError::TargetOutOfRange`] for a target that
+    /// is not finite once divided by the unit.
+    pub(crate) fn new(mesh: &Mesh, constraints: &ConstraintSet) -> Result<UnitScaled, Error> {
+        let n = mesh.n_vertices();
+        constraints.check_vertices(n)?;
+        let (component_of, n_components) = topology::vertex_components(n, mesh.faces());
+        check_pinned(&component_of, n_components, constraints)?;
+        let unit = mesh.length_unit();
+        let unit_mesh = mesh.with_positions(
+            mesh.positions()
+                .iter()
+                .map(|p| p.map(|v| v / unit))
+                .collect(),
+        )?;
+        crate::interrupt::check()?;
+        let mut unit_constraints = constraints.clone();
+        for (i, c) in constraints.as_slice().iter().enumerate() {
+            unit_constraints.set_rhs(i, target_in_unit(i, c.kind.rhs(), unit)?)?;
+        }
+        Ok(UnitScaled {
+            unit,
+            mesh: unit_mesh,
+            constraints: unit_constraints,
+        })
+    }
+
+    /// The solver of `min ‖A X − C‖ s.t. B X = D` with the energy rows
+    /// `a X ≈ c` (in the problem's units) and the constraints' rows, each
+    /// soft weight `w` carrying `w ℓ^power` ([`SoftWeightScale`]); its
+    /// reports start from the set-up's: `operator`, the warnings of
+    /// `mesh` (the mesh as given), the length unit, the soft weight scale
+    /// and the seconds since `started`.
+    pub(crate) fn solver(
+        &self,
+        a: &SparseColMat<usize, f64>,
+        c: &Mat<f64>,
+        operator: EnergyOperator,
+        power: i32,
+        mesh: &Mesh,
+        started: Instant,
+    ) -> Result<LseSolver, Error> {
+        let soft_scale = SoftWeightScale {
+            length: self.unit,
+            power,
+        };
+        let problem = LseProblem::new(
+            a,
+            c,
+            &self.constraints,
+            self.mesh.bbox_diagonal(),
+            soft_scale,
+        )?;
+        let mut report = Report {
+            energy: Some(operator),
+            warnings: mesh.warnings().iter().map(Into::into).collect(),
+            length_unit: self.unit,
+            soft_weight_scale: Some(soft_scale.factor()),
+            ..Report::default()
+        };
+        report.timings_s.setup = started.elapsed().as_secs_f64();
+        Ok(LseSolver::with_report(problem, report))
+    }
 }
 
 /// A 3 × 4 affine map `p ↦ M[:, 0..3] p + M[:, 3]`, row-major: the
@@ -99,44 +181,19 @@ impl Deformer {
         constraints: ConstraintSet,
     ) -> Result<Deformer, Error> {
         let t = Instant::now();
-        let n = mesh.n_vertices();
-        constraints.check_vertices(n)?;
-        let (component_of, n_components) = topology::vertex_components(n, mesh.faces());
-        check_pinned(&component_of, n_components, &constraints)?;
-        let unit = mesh.length_unit();
-        let unit_mesh = mesh.with_positions(
-            mesh.positions()
-                .iter()
-                .map(|p| [p[0] / unit, p[1] / unit, p[2] / unit])
-                .collect(),
-        )?;
+        let scaled = UnitScaled::new(&mesh, &constraints)?;
+        let l = laplacian::laplacian(&scaled.mesh, laplacian)?;
         crate::interrupt::check()?;
-        let l = laplacian::laplacian(&unit_mesh, laplacian)?;
-        crate::interrupt::check()?;
-        let delta = laplacian::apply(&l, unit_mesh.positions());
-        let mut unit_constraints = constraints.clone();
-        for (i, c) in constraints.as_slice().iter().enumerate() {
-            unit_constraints.set_rhs(i, target_in_unit(i, c.kind.rhs(), unit)?)?;
-        }
-        let soft_scale = SoftWeightScale {
-            length: unit,
-            power: laplacian.inverse_length_power(),
-        };
-        let problem = LseProblem::new(
+        let delta = laplacian::apply(&l, scaled.mesh.positions());
+        let operator = EnergyOperator::Laplacian(laplacian);
+        let solver = scaled.solver(
             &l,
             &delta,
-            &unit_constraints,
-            unit_mesh.bbox_diagonal(),
-            soft_scale,
+            operator,
+            laplacian.inverse_length_power(),
+            &mesh,
+            t,
         )?;
-        let mut report = Report {
-            energy: Some(crate::report::EnergyOperator::Laplacian(laplacian)),
-            warnings: mesh.warnings().iter().map(Into::into).collect(),
-            length_unit: unit,
-            soft_weight_scale: Some(soft_scale.factor()),
-            ..Report::default()
-        };
-        report.timings_s.setup = t.elapsed().as_secs_f64();
         let rest = constraints
             .as_slice()
             .iter()
@@ -146,26 +203,33 @@ impl Deformer {
             mesh,
             constraints,
             rest,
-            unit,
-            solver: LseSolver::with_report(problem, report),
+            unit: scaled.unit,
+            solver,
         })
     }
 
-    /// Sets the refinement of every following solve (see
-    /// [`crate::formulation::refine`]); `None` restores the formulation's
-    /// default ([`Refine::Auto`] for the exact formulations, [`Refine::Off`]
-    /// for penalty).
-    pub fn set_refine(&mut self, refine: Option<Refine>) {
-        self.solver.set_refine(refine);
+    /// The solver of the assembled problem (in its units: lengths divided
+    /// by [`Deformer::length_unit`]): its refinement
+    /// ([`LseSolver::refine_mode`]), memory budget, prepared system,
+    /// condition estimate, diagnostics and its solves in the problem's
+    /// units. The mesh-level phases below go through it.
+    pub fn solver(&self) -> &LseSolver {
+        &self.solver
     }
 
-    /// The refinement the next solve uses.
-    pub fn refine_mode(&self) -> Refine {
-        self.solver.refine_mode()
+    /// The solver, to change its settings ([`LseSolver::set_refine`],
+    /// [`LseSolver::set_memory_budget`]), solve in the problem's units
+    /// ([`LseSolver::solve_into`], [`LseSolver::solve_columns`]), diagnose
+    /// or estimate the condition. Targets are moved through the deformer
+    /// ([`Deformer::set_target`] and the like), which keeps them in the
+    /// mesh's units and the rest targets: [`LseSolver::set_rhs`] here would
+    /// leave [`Deformer::constraints`] behind.
+    pub fn solver_mut(&mut self) -> &mut LseSolver {
+        &mut self.solver
     }
 
     /// Precompute phase: factors the system with `formulation` within the
-    /// memory budget ([`Deformer::set_memory_budget`]).
+    /// solver's memory budget ([`LseSolver::set_memory_budget`]).
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
         self.solver.precompute(formulation)
     }
@@ -174,17 +238,6 @@ impl Deformer {
     /// memory budget ([`LseSolver::precompute_with`]).
     pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
         self.solver.precompute_with(options)
-    }
-
-    /// Sets the memory budget of every following precompute and response
-    /// basis (default: [`MemoryBudget::default`]).
-    pub fn set_memory_budget(&mut self, budget: MemoryBudget) {
-        self.solver.set_memory_budget(budget);
-    }
-
-    /// The memory budget of the next precompute.
-    pub fn memory_budget(&self) -> MemoryBudget {
-        self.solver.memory_budget()
     }
 
     /// Solve phase: positions for the current targets, in the mesh's units.
@@ -196,14 +249,15 @@ impl Deformer {
         })
     }
 
-    /// [`Deformer::solve_into`] as positions in the mesh's units: refined
-    /// unless the mode is [`Refine::Off`] (then no correction at all, so no
+    /// [`LseSolver::solve_into`] as positions in the mesh's units: refined
+    /// unless the mode is [`crate::formulation::Refine::EstimateOnly`] (then no correction at all, so no
     /// forward-error estimate), without the solution diagnostics (the
     /// report's solution fields read "not computed",
-    /// [`Report::clear_solution_diagnostics`], until [`Deformer::diagnose`]).
+    /// [`Report::clear_solution_diagnostics`], until
+    /// [`LseSolver::diagnose`]).
     pub fn solve_undiagnosed(&mut self) -> Result<Vec<[f64; 3]>, Error> {
         let mut x = Mat::zeros(self.problem().n(), 3);
-        self.solve_into(x.as_mut())?;
+        self.solver.solve_into(x.as_mut())?;
         Ok(self.positions_of(&x))
     }
 
@@ -217,40 +271,11 @@ impl Deformer {
 
     /// Solve phase returning `X` (n × 3) of the assembled problem — in its
     /// units, the positions divided by [`Deformer::length_unit`] — after
-    /// refinement ([`Deformer::refine_mode`]), updating
+    /// refinement ([`LseSolver::refine_mode`]), updating
     /// [`Deformer::report`] with the solution diagnostics, the refinement
     /// and its warnings.
     pub fn solve_matrix(&mut self) -> Result<Mat<f64>, Error> {
         self.solver.solve()
-    }
-
-    /// Solve phase into `x` (n × 3, one row per vertex, in the problem's
-    /// units: positions over [`Deformer::length_unit`]) without the solution
-    /// diagnostics ([`Deformer::diagnose`] computes them when wanted): the
-    /// call of an interactive loop. With the null-space formulation on the
-    /// faer back ends it allocates no buffer. See [`LseSolver::solve_into`].
-    pub fn solve_into(&mut self, x: MatMut<'_, f64>) -> Result<(), Error> {
-        self.solver.solve_into(x)
-    }
-
-    /// Solves for right-hand sides `c` (l × k) and `d` (m × k) of the
-    /// problem's shape in place of its own, in the problem's units, refined
-    /// as `mode` says; returns `X` and its forward-error estimate. The
-    /// problem's targets stay; the refinement becomes the one
-    /// [`Deformer::diagnose`] reports. See [`LseSolver::solve_columns`].
-    pub fn solve_columns(
-        &mut self,
-        c: MatRef<'_, f64>,
-        d: MatRef<'_, f64>,
-        mode: Refine,
-    ) -> Result<(Mat<f64>, f64), Error> {
-        self.solver.solve_columns(c, d, mode)
-    }
-
-    /// Fills the report's solution diagnostics (residuals, redundant and
-    /// conflicting constraints) for `x`, the result of the last solve.
-    pub fn diagnose(&mut self, x: MatRef<'_, f64>) -> &Report {
-        self.solver.diagnose(x)
     }
 
     /// Moves the target of constraint `index` (a position, edge or face
@@ -389,17 +414,6 @@ impl Deformer {
             .set_rhs(index, [target[0] / u, target[1] / u, target[2] / u])?;
         self.constraints.set_rhs(index, target)?;
         Ok(())
-    }
-
-    /// Estimates the 2-norm condition number of the matrix the formulation
-    /// factored (see [`crate::condition`]) and records it in the report.
-    pub fn estimate_condition(&mut self) -> Result<&crate::condition::ConditionEstimate, Error> {
-        self.solver.estimate_condition()
-    }
-
-    /// The prepared system of the last precompute, if any (for export).
-    pub fn prepared(&self) -> Option<&dyn Prepared> {
-        self.solver.prepared()
     }
 
     /// The report of the last precompute and solve.

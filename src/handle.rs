@@ -82,7 +82,7 @@ impl HandleBasis {
     /// The memory it needs ([`HandleBasis::estimated_bytes`]: `3 + 4G`
     /// columns of the problem's height, several times over while they are
     /// solved and refined) is checked against the deformer's memory budget
-    /// ([`Deformer::memory_budget`]) before anything is allocated: beyond it, a
+    /// ([`crate::LseSolver::memory_budget`]) before anything is allocated: beyond it, a
     /// [`ProblemError::TooLarge`] with the estimate.
     pub fn new(deformer: &mut Deformer, names: &[&str]) -> Result<HandleBasis, Error> {
         let t = Instant::now();
@@ -97,7 +97,7 @@ impl HandleBasis {
         }
         let problem = deformer.problem();
         let (n, l, m) = (problem.n(), problem.c().nrows(), problem.d().nrows());
-        HandleBasis::check_memory(n, l, m, names.len(), deformer.memory_budget())?;
+        HandleBasis::check_memory(n, l, m, names.len(), deformer.solver().memory_budget())?;
         let mut members = Vec::with_capacity(names.len());
         for name in names {
             members.push(deformer.group_members(name)?);
@@ -300,7 +300,7 @@ fn evaluate_block(block: &[f64], m: &[Affine]) -> [[f64; LANES]; 3] {
 /// with a full solve that [`HandleBasis::evaluate`] promises. The error
 /// left after that correction is at most `ρ/(1 − ρ)` of it when the
 /// refinement contracts the error by `ρ` per step
-/// ([`crate::formulation::refine`]): within the promise for any `ρ ≤ ½`,
+/// ([`crate::formulation::iterative_refinement`]): within the promise for any `ρ ≤ ½`,
 /// and under a ninth of it for `ρ ≤ 0.1` — while a first correction this
 /// small means the solve itself was accurate to about that, and `ρ`, the
 /// same solve's error applied to the residual, is of the same order. The
@@ -319,11 +319,11 @@ fn solve_basis(
     c: MatRef<'_, f64>,
     d: MatRef<'_, f64>,
 ) -> Result<(Mat<f64>, f64), Error> {
-    let mode = match deformer.refine_mode() {
+    let mode = match deformer.solver().refine_mode() {
         Refine::Auto => Refine::Until(BASIS_FORWARD_ERROR),
         mode => mode,
     };
-    deformer.solve_columns(c, d, mode)
+    deformer.solver_mut().solve_columns(c, d, mode)
 }
 
 /// The `3 + 4G` right-hand-side columns of the basis, in the problem's

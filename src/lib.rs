@@ -32,7 +32,9 @@
 //!   method and its alternatives, refinement) → [`solver`] (precompute and
 //!   solve of any problem, including general ones from their matrices, and
 //!   [`SolveOptions`]: formulation, refinement, memory budget);
-//! - [`deform`] (the three-phase mesh API), [`handle`] (affine handles:
+//! - [`options`] (the request layer: [`DeformOptions`], [`ArapOptions`],
+//!   every default of a deformation written once) →
+//!   [`deform`] (the three-phase mesh API), [`handle`] (affine handles:
 //!   per-frame positions from a precomputed response basis), [`arap`]
 //!   (as-rigid-as-possible iterations on the same formulations), [`compare`]
 //!   (every formulation and back end against one reference), [`scene`]
@@ -68,6 +70,7 @@ pub mod laplacian;
 pub mod limits;
 pub mod mesh;
 pub mod mtx;
+pub mod options;
 pub mod problem;
 #[cfg(feature = "python")]
 pub mod python;
@@ -95,5 +98,6 @@ pub use formulation::{
 pub use laplacian::LaplacianKind;
 pub use limits::MemoryBudget;
 pub use mesh::Mesh;
+pub use options::{ArapOptions, DeformOptions};
 pub use report::Report;
 pub use solver::{LseSolver, SolveOptions};

@@ -78,7 +78,7 @@ pub struct SolveOptions {
     /// The formulation and its back ends.
     pub formulation: FormulationChoice,
     /// The refinement of every solve; `None`: the formulation's default
-    /// ([`Refine::Auto`] for the exact formulations, [`Refine::Off`] for
+    /// ([`Refine::Auto`] for the exact formulations, [`Refine::EstimateOnly`] for
     /// penalty).
     pub refine: Option<Refine>,
     /// The memory the precompute may use ([`crate::limits`]).
@@ -180,7 +180,7 @@ impl LseSolver {
     }
 
     /// Sets the refinement of every following solve (see
-    /// [`crate::formulation::refine`]); `None` restores the formulation's
+    /// [`crate::formulation::iterative_refinement`]); `None` restores the formulation's
     /// default ([`Refine::Auto`] for the exact formulations, [`Refine::EstimateOnly`]
     /// for penalty).
     pub fn set_refine(&mut self, refine: Option<Refine>) {
@@ -370,7 +370,7 @@ impl LseSolver {
     /// three columns at a time), refined as `mode` says: the columns of an
     /// affine response basis ([`crate::handle`]). Returns `X` and the
     /// largest forward-error estimate of its refinements (relative to the
-    /// length scale; see [`crate::formulation::refine`]). The problem's own
+    /// length scale; see [`crate::formulation::iterative_refinement`]). The problem's own
     /// `C` and `D` are left as they were; the refinement with that largest
     /// estimate becomes the one [`LseSolver::diagnose`] reports (for
     /// positions combined from these columns).

@@ -39,7 +39,7 @@ fn exact_methods() -> Vec<(Box<dyn Formulation>, Option<Refine>)> {
 }
 
 fn positions(d: &mut Deformer, f: &dyn Formulation, refine: Option<Refine>) -> Vec<[f64; 3]> {
-    d.set_refine(refine);
+    d.solver_mut().set_refine(refine);
     d.precompute(f).unwrap();
     d.solve().unwrap().positions
 }
@@ -873,7 +873,7 @@ fn a_nearly_dependent_kept_row_shows_in_the_estimate_and_is_refined_away() {
                 / scale
         };
         let f = nullspace_qr_with(qr);
-        d.set_refine(Some(Refine::Off));
+        d.solver_mut().set_refine(Some(Refine::EstimateOnly));
         d.precompute(f.as_ref()).unwrap();
         let x = d.solve_matrix().unwrap();
         assert_eq!(d.report().rank, Some(5), "{qr}");
@@ -883,7 +883,7 @@ fn a_nearly_dependent_kept_row_shows_in_the_estimate_and_is_refined_away() {
             estimate <= 10.0 * truth && truth <= 10.0 * estimate,
             "{qr}: estimate {estimate:e}, true error {truth:e}"
         );
-        d.set_refine(Some(Refine::Auto));
+        d.solver_mut().set_refine(Some(Refine::Auto));
         let x = d.solve_matrix().unwrap();
         assert!(error(&x) < 1e-14, "{qr}: refined {:e}", error(&x));
     }

@@ -968,3 +968,65 @@ fn export_system_to_a_device_says_it_is_not_a_directory() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("a regular file, not a directory"), "{err}");
 }
+
+/// `--factor` names the matrix factorisation; `--spd`, its old name, is
+/// still accepted and means the same: the same output mesh
+/// byte for byte, for KKT's LDLᵀ variant as for a Cholesky back end. With
+/// no option at all the run is the one with every documented default
+/// spelled out, and `--help` shows the library's defaults.
+#[test]
+fn factor_is_the_new_name_of_spd_and_defaults_are_the_documented_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = path_in(dir.path(), "grid.obj");
+    let o = run(&["generate", "grid", "--vertices", "400", "-o", &mesh]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = path_in(dir.path(), "scene.json");
+    let o = run(&["scene", &mesh, "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let deform = |name: &str, extra: &[&str]| {
+        let out = path_in(dir.path(), name);
+        let mut args = vec!["deform", &mesh, "-c", &scene, "-o", &out];
+        args.extend(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        std::fs::read(&out).unwrap()
+    };
+    for method in ["kkt", "nullspace-qr"] {
+        let new = deform(
+            "new.obj",
+            &["--method", method, "--factor", "faer-simplicial"],
+        );
+        let old = deform("old.obj", &["--method", method, "--spd", "faer-simplicial"]);
+        assert_eq!(new, old, "--method {method}");
+    }
+    let bare = deform("bare.obj", &[]);
+    let spelled = deform(
+        "spelled.obj",
+        &[
+            "--laplacian",
+            "cotan",
+            "--method",
+            "nullspace-qr",
+            "--qr",
+            "sparse-givens",
+            "--factor",
+            "faer-auto",
+            "--energy",
+            "laplacian",
+        ],
+    );
+    assert_eq!(bare, spelled);
+    let help = String::from_utf8_lossy(&run(&["deform", "--help"]).stdout).into_owned();
+    for shown in [
+        "[default: cotan]",
+        "[default: nullspace-qr]",
+        "[default: sparse-givens]",
+        "[default: faer-auto]",
+        "[alias: --spd]",
+        "[default: 10]",
+        "[default: spokes-and-rims]",
+        "[default: linear]",
+    ] {
+        assert!(help.contains(shown), "--help lacks {shown}:\n{help}");
+    }
+}

@@ -196,7 +196,9 @@ impl Model {
         }
         let laplacian: LaplacianKind = self.laplacian.parse().unwrap();
         let mut deformer = Deformer::new(mesh(), laplacian, cs).unwrap();
-        deformer.set_refine(Some(self.refine.parse::<Refine>().unwrap()));
+        deformer
+            .solver_mut()
+            .set_refine(Some(self.refine.parse::<Refine>().unwrap()));
         let choice = FormulationChoice {
             weight: Some(self.weight),
             ..FormulationChoice::new(self.method.parse().unwrap())

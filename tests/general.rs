@@ -235,7 +235,7 @@ fn solve_into_matches_solve_and_checks_its_output_shape() {
     // before (not computed: no diagnostics), and without refinement not
     // the last refine phase either.
     assert_eq!(solver.report().forward_error_estimate, None);
-    solver.set_refine(Some(Refine::Off));
+    solver.set_refine(Some(Refine::EstimateOnly));
     solver.solve_into(y.as_mut()).unwrap();
     let report = solver.report();
     assert_eq!(report.timings_s.refine, 0.0);

@@ -62,7 +62,7 @@ fn basis_vs_full_solve(
     // Auto for every formulation: penalty's refinement is the method of
     // multipliers, which makes it exact (unrefined, its own forward error
     // of about w²·ε·κ would be compared, not the basis).
-    deformer.set_refine(Some(Refine::Auto));
+    deformer.solver_mut().set_refine(Some(Refine::Auto));
     deformer.precompute(formulation)?;
     let basis = HandleBasis::new(&mut deformer, groups)?;
     let mut out = vec![[0.0; 3]; n];

@@ -327,7 +327,7 @@ fn check_method(
         // `src/backend/qr/sparse_givens.rs` — and KKT checks its solve to a
         // normwise backward error of 1e-10 only: a row then holds to about
         // 1e-10 of its scale, which refinement removes.)
-        let bound = if refine == Refine::Off {
+        let bound = if refine == Refine::EstimateOnly {
             f64::INFINITY
         } else {
             1e-12
@@ -344,7 +344,7 @@ fn check_method(
     } else {
         prop_assert!(!report.redundant.is_detected() && !report.conflicting.is_detected());
         if !expected.conflicting.is_empty() {
-            if refine != Refine::Off && !penalty_out_of_reach(expected) {
+            if refine != Refine::EstimateOnly && !penalty_out_of_reach(expected) {
                 let r = report.refinement.as_ref().unwrap();
                 prop_assert_eq!(
                     r.stop_reason,
@@ -372,7 +372,7 @@ fn check_method(
     // The fixed point of the method of multipliers is limited by the
     // rounding of its residuals through `AᵀA + w²BᵀB`: measured up to
     // 1.4e-12 with an estimate of 5e-14 (1 case in 1000 general problems).
-    let floor = if method == Method::Penalty && refine != Refine::Off {
+    let floor = if method == Method::Penalty && refine != Refine::EstimateOnly {
         PENALTY_REFINED_FLOOR
     } else {
         ERROR_FLOOR
@@ -405,9 +405,9 @@ fn check_mix(mix: &ConstructedMix, kind: LaplacianKind) -> Result<(), TestCaseEr
     };
     let mut violations = Vec::new();
     for (label, method, qr) in configurations(mix.positions_only) {
-        for refine in [Refine::Off, Refine::Auto] {
+        for refine in [Refine::EstimateOnly, Refine::Auto] {
             let f = formulation(method, qr);
-            d.set_refine(Some(refine));
+            d.solver_mut().set_refine(Some(refine));
             let outcome = d
                 .precompute(f.as_ref())
                 .and_then(|()| d.solve_matrix())
@@ -471,7 +471,7 @@ fn check_lse(lse: &ConstructedLse) -> Result<(), TestCaseError> {
     let mut solver = LseSolver::new(lse.problem.clone());
     let mut violations = Vec::new();
     for (label, method, qr) in configurations(false) {
-        for refine in [Refine::Off, Refine::Auto] {
+        for refine in [Refine::EstimateOnly, Refine::Auto] {
             let f = formulation(method, qr);
             solver.set_refine(Some(refine));
             let outcome = solver

@@ -117,7 +117,7 @@ fn refinement_warnings_have_their_codes() {
 fn condition_method_is_typed_and_serialised_as_its_sentence() {
     let mut d = deformer();
     d.precompute(&NullSpaceQr::default()).unwrap();
-    let estimate = d.estimate_condition().unwrap().clone();
+    let estimate = d.solver_mut().estimate_condition().unwrap().clone();
     assert_eq!(
         estimate.method,
         ConditionMethod::Lanczos {

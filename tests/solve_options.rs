@@ -144,7 +144,7 @@ fn the_response_basis_uses_the_deformers_budget() {
     d.precompute_with(&SolveOptions::default()).unwrap();
     HandleBasis::new(&mut d, &["top"]).unwrap();
     // Enough for the factor, not for 7 columns of 121 vertices.
-    d.set_memory_budget(MemoryBudget::bytes(4096));
+    d.solver_mut().set_memory_budget(MemoryBudget::bytes(4096));
     let e = HandleBasis::new(&mut d, &["top"]).unwrap_err();
     let detail = too_large(Err(e));
     assert!(
@@ -170,7 +170,7 @@ fn an_invalid_formulation_is_refused_before_the_solver_changes() {
     let (mesh, set) = scene();
     let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
     d.precompute_with(&SolveOptions::default()).unwrap();
-    let before = d.memory_budget();
+    let before = d.solver().memory_budget();
     let no_weight = SolveOptions {
         memory_budget: MemoryBudget::bytes(64),
         ..SolveOptions::new(FormulationChoice::new(Method::Penalty))
@@ -179,7 +179,7 @@ fn an_invalid_formulation_is_refused_before_the_solver_changes() {
         Err(Error::Problem(ProblemError::InvalidOption { .. })) => {}
         other => panic!("expected InvalidOption, got {other:?}"),
     }
-    assert_eq!(d.memory_budget(), before);
+    assert_eq!(d.solver().memory_budget(), before);
     // The earlier factor still solves.
     d.solve().unwrap();
 }

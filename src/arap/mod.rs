@@ -20,7 +20,7 @@
 //! area, the energy) overflows or underflows for meshes from 1e-150 to
 //! 1e150 (unscaled, a Bunny at 1e±100 loses every triangle's area to
 //! overflow or underflow, and its system is singular). Soft weights are
-//! used as given ([`SoftWeightScale`] with `a = 0`, the report's
+//! used as given ([`crate::problem::SoftWeightScale`] with `a = 0`, the report's
 //! `soft_weight_scale` 1; docs/units.md §4): a row of `A_E` is
 //! `√(K A_t) ∇φ`, an area's square root (a length) times a gradient (one
 //! over a length), so its entries are dimensionless (the power of length
@@ -74,10 +74,11 @@ use rayon::prelude::*;
 
 use crate::constraints::{ConstraintKind, ConstraintSet};
 use crate::cpu::clear_upper_vector_state;
+use crate::deform::UnitScaled;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Refine};
-use crate::mesh::{Mesh, topology};
-use crate::problem::{LseProblem, SoftWeightScale, check_pinned, target_in_unit};
+use crate::mesh::Mesh;
+use crate::problem::{LseProblem, target_in_unit};
 use crate::report::{ArapReport, ArapStop, EnergyOperator, Report, first_non_finite};
 use crate::solver::{LseSolver, SolveOptions};
 
@@ -157,45 +158,21 @@ impl ArapDeformer {
     ) -> Result<ArapDeformer, Error> {
         let t = Instant::now();
         let n = mesh.n_vertices();
-        constraints.check_vertices(n)?;
-        let (component_of, n_components) = topology::vertex_components(n, mesh.faces());
-        check_pinned(&component_of, n_components, &constraints)?;
-        let unit = mesh.length_unit();
-        let unit_mesh = mesh.with_positions(
-            mesh.positions()
-                .iter()
-                .map(|p| p.map(|v| v / unit))
-                .collect(),
-        )?;
-        let mut unit_constraints = constraints.clone();
-        for (i, c) in constraints.as_slice().iter().enumerate() {
-            unit_constraints.set_rhs(i, target_in_unit(i, c.kind.rhs(), unit)?)?;
-        }
-        let triangles = ArapTriangles::new(&unit_mesh, energy);
-        let rows = triangles.rows();
-        let rhs = triangles.rest_rhs();
+        let scaled = UnitScaled::new(&mesh, &constraints)?;
+        let triangles = ArapTriangles::new(&scaled.mesh, energy);
         // Soft weights as given: `a = 0` (the module documentation).
-        let soft_scale = SoftWeightScale {
-            length: unit,
-            power: 0,
-        };
-        let problem = LseProblem::new(
-            &rows,
-            &rhs,
-            &unit_constraints,
-            unit_mesh.bbox_diagonal(),
-            soft_scale,
+        let operator = EnergyOperator::Arap(energy);
+        let solver = scaled.solver(
+            &triangles.rows(),
+            &triangles.rest_rhs(),
+            operator,
+            0,
+            &mesh,
+            t,
         )?;
-        let x = Mat::from_fn(n, 3, |i, c| unit_mesh.positions()[i][c]);
-        let mut report = Report {
-            energy: Some(EnergyOperator::Arap(energy)),
-            warnings: mesh.warnings().iter().map(Into::into).collect(),
-            length_unit: unit,
-            soft_weight_scale: Some(soft_scale.factor()),
-            ..Report::default()
-        };
-        report.timings_s.setup = t.elapsed().as_secs_f64();
-        let solver = LseSolver::with_report(problem, report.clone());
+        let x = Mat::from_fn(n, 3, |i, c| scaled.mesh.positions()[i][c]);
+        let report = solver.report().clone();
+        let (unit, unit_constraints) = (scaled.unit, scaled.constraints);
         Ok(ArapDeformer {
             mesh,
             unit,
@@ -216,6 +193,16 @@ impl ArapDeformer {
             },
             init: ArapInit::Rest,
         })
+    }
+
+    /// The global step's solver (in the problem's units: lengths divided
+    /// by [`ArapDeformer::length_unit`]): its refinement, memory budget,
+    /// prepared system and report of the last precompute. Read-only: the
+    /// precompute goes through [`ArapDeformer::precompute`] (which keeps
+    /// the ARAP report) and targets through [`ArapDeformer::set_target`]
+    /// (which keeps them in the mesh's units).
+    pub fn solver(&self) -> &LseSolver {
+        &self.solver
     }
 
     /// Precompute: factors the global step's system with `formulation`,
@@ -348,7 +335,7 @@ impl ArapDeformer {
 
     /// Refines the current positions — the last global step's solution —
     /// with the same factor as [`ArapDeformer::set_refine`] says (see
-    /// [`crate::formulation::refine`]; with [`Refine::Off`] one correction
+    /// [`crate::formulation::iterative_refinement`]; with [`Refine::EstimateOnly`] one correction
     /// is computed for the forward-error estimate and not applied), refits
     /// the rotations and the objective if they moved, and fills the
     /// report's solution diagnostics, refinement and forward-error
@@ -367,7 +354,7 @@ impl ArapDeformer {
 
     /// Sets the refinement [`ArapDeformer::finish`] applies; `None` (the
     /// default) is the formulation's default, as for the Laplacian deformer:
-    /// [`Refine::Auto`] for the exact formulations, [`Refine::Off`] for
+    /// [`Refine::Auto`] for the exact formulations, [`Refine::EstimateOnly`] for
     /// penalty.
     pub fn set_refine(&mut self, refine: Option<Refine>) {
         self.solver.set_refine(refine);

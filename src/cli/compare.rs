@@ -9,10 +9,13 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lse_deform::compare::{self, CompareOptions, CompareRow};
 use lse_deform::error::ProblemError;
 use lse_deform::formulation::Refine;
+use lse_deform::options::DeformOptions;
 use lse_deform::{Deformer, Error, LaplacianKind, Method, QrKind, SpdKind};
 
 use super::files::{check_distinct, mesh_and_constraints};
-use super::{check_outputs, constraints_with_warnings, load, show_after_a_second, write_text};
+use super::{
+    check_outputs, constraints_with_warnings, load, show_after_a_second, with_default, write_text,
+};
 
 /// Arguments of `compare`.
 #[derive(Args)]
@@ -23,32 +26,27 @@ pub struct CompareArgs {
     #[arg(long, short = 'c')]
     constraints: PathBuf,
     /// Laplacian weights.
-    #[arg(long, default_value = "cotan")]
+    #[arg(long, default_value_t = DeformOptions::default().laplacian)]
     laplacian: LaplacianKind,
-    /// Formulations to run (comma-separated; default all four).
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "nullspace-qr,penalty,kkt,eliminate"
-    )]
-    methods: Vec<Method>,
+    #[arg(long, value_delimiter = ',', help = with_default("Formulations to run (comma-separated)", listed(&CompareOptions::default().methods)))]
+    methods: Option<Vec<Method>>,
     /// QR back ends for nullspace-qr (comma-separated; default all in this
     /// build).
     #[arg(long, value_delimiter = ',')]
     qr: Vec<QrKind>,
-    /// SPD back ends (comma-separated; default all in this build; kkt runs
-    /// the faer LDLT variants among them).
-    #[arg(long, value_delimiter = ',')]
-    spd: Vec<SpdKind>,
-    /// Penalty weights to try (comma-separated).
-    #[arg(long, default_value = "1e4,1e8,1e12", value_delimiter = ',')]
-    weights: Vec<f64>,
+    /// Matrix factorisations: Cholesky back ends, for kkt the faer LDLT
+    /// variants among them (comma-separated; default all in this build).
+    /// `--spd` is the old name, still accepted.
+    #[arg(long, visible_alias = "spd", value_delimiter = ',')]
+    factor: Vec<SpdKind>,
+    #[arg(long, value_delimiter = ',', help = with_default("Penalty weights to try (comma-separated)", listed(&CompareOptions::default().weights)))]
+    weights: Option<Vec<f64>>,
     /// Refinement of every configuration (default: each formulation's own;
     /// the reference is always refined).
     #[arg(long)]
     refine: Option<Refine>,
     /// Solves per configuration (the median time is reported).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = CompareOptions::default().repeat)]
     repeat: usize,
     /// Skip the condition estimates (they cost a few hundred solves each).
     #[arg(long)]
@@ -66,16 +64,26 @@ pub struct CompareArgs {
 impl CompareArgs {
     /// The library's options for these arguments.
     fn options(&self) -> CompareOptions {
+        let d = CompareOptions::default();
         CompareOptions {
-            methods: self.methods.clone(),
+            methods: self.methods.clone().unwrap_or(d.methods),
             qrs: (!self.qr.is_empty()).then(|| self.qr.clone()),
-            spds: (!self.spd.is_empty()).then(|| self.spd.clone()),
-            weights: self.weights.clone(),
+            spds: (!self.factor.is_empty()).then(|| self.factor.clone()),
+            weights: self.weights.clone().unwrap_or(d.weights),
             refine: self.refine,
             repeat: self.repeat,
             condition: !self.no_condition,
         }
     }
+}
+
+/// `a,b,c`: a list as the flag takes it.
+fn listed<T: std::fmt::Display>(values: &[T]) -> String {
+    values
+        .iter()
+        .map(T::to_string)
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 /// Runs `compare` and prints its table (and writes the rows as JSON).
@@ -92,13 +100,13 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     let configs = options
         .configurations()
         .map_err(|e| ProblemError::InvalidArgument {
-            message: format!("--methods/--qr/--spd/--weights: {e}"),
+            message: format!("--methods/--qr/--factor/--weights: {e}"),
         })?;
     let budget = a.memory_limit.unwrap_or_default();
     let mesh = load(&a.mesh, budget)?;
     let (constraints, warnings) = constraints_with_warnings(&a.constraints, &mesh, false, budget)?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    deformer.set_memory_budget(budget);
+    deformer.solver_mut().set_memory_budget(budget);
     let bar =
         ProgressBar::with_draw_target(Some(configs.len() as u64 + 1), ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {

@@ -6,11 +6,12 @@ use std::path::PathBuf;
 use clap::Args;
 use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::choice::Energy;
-use lse_deform::{ConstraintSet, Deformer, Error, LaplacianKind, SolveOptions, mesh};
+use lse_deform::options::{ArapOptions, DeformOptions};
+use lse_deform::{ConstraintSet, Deformer, Error, LaplacianKind, mesh};
 
 use super::files::{check_distinct, mesh_and_constraints};
 use super::summary::{check_strict, check_strict_conflicts, finish_report, write_report};
-use super::{MethodArgs, check_outputs, constraints_with_warnings, load, phase};
+use super::{MethodArgs, check_outputs, constraints_with_warnings, load, phase, with_default};
 
 /// Arguments of `deform`.
 #[derive(Args)]
@@ -20,10 +21,7 @@ pub struct DeformArgs {
     /// Constraints file (JSON).
     #[arg(long, short = 'c')]
     constraints: PathBuf,
-    /// Laplacian weights: cotan (the default), uniform, cotan-symmetric or
-    /// intrinsic-delaunay (--energy laplacian; ARAP always uses cotangent
-    /// weights).
-    #[arg(long)]
+    #[arg(long, help = with_default("Laplacian weights: cotan, uniform, cotan-symmetric or intrinsic-delaunay (--energy laplacian; ARAP always uses cotangent weights)", DeformOptions::default().laplacian))]
     laplacian: Option<LaplacianKind>,
     /// Output mesh (.obj, .ply or .off; .gz after it compresses).
     #[arg(long, short = 'o')]
@@ -53,28 +51,43 @@ pub struct DeformArgs {
 struct EnergyArgs {
     /// Deformation energy: the linear Laplacian (the paper; --laplacian
     /// chooses its weights) or as-rigid-as-possible (cotangent weights).
-    #[arg(long, default_value = "laplacian")]
+    #[arg(long, default_value_t = DeformOptions::default().energy)]
     energy: Energy,
-    /// ARAP energy: spokes (Sorkine & Alexa 2007) or spokes-and-rims (Chao
-    /// et al. 2010, libigl's default; the default).
-    #[arg(long)]
+    #[arg(long, help = with_default("ARAP energy: spokes (Sorkine & Alexa 2007) or spokes-and-rims (Chao et al. 2010, libigl's default)", ArapOptions::default().energy))]
     arap_energy: Option<ArapEnergy>,
-    /// ARAP: the most iterations to run (default 10).
-    #[arg(long)]
+    #[arg(long, help = with_default("ARAP: the most iterations to run", ArapOptions::default().iterations))]
     iterations: Option<usize>,
-    /// ARAP: stop when the relative energy decrease of an iteration is at
-    /// most this (default 0: run all --iterations).
-    #[arg(long)]
+    #[arg(long, help = with_default("ARAP: stop when the relative energy decrease of an iteration is at most this (0: run all --iterations)", ArapOptions::default().tolerance))]
     tolerance: Option<f64>,
-    /// ARAP initial guess: linear (the default: the linear gradient-domain
-    /// solution; lower energy than rest at every iteration count measured
-    /// on the Bunny, results/arap/README.md) or rest (rest pose,
-    /// constrained vertices at their targets, as libigl's tutorials).
-    #[arg(long)]
+    #[arg(long, help = with_default("ARAP initial guess: linear (the linear gradient-domain solution; lower energy than rest at every iteration count measured on the Bunny, results/arap/README.md) or rest (rest pose, constrained vertices at their targets, as libigl's tutorials)", ArapOptions::default().init))]
     arap_init: Option<ArapInit>,
 }
 
+impl DeformArgs {
+    /// The options of the run over [`DeformOptions::default`]
+    /// ([`MethodArgs::options`], checked, and the energy, Laplacian and
+    /// strictness).
+    fn options(&self) -> Result<DeformOptions, Error> {
+        let mut options = self.method.options()?;
+        options.energy = self.energy.energy;
+        options.laplacian = self.laplacian.unwrap_or(options.laplacian);
+        options.strict = self.strict;
+        Ok(options)
+    }
+}
+
 impl EnergyArgs {
+    /// The ARAP options these flags name over [`ArapOptions::default`].
+    fn arap_options(&self) -> ArapOptions {
+        let d = ArapOptions::default();
+        ArapOptions {
+            energy: self.arap_energy.unwrap_or(d.energy),
+            iterations: self.iterations.unwrap_or(d.iterations),
+            tolerance: self.tolerance.unwrap_or(d.tolerance),
+            init: self.arap_init.unwrap_or(d.init),
+        }
+    }
+
     /// The ARAP options given without `--energy arap`, which ignores them.
     fn inapplicable(&self) -> Vec<String> {
         if self.energy == Energy::Arap {
@@ -105,11 +118,11 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh, budget)?;
     let (constraints, warnings) =
         constraints_with_warnings(&a.constraints, &mesh, a.strict, budget)?;
-    let options = a.method.options()?;
+    let options = a.options()?;
     for warning in a.energy.inapplicable() {
         eprintln!("warning: {warning}");
     }
-    if a.energy.energy == Energy::Arap {
+    if options.energy == Energy::Arap {
         if a.laplacian.is_some() {
             eprintln!(
                 "warning: --laplacian applies to --energy laplacian only; ignored with --energy arap (cotangent weights)"
@@ -118,24 +131,23 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
         return deform_arap(&a, mesh, (constraints, &warnings), &options);
     }
     let bar = phase("set-up");
-    let laplacian = a.laplacian.unwrap_or(LaplacianKind::Cotangent);
-    let mut deformer = Deformer::new(mesh, laplacian, constraints)?;
-    bar.set_message(format!("precompute ({})", options.formulation.method));
-    deformer.precompute_with(&options)?;
+    let mut deformer = Deformer::new(mesh, options.laplacian, constraints)?;
+    bar.set_message(format!("precompute ({})", options.solve.formulation.method));
+    deformer.precompute_with(&options.solve)?;
     if a.condition {
         bar.set_message("condition estimate (Lanczos)");
-        deformer.estimate_condition()?;
+        deformer.solver_mut().estimate_condition()?;
     }
     bar.set_message("solve");
     let solution = deformer.solve()?;
     bar.finish_and_clear();
-    if a.strict && !solution.report.conflicting.is_empty() {
+    if options.strict && !solution.report.conflicting.is_empty() {
         // The warnings and the summary line with its counts still go to
         // stderr; nothing is written.
         finish_report(&solution.report, &warnings, None, NAMES, || Ok(()))?;
-        check_strict_conflicts(&solution.report, a.strict)?;
+        check_strict_conflicts(&solution.report, options.strict)?;
     }
-    check_strict(&solution.report, a.strict)?;
+    check_strict(&solution.report, options.strict)?;
     let out = deformer.mesh().with_positions(solution.positions)?;
     finish_report(
         &solution.report,
@@ -158,20 +170,16 @@ fn deform_arap(
     a: &DeformArgs,
     mesh: mesh::Mesh,
     (constraints, warnings): (ConstraintSet, &[String]),
-    options: &SolveOptions,
+    options: &DeformOptions,
 ) -> Result<(), Error> {
-    let e = &a.energy;
+    let e = a.energy.arap_options();
     let bar = phase("set-up");
-    let mut arap = ArapDeformer::new(
-        mesh,
-        constraints,
-        e.arap_energy.unwrap_or(ArapEnergy::SpokesAndRims),
-    )?;
-    bar.set_message(format!("precompute ({})", options.formulation.method));
-    arap.precompute_with(options)?;
+    let mut arap = ArapDeformer::new(mesh, constraints, e.energy)?;
+    bar.set_message(format!("precompute ({})", options.solve.formulation.method));
+    arap.precompute_with(&options.solve)?;
     bar.set_message("ARAP iterations");
-    arap.initialize(e.arap_init.unwrap_or(ArapInit::Linear))?;
-    let history = arap.run(e.iterations.unwrap_or(10), e.tolerance.unwrap_or(0.0))?;
+    arap.initialize(e.init)?;
+    let history = arap.run(e.iterations, e.tolerance)?;
     bar.finish_and_clear();
     let report = arap.report().clone();
     for w in &report.warnings {
@@ -203,9 +211,9 @@ fn deform_arap(
         history.local_time_s,
         history.global_time_s,
     );
-    if a.strict && !report.conflicting.is_empty() {
+    if options.strict && !report.conflicting.is_empty() {
         eprintln!("{summary}");
-        return check_strict_conflicts(&report, a.strict);
+        return check_strict_conflicts(&report, options.strict);
     }
     let out = arap.mesh().with_positions(arap.positions())?;
     // Staged together: a report that cannot be written leaves no mesh.
@@ -218,4 +226,26 @@ fn deform_arap(
     })?;
     eprintln!("{summary}");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+    use lse_deform::options::{ArapOptions, DeformOptions};
+
+    use super::DeformArgs;
+
+    #[derive(Parser)]
+    struct Command {
+        #[command(flatten)]
+        deform: DeformArgs,
+    }
+
+    #[test]
+    fn no_options_are_the_library_defaults() {
+        let argv = ["deform", "m.obj", "-c", "c.json", "-o", "out.obj"];
+        let a = Command::try_parse_from(argv).unwrap().deform;
+        assert_eq!(a.options().unwrap(), DeformOptions::default());
+        assert_eq!(a.energy.arap_options(), ArapOptions::default());
+    }
 }

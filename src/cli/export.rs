@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lse_deform::export::{META_FILE, create_output_dir, export_meta, export_problem};
+use lse_deform::options::DeformOptions;
 use lse_deform::{Deformer, Error, LaplacianKind, mesh};
 
 use super::files::{check_distinct, mesh_and_constraints};
@@ -19,7 +20,7 @@ pub struct ExportArgs {
     #[arg(long, short = 'c')]
     constraints: PathBuf,
     /// Laplacian weights.
-    #[arg(long, default_value = "cotan")]
+    #[arg(long, default_value_t = DeformOptions::default().laplacian)]
     laplacian: LaplacianKind,
     #[command(flatten)]
     method: MethodArgs,
@@ -49,13 +50,13 @@ pub fn export_system(a: ExportArgs) -> Result<(), Error> {
     let budget = a.method.budget();
     let mesh = load(&a.mesh, budget)?;
     let constraints = constraints_for(&a.constraints, &mesh, false, budget)?;
-    let options = a.method.options()?;
+    let options = a.method.options()?.solve;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
     deformer.precompute_with(&options)?;
     // Staged: a failed write leaves no file of this export, and the files
     // of an earlier one as they were.
     let (files, meta) = super::staged(|| {
-        let files = export_problem(&a.output, deformer.problem(), deformer.prepared())?;
+        let files = export_problem(&a.output, deformer.problem(), deformer.solver().prepared())?;
         let meta = export_meta(&a.output, deformer.problem(), deformer.report())?;
         Ok((files, meta))
     })?;

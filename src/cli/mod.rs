@@ -13,7 +13,8 @@ use lse_deform::error::{ProblemError, SolveOption};
 use lse_deform::formulation::Refine;
 use lse_deform::limits::{MemoryBudget, parse_bytes};
 use lse_deform::mesh;
-use lse_deform::{Error, FormulationChoice, Method, QrKind, SolveOptions, SpdKind};
+use lse_deform::options::DeformOptions;
+use lse_deform::{Error, Method, QrKind, SpdKind};
 
 /// `println!` that treats a closed pipe (`lse-deform info m.obj | head`) as
 /// the end of the output rather than a panic.
@@ -37,21 +38,25 @@ pub mod solve;
 pub mod summary;
 
 /// How to solve: the formulation and its back ends, the refinement and the
-/// memory budget ([`SolveOptions`]).
-#[derive(Args, Clone)]
+/// memory budget, parsed into [`DeformOptions::solve`]; an option not given
+/// keeps [`DeformOptions::default`]'s value (the defaults the help shows
+/// are read from there too).
+#[derive(Args, Clone, Debug, PartialEq)]
 pub struct MethodArgs {
     /// nullspace-qr (the paper), penalty, kkt or eliminate.
-    #[arg(long, default_value = "nullspace-qr")]
+    #[arg(long, default_value_t = DeformOptions::default().solve.formulation.method)]
     pub method: Method,
-    /// QR back end of nullspace-qr: dense-householder, sparse-givens
-    /// (default) or spqr.
-    #[arg(long)]
+    #[arg(long, help = with_default("QR back end of nullspace-qr: dense-householder, sparse-givens or spqr", DeformOptions::default().solve.formulation.qr))]
     pub qr: Option<QrKind>,
-    /// SPD back end: faer-auto (default), faer-supernodal, faer-simplicial,
-    /// nalgebra or cholmod (for kkt: the faer LDLT variant).
-    #[arg(long, default_value = "faer-auto")]
-    pub spd: SpdKind,
-    /// Relative penalty weight of the hard rows (--method penalty only).
+    /// The matrix factorisation: the Cholesky back end of nullspace-qr,
+    /// penalty and eliminate (faer-auto, faer-supernodal, faer-simplicial,
+    /// nalgebra or cholmod), and for kkt the faer LDLT variant
+    /// (faer-auto, faer-supernodal, faer-simplicial). `--spd` is the old
+    /// name, still accepted.
+    #[arg(long, visible_alias = "spd", default_value_t = DeformOptions::default().solve.formulation.spd)]
+    pub factor: SpdKind,
+    /// Relative penalty weight of the hard rows (--method penalty only;
+    /// required there).
     #[arg(long)]
     pub weight: Option<f64>,
     /// Iterative refinement with the same factor: off, auto or a number of
@@ -69,6 +74,12 @@ pub struct MethodArgs {
     pub memory_limit: Option<MemoryBudget>,
 }
 
+/// A help line naming the default, for an option left `None` when not
+/// given (so that the command can tell whether it was).
+pub fn with_default(help: &str, default: impl std::fmt::Display) -> String {
+    format!("{help} [default: {default}]")
+}
+
 /// `--memory-limit`'s value: bytes as [`parse_bytes`] reads them.
 pub fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
     parse_bytes(word).map(MemoryBudget::bytes).ok_or_else(|| {
@@ -77,25 +88,29 @@ pub fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
 }
 
 impl MethodArgs {
-    /// The solve options these flags name, the formulation checked (a
-    /// penalty without weight, a back end missing from this build) before
-    /// anything is read.
-    pub fn options(&self) -> Result<SolveOptions, Error> {
+    /// The options these flags name over [`DeformOptions::default`], the
+    /// formulation checked (a penalty without weight, a back end missing
+    /// from this build) before anything is read.
+    pub fn options(&self) -> Result<DeformOptions, Error> {
         for warning in self.inapplicable() {
             eprintln!("warning: {warning}");
         }
-        let formulation = FormulationChoice {
-            method: self.method,
-            qr: self.qr.unwrap_or(FormulationChoice::new(self.method).qr),
-            spd: self.spd,
-            weight: self.weight,
-        };
-        formulation.build().map_err(with_flag)?;
-        Ok(SolveOptions {
-            formulation,
-            refine: self.refine,
-            memory_budget: self.budget(),
-        })
+        let options = self.parse();
+        options.solve.formulation.build().map_err(with_flag)?;
+        Ok(options)
+    }
+
+    /// [`MethodArgs::options`] unchecked and without the warnings.
+    fn parse(&self) -> DeformOptions {
+        let mut options = DeformOptions::default();
+        let solve = &mut options.solve;
+        solve.formulation.method = self.method;
+        solve.formulation.qr = self.qr.unwrap_or(solve.formulation.qr);
+        solve.formulation.spd = self.factor;
+        solve.formulation.weight = self.weight;
+        solve.refine = self.refine.or(solve.refine);
+        solve.memory_budget = self.memory_limit.unwrap_or(solve.memory_budget);
+        options
     }
 
     /// The run's memory budget: `--memory-limit`, else the default.
@@ -130,7 +145,7 @@ fn with_flag(e: ProblemError) -> Error {
             let flag = match option {
                 SolveOption::Method => "--method",
                 SolveOption::Qr => "--qr",
-                SolveOption::Spd => "--spd",
+                SolveOption::Spd => "--factor",
                 SolveOption::Weight => "--weight",
                 SolveOption::Refine => "--refine",
             };
@@ -261,4 +276,43 @@ pub fn constraints_with_warnings(
     }
     set.check_vertices(mesh.n_vertices())?;
     Ok((set, warnings))
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+    use lse_deform::options::DeformOptions;
+    use lse_deform::{Method, SpdKind};
+
+    use super::MethodArgs;
+
+    #[derive(Parser)]
+    struct Flags {
+        #[command(flatten)]
+        method: MethodArgs,
+    }
+
+    fn parse(args: &[&str]) -> MethodArgs {
+        let argv = std::iter::once("test").chain(args.iter().copied());
+        Flags::try_parse_from(argv).unwrap().method
+    }
+
+    #[test]
+    fn no_flags_are_the_library_defaults() {
+        assert_eq!(parse(&[]).options().unwrap(), DeformOptions::default());
+    }
+
+    #[test]
+    fn spd_is_an_alias_of_factor() {
+        let old = parse(&["--method", "kkt", "--spd", "faer-simplicial"]);
+        let new = parse(&["--method", "kkt", "--factor", "faer-simplicial"]);
+        assert_eq!(old, new);
+        let options = new.options().unwrap();
+        assert_eq!(options.solve.formulation.spd, SpdKind::FaerSimplicial);
+        assert_eq!(options.solve.formulation.method, Method::Kkt);
+        assert_ne!(
+            DeformOptions::default().solve.formulation.spd,
+            SpdKind::FaerSimplicial
+        );
+    }
 }

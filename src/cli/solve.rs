@@ -97,7 +97,7 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
     check_outputs(None, Some(&a.output))?;
     check_outputs(None, a.report.as_deref())?;
     let m = &a.method;
-    let options = m.options()?;
+    let options = m.options()?.solve;
     let meta = meta_path
         .as_deref()
         .map(|p| read_meta(p).map(|m| (m, p)))

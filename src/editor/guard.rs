@@ -150,6 +150,28 @@ impl Guard {
     /// Admits `request` (removing its `token` query parameter) or says why
     /// not.
     pub fn admit(&self, request: &mut Request) -> Result<(), ApiError> {
+        let host = self.checked_host(request)?;
+        let method = request.method();
+        let public = (method == Method::GET || method == Method::HEAD)
+            && self.public.contains(&request.uri().path());
+        if public {
+            return Ok(());
+        }
+        cross_origin(request.headers(), &host)?;
+        self.check_token(request)?;
+        if matches!(*method, Method::POST | Method::PUT | Method::PATCH) {
+            json_body_type(request.headers())?;
+        }
+        if let Some(uri) = without_token(request.uri()) {
+            *request.uri_mut() = uri;
+        }
+        Ok(())
+    }
+
+    /// The request's one Host, if this server answers to it (and to the
+    /// authority of an absolute-form target), and a URI within
+    /// [`MAX_URI_BYTES`].
+    fn checked_host(&self, request: &Request) -> Result<String, ApiError> {
         let headers = request.headers();
         // RFC 9112 §3.2: a request with more than one Host line gets 400
         // (which one the server would obey is what an attacker picks).
@@ -200,14 +222,14 @@ impl Guard {
                 format!("the request URI has {uri_len} bytes (limit {MAX_URI_BYTES})"),
             ));
         }
-        let method = request.method();
-        let public = (method == Method::GET || method == Method::HEAD)
-            && self.public.contains(&request.uri().path());
-        if public {
-            return Ok(());
-        }
-        cross_origin(headers, &host)?;
-        let bearer = headers
+        Ok(host)
+    }
+
+    /// 401 unless the request carries the token, as a bearer or as a
+    /// `token` query parameter.
+    fn check_token(&self, request: &Request) -> Result<(), ApiError> {
+        let bearer = request
+            .headers()
             .get(header::AUTHORIZATION)
             .and_then(|v| v.to_str().ok())
             .and_then(|v| v.trim().split_once(' '))
@@ -217,45 +239,45 @@ impl Guard {
         let mut from_query = query.split('&').filter_map(|kv| kv.strip_prefix("token="));
         let authorised = bearer.is_some_and(|t| self.token_matches(t))
             || from_query.any(|t| self.token_matches(t));
-        if !authorised {
-            let mut e = ApiError::new(
-                StatusCode::UNAUTHORIZED,
-                "unauthorized",
-                if bearer.is_some() || query.split('&').any(|kv| kv.starts_with("token=")) {
-                    "wrong token (it is in the URL that `lse-deform edit` printed)"
-                } else {
-                    "missing token: send 'Authorization: Bearer TOKEN' or '?token=TOKEN' (it is in the URL that `lse-deform edit` printed)"
-                }
-                .to_string(),
-            );
-            e.www_authenticate = true;
-            return Err(e);
+        if authorised {
+            return Ok(());
         }
-        if matches!(*method, Method::POST | Method::PUT | Method::PATCH) {
-            let kind = headers
-                .get(header::CONTENT_TYPE)
-                .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
-            let json = kind.as_deref().is_some_and(|k| {
-                k.split(';')
-                    .next()
-                    .is_some_and(|essence| essence.trim().eq_ignore_ascii_case("application/json"))
-            });
-            if !json {
-                return Err(ApiError::new(
-                    StatusCode::UNSUPPORTED_MEDIA_TYPE,
-                    "unsupported-media-type",
-                    format!(
-                        "the body must be sent as 'Content-Type: application/json' (got {})",
-                        kind.map_or("none".to_string(), |k| format!("'{k}'"))
-                    ),
-                ));
+        let mut e = ApiError::new(
+            StatusCode::UNAUTHORIZED,
+            "unauthorized",
+            if bearer.is_some() || query.split('&').any(|kv| kv.starts_with("token=")) {
+                "wrong token (it is in the URL that `lse-deform edit` printed)"
+            } else {
+                "missing token: send 'Authorization: Bearer TOKEN' or '?token=TOKEN' (it is in the URL that `lse-deform edit` printed)"
             }
-        }
-        if let Some(uri) = without_token(request.uri()) {
-            *request.uri_mut() = uri;
-        }
-        Ok(())
+            .to_string(),
+        );
+        e.www_authenticate = true;
+        Err(e)
     }
+}
+
+/// 415 unless the body is declared `application/json`.
+fn json_body_type(headers: &HeaderMap) -> Result<(), ApiError> {
+    let kind = headers
+        .get(header::CONTENT_TYPE)
+        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+    let json = kind.as_deref().is_some_and(|k| {
+        k.split(';')
+            .next()
+            .is_some_and(|essence| essence.trim().eq_ignore_ascii_case("application/json"))
+    });
+    if json {
+        return Ok(());
+    }
+    Err(ApiError::new(
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        "unsupported-media-type",
+        format!(
+            "the body must be sent as 'Content-Type: application/json' (got {})",
+            kind.map_or("none".to_string(), |k| format!("'{k}'"))
+        ),
+    ))
 }
 
 /// 403 when the browser says the request comes from another site, or its

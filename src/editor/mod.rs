@@ -76,9 +76,10 @@ use axum::routing::{get, post, put};
 use serde::Deserialize;
 use serde_json::{Map, Value, json};
 
+use crate::choice::Word;
 use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
 use crate::deform::Affine;
-use crate::error::{ConstraintError, Error, MeshError, ProblemError};
+use crate::error::{ConstraintError, Error, MeshError, ParseWordError, ProblemError};
 use crate::handle::HandleBasis;
 use crate::mesh::{self, Mesh};
 use session::Engine;
@@ -625,15 +626,54 @@ async fn post_iterate(State(app): State<App>, request: Request) -> ApiResult<axu
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FormatQuery {
+    /// Parsed into [`PositionFormat`] by [`FormatQuery::format`].
     format: Option<String>,
 }
 
-/// `positions` little-endian in `format` (f32 or f64); 422 when a value is
-/// not finite in that format (a coordinate beyond ±3.4e38 in f32) rather
-/// than send it.
-fn encode(positions: &[[f64; 3]], format: Option<&str>) -> ApiResult<Vec<u8>> {
-    let finite: fn(f64) -> bool = match format.unwrap_or("f32") {
-        "f32" => {
+impl FormatQuery {
+    /// The format asked for; absent: [`PositionFormat::default`].
+    ///
+    /// Errors: 400 with the [`ParseWordError`] listing the formats.
+    fn format(&self) -> ApiResult<PositionFormat> {
+        self.format
+            .as_deref()
+            .map_or(Ok(PositionFormat::default()), |w| {
+                w.parse().map_err(|e: ParseWordError| bad(e.to_string()))
+            })
+    }
+}
+
+/// The number format of `GET /api/positions`: little-endian IEEE floats of
+/// 4 or 8 bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PositionFormat {
+    /// `f32` (the default: what WebGL draws).
+    #[default]
+    F32,
+    /// `f64` (the positions as computed).
+    F64,
+}
+
+impl Word for PositionFormat {
+    const WHAT: &'static str = "format";
+    fn all() -> &'static [Self] {
+        &[PositionFormat::F32, PositionFormat::F64]
+    }
+    fn name(self) -> &'static str {
+        match self {
+            PositionFormat::F32 => "f32",
+            PositionFormat::F64 => "f64",
+        }
+    }
+}
+
+crate::choice::word_traits!(PositionFormat);
+
+/// `positions` little-endian in `format`; 422 when a value is not finite
+/// in that format (a coordinate beyond ±3.4e38 in f32) rather than send it.
+fn encode(positions: &[[f64; 3]], format: PositionFormat) -> ApiResult<Vec<u8>> {
+    let finite: fn(f64) -> bool = match format {
+        PositionFormat::F32 => {
             let mut out = Vec::with_capacity(positions.len() * 12);
             let mut all_finite = true;
             for &v in positions.iter().flatten() {
@@ -646,7 +686,7 @@ fn encode(positions: &[[f64; 3]], format: Option<&str>) -> ApiResult<Vec<u8>> {
             }
             |v: f64| (v as f32).is_finite()
         }
-        "f64" => {
+        PositionFormat::F64 => {
             if positions.iter().flatten().all(|v| v.is_finite()) {
                 return Ok(positions
                     .iter()
@@ -656,13 +696,7 @@ fn encode(positions: &[[f64; 3]], format: Option<&str>) -> ApiResult<Vec<u8>> {
             }
             f64::is_finite
         }
-        other => {
-            return Err(bad(format!(
-                "unknown format '{other}' (expected f32 or f64)"
-            )));
-        }
     };
-    let format = format.unwrap_or("f32");
     let (vertex, p) = positions
         .iter()
         .enumerate()
@@ -673,7 +707,7 @@ fn encode(positions: &[[f64; 3]], format: Option<&str>) -> ApiResult<Vec<u8>> {
         "not-representable",
         format!(
             "vertex {vertex} at {p:?} is not finite in {format}{}",
-            if format == "f32" {
+            if format == PositionFormat::F32 {
                 " (beyond ±3.4e38): ask for format=f64"
             } else {
                 ""
@@ -691,9 +725,10 @@ async fn get_positions(
     q: Result<Query<FormatQuery>, QueryRejection>,
 ) -> ApiResult<Response> {
     let Query(q) = q.map_err(|e| bad(format!("query: {e}")))?;
+    let format = q.format()?;
     blocking(move || {
         let s = lock(&app.session);
-        Ok(binary(encode(&s.positions, q.format.as_deref())?))
+        Ok(binary(encode(&s.positions, format)?))
     })
     .await
 }
@@ -783,9 +818,10 @@ async fn get_rest_positions(
     q: Result<Query<FormatQuery>, QueryRejection>,
 ) -> ApiResult<Response> {
     let Query(q) = q.map_err(|e| bad(format!("query: {e}")))?;
+    let format = q.format()?;
     blocking(move || {
         let s = lock(&app.session);
-        Ok(binary(encode(s.mesh.positions(), q.format.as_deref())?))
+        Ok(binary(encode(s.mesh.positions(), format)?))
     })
     .await
 }
@@ -840,17 +876,27 @@ mod tests {
     #[test]
     fn positions_beyond_f32_are_refused_not_sent_as_inf() {
         let ok = [[1.0, -2.0, 3.0e38]];
-        assert_eq!(encode(&ok, None).unwrap().len(), 12);
-        assert_eq!(encode(&ok, Some("f64")).unwrap().len(), 24);
+        assert_eq!(encode(&ok, PositionFormat::default()).unwrap().len(), 12);
+        assert_eq!(encode(&ok, PositionFormat::F64).unwrap().len(), 24);
         let far = [[0.0; 3], [1.0, 1e39, 0.0]];
-        let e = encode(&far, Some("f32")).unwrap_err();
+        let e = encode(&far, PositionFormat::F32).unwrap_err();
         assert_eq!(e.status, StatusCode::UNPROCESSABLE_ENTITY);
         assert_eq!(e.kind, "not-representable");
         assert!(e.message.contains("vertex 1"), "{}", e.message);
-        assert_eq!(encode(&far, Some("f64")).unwrap().len(), 48);
+        assert_eq!(encode(&far, PositionFormat::F64).unwrap().len(), 48);
         let nan = [[f64::NAN, 0.0, 0.0]];
+        let query = |w: &str| {
+            FormatQuery {
+                format: Some(w.into()),
+            }
+            .format()
+        };
+        assert_eq!(query("f64").unwrap(), PositionFormat::F64);
+        let e = query("xyz").unwrap_err();
+        assert_eq!(e.status, StatusCode::BAD_REQUEST);
+        assert!(e.message.contains("'xyz'") && e.message.contains("f32, f64"));
         assert_eq!(
-            encode(&nan, Some("f64")).unwrap_err().kind,
+            encode(&nan, PositionFormat::F64).unwrap_err().kind,
             "not-representable"
         );
     }

@@ -9,15 +9,18 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
-use crate::arap::{ArapDeformer, ArapEnergy, ArapInit};
+use crate::arap::ArapDeformer;
 use crate::choice::{Energy, Method, deserialize_word};
 use crate::constraints::ConstraintSet;
 use crate::deform::{Affine, Deformer};
 use crate::error::{Error, ProblemError};
-use crate::formulation::{FormulationChoice, Refine};
+use crate::formulation::Refine;
 use crate::handle::HandleBasis;
 use crate::laplacian::LaplacianKind;
 use crate::mesh::Mesh;
+use crate::options::{
+    ArapOptions, DeformOptions, INTERACTIVE_ARAP_ITERATIONS_PER_FRAME, SUGGESTED_PENALTY_WEIGHT,
+};
 use crate::solver::SolveOptions;
 
 /// The group that never moves in a drag: left out of the response basis
@@ -55,14 +58,24 @@ pub struct Settings {
 }
 
 impl Default for Settings {
+    /// The library's defaults ([`DeformOptions::default`]); the fields the
+    /// page always shows a value for take the library's suggestions: the
+    /// penalty weight [`SUGGESTED_PENALTY_WEIGHT`], the refinement
+    /// [`Refine::default`] (what the default method resolves `None` to) and
+    /// [`INTERACTIVE_ARAP_ITERATIONS_PER_FRAME`].
     fn default() -> Self {
+        let d = DeformOptions::default();
         Settings {
-            laplacian: LaplacianKind::Cotangent,
-            method: Method::NullSpaceQr,
-            weight: 1e3,
-            refine: Refine::Auto,
-            energy: Energy::Laplacian,
-            arap_iterations_per_frame: 2,
+            laplacian: d.laplacian,
+            method: d.solve.formulation.method,
+            weight: d
+                .solve
+                .formulation
+                .weight
+                .unwrap_or(SUGGESTED_PENALTY_WEIGHT),
+            refine: d.solve.refine.unwrap_or_default(),
+            energy: d.energy,
+            arap_iterations_per_frame: INTERACTIVE_ARAP_ITERATIONS_PER_FRAME,
         }
     }
 }
@@ -72,19 +85,20 @@ fn invalid(message: String) -> Error {
 }
 
 impl Settings {
-    /// The solve options: the formulation of `method` with the default
-    /// back ends (and `weight` for the penalty method), checked; the
-    /// refinement; the default memory budget.
-    fn options(&self) -> Result<SolveOptions, Error> {
-        let formulation = FormulationChoice {
-            weight: Some(self.weight),
-            ..FormulationChoice::new(self.method)
+    /// The options over [`DeformOptions::default`]: the energy, the
+    /// Laplacian, the formulation of `method` with the default back ends
+    /// (and `weight` for the penalty method), checked; the refinement.
+    pub fn options(&self) -> Result<DeformOptions, Error> {
+        let mut options = DeformOptions {
+            energy: self.energy,
+            laplacian: self.laplacian,
+            ..DeformOptions::default()
         };
-        formulation.build()?;
-        Ok(SolveOptions {
-            refine: Some(self.refine),
-            ..SolveOptions::new(formulation)
-        })
+        options.solve.formulation.method = self.method;
+        options.solve.formulation.weight = Some(self.weight);
+        options.solve.formulation.build()?;
+        options.solve.refine = Some(self.refine);
+        Ok(options)
     }
 
     /// These settings with `fields` replaced (any of the fields above; an
@@ -166,41 +180,72 @@ pub fn build(
     settings.check()?;
     let t0 = Instant::now();
     stage("set-up");
-    let laplacian = settings.laplacian;
-    let mut deformer = Deformer::new(mesh.clone(), laplacian, constraints.clone())?;
-    let setup_s = t0.elapsed().as_secs_f64();
     let options = settings.options()?;
-    if settings.energy == Energy::Arap {
-        stage("ARAP precompute");
-        let t = Instant::now();
-        let mut arap =
-            ArapDeformer::new(mesh.clone(), constraints.clone(), ArapEnergy::SpokesAndRims)?;
-        // ARAP refines with the formulation's default, as it always has.
-        arap.precompute_with(&SolveOptions {
-            refine: None,
-            ..options
-        })?;
-        arap.initialize(ArapInit::Linear)?;
-        arap.iterate(settings.arap_iterations_per_frame)?;
-        let report = serde_json::to_value(arap.finish()?).unwrap_or(Value::Null);
-        let positions = arap.positions();
-        return Ok(Built {
-            engine: Engine::Arap {
-                targets: Box::new(deformer),
-                arap: Box::new(arap),
-            },
-            positions,
-            report,
-            timings: json!({"setup_s": setup_s, "precompute_s": t.elapsed().as_secs_f64()}),
-        });
+    let deformer = Deformer::new(mesh.clone(), options.laplacian, constraints.clone())?;
+    let setup_s = t0.elapsed().as_secs_f64();
+    if options.energy == Energy::Arap {
+        return build_arap(deformer, settings, &options, setup_s, stage);
     }
-    deformer.set_memory_budget(options.memory_budget);
-    let groups = constraints.group_names();
-    let movable: Vec<&str> = groups.into_iter().filter(|g| *g != FIXED_GROUP).collect();
+    build_linear(deformer, &options, (t0, setup_s), stage)
+}
+
+/// [`build`] for ARAP: the iterations from [`ArapOptions::default`]'s
+/// energy and initial guess, `arap_iterations_per_frame` of them;
+/// `targets` computes the groups' targets.
+fn build_arap(
+    targets: Deformer,
+    settings: &Settings,
+    options: &DeformOptions,
+    setup_s: f64,
+    stage: &dyn Fn(&str),
+) -> Result<Built, Error> {
+    stage("ARAP precompute");
+    let t = Instant::now();
+    let defaults = ArapOptions::default();
+    let (mesh, constraints) = (targets.mesh().clone(), targets.constraints().clone());
+    let mut arap = ArapDeformer::new(mesh, constraints, defaults.energy)?;
+    // ARAP refines with the formulation's default, as it always has.
+    arap.precompute_with(&SolveOptions {
+        refine: None,
+        ..options.solve
+    })?;
+    arap.initialize(defaults.init)?;
+    arap.iterate(settings.arap_iterations_per_frame)?;
+    let report = serde_json::to_value(arap.finish()?).unwrap_or(Value::Null);
+    let positions = arap.positions();
+    Ok(Built {
+        engine: Engine::Arap {
+            targets: Box::new(targets),
+            arap: Box::new(arap),
+        },
+        positions,
+        report,
+        timings: json!({"setup_s": setup_s, "precompute_s": t.elapsed().as_secs_f64()}),
+    })
+}
+
+/// [`build`] for the Laplacian energy: precompute, the response basis of
+/// the movable groups and the first positions.
+fn build_linear(
+    mut deformer: Deformer,
+    options: &DeformOptions,
+    (t0, setup_s): (Instant, f64),
+    stage: &dyn Fn(&str),
+) -> Result<Built, Error> {
+    deformer
+        .solver_mut()
+        .set_memory_budget(options.solve.memory_budget);
+    let groups = deformer.constraints().group_names();
+    let movable: Vec<String> = groups
+        .into_iter()
+        .filter(|g| *g != FIXED_GROUP)
+        .map(str::to_string)
+        .collect();
+    let movable: Vec<&str> = movable.iter().map(String::as_str).collect();
     check_basis_size(&deformer, movable.len())?;
     stage("precompute (factorisation)");
     let t = Instant::now();
-    deformer.precompute_with(&options)?;
+    deformer.precompute_with(&options.solve)?;
     let precompute_s = t.elapsed().as_secs_f64();
     stage("response basis");
     let t = Instant::now();
@@ -210,23 +255,7 @@ pub fn build(
         Some(HandleBasis::new(&mut deformer, &movable)?)
     };
     let basis_s = t.elapsed().as_secs_f64();
-    let (positions, report) = match &basis {
-        // Every group at rest: the basis at the identity is the solution
-        // (to its forward error, which the report then carries).
-        Some(b) => {
-            stage("diagnostics");
-            let mut positions = vec![[0.0; 3]; mesh.n_vertices()];
-            b.evaluate(&vec![IDENTITY; b.groups().len()], &mut positions)?;
-            let u = deformer.length_unit();
-            let x = faer::Mat::from_fn(positions.len(), 3, |i, c| positions[i][c] / u);
-            (positions, deformer.diagnose(x.as_ref()).clone())
-        }
-        None => {
-            stage("first solve");
-            let solution = deformer.solve()?;
-            (solution.positions, solution.report)
-        }
-    };
+    let (positions, report) = first_positions(&mut deformer, basis.as_ref(), stage)?;
     Ok(Built {
         engine: Engine::Linear {
             deformer: Box::new(deformer),
@@ -244,6 +273,34 @@ pub fn build(
     })
 }
 
+/// The positions with every group at rest, and their report: the basis at
+/// the identity (to its forward error, which the report then carries), or
+/// a solve when there is no basis.
+fn first_positions(
+    deformer: &mut Deformer,
+    basis: Option<&HandleBasis>,
+    stage: &dyn Fn(&str),
+) -> Result<(Vec<[f64; 3]>, crate::report::Report), Error> {
+    match basis {
+        Some(b) => {
+            stage("diagnostics");
+            let mut positions = vec![[0.0; 3]; deformer.mesh().n_vertices()];
+            b.evaluate(&vec![IDENTITY; b.groups().len()], &mut positions)?;
+            let u = deformer.length_unit();
+            let x = faer::Mat::from_fn(positions.len(), 3, |i, c| positions[i][c] / u);
+            Ok((
+                positions,
+                deformer.solver_mut().diagnose(x.as_ref()).clone(),
+            ))
+        }
+        None => {
+            stage("first solve");
+            let solution = deformer.solve()?;
+            Ok((solution.positions, solution.report))
+        }
+    }
+}
+
 /// Refuses a response basis of more than [`MAX_BASIS_GROUPS`] groups, or
 /// one beyond the memory budget, before the precompute.
 fn check_basis_size(deformer: &Deformer, groups: usize) -> Result<(), Error> {
@@ -259,7 +316,7 @@ fn check_basis_size(deformer: &Deformer, groups: usize) -> Result<(), Error> {
         }
         .into());
     }
-    HandleBasis::check_memory(n, l, m, groups, deformer.memory_budget())
+    HandleBasis::check_memory(n, l, m, groups, deformer.solver().memory_budget())
 }
 
 /// How a frame was computed.
@@ -498,7 +555,7 @@ impl Session {
                 let u = deformer.length_unit();
                 let x =
                     faer::Mat::from_fn(self.positions.len(), 3, |i, c| self.positions[i][c] / u);
-                serde_json::to_value(deformer.diagnose(x.as_ref())).ok()
+                serde_json::to_value(deformer.solver_mut().diagnose(x.as_ref())).ok()
             }
             Some(Engine::Arap { arap, .. }) => arap
                 .finish()
@@ -535,5 +592,22 @@ impl Session {
             report = json!({"editor": {"settings": self.settings, "generation": self.generation}, "note": "no constraints yet"});
         }
         report
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The page's settings without a change are the library's defaults;
+    /// only the values the page must always show are filled in (the
+    /// penalty weight, the refinement the default method resolves to).
+    #[test]
+    fn default_settings_are_the_library_defaults() {
+        let mut expected = DeformOptions::default();
+        expected.solve.formulation.weight = Some(SUGGESTED_PENALTY_WEIGHT);
+        expected.solve.refine = Some(Refine::Auto);
+        assert_eq!(Settings::default().options().unwrap(), expected);
+        assert_eq!(Settings::default().arap_iterations_per_frame, 2);
     }
 }

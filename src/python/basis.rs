@@ -364,8 +364,8 @@ pub(super) fn solve_frame(
     refine: Option<Refine>,
     estimate: bool,
 ) -> Result<(Vec<[f64; 3]>, Vec<crate::report::Warning>), Error> {
-    let mode = refine.unwrap_or_else(|| s.deformer.refine_mode());
-    if !estimate && mode != Refine::Off {
+    let mode = refine.unwrap_or_else(|| s.deformer.solver().refine_mode());
+    if !estimate && mode != Refine::EstimateOnly {
         return Err(ProblemError::InvalidArgument {
             message: format!(
                 "estimate=False applies to refine='off' only: a refined solve (refine='{mode}') computes its forward-error estimate anyway, from its last correction; pass refine='off' with estimate=False"
@@ -374,7 +374,7 @@ pub(super) fn solve_frame(
         .into());
     }
     if refine.is_some() {
-        s.deformer.set_refine(refine);
+        s.deformer.solver_mut().set_refine(refine);
     }
     let result = if estimate {
         s.deformer
@@ -384,7 +384,7 @@ pub(super) fn solve_frame(
         s.deformer.solve_undiagnosed().map(|p| (p, Vec::new()))
     };
     if refine.is_some() {
-        s.deformer.set_refine(s.options.refine);
+        s.deformer.solver_mut().set_refine(s.options.refine);
     }
     result
 }

@@ -27,14 +27,15 @@ use pyo3::exceptions::{PyRuntimeError, PyRuntimeWarning, PyUserWarning};
 use pyo3::prelude::*;
 
 use crate::arap::ArapDeformer;
-use crate::choice::{ArapEnergy, ArapInit, Energy};
+use crate::choice::{ArapEnergy, ArapInit, Energy, Method};
 use crate::compare::{self, CompareOptions};
 use crate::constraints::ConstraintSet;
 use crate::error::{ProblemError, SolveOption};
-use crate::formulation::{FormulationChoice, Refine};
+use crate::formulation::Refine;
 use crate::laplacian::{self, LaplacianKind};
 use crate::limits::{MemoryBudget, parse_bytes};
 use crate::mesh::Mesh;
+use crate::options::{ArapOptions, DeformOptions};
 use crate::problem::LseProblem;
 use crate::report::Report;
 use crate::{Deformer, Error, LseSolver, SolveOptions};
@@ -44,27 +45,6 @@ use errors::{
     too_large_error_class, type_error,
 };
 
-/// The formulation named by the keyword arguments, with the CLI's
-/// defaults (`--qr sparse-givens --spd faer-auto`) where they are absent,
-/// checked ([`FormulationChoice::build`]) before any work.
-fn formulation_choice(
-    method: &str,
-    qr: Option<&str>,
-    spd: Option<&str>,
-    weight: Option<f64>,
-) -> Result<FormulationChoice, ProblemError> {
-    let mut choice = FormulationChoice::new(method.parse()?);
-    if let Some(qr) = qr {
-        choice.qr = qr.parse()?;
-    }
-    if let Some(spd) = spd {
-        choice.spd = spd.parse()?;
-    }
-    choice.weight = weight;
-    choice.build().map_err(with_keyword)?;
-    Ok(choice)
-}
-
 /// A library error about an option, with the option's keyword argument
 /// (`weight=`) in front.
 fn with_keyword(e: ProblemError) -> ProblemError {
@@ -73,7 +53,7 @@ fn with_keyword(e: ProblemError) -> ProblemError {
             let keyword = match option {
                 SolveOption::Method => "method",
                 SolveOption::Qr => "qr",
-                SolveOption::Spd => "spd",
+                SolveOption::Spd => "factor",
                 SolveOption::Weight => "weight",
                 SolveOption::Refine => "refine",
             };
@@ -85,28 +65,71 @@ fn with_keyword(e: ProblemError) -> ProblemError {
     }
 }
 
-/// The keyword arguments `method`, `qr`, `spd`, `weight`, `refine` and
-/// `memory_limit` (the CLI's options).
+/// The keyword arguments `method`, `qr`, `factor` (or `spd`, its old
+/// name), `weight`, `refine` and `memory_limit` (the CLI's options); each
+/// `None` keeps [`DeformOptions::default`]'s value.
 struct Keywords<'a, 'py> {
-    method: &'a str,
+    method: Option<&'a str>,
     qr: Option<&'a str>,
-    spd: Option<&'a str>,
+    factor: Factor<Option<&'a str>>,
     weight: Option<f64>,
     refine: Option<&'a Bound<'py, PyAny>>,
     memory_limit: Option<&'a Bound<'py, PyAny>>,
 }
 
-impl Keywords<'_, '_> {
-    /// The solve options they name.
-    fn options(&self) -> PyResult<SolveOptions> {
-        let formulation = formulation_choice(self.method, self.qr, self.spd, self.weight)
-            .map_err(|e| to_py(e.into()))?;
-        Ok(SolveOptions {
-            formulation,
-            refine: parse_refine(self.refine)?,
-            memory_budget: parse_memory_limit(self.memory_limit)?,
-        })
+/// The `factor=` keyword and `spd=`, its old name (kept for one release).
+struct Factor<T> {
+    factor: T,
+    spd: T,
+}
+
+impl<T: PartialEq + std::fmt::Debug> Factor<Option<T>> {
+    /// The one given (either name; both only when they agree).
+    ///
+    /// Errors: `InputError` when both are given with different values.
+    fn given(self) -> PyResult<Option<T>> {
+        match (self.factor, self.spd) {
+            (Some(f), Some(s)) if f != s => Err(input(format!(
+                "factor= and spd= (its old name) were both given, with different values ({f:?} and {s:?}): give one"
+            ))),
+            (f, s) => Ok(f.or(s)),
+        }
     }
+}
+
+impl Keywords<'_, '_> {
+    /// The options they name over [`DeformOptions::default`], the
+    /// formulation checked ([`crate::FormulationChoice::build`]) before any
+    /// work.
+    fn options(self) -> PyResult<DeformOptions> {
+        let mut options = DeformOptions::default();
+        let f = &mut options.solve.formulation;
+        if let Some(method) = self.method {
+            f.method = option_word::<Method>(method)?;
+        }
+        if let Some(qr) = self.qr {
+            f.qr = option_word(qr)?;
+        }
+        if let Some(spd) = self.factor.given()? {
+            f.spd = option_word(spd)?;
+        }
+        f.weight = self.weight.or(f.weight);
+        f.build().map_err(|e| to_py(with_keyword(e).into()))?;
+        options.solve.refine = parse_refine(self.refine)?.or(options.solve.refine);
+        options.solve.memory_budget = parse_memory_limit(self.memory_limit)?;
+        Ok(options)
+    }
+}
+
+/// A word of a solve option (method, back end), as the library's
+/// [`ProblemError`] (its message lists the accepted words).
+fn option_word<T>(value: &str) -> PyResult<T>
+where
+    T: std::str::FromStr<Err = crate::error::ParseWordError>,
+{
+    value
+        .parse()
+        .map_err(|e: crate::error::ParseWordError| to_py(ProblemError::from(e).into()))
 }
 
 /// The `memory_limit` keyword: `None` (the default budget:
@@ -172,9 +195,14 @@ where
         .map_err(|e: crate::error::ParseWordError| input(format!("{keyword}=: {e}")))
 }
 
-fn laplacian_kind(name: &str) -> PyResult<LaplacianKind> {
-    name.parse()
-        .map_err(|e: crate::error::ParseWordError| to_py(e.into()))
+/// The `laplacian` (or `kind`) keyword; `None`: [`DeformOptions::default`]'s.
+fn laplacian_kind(name: Option<&str>) -> PyResult<LaplacianKind> {
+    match name {
+        None => Ok(DeformOptions::default().laplacian),
+        Some(name) => name
+            .parse()
+            .map_err(|e: crate::error::ParseWordError| to_py(e.into())),
+    }
 }
 
 /// The mesh of `V`, `F` (validated by [`Mesh::new`], GIL released).
@@ -213,30 +241,25 @@ fn report_with_warnings<'py>(py: Python<'py>, report: &Report) -> PyResult<Bound
     convert::report_dict(py, report)
 }
 
-/// The energy keywords of `deform` (the CLI's `--energy` options).
+/// The energy keywords of `deform` (the CLI's `--energy` options); each
+/// `None` keeps the library's default ([`DeformOptions::default`],
+/// [`ArapOptions::default`]).
 struct EnergyKeywords<'a> {
-    energy: &'a str,
+    energy: Option<&'a str>,
     arap_energy: Option<&'a str>,
     iterations: Option<usize>,
     tolerance: Option<f64>,
     arap_init: Option<&'a str>,
 }
 
-/// The ARAP options of [`EnergyKeywords`], parsed into the library's types
-/// with the CLI's defaults (spokes-and-rims, 10 iterations, tolerance 0,
-/// linear initial guess).
-struct ArapOptions {
-    energy: ArapEnergy,
-    iterations: usize,
-    tolerance: f64,
-    init: ArapInit,
-}
-
 impl EnergyKeywords<'_> {
     /// The energy, and the ARAP options when it is ARAP. Options the energy
     /// does not use are `RuntimeWarning`s, as the CLI warns about them.
     fn parse(&self, py: Python<'_>, laplacian: Option<&str>) -> PyResult<Option<ArapOptions>> {
-        let energy: Energy = word("energy", self.energy)?;
+        let energy = match self.energy {
+            Some(w) => word::<Energy>("energy", w)?,
+            None => DeformOptions::default().energy,
+        };
         let arap_energy = self
             .arap_energy
             .map(|w| word::<ArapEnergy>("arap_energy", w))
@@ -268,11 +291,12 @@ impl EnergyKeywords<'_> {
                 "laplacian= applies to energy='laplacian' only; ignored with energy='arap' (cotangent weights)",
             )?;
         }
+        let d = ArapOptions::default();
         Ok(Some(ArapOptions {
-            energy: arap_energy.unwrap_or(ArapEnergy::SpokesAndRims),
-            iterations: self.iterations.unwrap_or(10),
-            tolerance: self.tolerance.unwrap_or(0.0),
-            init: init.unwrap_or(ArapInit::Linear),
+            energy: arap_energy.unwrap_or(d.energy),
+            iterations: self.iterations.unwrap_or(d.iterations),
+            tolerance: self.tolerance.unwrap_or(d.tolerance),
+            init: init.unwrap_or(d.init),
         }))
     }
 }
@@ -299,7 +323,7 @@ fn deform_arap(
 /// solve in one call (with `energy="arap"`, the ARAP iterations). Returns
 /// `(U, report)`.
 #[pyfunction]
-#[pyo3(signature = (V, F, constraints, laplacian=None, method="nullspace-qr", qr=None, spd=None, weight=None, refine=None, energy="laplacian", arap_energy=None, iterations=None, tolerance=None, arap_init=None, memory_limit=None))]
+#[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, energy=None, arap_energy=None, iterations=None, tolerance=None, arap_init=None, memory_limit=None, spd=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn deform<'py>(
     py: Python<'py>,
@@ -307,29 +331,31 @@ fn deform<'py>(
     F: &Bound<'py, PyAny>,
     constraints: &Bound<'py, PyAny>,
     laplacian: Option<&str>,
-    method: &str,
+    method: Option<&str>,
     qr: Option<&str>,
-    spd: Option<&str>,
+    factor: Option<&str>,
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
-    energy: &str,
+    energy: Option<&str>,
     arap_energy: Option<&str>,
     iterations: Option<usize>,
     tolerance: Option<f64>,
     arap_init: Option<&str>,
     memory_limit: Option<&Bound<'py, PyAny>>,
+    spd: Option<&str>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
-        let kind = laplacian_kind(laplacian.unwrap_or("cotan"))?;
+        let kind = laplacian_kind(laplacian)?;
         let m = Keywords {
             method,
             qr,
-            spd,
+            factor: Factor { factor, spd },
             weight,
             refine,
             memory_limit,
         }
-        .options()?;
+        .options()?
+        .solve;
         let keywords = EnergyKeywords {
             energy,
             arap_energy,
@@ -374,21 +400,22 @@ where
 /// as a list of dicts. A reference forward error above 1e-12 of the
 /// diagonal is a `RuntimeWarning`, as the CLI warns.
 #[pyfunction]
-#[pyo3(name = "compare", signature = (V, F, constraints, laplacian="cotan", methods=None, qr=None, spd=None, weights=None, refine=None, repeat=5, condition=true))]
+#[pyo3(name = "compare", signature = (V, F, constraints, laplacian=None, methods=None, qr=None, factor=None, weights=None, refine=None, repeat=None, condition=None, spd=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn compare_rows<'py>(
     py: Python<'py>,
     V: &Bound<'py, PyAny>,
     F: &Bound<'py, PyAny>,
     constraints: &Bound<'py, PyAny>,
-    laplacian: &str,
+    laplacian: Option<&str>,
     methods: Option<Vec<String>>,
     qr: Option<Vec<String>>,
-    spd: Option<Vec<String>>,
+    factor: Option<Vec<String>>,
     weights: Option<Vec<f64>>,
     refine: Option<&Bound<'py, PyAny>>,
-    repeat: usize,
-    condition: bool,
+    repeat: Option<usize>,
+    condition: Option<bool>,
+    spd: Option<Vec<String>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     guarded(|| {
         let kind = laplacian_kind(laplacian)?;
@@ -396,16 +423,16 @@ fn compare_rows<'py>(
         let options = CompareOptions {
             methods: words("methods", methods)?.unwrap_or(defaults.methods),
             qrs: words("qr", qr)?,
-            spds: words("spd", spd)?,
+            spds: words("factor", Factor { factor, spd }.given()?)?,
             weights: weights.unwrap_or(defaults.weights),
-            refine: parse_refine(refine)?,
-            repeat,
-            condition,
+            refine: parse_refine(refine)?.or(defaults.refine),
+            repeat: repeat.unwrap_or(defaults.repeat),
+            condition: condition.unwrap_or(defaults.condition),
         };
         // Fail before any work when the filters leave nothing to run.
         options
             .configurations()
-            .map_err(|e| input(format!("methods=/qr=/spd=/weights=: {e}")))?;
+            .map_err(|e| input(format!("methods=/qr=/factor=/weights=: {e}")))?;
         let mesh = mesh(py, V, F)?;
         let set = constraints_for(constraints, &mesh, environment_budget()?)?;
         let (reference, rows) = released(py, move || {
@@ -427,13 +454,13 @@ fn compare_rows<'py>(
 /// The Laplacian of `(V, F)` as a `scipy.sparse.csc_matrix` (n × n; the
 /// crate's sign convention: `L_ii = Σ_j w_ij`, `L_ij = −w_ij`, `δ = L V`).
 #[pyfunction]
-#[pyo3(name = "laplacian", signature = (V, F, kind="cotan"))]
+#[pyo3(name = "laplacian", signature = (V, F, kind=None))]
 #[allow(non_snake_case)]
 fn laplacian_matrix<'py>(
     py: Python<'py>,
     V: &Bound<'py, PyAny>,
     F: &Bound<'py, PyAny>,
-    kind: &str,
+    kind: Option<&str>,
 ) -> PyResult<Bound<'py, PyAny>> {
     guarded(|| {
         let kind = laplacian_kind(kind)?;
@@ -446,7 +473,7 @@ fn laplacian_matrix<'py>(
 /// Solves `min ‖A X − C‖ subject to B X = D` for sparse `A` (l × n) and
 /// `B` (m × n) and dense `C` (l × k) and `D` (m × k); returns `(X, report)`.
 #[pyfunction]
-#[pyo3(signature = (A, C, B, D, method="nullspace-qr", qr=None, spd=None, weight=None, refine=None, memory_limit=None))]
+#[pyo3(signature = (A, C, B, D, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, spd=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn solve_lse<'py>(
     py: Python<'py>,
@@ -454,23 +481,25 @@ fn solve_lse<'py>(
     C: &Bound<'py, PyAny>,
     B: &Bound<'py, PyAny>,
     D: &Bound<'py, PyAny>,
-    method: &str,
+    method: Option<&str>,
     qr: Option<&str>,
-    spd: Option<&str>,
+    factor: Option<&str>,
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
     memory_limit: Option<&Bound<'py, PyAny>>,
+    spd: Option<&str>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
         let m = Keywords {
             method,
             qr,
-            spd,
+            factor: Factor { factor, spd },
             weight,
             refine,
             memory_limit,
         }
-        .options()?;
+        .options()?
+        .solve;
         let a = convert::sparse(A, "A")?;
         let b = convert::sparse(B, "B")?;
         let (c, one_d) = convert::dense(C, "C", None, true)?;
@@ -530,38 +559,42 @@ impl PyDeformer {
     /// Set-up: validates the mesh and constraints, builds the Laplacian and
     /// the system. Options as for `deform`.
     #[new]
-    #[pyo3(signature = (V, F, constraints, laplacian="cotan", method="nullspace-qr", qr=None, spd=None, weight=None, refine=None, memory_limit=None))]
+    #[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, spd=None))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         V: &Bound<'_, PyAny>,
         F: &Bound<'_, PyAny>,
         constraints: &Bound<'_, PyAny>,
-        laplacian: &str,
-        method: &str,
+        laplacian: Option<&str>,
+        method: Option<&str>,
         qr: Option<&str>,
-        spd: Option<&str>,
+        factor: Option<&str>,
         weight: Option<f64>,
         refine: Option<&Bound<'_, PyAny>>,
         memory_limit: Option<&Bound<'_, PyAny>>,
+        spd: Option<&str>,
     ) -> PyResult<PyDeformer> {
         guarded(|| {
             let kind = laplacian_kind(laplacian)?;
             let options = Keywords {
                 method,
                 qr,
-                spd,
+                factor: Factor { factor, spd },
                 weight,
                 refine,
                 memory_limit,
             }
-            .options()?;
+            .options()?
+            .solve;
             let mesh = mesh(py, V, F)?;
             let set = constraints_for(constraints, &mesh, options.memory_budget)?;
             let deformer = released(py, move || {
                 let mut deformer = Deformer::new(mesh, kind, set)?;
-                deformer.set_refine(options.refine);
-                deformer.set_memory_budget(options.memory_budget);
+                deformer.solver_mut().set_refine(options.refine);
+                deformer
+                    .solver_mut()
+                    .set_memory_budget(options.memory_budget);
                 Ok(deformer)
             })?;
             Ok(PyDeformer {

@@ -235,16 +235,16 @@ def test_a_bad_keyword_value_raises_a_documented_class(entry, keyword, value):
 
 # (call, class, words of the message)
 WRONG_TYPES = [
-    (lambda: lse_deform.deform(V, F, (B_IDX, BC), method=None), "method"),
-    (lambda: lse_deform.deform(V, F, (B_IDX, BC), energy=None), "energy"),
+    (lambda: lse_deform.deform(V, F, (B_IDX, BC), method=1), "method"),
+    (lambda: lse_deform.deform(V, F, (B_IDX, BC), energy=1), "energy"),
     (lambda: lse_deform.deform(V, F, (B_IDX, BC), laplacian=3), "laplacian"),
     (lambda: lse_deform.deform(V, F, (B_IDX, BC), weight="heavy"), "weight"),
     (lambda: lse_deform.deform(V, F, (B_IDX, BC), energy="arap", iterations="ten"), "iterations"),
     (lambda: lse_deform.compare(V, F, (B_IDX, BC), methods="nullspace-qr", repeat=1), "methods"),
-    (lambda: lse_deform.compare(V, F, (B_IDX, BC), condition=None, repeat=1), "condition"),
-    (lambda: lse_deform.laplacian(V, F, kind=None), "kind"),
-    (lambda: lse_deform.solve_lse(A, C, B, D, method=None), "method"),
-    (lambda: lse_deform.Deformer(V, F, (B_IDX, BC), method=None), "method"),
+    (lambda: lse_deform.compare(V, F, (B_IDX, BC), condition="yes", repeat=1), "condition"),
+    (lambda: lse_deform.laplacian(V, F, kind=3), "kind"),
+    (lambda: lse_deform.solve_lse(A, C, B, D, method=1), "method"),
+    (lambda: lse_deform.Deformer(V, F, (B_IDX, BC), method=1), "method"),
     (lambda: deformer().group(None), "name"),
     (lambda: deformer().transform_group(None, np.eye(4)), "name"),
 ]

@@ -26,7 +26,7 @@ dtype that cannot be converted and ``TooLargeError`` (also a
 ``MemoryError``) for an array or system beyond the memory budget
 (``LSE_MEMORY_LIMIT``, or the available memory) or an allocation that
 failed; ``NumericalError`` (an ``ArithmeticError``) for numerical failure.
-An argument of the wrong type (``method=None``) is an ``InputTypeError``,
+An argument of the wrong type (``method=1``) is an ``InputTypeError``,
 an integer out of range (``iterations=-1``) an ``InputError``, whichever
 keyword it is. Ctrl-C during a call raises ``KeyboardInterrupt`` at the
 library's next check (between phases and iterations, at most 50 ms apart;

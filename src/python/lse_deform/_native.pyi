@@ -57,26 +57,31 @@ def deform(
     F: npt.ArrayLike,
     constraints: Constraints,
     laplacian: Optional[str] = None,
-    method: str = "nullspace-qr",
+    method: Optional[str] = None,
     qr: Optional[str] = None,
-    spd: Optional[str] = None,
+    factor: Optional[str] = None,
     weight: Optional[float] = None,
     refine: Refine = None,
-    energy: str = "laplacian",
+    energy: Optional[str] = None,
     arap_energy: Optional[str] = None,
     iterations: Optional[int] = None,
     tolerance: Optional[float] = None,
     arap_init: Optional[str] = None,
     memory_limit: MemoryLimit = None,
+    spd: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """Deforms (V, F) under the constraints; returns (U, report).
 
-    laplacian: 'uniform', 'cotan' (None: the default), 'cotan-symmetric',
+    Every keyword left None takes the library's default (DeformOptions,
+    ArapOptions), the values named below.
+    laplacian: 'uniform', 'cotan' (default), 'cotan-symmetric',
     'intrinsic-delaunay'.
-    method: 'nullspace-qr' (the paper), 'penalty' (needs weight), 'kkt',
-    'eliminate'. qr: 'sparse-givens' (default), 'dense-householder'.
-    spd: 'faer-auto' (default), 'faer-supernodal', 'faer-simplicial',
-    'nalgebra'.
+    method: 'nullspace-qr' (the paper; default), 'penalty' (needs weight),
+    'kkt', 'eliminate'. qr: 'sparse-givens' (default), 'dense-householder'.
+    factor: the matrix factorisation, the Cholesky back end ('faer-auto'
+    (default), 'faer-supernodal', 'faer-simplicial', 'nalgebra') and for
+    kkt the faer LDLT variant. spd: its old name, still accepted (both
+    given with different values is an InputError).
     energy: 'laplacian' (default) or 'arap' (as-rigid-as-possible, cotangent
     weights; report['arap'] says what the iterations did), with
     arap_energy 'spokes' or 'spokes-and-rims' (default), iterations (default
@@ -90,14 +95,15 @@ def compare(
     V: npt.ArrayLike,
     F: npt.ArrayLike,
     constraints: Constraints,
-    laplacian: str = "cotan",
+    laplacian: Optional[str] = None,
     methods: Optional[Sequence[str]] = None,
     qr: Optional[Sequence[str]] = None,
-    spd: Optional[Sequence[str]] = None,
+    factor: Optional[Sequence[str]] = None,
     weights: Optional[Sequence[float]] = None,
     refine: Refine = None,
-    repeat: int = 5,
-    condition: bool = True,
+    repeat: Optional[int] = None,
+    condition: Optional[bool] = None,
+    spd: Optional[Sequence[str]] = None,
 ) -> List[Dict[str, Any]]:
     """`lse-deform compare`: every configuration against the refined
     null-space reference; one dict per configuration with the keys of
@@ -105,12 +111,14 @@ def compare(
     solve_median_s, refine_s, max_constraint_residual, delta_x, delta_e,
     forward_error_estimate, condition, report).
 
-    methods: default all four; qr, spd: default every back end of this
-    build; weights: penalty weights (default 1e4, 1e8, 1e12).
+    methods: default all four; qr, factor (spd: its old name): default
+    every back end of this build; weights: penalty weights (default 1e4,
+    1e8, 1e12); repeat: solves per configuration (default 5); condition:
+    estimate condition numbers (default True). None: the default.
     """
 
 def laplacian(
-    V: npt.ArrayLike, F: npt.ArrayLike, kind: str = "cotan"
+    V: npt.ArrayLike, F: npt.ArrayLike, kind: Optional[str] = None
 ) -> scipy.sparse.csc_matrix:
     """The n x n Laplacian (L_ii = sum_j w_ij, L_ij = -w_ij, delta = L V)."""
 
@@ -119,12 +127,13 @@ def solve_lse(
     C: npt.ArrayLike,
     B: Matrix,
     D: npt.ArrayLike,
-    method: str = "nullspace-qr",
+    method: Optional[str] = None,
     qr: Optional[str] = None,
-    spd: Optional[str] = None,
+    factor: Optional[str] = None,
     weight: Optional[float] = None,
     refine: Refine = None,
     memory_limit: MemoryLimit = None,
+    spd: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """min ||A X - C|| subject to B X = D; returns (X, report).
 
@@ -140,13 +149,14 @@ class Deformer:
         V: npt.ArrayLike,
         F: npt.ArrayLike,
         constraints: Constraints,
-        laplacian: str = "cotan",
-        method: str = "nullspace-qr",
+        laplacian: Optional[str] = None,
+        method: Optional[str] = None,
         qr: Optional[str] = None,
-        spd: Optional[str] = None,
+        factor: Optional[str] = None,
         weight: Optional[float] = None,
         refine: Refine = None,
         memory_limit: MemoryLimit = None,
+        spd: Optional[str] = None,
     ) -> None: ...
     def precompute(self) -> None:
         """Factors the system (GIL released)."""

@@ -1,0 +1,83 @@
+"""The request layer from Python: keywords left out mean the
+library's defaults (`DeformOptions::default()`, `ArapOptions::default()`,
+the documented values), and `factor=` is the name of the factorisation
+keyword with `spd=`, its old name, still accepted."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import lse_deform
+from lse_deform import InputError
+from conftest import bumpy_grid, fixed_and_handle
+
+
+@pytest.fixture
+def scene():
+    V, F = bumpy_grid(n=10)
+    b, bc = fixed_and_handle(V, handle=0.05)
+    return V, F, (b, bc)
+
+
+def test_no_keywords_are_the_documented_defaults(scene):
+    V, F, c = scene
+    U, report = lse_deform.deform(V, F, c)
+    W, explicit = lse_deform.deform(
+        V, F, c, laplacian="cotan", method="nullspace-qr", qr="sparse-givens",
+        factor="faer-auto", energy="laplacian",
+    )
+    assert np.array_equal(U, W)
+    assert report["method"] == explicit["method"] == "nullspace-qr"
+
+
+def test_no_arap_keywords_are_the_documented_defaults(scene):
+    V, F, c = scene
+    U, report = lse_deform.deform(V, F, c, energy="arap")
+    W, _ = lse_deform.deform(
+        V, F, c, energy="arap", arap_energy="spokes-and-rims", iterations=10,
+        tolerance=0.0, arap_init="linear",
+    )
+    assert np.array_equal(U, W)
+    assert report["arap"]["iterations"] == 10
+    assert report["arap"]["init"] == "linear"
+
+
+@pytest.mark.parametrize("entry", ["deform", "Deformer"])
+def test_spd_is_the_old_name_of_factor(scene, entry):
+    V, F, c = scene
+
+    def positions(**kw):
+        if entry == "deform":
+            return lse_deform.deform(V, F, c, method="kkt", **kw)[0]
+        d = lse_deform.Deformer(V, F, c, method="kkt", **kw)
+        d.precompute()
+        return d.solve()
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        new = positions(factor="faer-simplicial")
+        old = positions(spd="faer-simplicial")
+        both = positions(factor="faer-simplicial", spd="faer-simplicial")
+    assert np.array_equal(new, old) and np.array_equal(new, both)
+
+
+def test_spd_and_factor_disagreeing_is_an_input_error(scene):
+    V, F, c = scene
+    with pytest.raises(InputError, match="factor= and spd="):
+        lse_deform.deform(V, F, c, factor="faer-simplicial", spd="faer-supernodal")
+
+
+def test_a_bad_factor_names_the_keyword(scene):
+    V, F, c = scene
+    with pytest.raises(InputError, match="factor="):
+        lse_deform.deform(V, F, c, method="kkt", factor="nalgebra")
+
+
+def test_compare_takes_factor_and_spd(scene):
+    V, F, c = scene
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        new = lse_deform.compare(V, F, c, methods=["kkt"], factor=["faer-simplicial"], repeat=1, condition=False)
+        old = lse_deform.compare(V, F, c, methods=["kkt"], spd=["faer-simplicial"], repeat=1, condition=False)
+    assert [r["spd"] for r in new] == [r["spd"] for r in old] == ["faer-simplicial"]
