@@ -185,7 +185,7 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
             failure: None,
         };
         if let Err(e) = deformer.precompute(formulation(m)?.as_ref()) {
-            for mode in [Refine::Off, Refine::Auto] {
+            for mode in [Refine::EstimateOnly, Refine::Auto] {
                 rows.push(Row {
                     refine: mode.to_string(),
                     failure: Some(e.to_string()),
@@ -199,7 +199,7 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
             .estimate_condition()
             .ok()
             .map(|c| c.value);
-        for mode in [Refine::Off, Refine::Auto] {
+        for mode in [Refine::EstimateOnly, Refine::Auto] {
             deformer.solver_mut().set_refine(Some(mode));
             let mut row = Row {
                 refine: mode.to_string(),
@@ -251,7 +251,7 @@ fn weight_curve(
     let mut out = Vec::new();
     for e in EXPONENTS {
         let w = 10f64.powi(e);
-        for (label, mode) in [("off", Refine::Off), ("auto", Refine::Auto)] {
+        for (label, mode) in [("off", Refine::EstimateOnly), ("auto", Refine::Auto)] {
             let mut p = WeightPoint {
                 mesh: case.name.clone(),
                 laplacian: kind.name(),
@@ -643,7 +643,7 @@ fn section(
     let _ = writeln!(
         s,
         "Scene: the Table 1 scene (lowest 20 % fixed, a 2 % hard handle moved by 15 % of the diagonal). Meshes (those of the evaluation with at most {MAX_VERTICES} vertices: each costs a sparse-QR reference and Lanczos condition estimates of every formulation's matrix): {}. \
-         For every mesh × Laplacian × formulation (penalty at relative weight {}), the solution without refinement (`Refine::Off`) and with it \
+         For every mesh × Laplacian × formulation (penalty at relative weight {}), the solution without refinement (`Refine::EstimateOnly`) and with it \
          (`Refine::Auto`: corrected semi-normal equations for null-space QR and elimination, refinement on the augmented system for KKT, \
          the method of multipliers for penalty), each compared with the reference X* = null-space QR refined. \
          Error = max vertex distance / bounding-box diagonal; digits lost = log10(error / ε); κ = the condition estimate of the matrix the formulation factors. \

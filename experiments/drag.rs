@@ -54,7 +54,7 @@ enum FrameCall {
     /// [`Deformer::solve_matrix`]: the method's default refinement, then
     /// the diagnostics.
     SolveMatrix,
-    /// [`Deformer::solve_into`] with [`Refine::Off`] into a buffer kept
+    /// [`Deformer::solve_into`] with [`Refine::EstimateOnly`] into a buffer kept
     /// across frames: no correction, no diagnostics.
     UnrefinedSolveInto,
     /// [`HandleBasis::evaluate`] of the handle group's basis (built once
@@ -401,7 +401,7 @@ fn prepare(slot: &mut Slot, mesh: &Mesh, drag: &Drag, c: &Config) -> Result<(), 
     slot.precompute = Some(d.report().timings_s.precompute());
     slot.nnz_factor = d.report().nnz.factor;
     if c.frame_call == FrameCall::UnrefinedSolveInto {
-        d.solver_mut().set_refine(Some(Refine::Off));
+        d.solver_mut().set_refine(Some(Refine::EstimateOnly));
     }
     d.solve_matrix()?;
     if c.frame_call == FrameCall::Basis {

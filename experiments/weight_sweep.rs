@@ -232,8 +232,11 @@ fn method_rows(d: &mut Deformer, judge: &Judge, choice: FormulationChoice) -> Ve
     [false, true]
         .into_iter()
         .map(|refined| {
-            d.solver_mut()
-                .set_refine(Some(if refined { Refine::Auto } else { Refine::Off }));
+            d.solver_mut().set_refine(Some(if refined {
+                Refine::Auto
+            } else {
+                Refine::EstimateOnly
+            }));
             let x = d.solve_matrix();
             let x = x.as_ref().map_err(|e| (e, "solve"));
             judge.row(d.problem(), key(refined), x, k)
