@@ -1,5 +1,5 @@
-//! Criterion benches, one group per performance target (README,
-//! "How fast").
+//! Criterion benches, one group per performance target
+//! (docs/development.md §2).
 //!
 //! The meshes are generated (a bumpy sphere of about 35k vertices, the size
 //! of the Stanford Bunny) unless `LSE_MESH_DIR` names the mesh directory,

@@ -48,8 +48,7 @@ enum Command {
     /// to PNG (displacement or difference colour maps, constraint groups).
     Render(cli::render::RenderArgs),
     /// Interactive editor in the browser: serves a local page to select
-    /// fixed and handle regions and drag them (see README, "Interactive
-    /// editing").
+    /// fixed and handle regions and drag them (docs/editor.md §1).
     #[cfg(feature = "editor")]
     Edit(cli::edit::EditArgs),
 }

@@ -743,7 +743,7 @@ pub fn basis_response_bytes(n: usize, groups: usize) -> u64 {
 }
 
 /// The body of `GET /api/basis` (layout in the module documentation and
-/// the README): the u32 length `h` of a JSON head padded with spaces to a
+/// docs/editor.md §6): the u32 length `h` of a JSON head padded with spaces to a
 /// multiple of 4 bytes, the head, then per vertex `(X₀, 0)` and each
 /// group's four columns of `R_g` as f32, little-endian. The size is checked
 /// against the memory budget first (413); an entry beyond f32 is refused

@@ -1,4 +1,4 @@
-// The editor's HTTP API (see the README, "Interactive editing").
+// The editor's HTTP API (docs/editor.md §6).
 //
 // Every API request carries the session's token as `Authorization: Bearer`.
 // The page takes the token from its own URL (`/?token=T`, as
@@ -82,7 +82,7 @@ export async function download(path, name) {
 }
 
 // GET /api/basis: its JSON head and the n × (1 + G) RGBA f32 texels (the
-// layout in the README's editor API section).
+// layout in docs/editor.md §6).
 export async function getBasis() {
   const buffer = await (await request('/api/basis')).arrayBuffer();
   const h = new DataView(buffer).getUint32(0, true);
