@@ -12,7 +12,7 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use lse_deform::mesh::{Mesh, generate, read_mesh};
 use serde::Serialize;
 
-use crate::AnyError;
+use crate::harness::registry::AnyError;
 
 /// The machine, build and inputs an output was produced with.
 #[derive(Debug, Clone, Serialize)]

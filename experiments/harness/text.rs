@@ -283,7 +283,7 @@ mod tests {
     /// Renders `text` centred at (100, 30) into a 200 × 60 white buffer and
     /// returns the rows and columns that received ink.
     fn ink(text: &str, anchor: Pos) -> (Vec<u32>, Vec<u32>) {
-        crate::plot::ensure_fonts().unwrap();
+        crate::harness::plot::ensure_fonts().unwrap();
         let (w, h) = (200u32, 60u32);
         let mut buf = vec![255u8; (w * h * 3) as usize];
         {
@@ -325,7 +325,7 @@ mod tests {
 
     #[test]
     fn measured_width_grows_with_the_text() {
-        crate::plot::ensure_fonts().unwrap();
+        crate::harness::plot::ensure_fonts().unwrap();
         let mut buf = vec![0u8; 30];
         let backend = GoodText::new(BitMapBackend::with_buffer(&mut buf, (10, 1)));
         let style = TextStyle::from(("sans-serif", 20.0).into_font());

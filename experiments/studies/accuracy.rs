@@ -9,7 +9,7 @@
 //! `forward_error_estimate`), against the reference `X*` = the null-space
 //! method refined ([`Refine::Auto`]). As a check of the reference itself,
 //! the distance of the sparse-QR solution of the eliminated problem
-//! ([`crate::table1::qr_reference`], condition not squared) from it is
+//! ([`crate::harness::measures::qr_reference`], condition not squared) from it is
 //! recorded too. "Digits lost" = `log10(error / ε)`.
 
 use std::fmt::Write as _;
@@ -24,13 +24,21 @@ use lse_deform::{
 };
 use serde::Serialize;
 
-use crate::context::{Context, MeshCase, fmt_time, markdown_table};
-use crate::plot::{self, Axis, LegendPosition, LineChart, Output, ScatterFits, Series};
-use crate::table1::{LAPLACIANS, TABLE_WEIGHT, qr_reference, sci};
-use crate::{AnyError, Summary};
+use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table};
+use crate::harness::measures::{LAPLACIANS, TABLE_WEIGHT, qr_reference, sci};
+use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, ScatterFits, Series};
+use crate::harness::registry::{AnyError, Experiment, Input, Summary};
 
 /// The experiment's name (results directory and section).
 pub const NAME: &str = "accuracy";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Accuracy — digits lost without and with refinement",
+    inputs: &[Input::Meshes],
+    run,
+};
 
 /// Exponents of the 17 relative penalty weights `10⁻⁴ … 10¹²`.
 const EXPONENTS: std::ops::RangeInclusive<i32> = -4..=12;
@@ -441,7 +449,7 @@ fn draw(ctx: &Context, rows: &[Row], weights: &[WeightPoint]) -> Result<Vec<Stri
 
 /// The median of the values (NaN for none).
 fn median_of(v: impl Iterator<Item = f64>) -> f64 {
-    crate::context::median(&v.collect::<Vec<_>>())
+    crate::harness::context::median(&v.collect::<Vec<_>>())
 }
 
 /// The findings, stated from the data.

@@ -28,13 +28,21 @@ use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::{FixedAndHandle, MixedScene};
 use serde::{Deserialize, Serialize};
 
-use crate::context::{Context, MeshCase, fmt_time, markdown_table};
-use crate::environment::{self, Python};
-use crate::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
-use crate::render::{self, Camera, Layout, Panel, RenderMesh, Style};
-use crate::{AnyError, Summary};
+use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table};
+use crate::harness::environment::{self, Python};
+use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
+use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use lse_deform::render::{self, Camera, Layout, Panel, RenderMesh, Style};
 
 pub const NAME: &str = "arap";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "As-rigid-as-possible deformation (ARAP)",
+    inputs: &[Input::OneMesh, Input::Python],
+    run,
+};
 
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
@@ -47,7 +55,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let mut md = section(ctx, &bend, &peer, &exact, &case);
     initial_guess_text(&mut md, &init);
     ctx.write_section(NAME, &md)?;
-    ctx.write_page(NAME, crate::harness::title(NAME), &md)?;
+    ctx.write_page(NAME, EXPERIMENT.title, &md)?;
     Ok(Summary {
         headline: format!(
             "tube bend+twist: ARAP energy {:.3e} vs linear {:.3e}; 300 relative + 20 on-edge: max residual {:.1e} × diagonal, energy {}",

@@ -17,6 +17,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use faer::Mat;
+mod python;
+
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::deform::Affine;
 use lse_deform::formulation::{Refine, max_hard_residual};
@@ -26,17 +28,26 @@ use lse_deform::scene::{FixedAndHandle, HANDLE_GROUP};
 use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method};
 use serde::Serialize;
 
-use crate::breakdown::{
-    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
-};
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
-use crate::drag_python::{self, PythonRows};
-use crate::plot::{
+use python::PythonRows;
+
+use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
+use crate::harness::plot::{
     self, Axis, Category, LegendPosition, LineChart, Orientation, Output, Series, StackedBars,
 };
-use crate::{AnyError, Summary};
+use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::timing::{
+    PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
+};
 
 pub const NAME: &str = "drag";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Interactive drag",
+    inputs: &[Input::OneMesh, Input::Python],
+    run,
+};
 
 /// A method and back-end configuration of the drag.
 struct Config {
@@ -528,7 +539,7 @@ fn python_frames(
     configs: &[Config],
     slots: &mut [Slot],
 ) -> Option<String> {
-    let measured = drag_python::measure(
+    let measured = python::measure(
         &case.mesh,
         &drag.constraints,
         &drag.transforms(),

@@ -43,12 +43,20 @@ use lse_deform::sparse::NormalPattern;
 use lse_deform::{Deformer, LaplacianKind};
 use serde::Serialize;
 
-use crate::context::{Context, fmt_time, markdown_table, median};
-use crate::plot::{self, LegendPosition, Output, ScatterFits, Series};
-use crate::{AnyError, Summary};
+use crate::harness::context::{Context, fmt_time, markdown_table, median};
+use crate::harness::plot::{self, LegendPosition, Output, ScatterFits, Series};
+use crate::harness::registry::{AnyError, Experiment, Input, Summary};
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "performance";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Performance against CHOLMOD and the bandwidth floor",
+    inputs: &[Input::Meshes, Input::SuiteSparse],
+    run,
+};
 
 /// The reference the targets compare against, when it is compiled in.
 #[cfg(feature = "suitesparse")]

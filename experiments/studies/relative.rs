@@ -21,18 +21,28 @@ use lse_deform::scene::{FixedAndHandle, MixedScene};
 use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method, Report};
 use serde::Serialize;
 
-use crate::breakdown::{
-    PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells, precompute_phase_values,
-    qr_backends, short_error,
+use crate::harness::context::{
+    Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median,
 };
-use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
-use crate::plot::{
+use crate::harness::plot::{
     self, Axis, Category, LegendPosition, LineChart, Orientation, Output, ReferenceLine, Series,
     StackedBars,
 };
-use crate::{AnyError, Summary};
+use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::timing::{
+    PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells, precompute_phase_values,
+    qr_backends, short_error,
+};
 
 pub const NAME: &str = "relative-constraints";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Relative constraints (paper Fig. 9 and 11)",
+    inputs: &[Input::OneMesh],
+    run,
+};
 
 /// A compared method and back end.
 struct Config {

@@ -20,7 +20,7 @@
 //!
 //! Text is DejaVu Sans, embedded (crate `dejavu`) and registered under the
 //! family name `"sans-serif"` by [`ensure_fonts`], so the SVG files name a
-//! family every viewer has; PNG text is drawn by [`crate::text`].
+//! family every viewer has; PNG text is drawn by [`crate::harness::text`].
 
 // Toolkit for the experiments: some items are used only by experiments that
 // are still to be written (and by the tests).
@@ -35,7 +35,7 @@ use plotters::prelude::*;
 use plotters::style::FontStyle;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crate::text::GoodText;
+use crate::harness::text::GoodText;
 
 /// Font family name under which DejaVu Sans is registered.
 pub const FONT: &str = "sans-serif";
@@ -722,14 +722,14 @@ pub fn stacked_bars(spec: &StackedBars, out: &Output) -> Result<Drawn, PlotError
         let mut label_w: f64 = 0.0;
         for name in &spec.segments {
             label_w = label_w.max(
-                crate::text::text_width(name, LEGEND_SIZE)
+                crate::harness::text::text_width(name, LEGEND_SIZE)
                     .map_err(|e| PlotError::Font(e.to_string()))?,
             );
         }
         let mut category_w: f64 = 0.0;
         for c in &spec.categories {
             category_w = category_w.max(
-                crate::text::text_width(&c.name, TICK_SIZE)
+                crate::harness::text::text_width(&c.name, TICK_SIZE)
                     .map_err(|e| PlotError::Font(e.to_string()))?,
             );
         }
