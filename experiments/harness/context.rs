@@ -1,8 +1,6 @@
 //! What every experiment shares: where results go, which meshes to use, the
 //! seed, the machine description recorded in every output, progress bars,
 //! and the writers for CSV, JSON and README sections.
-// Some helpers serve only part of the experiments.
-#![allow(dead_code)]
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

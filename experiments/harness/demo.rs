@@ -10,8 +10,8 @@ use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, LaplacianKind, NullSpaceQr, Report};
 
 use crate::harness::plot::{
-    self, Axis, Category, Drawn, Failure, LegendPosition, LineChart, Orientation, Output,
-    ReferenceLine, ScatterFits, Series, StackedBars,
+    self, Axis, Category, Drawn, Failure, LegendPosition, LineChart, Output, ReferenceLine,
+    ScatterFits, Series, StackedBars,
 };
 use crate::harness::registry::AnyError;
 use lse_deform::render::{self, Camera, Layout, Panel, RenderMesh, Style, View};
@@ -171,7 +171,6 @@ pub fn viz_demo(out: &Path) -> Result<(), AnyError> {
         value_label: "time (s)".into(),
         segments: segments.iter().map(|s| s.to_string()).collect(),
         categories,
-        orientation: Orientation::Horizontal,
         total_suffix: Some(" s".into()),
         legend: LegendPosition::Auto,
     };

@@ -26,7 +26,7 @@ use serde::Serialize;
 use crate::harness::context::{
     Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median,
 };
-use crate::harness::plot::{self, Category, LegendPosition, Orientation, Output, StackedBars};
+use crate::harness::plot::{self, Category, LegendPosition, Output, StackedBars};
 use crate::harness::registry::{AnyError, Experiment, Input, Summary};
 use crate::harness::timing::{
     PENALTY_RELATIVE_WEIGHT, PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells,
@@ -315,7 +315,6 @@ fn figures(
             value_label: "time (s), median run".into(),
             segments: PHASES.iter().map(|s| s.to_string()).collect(),
             categories,
-            orientation: Orientation::Horizontal,
             total_suffix: Some(" s".into()),
             legend: LegendPosition::Auto,
         };

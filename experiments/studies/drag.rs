@@ -32,7 +32,7 @@ use python::PythonRows;
 
 use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
 use crate::harness::plot::{
-    self, Axis, Category, LegendPosition, LineChart, Orientation, Output, Series, StackedBars,
+    self, Axis, Category, LegendPosition, LineChart, Output, Series, StackedBars,
 };
 use crate::harness::registry::{AnyError, Experiment, Input, Summary};
 use crate::harness::timing::{
@@ -749,7 +749,6 @@ fn latency_figure(
             "frame p99 − frame p50".into(),
         ],
         categories,
-        orientation: Orientation::Horizontal,
         total_suffix: Some(" ms".into()),
         legend: LegendPosition::Auto,
     };

@@ -25,8 +25,7 @@ use crate::harness::context::{
     Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median,
 };
 use crate::harness::plot::{
-    self, Axis, Category, LegendPosition, LineChart, Orientation, Output, ReferenceLine, Series,
-    StackedBars,
+    self, Axis, Category, LegendPosition, LineChart, Output, ReferenceLine, Series, StackedBars,
 };
 use crate::harness::registry::{AnyError, Experiment, Input, Summary};
 use crate::harness::timing::{
@@ -491,7 +490,6 @@ fn figures(
         value_label: "time (s), median run".into(),
         segments: PHASES.iter().map(|s| s.to_string()).collect(),
         categories,
-        orientation: Orientation::Horizontal,
         total_suffix: Some(" s".into()),
         legend: LegendPosition::Auto,
     };

@@ -1,0 +1,98 @@
+//! Log–log scatters with one fitted power law per series
+//! ([`scatter_loglog_with_fits`]).
+
+use super::*;
+
+/// Draws points on log–log axes with a least-squares power-law fit per
+/// series (solid line over the series' x range, slope in the legend) to
+/// `out.png()` and `out.svg()`. A series with fewer than two distinct
+/// positive x is drawn without a fit, and a note says so.
+pub fn scatter_loglog_with_fits(spec: &ScatterFits, out: &Output) -> Result<Drawn, PlotError> {
+    let fig = &spec.title;
+    if spec.series.is_empty() {
+        return Err(no_data(fig, "no series"));
+    }
+    let mut notes = Vec::new();
+    let mut series = Vec::new();
+    let mut fit_lines = Vec::new();
+    for (i, s) in spec.series.iter().enumerate() {
+        if s.points.is_empty() {
+            return Err(PlotError::EmptySeries {
+                figure: fig.clone(),
+                series: s.name.clone(),
+            });
+        }
+        let points = transform_points(
+            fig,
+            &s.name,
+            &s.points,
+            Scale::Log10,
+            Scale::Log10,
+            &mut notes,
+        )?;
+        let kept: Vec<(f64, f64)> = points
+            .iter()
+            .map(|&(x, y)| (10f64.powf(x), 10f64.powf(y)))
+            .collect();
+        let colour = PALETTE[i % PALETTE.len()];
+        let mut name = s.name.clone();
+        let mut has_fit = false;
+        match fit_power_law(&kept) {
+            Ok(fit) => {
+                let (lo, hi) = points
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                        (a.min(p.0), b.max(p.0))
+                    });
+                let line = vec![
+                    (lo, fit.intercept + fit.slope * lo),
+                    (hi, fit.intercept + fit.slope * hi),
+                ];
+                fit_lines.push((line, colour));
+                name = format!("{name} (slope {:.2})", fit.slope);
+                has_fit = true;
+            }
+            Err(e) => notes.push(format!("series '{}': no fit: {e}", s.name)),
+        }
+        series.push(PreparedSeries {
+            name,
+            colour,
+            marker: Marker::ALL[i % Marker::ALL.len()],
+            points,
+            failures: Vec::new(),
+            has_fit,
+        });
+    }
+    let xs: Vec<f64> = series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.0))
+        .collect();
+    let mut ys: Vec<f64> = series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.1))
+        .collect();
+    if xs.is_empty() {
+        return Err(no_data(fig, &skipped_detail(&notes)));
+    }
+    ys.extend(fit_lines.iter().flat_map(|(l, _)| l.iter().map(|p| p.1)));
+    let x_axis = Axis::log10(spec.x_label.clone());
+    let y_axis = Axis::log10(spec.y_label.clone());
+    let figure = LineFigure {
+        frame: Frame {
+            title: spec.title.clone(),
+            x_label: spec.x_label.clone(),
+            y_label: spec.y_label.clone(),
+            x: AxisTicks::new(fig, "x", &x_axis, &xs)?,
+            y: AxisTicks::new(fig, "y", &y_axis, &ys)?,
+            x_grid: true,
+            y_grid: true,
+        },
+        series,
+        references: Vec::new(),
+        legend: spec.legend,
+        fit_lines,
+        join_points: false,
+    };
+    let files = save(&figure, out)?;
+    Ok(Drawn { files, notes })
+}
