@@ -26,9 +26,9 @@ use std::time::Instant;
 use clap::Parser;
 use clap::builder::{PossibleValue, PossibleValuesParser};
 
-use harness::context::{self, Context, markdown_table};
+use harness::context::{self, AnyError, Context, markdown_table};
 use harness::demo;
-use harness::registry::{self, AnyError, Experiment, Summary, assemble_readme};
+use harness::registry::{self, Experiment, Summary, assemble_readme};
 use studies::{
     accuracy, arap, breakdown, conflicts, drag, editor, performance, python, relative, renders,
     scaling, table1, weight_sweep,

@@ -9,9 +9,9 @@ use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method, Report};
 
 use lse_deform::error::Error;
 
+use crate::harness::context::AnyError;
 use crate::harness::context::Context;
 use crate::harness::measures::{failure_kind, sci};
-use crate::harness::registry::AnyError;
 
 /// Groups of the scene's constraints, in list order.
 pub const GROUPS: [&str; 5] = [

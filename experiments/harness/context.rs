@@ -10,7 +10,8 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use lse_deform::mesh::{Mesh, generate, read_mesh};
 use serde::Serialize;
 
-use crate::harness::registry::AnyError;
+/// Any failure of an experiment, as one line.
+pub type AnyError = Box<dyn std::error::Error>;
 
 /// The machine, build and inputs an output was produced with.
 #[derive(Debug, Clone, Serialize)]

@@ -9,11 +9,11 @@ use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, LaplacianKind, NullSpaceQr, Report};
 
+use crate::harness::context::AnyError;
 use crate::harness::plot::{
     self, Axis, Category, Drawn, Failure, LegendPosition, LineChart, Output, ReferenceLine,
     ScatterFits, Series, StackedBars,
 };
-use crate::harness::registry::AnyError;
 use lse_deform::render::{self, Camera, Layout, Panel, RenderMesh, Style, View};
 
 /// The deformation of the demo: positions, report and the constrained

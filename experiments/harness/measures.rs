@@ -7,7 +7,7 @@ use faer::Mat;
 use lse_deform::problem::LseProblem;
 use lse_deform::{Error, LaplacianKind};
 
-use crate::harness::registry::AnyError;
+use crate::harness::context::AnyError;
 
 /// The penalty weight of the "soft only" column (see the section text for
 /// why this one).

@@ -8,10 +8,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::harness::context::{Context, Machine};
-
-/// Any failure of an experiment, as one line.
-pub type AnyError = Box<dyn std::error::Error>;
+use crate::harness::context::{AnyError, Context, Machine};
 
 /// What an experiment reports for the summary table.
 pub struct Summary {

@@ -10,8 +10,8 @@ use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
 use lse_deform::{Deformer, Formulation, LaplacianKind, Mesh, NullSpaceQr};
 
+use crate::harness::context::AnyError;
 use crate::harness::plot::Drawn;
-use crate::harness::registry::AnyError;
 
 /// The phases of the paper's Fig. 8 (plus set-up), bottom of a stack first.
 /// Every stacked-bar figure of the timing experiments passes this list, so a

@@ -24,10 +24,11 @@ use lse_deform::{
 };
 use serde::Serialize;
 
+use crate::harness::context::AnyError;
 use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table};
 use crate::harness::measures::{LAPLACIANS, TABLE_WEIGHT, qr_reference, sci};
 use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, ScatterFits, Series};
-use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::registry::{Experiment, Input, Summary};
 
 /// The experiment's name (results directory and section).
 pub const NAME: &str = "accuracy";

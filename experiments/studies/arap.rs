@@ -28,10 +28,11 @@ use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::{FixedAndHandle, MixedScene};
 use serde::{Deserialize, Serialize};
 
+use crate::harness::context::AnyError;
 use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table};
 use crate::harness::environment::{self, Python};
 use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
-use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::registry::{Experiment, Input, Summary};
 use lse_deform::render::{self, Camera, Layout, Panel, RenderMesh, Style};
 
 pub const NAME: &str = "arap";

@@ -23,10 +23,11 @@ use lse_deform::mesh::Mesh;
 use crate::harness::conflict_scene::{
     GROUPS, Scene, Solved, conflict_mesh, residuals, scene, solve_all,
 };
+use crate::harness::context::AnyError;
 use crate::harness::context::{Context, fmt_time, markdown_table};
 use crate::harness::measures::sci;
 use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
-use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::registry::{Experiment, Input, Summary};
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "conflicts";

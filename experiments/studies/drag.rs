@@ -30,11 +30,12 @@ use serde::Serialize;
 
 use python::PythonRows;
 
+use crate::harness::context::AnyError;
 use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
 use crate::harness::plot::{
     self, Axis, Category, LegendPosition, LineChart, Output, Series, StackedBars,
 };
-use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::registry::{Experiment, Input, Summary};
 use crate::harness::timing::{
     PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
 };

@@ -20,9 +20,10 @@ use std::process::Command;
 use lse_deform::mesh::write_mesh;
 use serde::{Deserialize, Serialize};
 
+use crate::harness::context::AnyError;
 use crate::harness::context::{Context, markdown_table};
 use crate::harness::environment;
-use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::registry::{Experiment, Input, Summary};
 
 pub const NAME: &str = "editor";
 

@@ -22,9 +22,10 @@ use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method};
 use serde::{Deserialize, Serialize};
 
+use crate::harness::context::AnyError;
 use crate::harness::context::{Context, MeshCase, markdown_table, median};
 use crate::harness::environment::{self, Python};
-use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::registry::{Experiment, Input, Summary};
 
 pub const NAME: &str = "python";
 

@@ -14,8 +14,9 @@ use lse_deform::scene::{FixedAndHandle, MixedScene};
 use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 
 use crate::harness::conflict_scene as conflicts;
+use crate::harness::context::AnyError;
 use crate::harness::context::{Context, fmt_time};
-use crate::harness::registry::{AnyError, Experiment, Input, Summary};
+use crate::harness::registry::{Experiment, Input, Summary};
 use lse_deform::render::{
     self, Camera, ColourScale, Ghost, Image, LEGEND_HEIGHT, Legend, RenderMesh, Style, View,
 };
