@@ -969,7 +969,8 @@ fn findings(rows: &[Row]) -> String {
     s
 }
 
-/// Issue 31's target for the handle basis: its frame (p50) at most this
+/// The target of the handle basis (docs/handles.md §2: a frame reads the
+/// basis once): its frame (p50) at most this
 /// fraction of the library default's solve phase (p50)…
 const BASIS_RATIO_LIMIT: f64 = 0.1;
 /// …and its mid-drag shape within this of the refined one's, relative to
