@@ -16,52 +16,9 @@ pub fn scatter_loglog_with_fits(spec: &ScatterFits, out: &Output) -> Result<Draw
     let mut series = Vec::new();
     let mut fit_lines = Vec::new();
     for (i, s) in spec.series.iter().enumerate() {
-        if s.points.is_empty() {
-            return Err(PlotError::EmptySeries {
-                figure: fig.clone(),
-                series: s.name.clone(),
-            });
-        }
-        let points = transform_points(
-            fig,
-            &s.name,
-            &s.points,
-            Scale::Log10,
-            Scale::Log10,
-            &mut notes,
-        )?;
-        let kept: Vec<(f64, f64)> = points
-            .iter()
-            .map(|&(x, y)| (10f64.powf(x), 10f64.powf(y)))
-            .collect();
-        let colour = PALETTE[i % PALETTE.len()];
-        let mut name = s.name.clone();
-        let mut has_fit = false;
-        match fit_power_law(&kept) {
-            Ok(fit) => {
-                let (lo, hi) = points
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-                        (a.min(p.0), b.max(p.0))
-                    });
-                let line = vec![
-                    (lo, fit.intercept + fit.slope * lo),
-                    (hi, fit.intercept + fit.slope * hi),
-                ];
-                fit_lines.push((line, colour));
-                name = format!("{name} (slope {:.2})", fit.slope);
-                has_fit = true;
-            }
-            Err(e) => notes.push(format!("series '{}': no fit: {e}", s.name)),
-        }
-        series.push(PreparedSeries {
-            name,
-            colour,
-            marker: Marker::ALL[i % Marker::ALL.len()],
-            points,
-            failures: Vec::new(),
-            has_fit,
-        });
+        let (prepared, fit_line) = prepare_series(fig, i, s, &mut notes)?;
+        series.push(prepared);
+        fit_lines.extend(fit_line);
     }
     let xs: Vec<f64> = series
         .iter()
@@ -96,3 +53,53 @@ pub fn scatter_loglog_with_fits(spec: &ScatterFits, out: &Output) -> Result<Draw
     let files = save(&figure, out)?;
     Ok(Drawn { files, notes })
 }
+
+/// Series `i` in log–log plotting coordinates with its fitted line (two
+/// end points over the series' x range, and its colour), or a note saying
+/// why it has none; its legend name carries the slope.
+fn prepare_series(
+    fig: &str,
+    i: usize,
+    s: &Series,
+    notes: &mut Vec<String>,
+) -> Result<(PreparedSeries, Option<FitLine>), PlotError> {
+    if s.points.is_empty() {
+        return Err(PlotError::EmptySeries {
+            figure: fig.to_string(),
+            series: s.name.clone(),
+        });
+    }
+    let points = transform_points(fig, &s.name, &s.points, Scale::Log10, Scale::Log10, notes)?;
+    let kept: Vec<(f64, f64)> = (points.iter())
+        .map(|&(x, y)| (10f64.powf(x), 10f64.powf(y)))
+        .collect();
+    let colour = PALETTE[i % PALETTE.len()];
+    let mut name = s.name.clone();
+    let mut fit_line = None;
+    match fit_power_law(&kept) {
+        Ok(fit) => {
+            let (lo, hi) = (points.iter()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                (a.min(p.0), b.max(p.0))
+            });
+            let line = vec![
+                (lo, fit.intercept + fit.slope * lo),
+                (hi, fit.intercept + fit.slope * hi),
+            ];
+            fit_line = Some((line, colour));
+            name = format!("{name} (slope {:.2})", fit.slope);
+        }
+        Err(e) => notes.push(format!("series '{}': no fit: {e}", s.name)),
+    }
+    let prepared = PreparedSeries {
+        name,
+        colour,
+        marker: Marker::ALL[i % Marker::ALL.len()],
+        points,
+        failures: Vec::new(),
+        has_fit: fit_line.is_some(),
+    };
+    Ok((prepared, fit_line))
+}
+
+/// A fitted line: its two end points and its colour.
+type FitLine = (Vec<(f64, f64)>, RGBColor);
