@@ -23,6 +23,7 @@ use lse_deform::formulation::{FORWARD_ERROR_WARNING, PenaltySweep, max_hard_resi
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, Error, Formulation, FormulationChoice, LaplacianKind, Method};
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use serde::Serialize;
@@ -420,6 +421,19 @@ fn find<'a>(rows: &'a [Row], mesh: &str, lap: &str, method: Method) -> Option<&'
 /// The findings paragraph, computed from the rows.
 fn findings(rows: &[Row]) -> String {
     let mut s = String::from("\n**Findings.**\n\n");
+    exact_findings(&mut s, rows);
+    let pen: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.method == Method::Penalty)
+        .collect();
+    penalty_findings(&mut s, rows, &pen);
+    accuracy_findings(&mut s, rows, &pen);
+    s
+}
+
+/// The findings on the exact methods: how many configurations they solved,
+/// their largest constraint residual, and which failed.
+fn exact_findings(s: &mut String, rows: &[Row]) {
     let fmax = |it: &mut dyn Iterator<Item = f64>| it.fold(0.0f64, f64::max);
     let exact = [Method::NullSpaceQr, Method::Kkt, Method::Eliminate];
     let exact_failed: Vec<&Row> = rows
@@ -459,6 +473,11 @@ fn findings(rows: &[Row]) -> String {
                 .join(", ")
         );
     }
+}
+
+/// The findings on penalty: factorisation breakdowns and the solutions
+/// returned with a forward-error warning.
+fn penalty_findings(s: &mut String, rows: &[Row], pen: &[&Row]) {
     let breakdowns = rows
         .iter()
         .filter(|r| {
@@ -468,10 +487,6 @@ fn findings(rows: &[Row]) -> String {
             )
         })
         .count();
-    let pen: Vec<&Row> = rows
-        .iter()
-        .filter(|r| r.method == Method::Penalty)
-        .collect();
     let warned: Vec<&Row> = pen
         .iter()
         .copied()
@@ -512,6 +527,11 @@ fn findings(rows: &[Row]) -> String {
                 .join("; ")
         }
     );
+}
+
+/// The findings on accuracy: penalty's worst constraint violation and the
+/// null-space solution's worst agreement with the QR reference.
+fn accuracy_findings(s: &mut String, rows: &[Row], pen: &[&Row]) {
     let worst_pen = pen
         .iter()
         .filter(|r| r.success)
@@ -546,7 +566,6 @@ fn findings(rows: &[Row]) -> String {
             sci(v)
         );
     }
-    s
 }
 
 fn section_markdown(ctx: &Context, meshes: &[MeshCase], rows: &[Row], seconds: f64) -> String {
@@ -714,6 +733,12 @@ fn draw_figure(rows: &[Row], stem: &Path) -> Result<(), AnyError> {
     Ok(())
 }
 
+/// The dot plot's chart of one panel: category index × log10 value.
+type DotChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// Draws the dot plot of Table 1 on `root`: the title, a legend of the
+/// methods' markers, and one panel per measure with every category's
+/// methods side by side.
 fn draw_dot_plot<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     labels: &[String],
@@ -741,40 +766,68 @@ where
         ((w / 2) as i32, (title_h / 2) as i32),
     )?;
     let (legend_area, plots) = rest.split_vertically(legend_h);
-    // Legend: one marker per method.
-    let mut x = 90i32;
-    for (k, method) in COLUMNS.iter().enumerate() {
-        let c = PALETTE[k];
-        draw_marker(&legend_area, k, (x, legend_h as i32 / 2), c)?;
-        let name = title(*method);
-        legend_area.draw_text(
-            &name,
-            &(FONT, 15.0)
-                .into_font()
-                .color(&BLACK)
-                .pos(Pos::new(HPos::Left, VPos::Center)),
-            (x + 12, legend_h as i32 / 2),
-        )?;
-        x += 24 + crate::harness::text::text_width(&name, 15.0).unwrap_or(200.0) as i32 + 30;
-    }
-    legend_area.draw_text(
-        "× = failed",
-        &(FONT, 15.0)
-            .into_font()
-            .color(&BLACK)
-            .pos(Pos::new(HPos::Left, VPos::Center)),
-        (x, legend_h as i32 / 2),
-    )?;
+    draw_dot_legend(&legend_area, legend_h as i32 / 2)?;
     let panel_h = (h - title_h - legend_h - label_h) / panels.len() as u32;
-    let n = labels.len();
     for (p, panel) in panels.iter().enumerate() {
         let area = plots.margin(p as u32 * panel_h, 0, 0, 0);
         let is_last = p + 1 == panels.len();
         let area_h = panel_h + if is_last { label_h } else { 0 };
         let (area, _) = area.split_vertically(area_h);
+        let dots = Dots {
+            labels,
+            panel,
+            success,
+            label_h: is_last.then_some(label_h),
+        };
+        dots.draw(root, &area)?;
+    }
+    Ok(())
+}
+
+/// The legend of the dot plot: one marker per method, then "× = failed",
+/// on the line `y` of `area`.
+fn draw_dot_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    y: i32,
+) -> Result<(), AnyError>
+where
+    DB::ErrorType: 'static,
+{
+    let font = (FONT, 15.0)
+        .into_font()
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    let mut x = 90i32;
+    for (k, method) in COLUMNS.iter().enumerate() {
+        draw_marker(area, k, (x, y), PALETTE[k])?;
+        let name = title(*method);
+        area.draw_text(&name, &font, (x + 12, y))?;
+        x += 24 + crate::harness::text::text_width(&name, 15.0).unwrap_or(200.0) as i32 + 30;
+    }
+    area.draw_text("× = failed", &font, (x, y))?;
+    Ok(())
+}
+
+/// One panel of the dot plot, with what it needs to draw itself.
+struct Dots<'a> {
+    /// Category labels.
+    labels: &'a [String],
+    /// The values.
+    panel: &'a Panel,
+    /// Per category and method: whether the solve succeeded.
+    success: &'a [Vec<bool>],
+    /// Height of the category labels below the last panel (`None` above).
+    label_h: Option<u32>,
+}
+
+impl Dots<'_> {
+    /// The panel's y range (log10): a decade below the smallest positive
+    /// value (at least down to the floor's decade) to half a decade above
+    /// the largest; `−16 … 0` without positive values.
+    fn range(&self) -> (f64, f64) {
         let mut lo = f64::INFINITY;
         let mut hi = f64::NEG_INFINITY;
-        for v in panel.values.iter().flatten().flatten() {
+        for v in self.panel.values.iter().flatten().flatten() {
             if *v > 0.0 {
                 lo = lo.min(v.log10());
                 hi = hi.max(v.log10());
@@ -784,66 +837,91 @@ where
             lo = -16.0;
             hi = 0.0;
         }
-        let lo = (lo.floor() - 1.0).min(panel.floor.log10().max(lo.floor() - 1.0));
-        let hi = hi.ceil() + 0.5;
-        let mut chart = ChartBuilder::on(&area)
+        let lo = (lo.floor() - 1.0).min(self.panel.floor.log10().max(lo.floor() - 1.0));
+        (lo, hi.ceil() + 0.5)
+    }
+
+    /// Draws the panel's axes and dots into `area` (the category labels and
+    /// markers on `root`, in its pixels).
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        area: &DrawingArea<DB, Shift>,
+    ) -> Result<(), AnyError>
+    where
+        DB::ErrorType: 'static,
+    {
+        let n = self.labels.len();
+        let (lo, hi) = self.range();
+        let mut chart = ChartBuilder::on(area)
             .margin_left(10)
             .margin_right(20)
             .margin_top(8)
-            .x_label_area_size(if is_last { label_h } else { 0 })
+            .x_label_area_size(self.label_h.unwrap_or(0))
             .y_label_area_size(90)
             .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), lo..hi)?;
-        let label_of = |v: &f64| -> String {
-            let i = v.round();
-            if (v - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < n {
-                labels[i as usize].clone()
-            } else {
-                String::new()
-            }
-        };
         let mut mesh = chart.configure_mesh();
-        mesh.y_desc(panel.y_label.as_str())
+        mesh.y_desc(self.panel.y_label.as_str())
             .y_label_formatter(&|v| format!("1e{}", v.round() as i64))
             .y_labels(((hi - lo) as usize + 1).min(12))
             .x_labels(n)
-            .x_label_formatter(&label_of)
             .disable_x_mesh()
             .axis_desc_style((FONT, 17.0))
             .label_style((FONT, 14.0));
         mesh.x_label_formatter(&|_| String::new());
         mesh.draw()?;
-        if is_last {
-            // Category labels, drawn here (plotters ignores the anchor of
-            // rotated tick labels): reading upwards, ending just below the
-            // axis.
-            for (i, label) in labels.iter().enumerate() {
-                let (px, py) = chart.backend_coord(&(i as f64, lo));
-                root.draw_text(
-                    label,
-                    &(FONT, 14.0)
-                        .into_font()
-                        .transform(FontTransform::Rotate270)
-                        .color(&BLACK)
-                        .pos(Pos::new(HPos::Right, VPos::Center)),
-                    (px, py + 8),
-                )?;
-            }
+        if self.label_h.is_some() {
+            self.draw_labels(root, &chart, lo)?;
         }
+        self.draw_values(root, &chart, lo)
+    }
+
+    /// Category labels, drawn here (plotters ignores the anchor of rotated
+    /// tick labels): reading upwards, ending just below the axis.
+    fn draw_labels<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        chart: &DotChart<'_, DB>,
+        lo: f64,
+    ) -> Result<(), AnyError>
+    where
+        DB::ErrorType: 'static,
+    {
+        let font = (FONT, 14.0)
+            .into_font()
+            .transform(FontTransform::Rotate270)
+            .color(&BLACK)
+            .pos(Pos::new(HPos::Right, VPos::Center));
+        for (i, label) in self.labels.iter().enumerate() {
+            let (px, py) = chart.backend_coord(&(i as f64, lo));
+            root.draw_text(label, &font, (px, py + 8))?;
+        }
+        Ok(())
+    }
+
+    /// Each category's methods side by side: a marker, or for a failure a
+    /// cross (at the value of the rejected solution if there is one, else
+    /// at the bottom edge).
+    fn draw_values<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        chart: &DotChart<'_, DB>,
+        lo: f64,
+    ) -> Result<(), AnyError>
+    where
+        DB::ErrorType: 'static,
+    {
         let spread = 0.15;
-        for (i, per_method) in panel.values.iter().enumerate() {
+        for (i, per_method) in self.panel.values.iter().enumerate() {
             for (k, v) in per_method.iter().enumerate() {
                 let xpos = i as f64 + (k as f64 - 1.5) * spread;
                 let colour = PALETTE[k];
-                let ok = success[i][k];
                 let y = match v {
                     Some(v) if *v > 0.0 => v.log10(),
-                    Some(_) => lo,
-                    None => lo,
+                    _ => lo,
                 };
                 let px = chart.backend_coord(&(xpos, y.max(lo)));
-                if v.is_none() || !ok {
-                    // A failure: a cross (at the value of the rejected
-                    // solution if there is one, else at the bottom edge).
+                if v.is_none() || !self.success[i][k] {
                     let r = 6;
                     for (a, b) in [((-r, -r), (r, r)), ((-r, r), (r, -r))] {
                         root.draw(&PathElement::new(
@@ -856,8 +934,8 @@ where
                 }
             }
         }
+        Ok(())
     }
-    Ok(())
 }
 
 fn draw_marker<DB: DrawingBackend>(
