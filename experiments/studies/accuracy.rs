@@ -491,66 +491,7 @@ fn first_refinements(rows: &[Row]) -> String {
 fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String {
     let mut s = String::new();
     for name in FORMULATIONS.map(Method::name) {
-        let pick = |mode: &str| -> Vec<&Row> {
-            rows.iter()
-                .filter(|r| r.formulation == name && r.refine == mode && r.error.is_some())
-                .collect()
-        };
-        let (off, auto) = (pick("off"), pick("auto"));
-        if off.is_empty() || auto.is_empty() {
-            continue;
-        }
-        if name == "nullspace-qr" {
-            // Refined, it is the reference: only the unrefined loss says
-            // something.
-            let _ = writeln!(
-                s,
-                "- **{name}** (refined: the reference): without refinement the median loss is {:.1} digits (worst error {}); refinement took a median of {} steps.",
-                median_of(off.iter().filter_map(|r| r.digits_lost)),
-                sci(off.iter().filter_map(|r| r.error).fold(0.0, f64::max)),
-                median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
-            );
-            continue;
-        }
-        let worst = |v: &[&Row]| v.iter().filter_map(|r| r.error).fold(0.0, f64::max);
-        let lost = |v: &[&Row]| median_of(v.iter().filter_map(|r| r.digits_lost));
-        let within = auto
-            .iter()
-            .filter(|r| r.error.is_some_and(|e| e <= 1e-10))
-            .count();
-        let worst_auto = auto
-            .iter()
-            .max_by(|a, b| a.error.unwrap_or(0.0).total_cmp(&b.error.unwrap_or(0.0)));
-        let estimate_ok = auto
-            .iter()
-            .filter(|r| {
-                let (Some(e), Some(est)) = (r.error, r.estimate) else {
-                    return false;
-                };
-                e <= 1e-10 || (est >= e / 10.0 && est <= e * 10.0) || est >= e
-            })
-            .count();
-        let _ = writeln!(
-            s,
-            "- **{name}**: without refinement the median loss is {:.1} digits (worst error {}), with refinement {:.1} digits (worst {}{}); \
-             {within} of {} configurations within 1e-10 of the diagonal after refinement; the forward-error estimate is within 10× of, or above, \
-             the measured error in {estimate_ok} of {} (or the error is below 1e-10). Median steps {}.",
-            lost(&off),
-            sci(worst(&off)),
-            lost(&auto),
-            sci(worst(&auto)),
-            worst_auto
-                .map(|r| format!(
-                    ", on {}/{} with κ ≈ {}",
-                    r.mesh,
-                    r.laplacian,
-                    r.condition.map(sci).unwrap_or_else(|| "–".into())
-                ))
-                .unwrap_or_default(),
-            auto.len(),
-            auto.len(),
-            median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
-        );
+        formulation_finding(&mut s, rows, name);
     }
     s.push_str(&first_refinements(rows));
     let failures: Vec<String> = rows
@@ -567,7 +508,90 @@ fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String
     if !failures.is_empty() {
         let _ = writeln!(s, "- Failures: {}.", failures.join("; "));
     }
-    // The weight curve: best plain error against the refined errors.
+    weight_curve_finding(&mut s, weights);
+    let checked: Vec<f64> = refs.iter().filter_map(|r| r.sparse_qr_distance).collect();
+    if !checked.is_empty() {
+        let _ = writeln!(
+            s,
+            "- Check of the reference (null-space QR refined) against the sparse-QR solution of the eliminated problem (condition not squared): \
+             largest distance {} of the diagonal over {} mesh/Laplacian pairs.",
+            sci(checked.iter().copied().fold(0.0, f64::max)),
+            checked.len()
+        );
+    }
+    s
+}
+
+/// The finding of formulation `name`: its digits lost without and with
+/// refinement, how many configurations refinement brings within 1e-10 of
+/// the diagonal, and whether the forward-error estimate is trustworthy
+/// (null-space QR, refined, is the reference: only its unrefined loss).
+fn formulation_finding(s: &mut String, rows: &[Row], name: &str) {
+    let pick = |mode: &str| -> Vec<&Row> {
+        rows.iter()
+            .filter(|r| r.formulation == name && r.refine == mode && r.error.is_some())
+            .collect()
+    };
+    let (off, auto) = (pick("off"), pick("auto"));
+    if off.is_empty() || auto.is_empty() {
+        return;
+    }
+    if name == "nullspace-qr" {
+        // Refined, it is the reference: only the unrefined loss says
+        // something.
+        let _ = writeln!(
+            s,
+            "- **{name}** (refined: the reference): without refinement the median loss is {:.1} digits (worst error {}); refinement took a median of {} steps.",
+            median_of(off.iter().filter_map(|r| r.digits_lost)),
+            sci(off.iter().filter_map(|r| r.error).fold(0.0, f64::max)),
+            median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
+        );
+        return;
+    }
+    let worst = |v: &[&Row]| v.iter().filter_map(|r| r.error).fold(0.0, f64::max);
+    let lost = |v: &[&Row]| median_of(v.iter().filter_map(|r| r.digits_lost));
+    let within = auto
+        .iter()
+        .filter(|r| r.error.is_some_and(|e| e <= 1e-10))
+        .count();
+    let worst_auto = auto
+        .iter()
+        .max_by(|a, b| a.error.unwrap_or(0.0).total_cmp(&b.error.unwrap_or(0.0)));
+    let estimate_ok = auto
+        .iter()
+        .filter(|r| {
+            let (Some(e), Some(est)) = (r.error, r.estimate) else {
+                return false;
+            };
+            e <= 1e-10 || (est >= e / 10.0 && est <= e * 10.0) || est >= e
+        })
+        .count();
+    let _ = writeln!(
+        s,
+        "- **{name}**: without refinement the median loss is {:.1} digits (worst error {}), with refinement {:.1} digits (worst {}{}); \
+         {within} of {} configurations within 1e-10 of the diagonal after refinement; the forward-error estimate is within 10× of, or above, \
+         the measured error in {estimate_ok} of {} (or the error is below 1e-10). Median steps {}.",
+        lost(&off),
+        sci(worst(&off)),
+        lost(&auto),
+        sci(worst(&auto)),
+        worst_auto
+            .map(|r| format!(
+                ", on {}/{} with κ ≈ {}",
+                r.mesh,
+                r.laplacian,
+                r.condition.map(sci).unwrap_or_else(|| "–".into())
+            ))
+            .unwrap_or_default(),
+        auto.len(),
+        auto.len(),
+        median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
+    );
+}
+
+/// The weight curve: the best plain penalty error over all weights against
+/// the errors refined with multiplier updates, per mesh and Laplacian.
+fn weight_curve_finding(s: &mut String, weights: &[WeightPoint]) {
     let mut better = 0;
     let mut pairs = 0;
     let mut best_plain = Vec::new();
@@ -621,17 +645,6 @@ fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String
             }
         );
     }
-    let checked: Vec<f64> = refs.iter().filter_map(|r| r.sparse_qr_distance).collect();
-    if !checked.is_empty() {
-        let _ = writeln!(
-            s,
-            "- Check of the reference (null-space QR refined) against the sparse-QR solution of the eliminated problem (condition not squared): \
-             largest distance {} of the diagonal over {} mesh/Laplacian pairs.",
-            sci(checked.iter().copied().fold(0.0, f64::max)),
-            checked.len()
-        );
-    }
-    s
 }
 
 /// The section of `results/README.md`.
