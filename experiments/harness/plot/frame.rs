@@ -151,10 +151,35 @@ impl Frame {
         root: &'a DrawingArea<DB, Shift>,
     ) -> Result<Chart<'a, DB>, String> {
         root.fill(&WHITE).map_err(de)?;
-        let tick_font = (FONT, TICK_SIZE).into_font();
-        let desc_font = (FONT, AXIS_DESC_SIZE).into_font();
-        let tick_style = TextStyle::from(tick_font.clone());
-        let desc_style = TextStyle::from(desc_font.clone());
+        let (x_area, y_area, right) = self.label_areas(root)?;
+        let mut builder = ChartBuilder::on(root);
+        builder
+            .margin_top(12)
+            .margin_bottom(8)
+            .margin_left(12)
+            .margin_right(right)
+            .x_label_area_size(x_area)
+            .y_label_area_size(y_area);
+        if !self.title.is_empty() {
+            builder.caption(&self.title, (FONT, TITLE_SIZE).into_font());
+        }
+        let mut chart = builder
+            .build_cartesian_2d(self.x.coord(), self.y.coord())
+            .map_err(de)?;
+        self.draw_axes(&mut chart)?;
+        Ok(chart)
+    }
+
+    /// The label areas of the frame on `root`, in pixels: below the x axis
+    /// (tick labels and description), left of the y axis (the widest tick
+    /// label and the description), and the right margin (room for the last
+    /// x tick label, which is centred on the plot's edge).
+    fn label_areas<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<(u32, u32, u32), String> {
+        let tick_style = TextStyle::from((FONT, TICK_SIZE).into_font());
+        let desc_style = TextStyle::from((FONT, AXIS_DESC_SIZE).into_font());
         let width_of = |labels: &[(f64, String)]| -> Result<u32, String> {
             let mut w = 0;
             for (_, l) in labels {
@@ -177,24 +202,13 @@ impl Frame {
         };
         let y_area = width_of(&self.y.majors)? + 18 + y_desc;
         let x_area = tick_h + 20 + x_desc;
-        // Room on the right for the last x tick label, which is centred on
-        // the plot's edge.
-        let right =
-            (width_of(&self.x.majors[self.x.majors.len().saturating_sub(1)..])? / 2 + 8).max(20);
-        let mut builder = ChartBuilder::on(root);
-        builder
-            .margin_top(12)
-            .margin_bottom(8)
-            .margin_left(12)
-            .margin_right(right)
-            .x_label_area_size(x_area)
-            .y_label_area_size(y_area);
-        if !self.title.is_empty() {
-            builder.caption(&self.title, (FONT, TITLE_SIZE).into_font());
-        }
-        let mut chart = builder
-            .build_cartesian_2d(self.x.coord(), self.y.coord())
-            .map_err(de)?;
+        let last_x = &self.x.majors[self.x.majors.len().saturating_sub(1)..];
+        let right = (width_of(last_x)? / 2 + 8).max(20);
+        Ok((x_area, y_area, right))
+    }
+
+    /// Draws axes, tick labels, grid lines and axis descriptions.
+    fn draw_axes<DB: DrawingBackend>(&self, chart: &mut Chart<'_, DB>) -> Result<(), String> {
         let x_fmt = |v: &f64| self.x.label(*v);
         let y_fmt = |v: &f64| self.y.label(*v);
         let mut mesh = chart.configure_mesh();
@@ -202,8 +216,8 @@ impl Frame {
             .y_desc(self.y_label.as_str())
             .x_label_formatter(&x_fmt)
             .y_label_formatter(&y_fmt)
-            .label_style(tick_font.clone())
-            .axis_desc_style(desc_font.clone())
+            .label_style((FONT, TICK_SIZE).into_font())
+            .axis_desc_style((FONT, AXIS_DESC_SIZE).into_font())
             .bold_line_style(BLACK.mix(0.13))
             .light_line_style(BLACK.mix(0.05))
             .axis_style(BLACK.mix(0.8))
@@ -214,8 +228,7 @@ impl Frame {
         if !self.y_grid {
             mesh.disable_y_mesh();
         }
-        mesh.draw().map_err(de)?;
-        Ok(chart)
+        mesh.draw().map_err(de)
     }
 
     /// The legend position for `pos`, choosing for [`LegendPosition::Auto`]
@@ -235,60 +248,69 @@ impl Frame {
             LegendPosition::Hidden => None,
             LegendPosition::UpperLeft => Some(SeriesLabelPosition::UpperLeft),
             LegendPosition::UpperRight => Some(SeriesLabelPosition::UpperRight),
-            LegendPosition::Auto => {
-                let nx = |x: f64| (x - self.x.lo) / (self.x.hi - self.x.lo);
-                let ny = |y: f64| (y - self.y.lo) / (self.y.hi - self.y.lo);
-                // Candidate boxes: (position, u range, v range), corners
-                // first (preferred on ties).
-                let (bw, bh) = size;
-                let (left, centre, right) =
-                    ((0.0, bw), (0.5 - bw / 2.0, 0.5 + bw / 2.0), (1.0 - bw, 1.0));
-                let (bottom, middle, top) =
-                    ((0.0, bh), (0.5 - bh / 2.0, 0.5 + bh / 2.0), (1.0 - bh, 1.0));
-                let candidates = [
-                    (SeriesLabelPosition::UpperRight, right, top),
-                    (SeriesLabelPosition::UpperLeft, left, top),
-                    (SeriesLabelPosition::LowerRight, right, bottom),
-                    (SeriesLabelPosition::LowerLeft, left, bottom),
-                    (SeriesLabelPosition::UpperMiddle, centre, top),
-                    (SeriesLabelPosition::LowerMiddle, centre, bottom),
-                    (SeriesLabelPosition::MiddleRight, right, middle),
-                    (SeriesLabelPosition::MiddleLeft, left, middle),
-                ];
-                // Cost: a data point or marker under the legend costs 20,
-                // each sample along a line 1.
-                let mut costs = [0usize; 8];
-                let mut add = |x: f64, y: f64, cost: usize| {
-                    let (u, v) = (nx(x), ny(y));
-                    for (k, (_, us, vs)) in candidates.iter().enumerate() {
-                        if u >= us.0 && u <= us.1 && v >= vs.0 && v <= vs.1 {
-                            costs[k] += cost;
-                        }
-                    }
-                };
-                for line in polylines {
-                    for p in line {
-                        add(p.0, p.1, 20);
-                    }
-                    if join {
-                        for w in line.windows(2) {
-                            for k in 1..40 {
-                                let t = k as f64 / 40.0;
-                                add(
-                                    w[0].0 + t * (w[1].0 - w[0].0),
-                                    w[0].1 + t * (w[1].1 - w[0].1),
-                                    1,
-                                );
-                            }
-                        }
-                    }
+            LegendPosition::Auto => Some(self.least_covered(polylines, join, size)),
+        }
+    }
+
+    /// Among the four corners and the four edge middles, the place where a
+    /// legend box of `size` covers the least of `polylines` (see
+    /// [`Frame::legend_corner`]).
+    fn least_covered(
+        &self,
+        polylines: &[Vec<(f64, f64)>],
+        join: bool,
+        size: (f64, f64),
+    ) -> SeriesLabelPosition {
+        let nx = |x: f64| (x - self.x.lo) / (self.x.hi - self.x.lo);
+        let ny = |y: f64| (y - self.y.lo) / (self.y.hi - self.y.lo);
+        // Candidate boxes: (position, u range, v range), corners first
+        // (preferred on ties).
+        let (bw, bh) = size;
+        let (left, centre, right) = ((0.0, bw), (0.5 - bw / 2.0, 0.5 + bw / 2.0), (1.0 - bw, 1.0));
+        let (bottom, middle, top) = ((0.0, bh), (0.5 - bh / 2.0, 0.5 + bh / 2.0), (1.0 - bh, 1.0));
+        let candidates = [
+            (SeriesLabelPosition::UpperRight, right, top),
+            (SeriesLabelPosition::UpperLeft, left, top),
+            (SeriesLabelPosition::LowerRight, right, bottom),
+            (SeriesLabelPosition::LowerLeft, left, bottom),
+            (SeriesLabelPosition::UpperMiddle, centre, top),
+            (SeriesLabelPosition::LowerMiddle, centre, bottom),
+            (SeriesLabelPosition::MiddleRight, right, middle),
+            (SeriesLabelPosition::MiddleLeft, left, middle),
+        ];
+        // Cost: a data point or marker under the legend costs 20, each
+        // sample along a line 1.
+        let mut costs = [0usize; 8];
+        let mut add = |x: f64, y: f64, cost: usize| {
+            let (u, v) = (nx(x), ny(y));
+            for (k, (_, us, vs)) in candidates.iter().enumerate() {
+                if u >= us.0 && u <= us.1 && v >= vs.0 && v <= vs.1 {
+                    costs[k] += cost;
                 }
-                let best = (0..candidates.len())
-                    .min_by_key(|&i| (costs[i], i))
-                    .unwrap_or(0);
-                Some(candidates[best].0.clone())
+            }
+        };
+        for line in polylines {
+            for p in line {
+                add(p.0, p.1, 20);
+            }
+            if !join {
+                continue;
+            }
+            for w in line.windows(2) {
+                for k in 1..40 {
+                    let t = k as f64 / 40.0;
+                    add(
+                        w[0].0 + t * (w[1].0 - w[0].0),
+                        w[0].1 + t * (w[1].1 - w[0].1),
+                        1,
+                    );
+                }
             }
         }
+        let best = (0..candidates.len())
+            .min_by_key(|&i| (costs[i], i))
+            .unwrap_or(0);
+        candidates[best].0.clone()
     }
 }
 

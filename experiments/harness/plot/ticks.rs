@@ -27,51 +27,8 @@ impl AxisTicks {
         values: &[f64],
     ) -> Result<AxisTicks, PlotError> {
         let (lo, hi) = match axis.range {
-            Some((lo, hi)) => {
-                let bad = |reason| PlotError::InvalidRange {
-                    figure: figure.to_string(),
-                    axis: name,
-                    lo,
-                    hi,
-                    reason,
-                };
-                if !(lo.is_finite() && hi.is_finite()) {
-                    return Err(bad("not finite"));
-                }
-                if lo >= hi {
-                    return Err(bad("lo ≥ hi"));
-                }
-                match axis.scale {
-                    Scale::Linear => (lo, hi),
-                    Scale::Log10 => {
-                        if lo <= 0.0 {
-                            return Err(bad("a log axis needs lo > 0"));
-                        }
-                        (lo.log10(), hi.log10())
-                    }
-                }
-            }
-            None => {
-                let (mut lo, mut hi) = values
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                        (a.min(v), b.max(v))
-                    });
-                if !(lo.is_finite() && hi.is_finite()) {
-                    lo = 0.0;
-                    hi = 1.0;
-                }
-                if hi - lo <= 1e-12 * (1.0 + lo.abs().max(hi.abs())) {
-                    let half = match axis.scale {
-                        Scale::Log10 => 0.5,
-                        Scale::Linear => (0.1 * lo.abs()).max(0.5),
-                    };
-                    lo -= half;
-                    hi += half;
-                }
-                let pad = 0.05 * (hi - lo);
-                (lo - pad, hi + pad)
-            }
+            Some((lo, hi)) => fixed_range(figure, name, axis.scale, lo, hi)?,
+            None => fitted_range(axis.scale, values),
         };
         Ok(match axis.scale {
             Scale::Linear => AxisTicks::linear(lo, hi),
@@ -147,86 +104,83 @@ impl AxisTicks {
     /// `10ᵏ` (plain numbers between 0.01 and 10⁴), at most ~8 of them; below
     /// two decades in range, 1–2–5 multiples, labelled as plain numbers.
     pub(super) fn log(lo: f64, hi: f64) -> AxisTicks {
+        if hi.floor() - lo.ceil() >= 1.0 {
+            AxisTicks::log_decades(lo, hi)
+        } else {
+            AxisTicks::log_multiples(lo, hi)
+        }
+    }
+
+    /// Log ticks over at least two decades: every decade (or every second,
+    /// third, … so that at most ~8 are labelled) a major tick, the others
+    /// and, over at most ten decades, the multiples 2–9 minor grid lines.
+    fn log_decades(lo: f64, hi: f64) -> AxisTicks {
         let first = lo.ceil() as i64;
         let last = hi.floor() as i64;
-        let decades = (last - first + 1).max(0);
+        let decades = last - first + 1;
         let inside = |t: f64| t >= lo - 1e-12 && t <= hi + 1e-12;
-        if decades >= 2 {
-            let every = [1i64, 2, 3, 4, 5, 10, 20, 50, 100]
-                .into_iter()
-                .find(|&e| decades / e <= 8)
-                .unwrap_or(decades);
-            let plain = first >= -2 && last <= 4;
-            let mut majors = Vec::new();
-            let mut minors = Vec::new();
-            for k in first - 1..=last {
-                let t = k as f64;
-                if (first..=last).contains(&k) {
-                    if k.rem_euclid(every) == 0 {
-                        let label = if plain {
-                            plain_label(10f64.powi(k as i32))
-                        } else {
-                            format!("10{}", superscript(k))
-                        };
-                        majors.push((t, label));
+        let every = [1i64, 2, 3, 4, 5, 10, 20, 50, 100]
+            .into_iter()
+            .find(|&e| decades / e <= 8)
+            .unwrap_or(decades);
+        let plain = first >= -2 && last <= 4;
+        let mut majors = Vec::new();
+        let mut minors = Vec::new();
+        for k in first - 1..=last {
+            let t = k as f64;
+            if (first..=last).contains(&k) {
+                if k.rem_euclid(every) == 0 {
+                    let label = if plain {
+                        plain_label(10f64.powi(k as i32))
                     } else {
-                        minors.push(t);
-                    }
-                }
-                if every == 1 && decades <= 10 {
-                    for m in 2..=9 {
-                        let tm = t + (m as f64).log10();
-                        if inside(tm) {
-                            minors.push(tm);
-                        }
-                    }
+                        format!("10{}", superscript(k))
+                    };
+                    majors.push((t, label));
+                } else {
+                    minors.push(t);
                 }
             }
-            return AxisTicks {
-                lo,
-                hi,
-                majors,
-                minors,
-            };
-        }
-        // Less than two decades: 1-2-5 (or 1..9) multiples.
-        for mantissas in [
-            &[1.0, 2.0, 5.0][..],
-            &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0][..],
-        ] {
-            let mut majors = Vec::new();
-            for k in (lo.floor() as i64)..=(hi.ceil() as i64) {
-                for &m in mantissas {
-                    let v = m * 10f64.powi(k as i32);
-                    let t = v.log10();
-                    if inside(t) {
-                        majors.push((t, plain_label(v)));
-                    }
-                }
-            }
-            if majors.len() >= 3 || mantissas.len() == 9 {
-                if majors.len() < 2 {
-                    // Less than a factor 2 of range: linear-looking ticks.
-                    let lin = AxisTicks::linear(10f64.powf(lo), 10f64.powf(hi));
-                    majors = lin
-                        .majors
-                        .into_iter()
-                        .filter(|(v, _)| *v > 0.0)
-                        .map(|(v, l)| (v.log10(), l))
-                        .collect();
-                }
-                return AxisTicks {
-                    lo,
-                    hi,
-                    majors,
-                    minors: Vec::new(),
-                };
+            if every == 1 && decades <= 10 {
+                let between = (2..=9).map(|m| t + (m as f64).log10());
+                minors.extend(between.filter(|&tm| inside(tm)));
             }
         }
         AxisTicks {
             lo,
             hi,
-            majors: Vec::new(),
+            majors,
+            minors,
+        }
+    }
+
+    /// Log ticks over less than two decades: 1–2–5 multiples (or 1…9 when
+    /// those give fewer than three), labelled as plain numbers; below a
+    /// factor 2 of range, linear-looking ticks.
+    fn log_multiples(lo: f64, hi: f64) -> AxisTicks {
+        let inside = |t: f64| t >= lo - 1e-12 && t <= hi + 1e-12;
+        let multiples = |mantissas: &[f64]| -> Vec<(f64, String)> {
+            let decades = (lo.floor() as i64)..=(hi.ceil() as i64);
+            decades
+                .flat_map(|k| mantissas.iter().map(move |m| m * 10f64.powi(k as i32)))
+                .filter(|v| inside(v.log10()))
+                .map(|v| (v.log10(), plain_label(v)))
+                .collect()
+        };
+        let mut majors = multiples(&[1.0, 2.0, 5.0]);
+        if majors.len() < 3 {
+            majors = multiples(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+        }
+        if majors.len() < 2 {
+            let lin = AxisTicks::linear(10f64.powf(lo), 10f64.powf(hi));
+            majors = (lin.majors.into_iter())
+                .filter(|(v, _)| *v > 0.0)
+                .map(|(v, l)| (v.log10(), l))
+                .collect();
+        }
+        AxisTicks {
+            lo,
+            hi,
+            majors,
             minors: Vec::new(),
         }
     }
@@ -373,4 +327,58 @@ pub(super) fn plain_label(v: f64) -> String {
     } else {
         s
     }
+}
+
+/// A fixed axis range in plotting coordinates, checked: finite, `lo < hi`,
+/// and `lo > 0` on a log axis.
+fn fixed_range(
+    figure: &str,
+    name: &'static str,
+    scale: Scale,
+    lo: f64,
+    hi: f64,
+) -> Result<(f64, f64), PlotError> {
+    let bad = |reason| PlotError::InvalidRange {
+        figure: figure.to_string(),
+        axis: name,
+        lo,
+        hi,
+        reason,
+    };
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Err(bad("not finite"));
+    }
+    if lo >= hi {
+        return Err(bad("lo ≥ hi"));
+    }
+    match scale {
+        Scale::Linear => Ok((lo, hi)),
+        Scale::Log10 if lo <= 0.0 => Err(bad("a log axis needs lo > 0")),
+        Scale::Log10 => Ok((lo.log10(), hi.log10())),
+    }
+}
+
+/// The range of `values` (plotting coordinates) padded by 5 % on each
+/// side; a single value gets half a decade (log) or 10 % of it, at least
+/// 0.5 (linear) on each side, no value `[0, 1]`.
+fn fitted_range(scale: Scale, values: &[f64]) -> (f64, f64) {
+    let (mut lo, mut hi) = values
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if !(lo.is_finite() && hi.is_finite()) {
+        lo = 0.0;
+        hi = 1.0;
+    }
+    if hi - lo <= 1e-12 * (1.0 + lo.abs().max(hi.abs())) {
+        let half = match scale {
+            Scale::Log10 => 0.5,
+            Scale::Linear => (0.1 * lo.abs()).max(0.5),
+        };
+        lo -= half;
+        hi += half;
+    }
+    let pad = 0.05 * (hi - lo);
+    (lo - pad, hi + pad)
 }
