@@ -26,9 +26,10 @@ use std::time::Instant;
 use clap::Parser;
 use clap::builder::{PossibleValue, PossibleValuesParser};
 
-use harness::context::{self, AnyError, Context, markdown_table};
+use harness::context::{self, AnyError, Context};
 use harness::demo;
 use harness::registry::{self, Experiment, Summary, assemble_readme};
+use harness::rows::markdown_table;
 use studies::{
     accuracy, arap, breakdown, conflicts, drag, editor, performance, python, relative, renders,
     scaling, table1, weight_sweep,

@@ -25,10 +25,11 @@ use lse_deform::{
 use serde::Serialize;
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::measures::{LAPLACIANS, TABLE_WEIGHT, qr_reference, sci};
 use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, ScatterFits, Series};
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
 
 /// The experiment's name (results directory and section).
 pub const NAME: &str = "accuracy";
@@ -450,7 +451,7 @@ fn draw(ctx: &Context, rows: &[Row], weights: &[WeightPoint]) -> Result<Vec<Stri
 
 /// The median of the values (NaN for none).
 fn median_of(v: impl Iterator<Item = f64>) -> f64 {
-    crate::harness::context::median(&v.collect::<Vec<_>>())
+    crate::harness::rows::median(&v.collect::<Vec<_>>())
 }
 
 /// The findings, stated from the data.

@@ -29,10 +29,11 @@ use lse_deform::scene::{FixedAndHandle, MixedScene};
 use serde::{Deserialize, Serialize};
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::environment::{self, Python};
 use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
 use lse_deform::render::{self, Camera, Layout, Panel, RenderMesh, Style};
 
 pub const NAME: &str = "arap";

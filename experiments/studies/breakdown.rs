@@ -24,11 +24,10 @@ use lse_deform::{Formulation, FormulationChoice, Mesh, Method, Report};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{
-    Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median,
-};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::plot::{self, Category, LegendPosition, Output, StackedBars};
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::harness::timing::{
     PENALTY_RELATIVE_WEIGHT, PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells,
     phase_values, setup_and_precompute, short_error, spd_backends,

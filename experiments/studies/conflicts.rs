@@ -24,10 +24,11 @@ use crate::harness::conflict_scene::{
     GROUPS, Scene, Solved, conflict_mesh, residuals, scene, solve_all,
 };
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, fmt_time, markdown_table};
+use crate::harness::context::Context;
 use crate::harness::measures::sci;
 use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "conflicts";

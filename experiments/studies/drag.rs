@@ -7,9 +7,11 @@
 //! Further rows of the library default drag the same frames with
 //! refinement off through [`Deformer::solve_into`] (no correction, no
 //! diagnostics), by the handle basis ([`HandleBasis::evaluate`], built once:
-//! docs/handles.md), and through Python (`drag_python`: the basis and
+//! docs/handles.md), and through Python ([`python`]: the basis and
 //! `transform_group` + `solve`): what each frame costs and how far its
 //! shape is from the refined one's.
+
+mod python;
 
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -17,8 +19,6 @@ use std::path::Path;
 use std::time::Instant;
 
 use faer::Mat;
-mod python;
-
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::deform::Affine;
 use lse_deform::formulation::{Refine, max_hard_residual};
@@ -31,11 +31,12 @@ use serde::Serialize;
 use python::PythonRows;
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::plot::{
     self, Axis, Category, LegendPosition, LineChart, Output, Series, StackedBars,
 };
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table, median, percentile};
 use crate::harness::timing::{
     PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
 };

@@ -21,9 +21,10 @@ use lse_deform::mesh::write_mesh;
 use serde::{Deserialize, Serialize};
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, markdown_table};
+use crate::harness::context::Context;
 use crate::harness::environment;
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::markdown_table;
 
 pub const NAME: &str = "editor";
 

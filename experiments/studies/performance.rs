@@ -45,9 +45,10 @@ use lse_deform::{Deformer, LaplacianKind};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, fmt_time, markdown_table, median};
+use crate::harness::context::Context;
 use crate::harness::plot::{self, LegendPosition, Output, ScatterFits, Series};
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table, median};
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "performance";

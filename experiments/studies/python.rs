@@ -23,9 +23,10 @@ use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method};
 use serde::{Deserialize, Serialize};
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, MeshCase, markdown_table, median};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::environment::{self, Python};
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{markdown_table, median};
 
 pub const NAME: &str = "python";
 

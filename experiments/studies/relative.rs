@@ -22,13 +22,12 @@ use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method
 use serde::Serialize;
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{
-    Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median,
-};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::plot::{
     self, Axis, Category, LegendPosition, LineChart, Output, ReferenceLine, Series, StackedBars,
 };
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::harness::timing::{
     PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells, precompute_phase_values,
     qr_backends, short_error,

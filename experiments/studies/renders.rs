@@ -15,8 +15,9 @@ use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 
 use crate::harness::conflict_scene as conflicts;
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, fmt_time};
+use crate::harness::context::Context;
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::fmt_time;
 use lse_deform::render::{
     self, Camera, ColourScale, Ghost, Image, LEGEND_HEIGHT, Legend, RenderMesh, Style, View,
 };

@@ -20,11 +20,10 @@ use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{
-    Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median,
-};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::plot::{self, LegendPosition, Output, ScatterFits, Series, fit_power_law};
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::harness::timing::{
     PHASE_COLUMNS, link, median_index, note_drawn, null_space_with_spd, phase_cells, short_error,
     spd_backends,

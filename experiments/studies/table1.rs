@@ -29,13 +29,14 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::measures::{
     LAPLACIANS, TABLE_WEIGHT, energy, energy_gap, failure_kind, qr_reference, relative_difference,
     sci,
 };
 use crate::harness::plot::{FONT, PALETTE, ensure_fonts};
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
 use crate::harness::text::GoodText;
 
 /// The folder and command-line word of this experiment.

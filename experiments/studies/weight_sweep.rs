@@ -41,12 +41,13 @@ use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;
-use crate::harness::context::{Context, MeshCase, fmt_time, markdown_table};
+use crate::harness::context::{Context, MeshCase};
 use crate::harness::measures::{energy_gap, failure_kind, qr_reference, sci};
 use crate::harness::plot::{
     self, Axis, Failure, LegendPosition, LineChart, Output, ReferenceLine, Series,
 };
 use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "weight-sweep";
