@@ -2,7 +2,17 @@
 //! categories listed top to bottom, so that long category names stay
 //! readable.
 
-use super::*;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::checks::{check_finite, no_data};
+use super::frame::{Chart, Figure, Frame, de, draw_legend, legend_size, save};
+use super::ticks::{AxisTicks, scientific_label};
+use super::{
+    Drawn, FONT, LEGEND_SIZE, LegendPosition, Output, PALETTE, PlotError, StackedBars, TICK_SIZE,
+};
+use crate::harness::text;
 
 /// Half the thickness of a bar, in category units.
 const HALF: f64 = 0.32;

@@ -1,7 +1,7 @@
 //! Validation of the data before anything is drawn: non-finite values are
 //! errors, points a log axis cannot show are skipped and noted.
 
-use super::*;
+use super::{PlotError, Scale};
 
 /// A [`PlotError::NoData`].
 pub(super) fn no_data(figure: &str, detail: &str) -> PlotError {

@@ -1,7 +1,17 @@
 //! Drawing, generic over the backend: the [`Figure`] trait, saving as PNG
 //! and SVG, markers, the frame (axes, grid, title) and the legend.
 
-use super::*;
+use std::path::{Path, PathBuf};
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::ticks::{AxisTicks, TickCoord};
+use super::{
+    AXIS_DESC_SIZE, FONT, LEGEND_SIZE, LegendPosition, MAX_SIDE, Output, PlotError, TICK_SIZE,
+    TITLE_SIZE, ensure_fonts,
+};
+use crate::harness::text::GoodText;
 
 /// A figure that can be drawn on any backend.
 pub(super) trait Figure {

@@ -1,7 +1,15 @@
 //! Line charts ([`line_chart`]) and the figure they share with the
 //! log–log scatter ([`LineFigure`]).
 
-use super::*;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::checks::{check_finite, no_data, skipped_detail, transform_points};
+use super::frame::{
+    Chart, Figure, Frame, Marker, PreparedSeries, cross_strokes, de, draw_legend, legend_size, save,
+};
+use super::ticks::AxisTicks;
+use super::{Drawn, Failure, LegendPosition, LineChart, Output, PALETTE, PlotError, Series};
 
 /// Draws a line chart to `out.png()` and `out.svg()`.
 ///

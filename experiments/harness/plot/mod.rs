@@ -24,13 +24,10 @@
 
 use std::path::{Path, PathBuf};
 
-use plotters::coord::Shift;
-use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
 use plotters::prelude::*;
-use plotters::style::text_anchor::{HPos, Pos, VPos};
 
+use crate::harness::text;
 pub use crate::harness::text::FONT;
-use crate::harness::text::{self, GoodText};
 
 mod bars;
 mod checks;
@@ -43,13 +40,9 @@ mod tests;
 mod ticks;
 
 pub use bars::stacked_bars;
-use checks::*;
 pub use fit::fit_power_law;
-use frame::*;
-use line::LineFigure;
 pub use line::line_chart;
 pub use scatter::scatter_loglog_with_fits;
-use ticks::*;
 
 /// Colour-blind-safe palette (Okabe & Ito), in the order series and
 /// segments receive colours; yellow last (weak on white).

@@ -1,7 +1,14 @@
 //! Log–log scatters with one fitted power law per series
 //! ([`scatter_loglog_with_fits`]).
 
-use super::*;
+use plotters::prelude::*;
+
+use super::checks::{no_data, skipped_detail, transform_points};
+use super::fit::fit_power_law;
+use super::frame::{Frame, Marker, PreparedSeries, save};
+use super::line::LineFigure;
+use super::ticks::AxisTicks;
+use super::{Axis, Drawn, Output, PALETTE, PlotError, Scale, ScatterFits, Series};
 
 /// Draws points on log–log axes with a least-squares power-law fit per
 /// series (solid line over the series' x range, slope in the legend) to

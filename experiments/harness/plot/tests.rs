@@ -2,6 +2,7 @@
 //! each kind drawn to PNG and SVG.
 
 use super::fit::FitError;
+use super::ticks::AxisTicks;
 use super::*;
 
 /// A fresh directory under the system temp dir for this test, removed

@@ -1,7 +1,9 @@
 //! Axis ranges, ticks and their labels (decades with superscripts on log
 //! axes, round steps on linear axes, names on category axes).
 
-use super::*;
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
+
+use super::{Axis, PlotError, Scale};
 
 /// An axis in plotting coordinates (log10 of the data on log axes): range,
 /// labelled major ticks and unlabelled minor grid lines.
