@@ -11,31 +11,13 @@
 //! cargo run --release --bin experiments -- weight-sweep --mesh my.obj -c my.json
 //! ```
 //!
-//! The experiments are listed once, in [`harness::EXPERIMENTS`]. Without
+//! The experiments are listed once, in [`EXPERIMENTS`]; the infrastructure
+//! is in [`harness`], the experiments in [`studies`]. Without
 //! `--out` a run writes to a fresh directory under `target/experiments/`;
 //! the committed `results/` is written only with `--out results`.
 
-mod accuracy;
-mod arap;
-mod breakdown;
-mod conflicts;
-mod context;
-mod demo;
-mod drag;
-mod drag_python;
-mod editor;
-mod environment;
 mod harness;
-mod performance;
-mod plot;
-mod python;
-mod relative;
-mod render;
-mod renders;
-mod scaling;
-mod table1;
-mod text;
-mod weight_sweep;
+mod studies;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -44,17 +26,33 @@ use std::time::Instant;
 use clap::Parser;
 use clap::builder::{PossibleValue, PossibleValuesParser};
 
-use context::{Context, markdown_table};
-use harness::{EXPERIMENTS, assemble_readme};
+use harness::context::{self, AnyError, Context};
+use harness::demo;
+use harness::registry::{self, Experiment, Summary, assemble_readme};
+use harness::rows::markdown_table;
+use studies::{
+    accuracy, arap, breakdown, conflicts, drag, editor, performance, python, relative, renders,
+    scaling, table1, weight_sweep,
+};
 
-/// Any failure of an experiment, as one line.
-pub type AnyError = Box<dyn std::error::Error>;
-
-/// What an experiment reports for the summary table.
-pub struct Summary {
-    /// One line: the main finding.
-    pub headline: String,
-}
+/// Every experiment, in the order of `all` and of `results/README.md`: the
+/// single list, from which the command line takes its choices and
+/// `results/README.md` its sections.
+const EXPERIMENTS: &[Experiment] = &[
+    table1::EXPERIMENT,
+    weight_sweep::EXPERIMENT,
+    accuracy::EXPERIMENT,
+    breakdown::EXPERIMENT,
+    relative::EXPERIMENT,
+    conflicts::EXPERIMENT,
+    scaling::EXPERIMENT,
+    drag::EXPERIMENT,
+    renders::EXPERIMENT,
+    performance::EXPERIMENT,
+    arap::EXPERIMENT,
+    python::EXPERIMENT,
+    editor::EXPERIMENT,
+];
 
 /// Every experiment first (in the order of `all`), then `all` and
 /// `viz-demo`: the words the command line accepts.
@@ -156,9 +154,9 @@ fn context(cli: &Cli) -> Result<Context, AnyError> {
 /// Adds to an experiment's section what the harness knows and the section
 /// may lack: what this build could not measure, and the machine line with
 /// the revision (which `results/README.md`'s header reads).
-fn complete_section(ctx: &Context, e: &harness::Experiment, path: &Path) -> Result<(), AnyError> {
+fn complete_section(ctx: &Context, e: &Experiment, path: &Path) -> Result<(), AnyError> {
     let mut section = std::fs::read_to_string(path)?.trim_end().to_string();
-    if let Some(note) = harness::missing_build_inputs(e) {
+    if let Some(note) = registry::missing_build_inputs(e) {
         section = format!("{section}\n\n{note}");
     }
     let machine = ctx.machine.one_line();
@@ -172,7 +170,7 @@ fn complete_section(ctx: &Context, e: &harness::Experiment, path: &Path) -> Resu
 /// Runs `e` into an empty folder `out/<name>/` (what an earlier run left
 /// there is removed first, so that nothing older stays beside the new
 /// section); if it fails, its section says so and nothing else is left.
-fn run_fresh(ctx: &Context, e: &harness::Experiment) -> Result<Summary, AnyError> {
+fn run_fresh(ctx: &Context, e: &Experiment) -> Result<Summary, AnyError> {
     let dir = ctx.out.join(e.name);
     if dir.exists() {
         std::fs::remove_dir_all(&dir)
@@ -236,7 +234,7 @@ fn main() -> ExitCode {
             headline,
         ]);
     }
-    if let Err(e) = assemble_readme(&ctx.out, &ctx.machine) {
+    if let Err(e) = assemble_readme(&ctx.out, &ctx.machine, EXPERIMENTS) {
         eprintln!("error: writing {}/README.md: {e}", ctx.out.display());
         failed = true;
     }

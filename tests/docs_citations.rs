@@ -1,11 +1,12 @@
 //! Every citation of the mathematics in the code names a section that
 //! exists: `docs/NAME.md §N` (or `§N–§M`) needs a heading `## N.` in
 //! `docs/NAME.md`; no citation of a design document outside the
-//! repository, and no reference to a tracker's issue numbers. Every
-//! relative Markdown link of `README.md` and `docs/*.md` names a file of
-//! the repository, and its `#anchor` a heading of that file (the `§N` of
-//! the link's text, if any, the anchor's section). The README is a front
-//! page: at most 300 lines, the two commands in its first 80.
+//! repository, and no reference to a tracker's issue numbers (`issue N`,
+//! `#N`). Checked in src/, tests/, benches/, docs/, experiments/ and the
+//! README. Every relative Markdown link of `README.md` and `docs/*.md`
+//! names a file of the repository, and its `#anchor` a heading of that file
+//! (the `§N` of the link's text, if any, the anchor's section). The README
+//! is a front page: at most 300 lines, the two commands in its first 80.
 
 use std::path::{Path, PathBuf};
 
@@ -20,7 +21,7 @@ fn files(dir: &Path, out: &mut Vec<PathBuf>) {
             files(&path, out);
         } else if matches!(
             path.extension().and_then(|e| e.to_str()),
-            Some("rs" | "md" | "py")
+            Some("rs" | "md" | "py" | "mjs")
         ) {
             out.push(path);
         }
@@ -60,7 +61,7 @@ fn citations(text: &str) -> Vec<(String, Vec<u32>)> {
 fn every_docs_citation_names_an_existing_section() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut paths = vec![root.join("README.md")];
-    for dir in ["src", "tests", "benches", "docs"] {
+    for dir in ["src", "tests", "benches", "docs", "experiments"] {
         files(&root.join(dir), &mut paths);
     }
     let mut checked = 0;
@@ -72,6 +73,14 @@ fn every_docs_citation_names_an_existing_section() {
                 .match_indices("issue ")
                 .any(|(i, m)| lower[i + m.len()..].starts_with(|c: char| c.is_ascii_digit())),
             "{} refers to a tracker issue number",
+            path.display()
+        );
+        assert!(
+            !text.match_indices('#').any(|(i, _)| {
+                text[..i].ends_with([' ', '(', '\n'])
+                    && text[i + 1..].starts_with(|c: char| c.is_ascii_digit())
+            }),
+            "{} refers to a tracker issue as #N",
             path.display()
         );
         assert!(

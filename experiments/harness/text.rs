@@ -22,6 +22,35 @@ use plotters_backend::{
     FontStyle,
 };
 
+/// Font family name under which DejaVu Sans is registered.
+pub const FONT: &str = "sans-serif";
+
+/// Registers DejaVu Sans (regular, bold, oblique) under [`FONT`]; idempotent
+/// and cheap after the first call. The SVG files name this family, which
+/// every viewer has.
+pub fn register_fonts() -> Result<(), String> {
+    static REGISTERED: OnceLock<Result<(), String>> = OnceLock::new();
+    REGISTERED
+        .get_or_init(|| {
+            let faces = [
+                (plotters::style::FontStyle::Normal, dejavu::sans::regular()),
+                (plotters::style::FontStyle::Bold, dejavu::sans::bold()),
+                (plotters::style::FontStyle::Italic, dejavu::sans::oblique()),
+                (plotters::style::FontStyle::Oblique, dejavu::sans::oblique()),
+            ];
+            for (style, bytes) in faces {
+                plotters::style::register_font(FONT, style, bytes).map_err(|_| {
+                    format!(
+                        "embedded DejaVu Sans ({}) is not a valid font",
+                        style.as_str()
+                    )
+                })?;
+            }
+            Ok(())
+        })
+        .clone()
+}
+
 /// The three faces of DejaVu Sans, parsed once.
 struct Faces {
     /// Regular.
@@ -283,7 +312,7 @@ mod tests {
     /// Renders `text` centred at (100, 30) into a 200 × 60 white buffer and
     /// returns the rows and columns that received ink.
     fn ink(text: &str, anchor: Pos) -> (Vec<u32>, Vec<u32>) {
-        crate::plot::ensure_fonts().unwrap();
+        register_fonts().unwrap();
         let (w, h) = (200u32, 60u32);
         let mut buf = vec![255u8; (w * h * 3) as usize];
         {
@@ -325,7 +354,7 @@ mod tests {
 
     #[test]
     fn measured_width_grows_with_the_text() {
-        crate::plot::ensure_fonts().unwrap();
+        register_fonts().unwrap();
         let mut buf = vec![0u8; 30];
         let backend = GoodText::new(BitMapBackend::with_buffer(&mut buf, (10, 1)));
         let style = TextStyle::from(("sans-serif", 20.0).into_font());

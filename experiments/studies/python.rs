@@ -22,11 +22,21 @@ use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method};
 use serde::{Deserialize, Serialize};
 
-use crate::context::{Context, MeshCase, markdown_table, median};
-use crate::environment::{self, Python};
-use crate::{AnyError, Summary};
+use crate::harness::context::AnyError;
+use crate::harness::context::{Context, MeshCase};
+use crate::harness::environment::{self, Python};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{markdown_table, median};
 
 pub const NAME: &str = "python";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "The Python door — its cost against Rust and its agreement with libigl",
+    inputs: &[Input::OneMesh, Input::Python],
+    run,
+};
 
 /// Python / Rust median ratio the door must stay within.
 const RATIO_LIMIT: f64 = 1.1;
@@ -177,7 +187,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         Err(why) => not_measured_section(ctx, &why.to_string()),
     };
     ctx.write_section(NAME, &md)?;
-    ctx.write_page(NAME, crate::harness::title(NAME), &md)?;
+    ctx.write_page(NAME, EXPERIMENT.title, &md)?;
     Ok(Summary { headline })
 }
 

@@ -20,11 +20,21 @@ use std::process::Command;
 use lse_deform::mesh::write_mesh;
 use serde::{Deserialize, Serialize};
 
-use crate::context::{Context, markdown_table};
-use crate::environment;
-use crate::{AnyError, Summary};
+use crate::harness::context::AnyError;
+use crate::harness::context::Context;
+use crate::harness::environment;
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::markdown_table;
 
 pub const NAME: &str = "editor";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "The interactive editor in a browser — client path against server path",
+    inputs: &[Input::Meshes, Input::Browser],
+    run,
+};
 
 /// Frames of the drags without drawing.
 const FRAMES: usize = 300;
@@ -279,7 +289,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         Err(why) => not_measured(ctx, &why.to_string()),
     };
     ctx.write_section(NAME, &md)?;
-    ctx.write_page(NAME, crate::harness::title(NAME), &md)?;
+    ctx.write_page(NAME, EXPERIMENT.title, &md)?;
     Ok(Summary { headline })
 }
 

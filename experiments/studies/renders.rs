@@ -13,14 +13,25 @@ use lse_deform::mesh::Mesh;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
 use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 
-use crate::context::{Context, fmt_time};
-use crate::render::{
+use crate::harness::conflict_scene as conflicts;
+use crate::harness::context::AnyError;
+use crate::harness::context::Context;
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::fmt_time;
+use lse_deform::render::{
     self, Camera, ColourScale, Ghost, Image, LEGEND_HEIGHT, Legend, RenderMesh, Style, View,
 };
-use crate::{AnyError, Summary, conflicts};
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "renders";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Renders",
+    inputs: &[Input::Meshes],
+    run,
+};
 
 const RED: [u8; 3] = [215, 35, 30];
 const BLUE: [u8; 3] = [40, 90, 210];

@@ -40,13 +40,25 @@ use lse_deform::scene::{FixedAndHandle, MixedScene};
 use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method};
 use serde::Serialize;
 
-use crate::context::{Context, MeshCase, fmt_time, markdown_table};
-use crate::plot::{self, Axis, Failure, LegendPosition, LineChart, Output, ReferenceLine, Series};
-use crate::table1::{energy_gap, failure_kind, qr_reference, sci};
-use crate::{AnyError, Summary};
+use crate::harness::context::AnyError;
+use crate::harness::context::{Context, MeshCase};
+use crate::harness::measures::{energy_gap, failure_kind, qr_reference, sci};
+use crate::harness::plot::{
+    self, Axis, Failure, LegendPosition, LineChart, Output, ReferenceLine, Series,
+};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "weight-sweep";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Penalty weight sweep",
+    inputs: &[Input::Meshes, Input::Constraints],
+    run,
+};
 
 /// Exponents of the relative weights: `10⁻² … 10¹²`.
 const EXPONENTS: RangeInclusive<i32> = -2..=12;

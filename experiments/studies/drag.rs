@@ -7,9 +7,11 @@
 //! Further rows of the library default drag the same frames with
 //! refinement off through [`Deformer::solve_into`] (no correction, no
 //! diagnostics), by the handle basis ([`HandleBasis::evaluate`], built once:
-//! docs/handles.md), and through Python (`drag_python`: the basis and
+//! docs/handles.md), and through Python ([`python`]: the basis and
 //! `transform_group` + `solve`): what each frame costs and how far its
 //! shape is from the refined one's.
+
+mod python;
 
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -26,17 +28,28 @@ use lse_deform::scene::{FixedAndHandle, HANDLE_GROUP};
 use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method};
 use serde::Serialize;
 
-use crate::breakdown::{
+use python::PythonRows;
+
+use crate::harness::context::AnyError;
+use crate::harness::context::{Context, MeshCase};
+use crate::harness::plot::{
+    self, Axis, Category, LegendPosition, LineChart, Output, Series, StackedBars,
+};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table, median, percentile};
+use crate::harness::timing::{
     PENALTY_RELATIVE_WEIGHT, link, note_drawn, qr_backends, short_error, spd_backends,
 };
-use crate::context::{Context, MeshCase, fmt_time, markdown_table, median, percentile};
-use crate::drag_python::{self, PythonRows};
-use crate::plot::{
-    self, Axis, Category, LegendPosition, LineChart, Orientation, Output, Series, StackedBars,
-};
-use crate::{AnyError, Summary};
 
 pub const NAME: &str = "drag";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Interactive drag",
+    inputs: &[Input::OneMesh, Input::Python],
+    run,
+};
 
 /// A method and back-end configuration of the drag.
 struct Config {
@@ -528,7 +541,7 @@ fn python_frames(
     configs: &[Config],
     slots: &mut [Slot],
 ) -> Option<String> {
-    let measured = drag_python::measure(
+    let measured = python::measure(
         &case.mesh,
         &drag.constraints,
         &drag.transforms(),
@@ -738,7 +751,6 @@ fn latency_figure(
             "frame p99 − frame p50".into(),
         ],
         categories,
-        orientation: Orientation::Horizontal,
         total_suffix: Some(" ms".into()),
         legend: LegendPosition::Auto,
     };
@@ -958,7 +970,8 @@ fn findings(rows: &[Row]) -> String {
     s
 }
 
-/// Issue 31's target for the handle basis: its frame (p50) at most this
+/// The target of the handle basis (docs/handles.md §2: a frame reads the
+/// basis once): its frame (p50) at most this
 /// fraction of the library default's solve phase (p50)…
 const BASIS_RATIO_LIMIT: f64 = 0.1;
 /// …and its mid-drag shape within this of the refined one's, relative to

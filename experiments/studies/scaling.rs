@@ -19,15 +19,25 @@ use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
 use serde::Serialize;
 
-use crate::breakdown::{
+use crate::harness::context::AnyError;
+use crate::harness::context::{Context, MeshCase};
+use crate::harness::plot::{self, LegendPosition, Output, ScatterFits, Series, fit_power_law};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{cell_f, cell_u, fmt_time, markdown_table, median};
+use crate::harness::timing::{
     PHASE_COLUMNS, link, median_index, note_drawn, null_space_with_spd, phase_cells, short_error,
     spd_backends,
 };
-use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
-use crate::plot::{self, LegendPosition, Output, ScatterFits, Series, fit_power_law};
-use crate::{AnyError, Summary};
 
 pub const NAME: &str = "scaling";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Scaling with mesh size",
+    inputs: &[Input::Meshes, Input::SuiteSparse],
+    run,
+};
 
 /// Assumed growth exponent of the precompute for the budget prediction
 /// (nested-dissection Cholesky of a surface mesh is `O(n^1.5)` at worst).

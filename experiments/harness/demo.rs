@@ -9,12 +9,12 @@ use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, LaplacianKind, NullSpaceQr, Report};
 
-use crate::AnyError;
-use crate::plot::{
-    self, Axis, Category, Drawn, Failure, LegendPosition, LineChart, Orientation, Output,
-    ReferenceLine, ScatterFits, Series, StackedBars,
+use crate::harness::context::AnyError;
+use crate::harness::plot::{
+    self, Axis, Category, Drawn, Failure, LegendPosition, LineChart, Output, ReferenceLine,
+    ScatterFits, Series, StackedBars,
 };
-use crate::render::{self, Camera, Layout, Panel, RenderMesh, Style, View};
+use lse_deform::render::{self, Camera, Layout, Panel, RenderMesh, Style, View};
 
 /// The deformation of the demo: positions, report and the constrained
 /// vertices (fixed and handle).
@@ -76,12 +76,24 @@ pub fn viz_demo(out: &Path) -> Result<(), AnyError> {
     std::fs::create_dir_all(out)?;
     let mesh = generate::bumpy_sphere(4, 0.15, 6)?;
     let scene = FixedAndHandle::paper_default(&mesh);
-    let (fixed, handle) = scene.regions(&mesh)?;
-    let constrained: Vec<usize> = fixed.iter().chain(&handle).copied().collect();
-
-    // Renders: original | hard handle | soft handle, one framing.
     let hard = deform(&mesh, None)?;
-    let soft = deform(&mesh, Some(1.0))?;
+    demo_render(out, &mesh, &scene, &hard)?;
+    demo_line_chart(out, &mesh, &scene, &hard)?;
+    let (scaling_hard, scaling_soft) = demo_stacked_bars(out)?;
+    demo_scatter(out, scaling_hard, scaling_soft)?;
+    demo_render_timing(out)
+}
+
+/// Renders: original | hard handle | soft handle, one framing.
+fn demo_render(
+    out: &Path,
+    mesh: &Mesh,
+    scene: &FixedAndHandle,
+    hard: &Deformed,
+) -> Result<(), AnyError> {
+    let (fixed, handle) = scene.regions(mesh)?;
+    let constrained: Vec<usize> = fixed.iter().chain(&handle).copied().collect();
+    let soft = deform(mesh, Some(1.0))?;
     // The handle moves along axis (up + 1) % 3, which a camera at azimuth
     // −70° sees mostly sideways.
     let camera = Camera::new(-70.0, 15.0).with_up_axis(scene.axis);
@@ -95,7 +107,7 @@ pub fn viz_demo(out: &Path) -> Result<(), AnyError> {
     };
     let panels = [
         Panel {
-            mesh: RenderMesh::from_mesh(&mesh).highlight(&constrained),
+            mesh: RenderMesh::from_mesh(mesh).highlight(&constrained),
             caption: "(a) original, constrained vertices red".into(),
         },
         Panel {
@@ -110,22 +122,30 @@ pub fn viz_demo(out: &Path) -> Result<(), AnyError> {
     let path = out.join("render_bumpy_sphere.png");
     render::render_side_by_side(&panels, &layout, &Style::default(), &path)?;
     println!("wrote {}", path.display());
+    Ok(())
+}
 
-    // Line chart: handle error against the soft weight, with the hard
-    // handle's error as the reference.
+/// Line chart: handle error against the soft weight, with the hard
+/// handle's error as the reference.
+fn demo_line_chart(
+    out: &Path,
+    mesh: &Mesh,
+    scene: &FixedAndHandle,
+    hard: &Deformed,
+) -> Result<(), AnyError> {
     let weights: Vec<f64> = (-2..=8).map(|k| 10f64.powi(k)).collect();
     let mut points = Vec::new();
     let mut failures = Vec::new();
     for &w in &weights {
-        match deform(&mesh, Some(w)) {
-            Ok(d) => points.push((w, handle_error(&mesh, &d.positions, &scene)?)),
+        match deform(mesh, Some(w)) {
+            Ok(d) => points.push((w, handle_error(mesh, &d.positions, scene)?)),
             Err(e) => {
                 println!("  soft handle w = {w:e} failed: {e}");
                 failures.push(Failure { x: w, y: None });
             }
         }
     }
-    let hard_error = handle_error(&mesh, &hard.positions, &scene)?;
+    let hard_error = handle_error(mesh, &hard.positions, scene)?;
     let line = LineChart {
         title: "Handle error of a soft handle against its weight".into(),
         x: Axis::log10("soft-constraint weight w"),
@@ -141,8 +161,16 @@ pub fn viz_demo(out: &Path) -> Result<(), AnyError> {
         &line,
         &Output::new(out.join("demo_line_chart")),
     )?);
+    Ok(())
+}
 
-    // Stacked bars: precompute breakdown, hard vs soft handle, two sizes.
+/// Points of a plotted series.
+type Points = Vec<(f64, f64)>;
+
+/// Stacked bars: precompute breakdown, hard vs soft handle, two sizes;
+/// returns the precompute times against vertex count (hard, soft) for the
+/// scatter.
+fn demo_stacked_bars(out: &Path) -> Result<(Points, Points), AnyError> {
     let segments = ["QR", "preparation", "normal matrix", "symbolic", "numeric"];
     let mut categories = Vec::new();
     let mut scaling_hard = Vec::new();
@@ -171,7 +199,6 @@ pub fn viz_demo(out: &Path) -> Result<(), AnyError> {
         value_label: "time (s)".into(),
         segments: segments.iter().map(|s| s.to_string()).collect(),
         categories,
-        orientation: Orientation::Horizontal,
         total_suffix: Some(" s".into()),
         legend: LegendPosition::Auto,
     };
@@ -179,8 +206,11 @@ pub fn viz_demo(out: &Path) -> Result<(), AnyError> {
         &bars,
         &Output::new(out.join("demo_stacked_bars")),
     )?);
+    Ok((scaling_hard, scaling_soft))
+}
 
-    // Scatter with fits: precompute time against vertex count.
+/// Scatter with fits: precompute time against vertex count.
+fn demo_scatter(out: &Path, scaling_hard: Points, scaling_soft: Points) -> Result<(), AnyError> {
     let scatter = ScatterFits {
         title: "Precomputation time against mesh size".into(),
         x_label: "vertices".into(),
@@ -195,9 +225,12 @@ pub fn viz_demo(out: &Path) -> Result<(), AnyError> {
         &scatter,
         &Output::new(out.join("demo_scatter_fits")),
     )?);
+    Ok(())
+}
 
-    // Rasteriser timing at 800 × 800: a 51,200-face grid seen at an angle
-    // and an 81,920-face bumpy sphere.
+/// Rasteriser timing at 800 × 800: a 51,200-face grid seen at an angle
+/// and an 81,920-face bumpy sphere.
+fn demo_render_timing(out: &Path) -> Result<(), AnyError> {
     let timing_meshes = [
         (
             "grid",

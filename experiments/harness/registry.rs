@@ -1,17 +1,20 @@
-//! The single list of experiments: each one's name (the command-line word
+//! What an experiment is to the harness: its name (the command-line word
 //! and the folder under `--out`), its section title in `results/README.md`,
-//! the inputs it needs and its `run` function. `main.rs` takes the
-//! command-line choices and `results/README.md` takes its sections from
-//! [`EXPERIMENTS`] and from nowhere else.
+//! the inputs it needs and its `run` function. Each study exports its
+//! [`Experiment`]; the single list of them is `EXPERIMENTS` in `main.rs`,
+//! from which the command line takes its choices and `results/README.md`
+//! its sections (see [`assemble_readme`]).
 
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::context::{Context, Machine};
-use crate::{
-    AnyError, Summary, accuracy, arap, breakdown, conflicts, drag, editor, performance, python,
-    relative, renders, scaling, table1, weight_sweep,
-};
+use crate::harness::context::{AnyError, Context, Machine};
+
+/// What an experiment reports for the summary table.
+pub struct Summary {
+    /// One line: the main finding.
+    pub headline: String,
+}
 
 /// What an experiment reads besides the library.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -65,88 +68,6 @@ pub struct Experiment {
     pub run: Runner,
 }
 
-/// Every experiment, in the order of `all` and of `results/README.md`.
-pub const EXPERIMENTS: &[Experiment] = &[
-    Experiment {
-        name: table1::NAME,
-        title: "Table 1 — stability of soft-only, hard + soft, KKT and elimination",
-        inputs: &[Input::Meshes],
-        run: table1::run,
-    },
-    Experiment {
-        name: weight_sweep::NAME,
-        title: "Penalty weight sweep",
-        inputs: &[Input::Meshes, Input::Constraints],
-        run: weight_sweep::run,
-    },
-    Experiment {
-        name: accuracy::NAME,
-        title: "Accuracy — digits lost without and with refinement",
-        inputs: &[Input::Meshes],
-        run: accuracy::run,
-    },
-    Experiment {
-        name: breakdown::NAME,
-        title: "Precompute breakdown (paper Fig. 7 and 8)",
-        inputs: &[Input::Meshes, Input::SuiteSparse],
-        run: breakdown::run,
-    },
-    Experiment {
-        name: relative::NAME,
-        title: "Relative constraints (paper Fig. 9 and 11)",
-        inputs: &[Input::OneMesh],
-        run: relative::run,
-    },
-    Experiment {
-        name: conflicts::NAME,
-        title: "Conflicting constraints (paper Fig. 6)",
-        inputs: &[Input::Meshes],
-        run: conflicts::run,
-    },
-    Experiment {
-        name: scaling::NAME,
-        title: "Scaling with mesh size",
-        inputs: &[Input::Meshes, Input::SuiteSparse],
-        run: scaling::run,
-    },
-    Experiment {
-        name: drag::NAME,
-        title: "Interactive drag",
-        inputs: &[Input::OneMesh, Input::Python],
-        run: drag::run,
-    },
-    Experiment {
-        name: renders::NAME,
-        title: "Renders",
-        inputs: &[Input::Meshes],
-        run: renders::run,
-    },
-    Experiment {
-        name: performance::NAME,
-        title: "Performance against CHOLMOD and the bandwidth floor",
-        inputs: &[Input::Meshes, Input::SuiteSparse],
-        run: performance::run,
-    },
-    Experiment {
-        name: arap::NAME,
-        title: "As-rigid-as-possible deformation (ARAP)",
-        inputs: &[Input::OneMesh, Input::Python],
-        run: arap::run,
-    },
-    Experiment {
-        name: python::NAME,
-        title: "The Python door — its cost against Rust and its agreement with libigl",
-        inputs: &[Input::OneMesh, Input::Python],
-        run: python::run,
-    },
-    Experiment {
-        name: editor::NAME,
-        title: "The interactive editor in a browser — client path against server path",
-        inputs: &[Input::Meshes, Input::Browser],
-        run: editor::run,
-    },
-];
-
 /// What an experiment could not measure because this build lacks an
 /// optional input it names (today: the SuiteSparse feature), as a line for
 /// the end of its section.
@@ -156,14 +77,6 @@ pub fn missing_build_inputs(e: &Experiment) -> Option<String> {
          this build has no `--features suitesparse` (it needs libsuitesparse-dev, libclang-dev and libopenblas0-pthread; see the README)."
             .to_string()
     })
-}
-
-/// The section title of the experiment `name` (its own name if unlisted).
-pub fn title(name: &'static str) -> &'static str {
-    EXPERIMENTS
-        .iter()
-        .find(|e| e.name == name)
-        .map_or(name, |e| e.title)
 }
 
 /// The git revision in a section's machine line (`… (git REV, …`), if any.
@@ -211,8 +124,12 @@ fn revisions_line(revisions: &[(String, Vec<&str>)], machine: &Machine) -> Strin
 }
 
 /// Joins the sections present under `out` into `out/README.md`, in the
-/// order of [`EXPERIMENTS`].
-pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
+/// order of `experiments`.
+pub fn assemble_readme(
+    out: &Path,
+    machine: &Machine,
+    experiments: &[Experiment],
+) -> Result<(), AnyError> {
     let mut s = String::from("# Results\n\n");
     let _ = writeln!(
         s,
@@ -229,7 +146,7 @@ pub fn assemble_readme(out: &Path, machine: &Machine) -> Result<(), AnyError> {
     // line), so that the header states the sections' revisions, not this
     // run's.
     let mut revisions: Vec<(String, Vec<&str>)> = Vec::new();
-    for e in EXPERIMENTS {
+    for e in experiments {
         let Ok(section) = std::fs::read_to_string(out.join(e.name).join("section.md")) else {
             continue;
         };

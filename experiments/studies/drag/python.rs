@@ -16,8 +16,8 @@ use lse_deform::deform::Affine;
 use lse_deform::mesh::{Mesh, write_mesh};
 use serde::Deserialize;
 
-use crate::AnyError;
-use crate::environment::{self, Python};
+use crate::harness::context::AnyError;
+use crate::harness::environment::{self, Python};
 
 /// What the script prints.
 #[derive(Debug, Clone, Deserialize)]

@@ -28,13 +28,23 @@ use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::{FixedAndHandle, MixedScene};
 use serde::{Deserialize, Serialize};
 
-use crate::context::{Context, MeshCase, fmt_time, markdown_table};
-use crate::environment::{self, Python};
-use crate::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
-use crate::render::{self, Camera, Layout, Panel, RenderMesh, Style};
-use crate::{AnyError, Summary};
+use crate::harness::context::AnyError;
+use crate::harness::context::{Context, MeshCase};
+use crate::harness::environment::{self, Python};
+use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, Series};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
+use lse_deform::render::{self, Camera, Layout, Panel, RenderMesh, Style};
 
 pub const NAME: &str = "arap";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "As-rigid-as-possible deformation (ARAP)",
+    inputs: &[Input::OneMesh, Input::Python],
+    run,
+};
 
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
@@ -47,7 +57,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let mut md = section(ctx, &bend, &peer, &exact, &case);
     initial_guess_text(&mut md, &init);
     ctx.write_section(NAME, &md)?;
-    ctx.write_page(NAME, crate::harness::title(NAME), &md)?;
+    ctx.write_page(NAME, EXPERIMENT.title, &md)?;
     Ok(Summary {
         headline: format!(
             "tube bend+twist: ARAP energy {:.3e} vs linear {:.3e}; 300 relative + 20 on-edge: max residual {:.1e} × diagonal, energy {}",
@@ -781,6 +791,14 @@ fn section(ctx: &Context, bend: &Bend, peer: &Peer, exact: &Exact, case: &MeshCa
         "libigl runs in `$LSE_PYTHON` if set, else in the virtual environment `{}` (created with numpy, scipy and libigl if missing).\n",
         environment::VENV
     );
+    bend_text(&mut s, bend);
+    peer_text(&mut s, peer, case);
+    exact_text(&mut s, exact);
+    s
+}
+
+/// Part (a) of the section: the bend and twist, linear against ARAP.
+fn bend_text(s: &mut String, bend: &Bend) {
     let _ = writeln!(
         s,
         "**(a) Bend and twist.** A tube ({} vertices), bottom 5 % of the rings fixed, top 5 % moved rigidly: bent by 90° and twisted by 90°; {} ARAP iterations (spokes-and-rims) from the linear solution.\n",
@@ -807,6 +825,11 @@ fn section(ctx: &Context, bend: &Bend, peer: &Peer, exact: &Exact, case: &MeshCa
         &rows,
     ));
     let _ = writeln!(s, "\n![bend and twist]({NAME}/{})\n", bend.render);
+}
+
+/// Part (b) of the section: ours against libigl's `arap_solve`, then the
+/// float-rotation check.
+fn peer_text(s: &mut String, peer: &Peer, case: &MeshCase) {
     let _ = writeln!(
         s,
         "**(b) Ours against libigl's `arap_solve`** on {} ({} vertices), the paper's position-only scene, rest-pose initial guess, spokes-and-rims.{}\n",
@@ -852,7 +875,11 @@ fn section(ctx: &Context, bend: &Bend, peer: &Peer, exact: &Exact, case: &MeshCa
         s,
         "\n![energy by iteration]({NAME}/energy_by_iteration.png) ![energy by time]({NAME}/energy_by_time.png)\n"
     );
-    float_check_text(&mut s, peer);
+    float_check_text(s, peer);
+}
+
+/// Part (c) of the section: exact general constraints.
+fn exact_text(s: &mut String, exact: &Exact) {
     let _ = writeln!(
         s,
         "**(c) Exact general constraints.** {} relative and {} on-edge hard constraints on top of the scene ({} hard constraints), {} iterations from the linear solution: largest hard-constraint residual over all iterations {:.1e} × diagonal; largest relative energy increase {:.1e} ({}).\n",
@@ -872,5 +899,4 @@ fn section(ctx: &Context, bend: &Bend, peer: &Peer, exact: &Exact, case: &MeshCa
         s,
         "![energy]({NAME}/exact_energy.png) ![residual]({NAME}/exact_residual.png)"
     );
-    s
 }

@@ -20,32 +20,35 @@ use faer::Mat;
 use lse_deform::backend::spd::FaerLlt;
 use lse_deform::condition::ConditionEstimate;
 use lse_deform::formulation::{FORWARD_ERROR_WARNING, PenaltySweep, max_hard_residual};
-use lse_deform::problem::LseProblem;
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{Deformer, Error, Formulation, FormulationChoice, LaplacianKind, Method};
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use serde::Serialize;
 
-use crate::context::{Context, MeshCase, fmt_time, markdown_table};
-use crate::plot::{FONT, PALETTE, ensure_fonts};
-use crate::text::GoodText;
-use crate::{AnyError, Summary};
+use crate::harness::context::AnyError;
+use crate::harness::context::{Context, MeshCase};
+use crate::harness::measures::{
+    LAPLACIANS, TABLE_WEIGHT, energy, energy_gap, failure_kind, qr_reference, relative_difference,
+    sci,
+};
+use crate::harness::plot::{FONT, PALETTE, ensure_fonts};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
+use crate::harness::text::GoodText;
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "table1";
 
-/// The penalty weight of the "soft only" column (see the section text for
-/// why this one).
-pub const TABLE_WEIGHT: f64 = 1e8;
-
-/// The Laplacians of the table.
-pub const LAPLACIANS: [LaplacianKind; 3] = [
-    LaplacianKind::Uniform,
-    LaplacianKind::Cotangent,
-    LaplacianKind::IntrinsicDelaunay,
-];
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Table 1 — stability of soft-only, hard + soft, KKT and elimination",
+    inputs: &[Input::Meshes],
+    run,
+};
 
 /// The columns of the table, in order: soft only (every hard row a
 /// penalty row of weight [`TABLE_WEIGHT`]), soft + hard (the paper's
@@ -80,157 +83,6 @@ pub fn title(m: Method) -> String {
 /// A method as its CLI word in CSV and JSON.
 fn method_word<S: serde::Serializer>(m: &Method, s: S) -> Result<S::Ok, S::Error> {
     s.serialize_str(m.name())
-}
-
-// ---------------------------------------------------------------------------
-// Accuracy measures shared with the weight sweep.
-
-/// `‖A X − C‖²`, the Laplacian energy (plus soft rows) of `X`.
-pub fn energy(problem: &LseProblem, x: &Mat<f64>) -> f64 {
-    let r = problem.least_squares_residual(x);
-    r * r
-}
-
-/// The relative energy gap `(E − E*)/E*` of `X` against the exact solution
-/// `X*`, computed without cancellation as
-/// `(‖AΔ‖² + 2⟨AΔ, AX* − C⟩) / ‖AX* − C‖²` with `Δ = X − X*` (the same
-/// number as `(‖AX − C‖² − ‖AX* − C‖²) / ‖AX* − C‖²` in exact arithmetic,
-/// but accurate also when the gap is far below machine precision times
-/// `E*`). Negative when `X` violates the hard constraints and so reaches a
-/// lower energy than the constrained minimum (a penalty solution). `NaN`
-/// when `E* = 0`.
-pub fn energy_gap(problem: &LseProblem, x: &Mat<f64>, x_star: &Mat<f64>) -> f64 {
-    let delta = x - x_star;
-    let a_delta = problem.a_times(&delta);
-    let r_star = problem.a_times(x_star) - problem.c();
-    let mut quad = 0.0;
-    let mut cross = 0.0;
-    for c in 0..a_delta.ncols() {
-        for i in 0..a_delta.nrows() {
-            quad += a_delta[(i, c)] * a_delta[(i, c)];
-            cross += a_delta[(i, c)] * r_star[(i, c)];
-        }
-    }
-    let e_star = r_star.norm_l2().powi(2);
-    if e_star > 0.0 {
-        (quad + 2.0 * cross) / e_star
-    } else {
-        f64::NAN
-    }
-}
-
-/// The reference solution `X*` for problems whose hard rows are all
-/// position constraints (one vertex, nonzero coefficient, each vertex at
-/// most once): the known vertices are substituted and the remaining
-/// unconstrained least-squares problem `min ‖A_U X_U − (C − A_K X_K)‖` is
-/// solved by faer's sparse QR of `A_U`. Unlike every formulation compared
-/// (which all factor a normal matrix, `κ(A_UᵀA_U) = κ(A_U)²`), this never
-/// squares the condition number, so it is the most accurate `X*` available:
-/// on a mesh whose reduced normal matrix has `κ ≈ 1e15` the formulations
-/// keep only a digit or so while this keeps about eight. `None` when a hard
-/// row is not a position constraint.
-pub fn qr_reference(problem: &LseProblem) -> Result<Option<Mat<f64>>, AnyError> {
-    use faer::linalg::solvers::SolveLstsq;
-    use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-    let n = problem.n();
-    let b = problem.b();
-    let mut known: Vec<Option<[f64; 3]>> = vec![None; n];
-    for k in 0..b.nrows() {
-        let range = b.symbolic().row_range(k);
-        let cols = &b.symbolic().col_idx()[range.clone()];
-        let vals = &b.val()[range];
-        if cols.len() != 1 || vals[0] == 0.0 || known[cols[0]].is_some() {
-            return Ok(None);
-        }
-        let a = vals[0];
-        known[cols[0]] = Some([0, 1, 2].map(|c| problem.d()[(k, c)] / a));
-    }
-    let unknown: Vec<usize> = (0..n).filter(|&v| known[v].is_none()).collect();
-    let mut xk = Mat::<f64>::zeros(n, 3);
-    for (v, t) in known.iter().enumerate() {
-        if let Some(t) = t {
-            for c in 0..3 {
-                xk[(v, c)] = t[c];
-            }
-        }
-    }
-    if unknown.is_empty() {
-        return Ok(Some(xk));
-    }
-    let a = problem.a();
-    let (ptr, rows, val) = (a.symbolic().col_ptr(), a.symbolic().row_idx(), a.val());
-    let mut col_ptr = vec![0usize];
-    let mut row_idx = Vec::new();
-    let mut values = Vec::new();
-    for &v in &unknown {
-        row_idx.extend_from_slice(&rows[ptr[v]..ptr[v + 1]]);
-        values.extend_from_slice(&val[ptr[v]..ptr[v + 1]]);
-        col_ptr.push(row_idx.len());
-    }
-    let symbolic =
-        SymbolicSparseColMat::new_checked(a.nrows(), unknown.len(), col_ptr, None, row_idx);
-    let a_u = SparseColMat::new(symbolic, values);
-    let mut rhs = problem.c() - problem.a_times(&xk);
-    let qr = a_u
-        .sp_qr()
-        .map_err(|e| format!("sparse QR of A_U failed: {e:?}"))?;
-    qr.solve_lstsq_in_place(rhs.as_mut());
-    let mut x = xk;
-    for (j, &v) in unknown.iter().enumerate() {
-        for c in 0..3 {
-            x[(v, c)] = rhs[(j, c)];
-        }
-    }
-    if x.col_iter().any(|col| col.iter().any(|v| !v.is_finite())) {
-        return Err("sparse QR reference: non-finite solution".into());
-    }
-    Ok(Some(x))
-}
-
-/// `‖X − X*‖_F / ‖X*‖_F`.
-pub fn relative_difference(x: &Mat<f64>, x_star: &Mat<f64>) -> f64 {
-    let d = (x - x_star).norm_l2();
-    let s = x_star.norm_l2();
-    if s > 0.0 { d / s } else { d }
-}
-
-/// Formats a number as `1.2e-9` (or `0`).
-pub fn sci(v: f64) -> String {
-    if v == 0.0 {
-        "0".into()
-    } else if !v.is_finite() {
-        format!("{v}")
-    } else {
-        let s = format!("{v:.1e}");
-        // "1.0e8" → "1e8"
-        s.replace(".0e", "e")
-    }
-}
-
-/// A short kind of failure for tables: the variant of the library's error.
-pub fn failure_kind(e: &Error) -> &'static str {
-    use lse_deform::error::NumericalError as N;
-    match e {
-        Error::Numerical(N::NotPositiveDefinite { .. }) => "not positive definite",
-        Error::Numerical(N::Breakdown { .. }) => "Cholesky breakdown",
-        Error::Numerical(N::Singular { .. }) => "singular",
-        Error::Numerical(N::FreeUnknown { .. }) => "singular (free unknown)",
-        Error::Numerical(N::InaccurateSolution { .. }) => "inaccurate solution",
-        Error::Numerical(N::LostAccuracy { .. }) => "lost accuracy (rejected)",
-        Error::Numerical(N::NonFiniteSolution { .. }) => "non-finite solution",
-        Error::Numerical(N::NonFiniteEnergy { .. }) => "non-finite ARAP energy",
-        Error::Numerical(N::TargetOutOfRange { .. }) => "target out of range",
-        Error::Numerical(N::SoftWeightOutOfRange { .. }) => "soft weight out of range",
-        Error::Numerical(N::SoftWeightTooLarge { .. }) => "soft weight too large",
-        Error::Numerical(N::Backend { .. }) => "back-end error",
-        Error::Problem(_) => "unsupported problem",
-        Error::Constraint(_) => "bad constraint",
-        Error::Mesh(_) => "bad mesh",
-        Error::Io { .. } => "I/O error",
-        Error::MatrixFile(_) => "bad matrix file",
-        Error::MemoryLimit(_) => "bad LSE_MEMORY_LIMIT",
-        Error::Interrupted => "interrupted",
-    }
 }
 
 // ---------------------------------------------------------------------------
@@ -570,6 +422,19 @@ fn find<'a>(rows: &'a [Row], mesh: &str, lap: &str, method: Method) -> Option<&'
 /// The findings paragraph, computed from the rows.
 fn findings(rows: &[Row]) -> String {
     let mut s = String::from("\n**Findings.**\n\n");
+    exact_findings(&mut s, rows);
+    let pen: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.method == Method::Penalty)
+        .collect();
+    penalty_findings(&mut s, rows, &pen);
+    accuracy_findings(&mut s, rows, &pen);
+    s
+}
+
+/// The findings on the exact methods: how many configurations they solved,
+/// their largest constraint residual, and which failed.
+fn exact_findings(s: &mut String, rows: &[Row]) {
     let fmax = |it: &mut dyn Iterator<Item = f64>| it.fold(0.0f64, f64::max);
     let exact = [Method::NullSpaceQr, Method::Kkt, Method::Eliminate];
     let exact_failed: Vec<&Row> = rows
@@ -609,6 +474,11 @@ fn findings(rows: &[Row]) -> String {
                 .join(", ")
         );
     }
+}
+
+/// The findings on penalty: factorisation breakdowns and the solutions
+/// returned with a forward-error warning.
+fn penalty_findings(s: &mut String, rows: &[Row], pen: &[&Row]) {
     let breakdowns = rows
         .iter()
         .filter(|r| {
@@ -618,10 +488,6 @@ fn findings(rows: &[Row]) -> String {
             )
         })
         .count();
-    let pen: Vec<&Row> = rows
-        .iter()
-        .filter(|r| r.method == Method::Penalty)
-        .collect();
     let warned: Vec<&Row> = pen
         .iter()
         .copied()
@@ -662,6 +528,11 @@ fn findings(rows: &[Row]) -> String {
                 .join("; ")
         }
     );
+}
+
+/// The findings on accuracy: penalty's worst constraint violation and the
+/// null-space solution's worst agreement with the QR reference.
+fn accuracy_findings(s: &mut String, rows: &[Row], pen: &[&Row]) {
     let worst_pen = pen
         .iter()
         .filter(|r| r.success)
@@ -696,7 +567,6 @@ fn findings(rows: &[Row]) -> String {
             sci(v)
         );
     }
-    s
 }
 
 fn section_markdown(ctx: &Context, meshes: &[MeshCase], rows: &[Row], seconds: f64) -> String {
@@ -844,7 +714,7 @@ fn draw_figure(rows: &[Row], stem: &Path) -> Result<(), AnyError> {
     let width = (260 + 70 * labels.len() as u32).max(1180);
     let label_h = labels
         .iter()
-        .map(|l| crate::text::text_width(l, 14.0).unwrap_or(8.0 * l.len() as f64))
+        .map(|l| crate::harness::text::text_width(l, 14.0).unwrap_or(8.0 * l.len() as f64))
         .fold(100.0, f64::max) as u32
         + 24;
     let size = (width, 830 + label_h);
@@ -864,6 +734,12 @@ fn draw_figure(rows: &[Row], stem: &Path) -> Result<(), AnyError> {
     Ok(())
 }
 
+/// The dot plot's chart of one panel: category index × log10 value.
+type DotChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// Draws the dot plot of Table 1 on `root`: the title, a legend of the
+/// methods' markers, and one panel per measure with every category's
+/// methods side by side.
 fn draw_dot_plot<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     labels: &[String],
@@ -891,40 +767,68 @@ where
         ((w / 2) as i32, (title_h / 2) as i32),
     )?;
     let (legend_area, plots) = rest.split_vertically(legend_h);
-    // Legend: one marker per method.
-    let mut x = 90i32;
-    for (k, method) in COLUMNS.iter().enumerate() {
-        let c = PALETTE[k];
-        draw_marker(&legend_area, k, (x, legend_h as i32 / 2), c)?;
-        let name = title(*method);
-        legend_area.draw_text(
-            &name,
-            &(FONT, 15.0)
-                .into_font()
-                .color(&BLACK)
-                .pos(Pos::new(HPos::Left, VPos::Center)),
-            (x + 12, legend_h as i32 / 2),
-        )?;
-        x += 24 + crate::text::text_width(&name, 15.0).unwrap_or(200.0) as i32 + 30;
-    }
-    legend_area.draw_text(
-        "× = failed",
-        &(FONT, 15.0)
-            .into_font()
-            .color(&BLACK)
-            .pos(Pos::new(HPos::Left, VPos::Center)),
-        (x, legend_h as i32 / 2),
-    )?;
+    draw_dot_legend(&legend_area, legend_h as i32 / 2)?;
     let panel_h = (h - title_h - legend_h - label_h) / panels.len() as u32;
-    let n = labels.len();
     for (p, panel) in panels.iter().enumerate() {
         let area = plots.margin(p as u32 * panel_h, 0, 0, 0);
         let is_last = p + 1 == panels.len();
         let area_h = panel_h + if is_last { label_h } else { 0 };
         let (area, _) = area.split_vertically(area_h);
+        let dots = Dots {
+            labels,
+            panel,
+            success,
+            label_h: is_last.then_some(label_h),
+        };
+        dots.draw(root, &area)?;
+    }
+    Ok(())
+}
+
+/// The legend of the dot plot: one marker per method, then "× = failed",
+/// on the line `y` of `area`.
+fn draw_dot_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    y: i32,
+) -> Result<(), AnyError>
+where
+    DB::ErrorType: 'static,
+{
+    let font = (FONT, 15.0)
+        .into_font()
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    let mut x = 90i32;
+    for (k, method) in COLUMNS.iter().enumerate() {
+        draw_marker(area, k, (x, y), PALETTE[k])?;
+        let name = title(*method);
+        area.draw_text(&name, &font, (x + 12, y))?;
+        x += 24 + crate::harness::text::text_width(&name, 15.0).unwrap_or(200.0) as i32 + 30;
+    }
+    area.draw_text("× = failed", &font, (x, y))?;
+    Ok(())
+}
+
+/// One panel of the dot plot, with what it needs to draw itself.
+struct Dots<'a> {
+    /// Category labels.
+    labels: &'a [String],
+    /// The values.
+    panel: &'a Panel,
+    /// Per category and method: whether the solve succeeded.
+    success: &'a [Vec<bool>],
+    /// Height of the category labels below the last panel (`None` above).
+    label_h: Option<u32>,
+}
+
+impl Dots<'_> {
+    /// The panel's y range (log10): a decade below the smallest positive
+    /// value (at least down to the floor's decade) to half a decade above
+    /// the largest; `−16 … 0` without positive values.
+    fn range(&self) -> (f64, f64) {
         let mut lo = f64::INFINITY;
         let mut hi = f64::NEG_INFINITY;
-        for v in panel.values.iter().flatten().flatten() {
+        for v in self.panel.values.iter().flatten().flatten() {
             if *v > 0.0 {
                 lo = lo.min(v.log10());
                 hi = hi.max(v.log10());
@@ -934,66 +838,91 @@ where
             lo = -16.0;
             hi = 0.0;
         }
-        let lo = (lo.floor() - 1.0).min(panel.floor.log10().max(lo.floor() - 1.0));
-        let hi = hi.ceil() + 0.5;
-        let mut chart = ChartBuilder::on(&area)
+        let lo = (lo.floor() - 1.0).min(self.panel.floor.log10().max(lo.floor() - 1.0));
+        (lo, hi.ceil() + 0.5)
+    }
+
+    /// Draws the panel's axes and dots into `area` (the category labels and
+    /// markers on `root`, in its pixels).
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        area: &DrawingArea<DB, Shift>,
+    ) -> Result<(), AnyError>
+    where
+        DB::ErrorType: 'static,
+    {
+        let n = self.labels.len();
+        let (lo, hi) = self.range();
+        let mut chart = ChartBuilder::on(area)
             .margin_left(10)
             .margin_right(20)
             .margin_top(8)
-            .x_label_area_size(if is_last { label_h } else { 0 })
+            .x_label_area_size(self.label_h.unwrap_or(0))
             .y_label_area_size(90)
             .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), lo..hi)?;
-        let label_of = |v: &f64| -> String {
-            let i = v.round();
-            if (v - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < n {
-                labels[i as usize].clone()
-            } else {
-                String::new()
-            }
-        };
         let mut mesh = chart.configure_mesh();
-        mesh.y_desc(panel.y_label.as_str())
+        mesh.y_desc(self.panel.y_label.as_str())
             .y_label_formatter(&|v| format!("1e{}", v.round() as i64))
             .y_labels(((hi - lo) as usize + 1).min(12))
             .x_labels(n)
-            .x_label_formatter(&label_of)
             .disable_x_mesh()
             .axis_desc_style((FONT, 17.0))
             .label_style((FONT, 14.0));
         mesh.x_label_formatter(&|_| String::new());
         mesh.draw()?;
-        if is_last {
-            // Category labels, drawn here (plotters ignores the anchor of
-            // rotated tick labels): reading upwards, ending just below the
-            // axis.
-            for (i, label) in labels.iter().enumerate() {
-                let (px, py) = chart.backend_coord(&(i as f64, lo));
-                root.draw_text(
-                    label,
-                    &(FONT, 14.0)
-                        .into_font()
-                        .transform(FontTransform::Rotate270)
-                        .color(&BLACK)
-                        .pos(Pos::new(HPos::Right, VPos::Center)),
-                    (px, py + 8),
-                )?;
-            }
+        if self.label_h.is_some() {
+            self.draw_labels(root, &chart, lo)?;
         }
+        self.draw_values(root, &chart, lo)
+    }
+
+    /// Category labels, drawn here (plotters ignores the anchor of rotated
+    /// tick labels): reading upwards, ending just below the axis.
+    fn draw_labels<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        chart: &DotChart<'_, DB>,
+        lo: f64,
+    ) -> Result<(), AnyError>
+    where
+        DB::ErrorType: 'static,
+    {
+        let font = (FONT, 14.0)
+            .into_font()
+            .transform(FontTransform::Rotate270)
+            .color(&BLACK)
+            .pos(Pos::new(HPos::Right, VPos::Center));
+        for (i, label) in self.labels.iter().enumerate() {
+            let (px, py) = chart.backend_coord(&(i as f64, lo));
+            root.draw_text(label, &font, (px, py + 8))?;
+        }
+        Ok(())
+    }
+
+    /// Each category's methods side by side: a marker, or for a failure a
+    /// cross (at the value of the rejected solution if there is one, else
+    /// at the bottom edge).
+    fn draw_values<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        chart: &DotChart<'_, DB>,
+        lo: f64,
+    ) -> Result<(), AnyError>
+    where
+        DB::ErrorType: 'static,
+    {
         let spread = 0.15;
-        for (i, per_method) in panel.values.iter().enumerate() {
+        for (i, per_method) in self.panel.values.iter().enumerate() {
             for (k, v) in per_method.iter().enumerate() {
                 let xpos = i as f64 + (k as f64 - 1.5) * spread;
                 let colour = PALETTE[k];
-                let ok = success[i][k];
                 let y = match v {
                     Some(v) if *v > 0.0 => v.log10(),
-                    Some(_) => lo,
-                    None => lo,
+                    _ => lo,
                 };
                 let px = chart.backend_coord(&(xpos, y.max(lo)));
-                if v.is_none() || !ok {
-                    // A failure: a cross (at the value of the rejected
-                    // solution if there is one, else at the bottom edge).
+                if v.is_none() || !self.success[i][k] {
                     let r = 6;
                     for (a, b) in [((-r, -r), (r, r)), ((-r, r), (r, -r))] {
                         root.draw(&PathElement::new(
@@ -1006,8 +935,8 @@ where
                 }
             }
         }
+        Ok(())
     }
-    Ok(())
 }
 
 fn draw_marker<DB: DrawingBackend>(

@@ -9,7 +9,7 @@
 //! `forward_error_estimate`), against the reference `X*` = the null-space
 //! method refined ([`Refine::Auto`]). As a check of the reference itself,
 //! the distance of the sparse-QR solution of the eliminated problem
-//! ([`crate::table1::qr_reference`], condition not squared) from it is
+//! ([`crate::harness::measures::qr_reference`], condition not squared) from it is
 //! recorded too. "Digits lost" = `log10(error / ε)`.
 
 use std::fmt::Write as _;
@@ -24,13 +24,23 @@ use lse_deform::{
 };
 use serde::Serialize;
 
-use crate::context::{Context, MeshCase, fmt_time, markdown_table};
-use crate::plot::{self, Axis, LegendPosition, LineChart, Output, ScatterFits, Series};
-use crate::table1::{LAPLACIANS, TABLE_WEIGHT, qr_reference, sci};
-use crate::{AnyError, Summary};
+use crate::harness::context::AnyError;
+use crate::harness::context::{Context, MeshCase};
+use crate::harness::measures::{LAPLACIANS, TABLE_WEIGHT, qr_reference, sci};
+use crate::harness::plot::{self, Axis, LegendPosition, LineChart, Output, ScatterFits, Series};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table};
 
 /// The experiment's name (results directory and section).
 pub const NAME: &str = "accuracy";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Accuracy — digits lost without and with refinement",
+    inputs: &[Input::Meshes],
+    run,
+};
 
 /// Exponents of the 17 relative penalty weights `10⁻⁴ … 10¹²`.
 const EXPONENTS: std::ops::RangeInclusive<i32> = -4..=12;
@@ -445,7 +455,7 @@ fn draw(ctx: &Context, rows: &[Row], weights: &[WeightPoint]) -> Result<Vec<Stri
 
 /// The median of the values (NaN for none).
 fn median_of(v: impl Iterator<Item = f64>) -> f64 {
-    crate::context::median(&v.collect::<Vec<_>>())
+    crate::harness::rows::median(&v.collect::<Vec<_>>())
 }
 
 /// The findings, stated from the data.
@@ -486,66 +496,7 @@ fn first_refinements(rows: &[Row]) -> String {
 fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String {
     let mut s = String::new();
     for name in FORMULATIONS.map(Method::name) {
-        let pick = |mode: &str| -> Vec<&Row> {
-            rows.iter()
-                .filter(|r| r.formulation == name && r.refine == mode && r.error.is_some())
-                .collect()
-        };
-        let (off, auto) = (pick("off"), pick("auto"));
-        if off.is_empty() || auto.is_empty() {
-            continue;
-        }
-        if name == "nullspace-qr" {
-            // Refined, it is the reference: only the unrefined loss says
-            // something.
-            let _ = writeln!(
-                s,
-                "- **{name}** (refined: the reference): without refinement the median loss is {:.1} digits (worst error {}); refinement took a median of {} steps.",
-                median_of(off.iter().filter_map(|r| r.digits_lost)),
-                sci(off.iter().filter_map(|r| r.error).fold(0.0, f64::max)),
-                median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
-            );
-            continue;
-        }
-        let worst = |v: &[&Row]| v.iter().filter_map(|r| r.error).fold(0.0, f64::max);
-        let lost = |v: &[&Row]| median_of(v.iter().filter_map(|r| r.digits_lost));
-        let within = auto
-            .iter()
-            .filter(|r| r.error.is_some_and(|e| e <= 1e-10))
-            .count();
-        let worst_auto = auto
-            .iter()
-            .max_by(|a, b| a.error.unwrap_or(0.0).total_cmp(&b.error.unwrap_or(0.0)));
-        let estimate_ok = auto
-            .iter()
-            .filter(|r| {
-                let (Some(e), Some(est)) = (r.error, r.estimate) else {
-                    return false;
-                };
-                e <= 1e-10 || (est >= e / 10.0 && est <= e * 10.0) || est >= e
-            })
-            .count();
-        let _ = writeln!(
-            s,
-            "- **{name}**: without refinement the median loss is {:.1} digits (worst error {}), with refinement {:.1} digits (worst {}{}); \
-             {within} of {} configurations within 1e-10 of the diagonal after refinement; the forward-error estimate is within 10× of, or above, \
-             the measured error in {estimate_ok} of {} (or the error is below 1e-10). Median steps {}.",
-            lost(&off),
-            sci(worst(&off)),
-            lost(&auto),
-            sci(worst(&auto)),
-            worst_auto
-                .map(|r| format!(
-                    ", on {}/{} with κ ≈ {}",
-                    r.mesh,
-                    r.laplacian,
-                    r.condition.map(sci).unwrap_or_else(|| "–".into())
-                ))
-                .unwrap_or_default(),
-            auto.len(),
-            auto.len(),
-            median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
-        );
+        formulation_finding(&mut s, rows, name);
     }
     s.push_str(&first_refinements(rows));
     let failures: Vec<String> = rows
@@ -562,7 +513,90 @@ fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String
     if !failures.is_empty() {
         let _ = writeln!(s, "- Failures: {}.", failures.join("; "));
     }
-    // The weight curve: best plain error against the refined errors.
+    weight_curve_finding(&mut s, weights);
+    let checked: Vec<f64> = refs.iter().filter_map(|r| r.sparse_qr_distance).collect();
+    if !checked.is_empty() {
+        let _ = writeln!(
+            s,
+            "- Check of the reference (null-space QR refined) against the sparse-QR solution of the eliminated problem (condition not squared): \
+             largest distance {} of the diagonal over {} mesh/Laplacian pairs.",
+            sci(checked.iter().copied().fold(0.0, f64::max)),
+            checked.len()
+        );
+    }
+    s
+}
+
+/// The finding of formulation `name`: its digits lost without and with
+/// refinement, how many configurations refinement brings within 1e-10 of
+/// the diagonal, and whether the forward-error estimate is trustworthy
+/// (null-space QR, refined, is the reference: only its unrefined loss).
+fn formulation_finding(s: &mut String, rows: &[Row], name: &str) {
+    let pick = |mode: &str| -> Vec<&Row> {
+        rows.iter()
+            .filter(|r| r.formulation == name && r.refine == mode && r.error.is_some())
+            .collect()
+    };
+    let (off, auto) = (pick("off"), pick("auto"));
+    if off.is_empty() || auto.is_empty() {
+        return;
+    }
+    if name == "nullspace-qr" {
+        // Refined, it is the reference: only the unrefined loss says
+        // something.
+        let _ = writeln!(
+            s,
+            "- **{name}** (refined: the reference): without refinement the median loss is {:.1} digits (worst error {}); refinement took a median of {} steps.",
+            median_of(off.iter().filter_map(|r| r.digits_lost)),
+            sci(off.iter().filter_map(|r| r.error).fold(0.0, f64::max)),
+            median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
+        );
+        return;
+    }
+    let worst = |v: &[&Row]| v.iter().filter_map(|r| r.error).fold(0.0, f64::max);
+    let lost = |v: &[&Row]| median_of(v.iter().filter_map(|r| r.digits_lost));
+    let within = auto
+        .iter()
+        .filter(|r| r.error.is_some_and(|e| e <= 1e-10))
+        .count();
+    let worst_auto = auto
+        .iter()
+        .max_by(|a, b| a.error.unwrap_or(0.0).total_cmp(&b.error.unwrap_or(0.0)));
+    let estimate_ok = auto
+        .iter()
+        .filter(|r| {
+            let (Some(e), Some(est)) = (r.error, r.estimate) else {
+                return false;
+            };
+            e <= 1e-10 || (est >= e / 10.0 && est <= e * 10.0) || est >= e
+        })
+        .count();
+    let _ = writeln!(
+        s,
+        "- **{name}**: without refinement the median loss is {:.1} digits (worst error {}), with refinement {:.1} digits (worst {}{}); \
+         {within} of {} configurations within 1e-10 of the diagonal after refinement; the forward-error estimate is within 10× of, or above, \
+         the measured error in {estimate_ok} of {} (or the error is below 1e-10). Median steps {}.",
+        lost(&off),
+        sci(worst(&off)),
+        lost(&auto),
+        sci(worst(&auto)),
+        worst_auto
+            .map(|r| format!(
+                ", on {}/{} with κ ≈ {}",
+                r.mesh,
+                r.laplacian,
+                r.condition.map(sci).unwrap_or_else(|| "–".into())
+            ))
+            .unwrap_or_default(),
+        auto.len(),
+        auto.len(),
+        median_of(auto.iter().filter_map(|r| r.steps.map(|v| v as f64))),
+    );
+}
+
+/// The weight curve: the best plain penalty error over all weights against
+/// the errors refined with multiplier updates, per mesh and Laplacian.
+fn weight_curve_finding(s: &mut String, weights: &[WeightPoint]) {
     let mut better = 0;
     let mut pairs = 0;
     let mut best_plain = Vec::new();
@@ -616,17 +650,6 @@ fn findings(rows: &[Row], weights: &[WeightPoint], refs: &[Reference]) -> String
             }
         );
     }
-    let checked: Vec<f64> = refs.iter().filter_map(|r| r.sparse_qr_distance).collect();
-    if !checked.is_empty() {
-        let _ = writeln!(
-            s,
-            "- Check of the reference (null-space QR refined) against the sparse-QR solution of the eliminated problem (condition not squared): \
-             largest distance {} of the diagonal over {} mesh/Laplacian pairs.",
-            sci(checked.iter().copied().fold(0.0, f64::max)),
-            checked.len()
-        );
-    }
-    s
 }
 
 /// The section of `results/README.md`.

@@ -1,4 +1,4 @@
-//! Performance against CHOLMOD and the memory-bandwidth floor (issue 5).
+//! Performance against CHOLMOD and the memory-bandwidth floor.
 //!
 //! Every figure is a median of repetitions measured **in this process, side
 //! by side**: each repetition runs ours and the reference back to back, so
@@ -20,7 +20,8 @@
 //! 6. set-up (read + L + A) of the large mesh;
 //! 7. precompute and solve against vertex count, with fitted slopes;
 //! 8. the refine phase of a later `auto` refinement with one factor against
-//!    the solve phase (issue 23: at most 1.5×), on the Bunny and the Dragon
+//!    the solve phase (at most 1.5×; a correction repeats the solve's passes,
+//!    docs/refinement.md §7), on the Bunny and the Dragon
 //!    (generated 35k and 50k bumpy spheres without a mesh directory), with
 //!    the corrections applied and the condition estimate that explains their
 //!    number.
@@ -43,12 +44,22 @@ use lse_deform::sparse::NormalPattern;
 use lse_deform::{Deformer, LaplacianKind};
 use serde::Serialize;
 
-use crate::context::{Context, fmt_time, markdown_table, median};
-use crate::plot::{self, LegendPosition, Output, ScatterFits, Series};
-use crate::{AnyError, Summary};
+use crate::harness::context::AnyError;
+use crate::harness::context::Context;
+use crate::harness::plot::{self, LegendPosition, Output, ScatterFits, Series};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{fmt_time, markdown_table, median};
 
 /// The folder and command-line word of this experiment.
 pub const NAME: &str = "performance";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Performance against CHOLMOD and the bandwidth floor",
+    inputs: &[Input::Meshes, Input::SuiteSparse],
+    run,
+};
 
 /// The reference the targets compare against, when it is compiled in.
 #[cfg(feature = "suitesparse")]
@@ -170,8 +181,9 @@ struct SideBySide {
     unknowns: usize,
     ours_precompute_s: f64,
     ours_phases_s: [f64; 5],
-    /// The solve phase as issue 5 defines it (`y`, right-hand side, two
-    /// triangular solves, `X = Q[y; z]`: `report.timings_s.solve`).
+    /// The solve phase of the null-space method (docs/formulations.md §2:
+    /// `y`, right-hand side, two triangular solves, `X = Q[y; z]`;
+    /// `report.timings_s.solve`).
     ours_solve_s: f64,
     /// The whole `solve_matrix` call: the solve phase plus the checks and
     /// diagnostics the library computes after it (non-finite check,
@@ -928,7 +940,7 @@ fn section(ctx: &Context, all: &Everything, reps: usize, solves: usize) -> Strin
         md,
         "Ours (the paper's method: SparseGivens QR × faer supernodal Cholesky with our own supernodal triangular solve) against CHOLMOD \
          on the same reduced normal matrix `(AQ2)ᵀ(AQ2)`, medians of {reps} precomputes and {solves} solves, each repetition running ours and CHOLMOD back to back in one process. \
-         A ratio below the limit meets the target. Our solve is the solve phase as issue 5 defines it (y, right-hand side, two triangular solves, X = Q[y; z]; \
+         A ratio below the limit meets the target. Our solve is the solve phase of docs/formulations.md §2 (y, right-hand side, two triangular solves, X = Q[y; z]; \
          `report.timings_s.solve`); the whole `solve_matrix` call adds the checks and diagnostics the library computes after every solve (constraint residuals, ‖AX − C‖), given in brackets. \
          The numeric factorisation runs on one thread below 50 M factor values and on two above; the triangular solves on one. \
          The bandwidth floor is 2 × the factor's bytes / the single-thread read bandwidth measured in the same run ({:.1} GB/s).\n",
@@ -939,7 +951,7 @@ fn section(ctx: &Context, all: &Everything, reps: usize, solves: usize) -> Strin
     if !all.refine.is_empty() {
         let _ = writeln!(
             md,
-            "\nTarget 8 (issue 23) times, in alternation, the unrefined solve phase and a later `auto` refinement of its result with the same factor \
+            "\nTarget 8 times, in alternation, the unrefined solve phase and a later `auto` refinement of its result with the same factor \
              (after the factor's first refinement has measured its rounding floor), on the paper's default scene; the corrections' sizes are relative to the \
              bounding-box diagonal, and κ is the Lanczos estimate of the reduced normal matrix's condition number. Every correction repeats the solve's passes \
              (docs/refinement.md §7), so the ratio is about the number of corrections: one where the first correction is already near the floor, two where \

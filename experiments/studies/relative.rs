@@ -21,18 +21,27 @@ use lse_deform::scene::{FixedAndHandle, MixedScene};
 use lse_deform::{Deformer, Formulation, FormulationChoice, LaplacianKind, Method, Report};
 use serde::Serialize;
 
-use crate::breakdown::{
+use crate::harness::context::AnyError;
+use crate::harness::context::{Context, MeshCase};
+use crate::harness::plot::{
+    self, Axis, Category, LegendPosition, LineChart, Output, ReferenceLine, Series, StackedBars,
+};
+use crate::harness::registry::{Experiment, Input, Summary};
+use crate::harness::rows::{cell_f, cell_u, fmt_time, markdown_table, median};
+use crate::harness::timing::{
     PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells, precompute_phase_values,
     qr_backends, short_error,
 };
-use crate::context::{Context, MeshCase, cell_f, cell_u, fmt_time, markdown_table, median};
-use crate::plot::{
-    self, Axis, Category, LegendPosition, LineChart, Orientation, Output, ReferenceLine, Series,
-    StackedBars,
-};
-use crate::{AnyError, Summary};
 
 pub const NAME: &str = "relative-constraints";
+
+/// This study's entry in the list of experiments.
+pub const EXPERIMENT: Experiment = Experiment {
+    name: NAME,
+    title: "Relative constraints (paper Fig. 9 and 11)",
+    inputs: &[Input::OneMesh],
+    run,
+};
 
 /// A compared method and back end.
 struct Config {
@@ -481,7 +490,6 @@ fn figures(
         value_label: "time (s), median run".into(),
         segments: PHASES.iter().map(|s| s.to_string()).collect(),
         categories,
-        orientation: Orientation::Horizontal,
         total_suffix: Some(" s".into()),
         legend: LegendPosition::Auto,
     };
