@@ -10,15 +10,23 @@
 
 use std::path::{Path, PathBuf};
 
-/// The Rust and Markdown files under `dir`, recursively.
+/// The project's Rust, Markdown, Python and JavaScript-module files under
+/// `dir`, recursively; installed packages (`node_modules`, a browser
+/// test's npm install) and build trees are not the project's.
 fn files(dir: &Path, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     for entry in entries.flatten() {
         let path = entry.path();
+        let name = entry.file_name();
         if path.is_dir() {
-            files(&path, out);
+            if !matches!(
+                name.to_str(),
+                Some("node_modules" | "target" | "__pycache__")
+            ) {
+                files(&path, out);
+            }
         } else if matches!(
             path.extension().and_then(|e| e.to_str()),
             Some("rs" | "md" | "py" | "mjs")
