@@ -827,13 +827,16 @@ pub(crate) fn target_in_unit(index: usize, value: [f64; 3], unit: f64) -> Result
     .into())
 }
 
+/// Each constraint's place, the hard constraints' indices, the soft rows.
+type SplitRows = (Vec<RowPlace>, Vec<usize>, Vec<SoftRow>);
+
 /// Sorts the constraints into hard rows (of `B`) and soft rows (of `A`),
 /// in list order: each constraint's place, the hard constraints' indices,
 /// and the soft rows ([`soft_row`]).
 fn split_rows(
     constraints: &ConstraintSet,
     soft_scale: SoftWeightScale,
-) -> Result<(Vec<RowPlace>, Vec<usize>, Vec<SoftRow>), NumericalError> {
+) -> Result<SplitRows, NumericalError> {
     let mut places = Vec::with_capacity(constraints.len());
     let mut hard = Vec::new();
     let mut soft = Vec::new();

@@ -449,6 +449,9 @@ fn assemble_b_d(
     (b, d)
 }
 
+/// A sparse row of `B` and its right-hand side.
+type RowAndRhs = (Vec<(usize, f64)>, Vec<f64>);
+
 /// `s · row p + t · row q` for two rows drawn from `independent_rows`,
 /// `s ∈ [0.5, 2)`, `t ∈ [−2, −0.5)`, with the same combination of their
 /// right-hand sides; `None` when the rows cancel exactly (`p = q`, `s = −t`).
@@ -458,7 +461,7 @@ fn two_row_combination(
     d_rows: &[Vec<f64>],
     independent_rows: &[usize],
     n: usize,
-) -> Option<(Vec<(usize, f64)>, Vec<f64>)> {
+) -> Option<RowAndRhs> {
     let pick = |rng: &mut ChaCha8Rng| independent_rows[rng.random_range(0..independent_rows.len())];
     let (p, q) = (pick(rng), pick(rng));
     let (s, t) = (rng.random_range(0.5..2.0), rng.random_range(-2.0..-0.5));
