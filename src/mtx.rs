@@ -205,7 +205,9 @@ pub fn read_header(path: &Path) -> Result<MatrixHeader, Error> {
     Ok(open(BufReader::new(file), path)?.header)
 }
 
-/// Reads the header and the size line.
+/// Reads the header and the size line: the banner ([`parse_banner`]) and
+/// the sizes ([`parse_size_line`]); then allows the rest of the file the
+/// bytes its entries may take.
 fn open<R: BufRead>(reader: R, path: &Path) -> Result<Opened<'_, R>, Error> {
     let mut lines = Lines::new(reader, path);
     let err = |line: Option<usize>, message: String| -> Error {
@@ -222,49 +224,68 @@ fn open<R: BufRead>(reader: R, path: &Path) -> Result<Opened<'_, R>, Error> {
             "empty file (expected the header '%%MatrixMarket matrix …')".into(),
         )
     })?;
-    // A byte-order mark (which Windows editors write) is not part of the
-    // header.
-    let header = header.strip_prefix('\u{feff}').unwrap_or(&header);
+    let banner = parse_banner(&header).map_err(|m| err(Some(1), m))?;
+    let (size_line, size) = lines
+        .next_data()?
+        .ok_or_else(|| err(None, "no size line".into()))?;
+    let header = parse_size_line(&size, &banner).map_err(|m| err(Some(size_line), m))?;
+    // The rest of the file may hold this many bytes: the entries' lines (a
+    // stream that goes on beyond is refused, not read to exhaustion).
+    let values = header.entries.map_or(header.max_nonzeros(), |e| e as u64);
+    lines.allow(values.saturating_mul(MAX_BYTES_PER_VALUE));
+    Ok(Opened {
+        lines,
+        header,
+        pattern: banner.pattern,
+        symmetry: banner.symmetry,
+        size_line,
+    })
+}
+
+/// What the header line `%%MatrixMarket matrix FORMAT FIELD SYMMETRY`
+/// says (words case-insensitive).
+#[derive(Debug, PartialEq)]
+struct Banner {
+    /// `coordinate` (else `array`).
+    sparse: bool,
+    /// Field `pattern`: entries without values.
+    pattern: bool,
+    symmetry: Symmetry,
+    /// The symmetry word as written (lower case), for messages.
+    symmetry_word: String,
+}
+
+/// Parses the header line (a leading byte-order mark, which Windows
+/// editors write, ignored). Supported: coordinate or array; real, double,
+/// integer or (coordinate only) pattern; general, or (coordinate only)
+/// symmetric or skew-symmetric. The error is the message for line 1.
+fn parse_banner(header: &str) -> Result<Banner, String> {
+    let header = header.strip_prefix('\u{feff}').unwrap_or(header);
     let lower = header.to_ascii_lowercase();
     let fields: Vec<&str> = lower.split_whitespace().collect();
     if fields.len() != 5 || fields[0] != "%%matrixmarket" || fields[1] != "matrix" {
-        return Err(err(
-            Some(1),
-            format!(
-                "expected the header '%%MatrixMarket matrix FORMAT FIELD SYMMETRY', found '{}'",
-                truncate(header)
-            ),
+        return Err(format!(
+            "expected the header '%%MatrixMarket matrix FORMAT FIELD SYMMETRY', found '{}'",
+            truncate(header)
         ));
     }
     let sparse = match fields[2] {
         "coordinate" => true,
         "array" => false,
-        other => {
-            return Err(err(
-                Some(1),
-                format!("format '{other}': expected coordinate or array"),
-            ));
-        }
+        other => return Err(format!("format '{other}': expected coordinate or array")),
     };
     let pattern = match fields[3] {
         "real" | "double" | "integer" => false,
         "pattern" if sparse => true,
-        "pattern" => {
-            return Err(err(
-                Some(1),
-                "field 'pattern' needs the coordinate format".into(),
-            ));
-        }
+        "pattern" => return Err("field 'pattern' needs the coordinate format".into()),
         "complex" => {
-            return Err(err(
-                Some(1),
+            return Err(
                 "complex matrices are not supported (real, integer or pattern only)".into(),
-            ));
+            );
         }
         other => {
-            return Err(err(
-                Some(1),
-                format!("field '{other}': expected real, integer or pattern"),
+            return Err(format!(
+                "field '{other}': expected real, integer or pattern"
             ));
         }
     };
@@ -273,74 +294,60 @@ fn open<R: BufRead>(reader: R, path: &Path) -> Result<Opened<'_, R>, Error> {
         "symmetric" if sparse => Symmetry::Symmetric,
         "skew-symmetric" if sparse => Symmetry::Skew,
         "symmetric" | "skew-symmetric" | "hermitian" if !sparse => {
-            return Err(err(
-                Some(1),
-                format!(
-                    "{} arrays are not supported (write the full matrix as 'array real general')",
-                    fields[4]
-                ),
+            return Err(format!(
+                "{} arrays are not supported (write the full matrix as 'array real general')",
+                fields[4]
             ));
         }
         other => {
-            return Err(err(
-                Some(1),
-                format!("symmetry '{other}': expected general, symmetric or skew-symmetric"),
+            return Err(format!(
+                "symmetry '{other}': expected general, symmetric or skew-symmetric"
             ));
         }
     };
-    let (size_line, size) = lines
-        .next_data()?
-        .ok_or_else(|| err(None, "no size line".into()))?;
-    let dims = parse_counts(&size).ok_or_else(|| {
-        err(
-            Some(size_line),
-            format!(
-                "expected the size line '{}', found '{}'",
-                if sparse {
-                    "rows cols entries"
-                } else {
-                    "rows cols"
-                },
-                truncate(&size)
-            ),
+    Ok(Banner {
+        sparse,
+        pattern,
+        symmetry,
+        symmetry_word: fields[4].to_string(),
+    })
+}
+
+/// Parses the size line `size` under `banner`: `rows cols entries`
+/// (coordinate) or `rows cols` (array); a symmetric matrix must be square.
+/// The error is the message for the size line.
+fn parse_size_line(size: &str, banner: &Banner) -> Result<MatrixHeader, String> {
+    let sparse = banner.sparse;
+    let dims = parse_counts(size).ok_or_else(|| {
+        format!(
+            "expected the size line '{}', found '{}'",
+            if sparse {
+                "rows cols entries"
+            } else {
+                "rows cols"
+            },
+            truncate(size)
         )
     })?;
     if dims.len() != if sparse { 3 } else { 2 } {
-        return Err(err(
-            Some(size_line),
-            format!(
-                "expected {} numbers on the size line, found {}",
-                if sparse { 3 } else { 2 },
-                dims.len()
-            ),
+        return Err(format!(
+            "expected {} numbers on the size line, found {}",
+            if sparse { 3 } else { 2 },
+            dims.len()
         ));
     }
     let (rows, cols) = (dims[0], dims[1]);
-    if symmetry != Symmetry::General && rows != cols {
-        return Err(err(
-            Some(size_line),
-            format!(
-                "a {} matrix must be square, this one is {rows} × {cols}",
-                fields[4]
-            ),
+    if banner.symmetry != Symmetry::General && rows != cols {
+        return Err(format!(
+            "a {} matrix must be square, this one is {rows} × {cols}",
+            banner.symmetry_word
         ));
     }
-    let header = MatrixHeader {
+    Ok(MatrixHeader {
         rows,
         cols,
         entries: sparse.then(|| dims[2]),
-        symmetric: symmetry != Symmetry::General,
-    };
-    // The rest of the file may hold this many bytes: the entries' lines (a
-    // stream that goes on beyond is refused, not read to exhaustion).
-    let values = header.entries.map_or(header.max_nonzeros(), |e| e as u64);
-    lines.allow(values.saturating_mul(MAX_BYTES_PER_VALUE));
-    Ok(Opened {
-        lines,
-        header,
-        pattern,
-        symmetry,
-        size_line,
+        symmetric: banner.symmetry != Symmetry::General,
     })
 }
 
@@ -520,66 +527,8 @@ fn read_coordinate(
                 "more entries than the {entries} the size line (line {size_line}) announces"
             )));
         }
-        let tokens: Vec<&str> = text.split_whitespace().collect();
-        let expected = if pattern { 2 } else { 3 };
-        if tokens.len() != expected {
-            return Err(bad(format!(
-                "expected '{}', found {} item(s): '{}'",
-                if pattern { "row col" } else { "row col value" },
-                tokens.len(),
-                truncate(&text)
-            )));
-        }
-        let index = |t: &str, what: &str, max: usize| -> Result<usize, Error> {
-            match t.parse::<usize>() {
-                Ok(i) if (1..=max).contains(&i) => Ok(i - 1),
-                _ => Err(lines.error(
-                    Some(line),
-                    format!("{what} index '{}' is not in 1..={max}", truncate(t)),
-                )),
-            }
-        };
-        let (i, j) = (
-            index(tokens[0], "row", rows)?,
-            index(tokens[1], "column", cols)?,
-        );
-        let value = if pattern {
-            1.0
-        } else {
-            parse_value(tokens[2]).map_err(&bad)?
-        };
-        match symmetry {
-            Symmetry::General => triplets.push(Triplet::new(i, j, value)),
-            Symmetry::Symmetric | Symmetry::Skew => {
-                if i < j {
-                    return Err(bad(format!(
-                        "entry ({}, {}) is above the diagonal: a {} file stores the lower triangle",
-                        i + 1,
-                        j + 1,
-                        if symmetry == Symmetry::Skew {
-                            "skew-symmetric"
-                        } else {
-                            "symmetric"
-                        }
-                    )));
-                }
-                if i == j && symmetry == Symmetry::Skew {
-                    return Err(bad(format!(
-                        "diagonal entry ({0}, {0}) in a skew-symmetric file (its diagonal is zero)",
-                        i + 1
-                    )));
-                }
-                triplets.push(Triplet::new(i, j, value));
-                if i != j {
-                    let mirror = if symmetry == Symmetry::Skew {
-                        -value
-                    } else {
-                        value
-                    };
-                    triplets.push(Triplet::new(j, i, mirror));
-                }
-            }
-        }
+        let (i, j, value) = parse_entry(&text, pattern, rows, cols).map_err(&bad)?;
+        push_entry(&mut triplets, i, j, value, symmetry).map_err(&bad)?;
         count += 1;
     }
     if count != entries {
@@ -591,6 +540,92 @@ fn read_coordinate(
     SparseColMat::try_new_from_triplets(rows, cols, &triplets)
         .map(MatrixFile::Sparse)
         .map_err(|e| lines.error(None, format!("cannot build the matrix: {e:?}")))
+}
+
+/// Parses a coordinate entry line: `row col value` (`row col` for a
+/// pattern, value 1), indices 1-based within `rows` and `cols`, returned
+/// 0-based. The error is the message for the line.
+fn parse_entry(
+    text: &str,
+    pattern: bool,
+    rows: usize,
+    cols: usize,
+) -> Result<(usize, usize, f64), String> {
+    let tokens: Vec<&str> = text.split_whitespace().collect();
+    let expected = if pattern { 2 } else { 3 };
+    if tokens.len() != expected {
+        return Err(format!(
+            "expected '{}', found {} item(s): '{}'",
+            if pattern { "row col" } else { "row col value" },
+            tokens.len(),
+            truncate(text)
+        ));
+    }
+    let index = |t: &str, what: &str, max: usize| -> Result<usize, String> {
+        match t.parse::<usize>() {
+            Ok(i) if (1..=max).contains(&i) => Ok(i - 1),
+            _ => Err(format!(
+                "{what} index '{}' is not in 1..={max}",
+                truncate(t)
+            )),
+        }
+    };
+    let (i, j) = (
+        index(tokens[0], "row", rows)?,
+        index(tokens[1], "column", cols)?,
+    );
+    let value = if pattern {
+        1.0
+    } else {
+        parse_value(tokens[2])?
+    };
+    Ok((i, j, value))
+}
+
+/// Adds entry `(i, j)` (0-based) to `triplets`: as it is in a general
+/// file; in a symmetric or skew-symmetric one it must be on or below the
+/// diagonal (not on it when skew) and its mirror `(j, i)` is added too,
+/// negated when skew. The error is the message for the line.
+fn push_entry(
+    triplets: &mut Vec<Triplet<usize, usize, f64>>,
+    i: usize,
+    j: usize,
+    value: f64,
+    symmetry: Symmetry,
+) -> Result<(), String> {
+    match symmetry {
+        Symmetry::General => triplets.push(Triplet::new(i, j, value)),
+        Symmetry::Symmetric | Symmetry::Skew => {
+            if i < j {
+                return Err(format!(
+                    "entry ({}, {}) is above the diagonal: a {} file stores the lower triangle",
+                    i + 1,
+                    j + 1,
+                    if symmetry == Symmetry::Skew {
+                        "skew-symmetric"
+                    } else {
+                        "symmetric"
+                    }
+                ));
+            }
+            if i == j && symmetry == Symmetry::Skew {
+                return Err(format!(
+                    "diagonal entry ({0}, {0}) in a skew-symmetric file (its diagonal is zero)",
+                    i + 1
+                ));
+            }
+            triplets.push(Triplet::new(i, j, value));
+            if i != j {
+                let mirror = if symmetry == Symmetry::Skew {
+                    -value
+                } else {
+                    value
+                };
+                triplets.push(Triplet::new(j, i, mirror));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn read_array(
@@ -824,6 +859,123 @@ pub fn write_dense(path: &Path, m: MatRef<'_, f64>) -> Result<(), Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn banner(sparse: bool, pattern: bool, symmetry: Symmetry, word: &str) -> Banner {
+        Banner {
+            sparse,
+            pattern,
+            symmetry,
+            symmetry_word: word.into(),
+        }
+    }
+
+    #[test]
+    fn banner_parser_alone() {
+        assert_eq!(
+            parse_banner("\u{feff}%%MatrixMarket Matrix Coordinate Pattern Symmetric"),
+            Ok(banner(true, true, Symmetry::Symmetric, "symmetric"))
+        );
+        assert_eq!(
+            parse_banner("%%MatrixMarket matrix array real general"),
+            Ok(banner(false, false, Symmetry::General, "general"))
+        );
+        assert_eq!(
+            parse_banner("%%MatrixMarket matrix array pattern general"),
+            Err("field 'pattern' needs the coordinate format".into())
+        );
+        assert_eq!(
+            parse_banner("%%MatrixMarket matrix array real hermitian"),
+            Err("hermitian arrays are not supported (write the full matrix as 'array real general')".into())
+        );
+        assert_eq!(
+            parse_banner("%%MatrixMarket matrix coordinate real upper"),
+            Err("symmetry 'upper': expected general, symmetric or skew-symmetric".into())
+        );
+        assert_eq!(
+            parse_banner("%%MatrixMarket vector coordinate real general"),
+            Err("expected the header '%%MatrixMarket matrix FORMAT FIELD SYMMETRY', found '%%MatrixMarket vector coordinate real general'".into())
+        );
+    }
+
+    #[test]
+    fn size_line_parser_alone() {
+        let coordinate = banner(true, false, Symmetry::General, "general");
+        assert_eq!(
+            parse_size_line("3 4 5", &coordinate),
+            Ok(MatrixHeader {
+                rows: 3,
+                cols: 4,
+                entries: Some(5),
+                symmetric: false
+            })
+        );
+        assert_eq!(
+            parse_size_line("3 4", &coordinate),
+            Err("expected 3 numbers on the size line, found 2".into())
+        );
+        let skew = banner(true, false, Symmetry::Skew, "skew-symmetric");
+        assert_eq!(
+            parse_size_line("3 4 1", &skew),
+            Err("a skew-symmetric matrix must be square, this one is 3 × 4".into())
+        );
+        let array = banner(false, false, Symmetry::General, "general");
+        assert_eq!(
+            parse_size_line("2 x", &array),
+            Err("expected the size line 'rows cols', found '2 x'".into())
+        );
+    }
+
+    #[test]
+    fn entry_line_parser_alone() {
+        assert_eq!(parse_entry("2 3 -1.5", false, 2, 3), Ok((1, 2, -1.5)));
+        assert_eq!(parse_entry(" 1  1 ", true, 2, 3), Ok((0, 0, 1.0)));
+        assert_eq!(
+            parse_entry("3 1 1.0", false, 2, 3),
+            Err("row index '3' is not in 1..=2".into())
+        );
+        assert_eq!(
+            parse_entry("1 0 1.0", false, 2, 3),
+            Err("column index '0' is not in 1..=3".into())
+        );
+        assert_eq!(
+            parse_entry("1 1", false, 2, 3),
+            Err("expected 'row col value', found 2 item(s): '1 1'".into())
+        );
+    }
+
+    #[test]
+    fn entries_are_mirrored_by_symmetry() {
+        let pairs = |t: &[Triplet<usize, usize, f64>]| -> Vec<(usize, usize, f64)> {
+            t.iter().map(|t| (t.row, t.col, t.val)).collect()
+        };
+        let mut t = Vec::new();
+        push_entry(&mut t, 0, 1, 2.0, Symmetry::General).unwrap();
+        push_entry(&mut t, 2, 0, 3.0, Symmetry::Symmetric).unwrap();
+        push_entry(&mut t, 1, 1, 4.0, Symmetry::Symmetric).unwrap();
+        push_entry(&mut t, 2, 1, 5.0, Symmetry::Skew).unwrap();
+        assert_eq!(
+            pairs(&t),
+            [
+                (0, 1, 2.0),
+                (2, 0, 3.0),
+                (0, 2, 3.0),
+                (1, 1, 4.0),
+                (2, 1, 5.0),
+                (1, 2, -5.0)
+            ]
+        );
+        assert_eq!(
+            push_entry(&mut t, 0, 1, 1.0, Symmetry::Symmetric),
+            Err(
+                "entry (1, 2) is above the diagonal: a symmetric file stores the lower triangle"
+                    .into()
+            )
+        );
+        assert_eq!(
+            push_entry(&mut t, 1, 1, 1.0, Symmetry::Skew),
+            Err("diagonal entry (2, 2) in a skew-symmetric file (its diagonal is zero)".into())
+        );
+    }
 
     fn read(text: &str) -> Result<MatrixFile, Error> {
         read_matrix_from(text.as_bytes(), Path::new("m.mtx"))

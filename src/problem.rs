@@ -215,109 +215,9 @@ impl LseProblem {
         let n = l.ncols();
         constraints.check_vertices(n)?;
         let n_lap = l.nrows();
-        let mut places = Vec::with_capacity(constraints.len());
-        let mut hard = Vec::new();
-        let mut soft = Vec::new();
-        for (i, c) in constraints.as_slice().iter().enumerate() {
-            match c.weight {
-                None => {
-                    places.push(RowPlace::Hard(hard.len()));
-                    hard.push(i);
-                }
-                Some(w) => {
-                    let row_weight = soft_scale.apply(w);
-                    if !(row_weight.is_finite() && row_weight > 0.0) {
-                        return Err(NumericalError::SoftWeightOutOfRange {
-                            index: i,
-                            weight: w,
-                            length: soft_scale.length,
-                            power: soft_scale.power,
-                        }
-                        .into());
-                    }
-                    if (row_weight * row_weight).is_infinite() {
-                        return Err(NumericalError::SoftWeightTooLarge {
-                            index: i,
-                            weight: w,
-                            row_weight,
-                            power: soft_scale.power,
-                        }
-                        .into());
-                    }
-                    places.push(RowPlace::Soft(soft.len()));
-                    soft.push(SoftRow {
-                        index: i,
-                        weight: w,
-                        row_weight,
-                    });
-                }
-            }
-        }
-
-        // B (CSR), columns sorted within each row.
-        let mut row_ptr = Vec::with_capacity(hard.len() + 1);
-        row_ptr.push(0);
-        let mut col_idx = Vec::new();
-        let mut b_val = Vec::new();
-        let mut d = Mat::<f64>::zeros(hard.len(), 3);
-        for (k, &i) in hard.iter().enumerate() {
-            let kind = &constraints[i].kind;
-            let mut entries: Vec<(usize, f64)> = kind.row().entries().to_vec();
-            entries.sort_unstable_by_key(|e| e.0);
-            for (v, a) in entries {
-                col_idx.push(v);
-                b_val.push(a);
-            }
-            row_ptr.push(col_idx.len());
-            let rhs = kind.rhs();
-            for c in 0..3 {
-                d[(k, c)] = rhs[c];
-            }
-        }
-        let b = SparseRowMat::new(
-            SymbolicSparseRowMat::new_checked(hard.len(), n, row_ptr, None, col_idx),
-            b_val,
-        );
-
-        // A = [L; w B_soft] (CSC): column j holds L's column, then the soft
-        // entries on j (rows n_lap + k, increasing in k).
-        let mut soft_count = vec![0usize; n + 1];
-        for row in &soft {
-            for &(v, _) in constraints[row.index].kind.row().entries() {
-                soft_count[v + 1] += 1;
-            }
-        }
-        for j in 0..n {
-            soft_count[j + 1] += soft_count[j];
-        }
-        let mut soft_rows = vec![0usize; soft_count[n]];
-        let mut soft_vals = vec![0.0; soft_count[n]];
-        let mut fill = soft_count.clone();
-        for (k, row) in soft.iter().enumerate() {
-            for &(v, a) in constraints[row.index].kind.row().entries() {
-                soft_rows[fill[v]] = n_lap + k;
-                soft_vals[fill[v]] = row.row_weight * a;
-                fill[v] += 1;
-            }
-        }
-        let (l_ptr, l_rows, l_val) = (l.symbolic().col_ptr(), l.symbolic().row_idx(), l.val());
-        let nnz = l_rows.len() + soft_rows.len();
-        let mut a_ptr = Vec::with_capacity(n + 1);
-        a_ptr.push(0);
-        let mut a_rows = Vec::with_capacity(nnz);
-        let mut a_val = Vec::with_capacity(nnz);
-        for j in 0..n {
-            a_rows.extend_from_slice(&l_rows[l_ptr[j]..l_ptr[j + 1]]);
-            a_val.extend_from_slice(&l_val[l_ptr[j]..l_ptr[j + 1]]);
-            a_rows.extend_from_slice(&soft_rows[soft_count[j]..soft_count[j + 1]]);
-            a_val.extend_from_slice(&soft_vals[soft_count[j]..soft_count[j + 1]]);
-            a_ptr.push(a_rows.len());
-        }
-        let a = SparseColMat::new(
-            SymbolicSparseColMat::new_checked(n_lap + soft.len(), n, a_ptr, None, a_rows),
-            a_val,
-        );
-
+        let (places, hard, soft) = split_rows(constraints, soft_scale)?;
+        let (b, d) = assemble_hard(constraints, &hard, n);
+        let a = assemble_a(l, constraints, &soft);
         let mut c = Mat::<f64>::zeros(n_lap + soft.len(), 3);
         c.as_mut().submatrix_mut(0, 0, n_lap, 3).copy_from(delta);
         let mut problem = LseProblem {
@@ -925,4 +825,241 @@ pub(crate) fn target_in_unit(index: usize, value: [f64; 3], unit: f64) -> Result
         ratio: largest / unit,
     }
     .into())
+}
+
+/// Each constraint's place, the hard constraints' indices, the soft rows.
+type SplitRows = (Vec<RowPlace>, Vec<usize>, Vec<SoftRow>);
+
+/// Sorts the constraints into hard rows (of `B`) and soft rows (of `A`),
+/// in list order: each constraint's place, the hard constraints' indices,
+/// and the soft rows ([`soft_row`]).
+fn split_rows(
+    constraints: &ConstraintSet,
+    soft_scale: SoftWeightScale,
+) -> Result<SplitRows, NumericalError> {
+    let mut places = Vec::with_capacity(constraints.len());
+    let mut hard = Vec::new();
+    let mut soft = Vec::new();
+    for (i, c) in constraints.as_slice().iter().enumerate() {
+        match c.weight {
+            None => {
+                places.push(RowPlace::Hard(hard.len()));
+                hard.push(i);
+            }
+            Some(w) => {
+                places.push(RowPlace::Soft(soft.len()));
+                soft.push(soft_row(i, w, soft_scale)?);
+            }
+        }
+    }
+    Ok((places, hard, soft))
+}
+
+/// Constraint `index`'s soft row, weight `w` scaled by `soft_scale`: the
+/// row weight must be finite and positive, and its square (the weight in
+/// the normal matrix `AᵀA`) finite.
+fn soft_row(index: usize, w: f64, soft_scale: SoftWeightScale) -> Result<SoftRow, NumericalError> {
+    let row_weight = soft_scale.apply(w);
+    if !(row_weight.is_finite() && row_weight > 0.0) {
+        return Err(NumericalError::SoftWeightOutOfRange {
+            index,
+            weight: w,
+            length: soft_scale.length,
+            power: soft_scale.power,
+        });
+    }
+    if (row_weight * row_weight).is_infinite() {
+        return Err(NumericalError::SoftWeightTooLarge {
+            index,
+            weight: w,
+            row_weight,
+            power: soft_scale.power,
+        });
+    }
+    Ok(SoftRow {
+        index,
+        weight: w,
+        row_weight,
+    })
+}
+
+/// `B` (CSR over `n` unknowns, columns sorted within each row) and `D` of
+/// the `hard` constraints, in that order.
+fn assemble_hard(
+    constraints: &ConstraintSet,
+    hard: &[usize],
+    n: usize,
+) -> (SparseRowMat<usize, f64>, Mat<f64>) {
+    let mut row_ptr = Vec::with_capacity(hard.len() + 1);
+    row_ptr.push(0);
+    let mut col_idx = Vec::new();
+    let mut b_val = Vec::new();
+    let mut d = Mat::<f64>::zeros(hard.len(), 3);
+    for (k, &i) in hard.iter().enumerate() {
+        let kind = &constraints[i].kind;
+        let mut entries: Vec<(usize, f64)> = kind.row().entries().to_vec();
+        entries.sort_unstable_by_key(|e| e.0);
+        for (v, a) in entries {
+            col_idx.push(v);
+            b_val.push(a);
+        }
+        row_ptr.push(col_idx.len());
+        let rhs = kind.rhs();
+        for c in 0..3 {
+            d[(k, c)] = rhs[c];
+        }
+    }
+    let b = SparseRowMat::new(
+        SymbolicSparseRowMat::new_checked(hard.len(), n, row_ptr, None, col_idx),
+        b_val,
+    );
+    (b, d)
+}
+
+/// `A = [L; w B_soft]` (CSC): column `j` holds `L`'s column, then the soft
+/// entries on `j` (rows `n_lap + k`, increasing in `k`), each the row
+/// weight times the coefficient.
+fn assemble_a(
+    l: &SparseColMat<usize, f64>,
+    constraints: &ConstraintSet,
+    soft: &[SoftRow],
+) -> SparseColMat<usize, f64> {
+    let (n_lap, n) = (l.nrows(), l.ncols());
+    let mut soft_count = vec![0usize; n + 1];
+    for row in soft {
+        for &(v, _) in constraints[row.index].kind.row().entries() {
+            soft_count[v + 1] += 1;
+        }
+    }
+    for j in 0..n {
+        soft_count[j + 1] += soft_count[j];
+    }
+    let mut soft_rows = vec![0usize; soft_count[n]];
+    let mut soft_vals = vec![0.0; soft_count[n]];
+    let mut fill = soft_count.clone();
+    for (k, row) in soft.iter().enumerate() {
+        for &(v, a) in constraints[row.index].kind.row().entries() {
+            soft_rows[fill[v]] = n_lap + k;
+            soft_vals[fill[v]] = row.row_weight * a;
+            fill[v] += 1;
+        }
+    }
+    let (l_ptr, l_rows, l_val) = (l.symbolic().col_ptr(), l.symbolic().row_idx(), l.val());
+    let nnz = l_rows.len() + soft_rows.len();
+    let mut a_ptr = Vec::with_capacity(n + 1);
+    a_ptr.push(0);
+    let mut a_rows = Vec::with_capacity(nnz);
+    let mut a_val = Vec::with_capacity(nnz);
+    for j in 0..n {
+        a_rows.extend_from_slice(&l_rows[l_ptr[j]..l_ptr[j + 1]]);
+        a_val.extend_from_slice(&l_val[l_ptr[j]..l_ptr[j + 1]]);
+        a_rows.extend_from_slice(&soft_rows[soft_count[j]..soft_count[j + 1]]);
+        a_val.extend_from_slice(&soft_vals[soft_count[j]..soft_count[j + 1]]);
+        a_ptr.push(a_rows.len());
+    }
+    SparseColMat::new(
+        SymbolicSparseColMat::new_checked(n_lap + soft.len(), n, a_ptr, None, a_rows),
+        a_val,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use faer::sparse::Triplet;
+
+    use super::*;
+    use crate::constraints::{Constraint, ConstraintKind};
+
+    /// Hard `p_2 = (1, 2, 3)`, soft (weight 4) `p_0 − p_1 = (0, 0, 1)`,
+    /// hard on-edge `0.75 p_1 + 0.25 p_0 = (5, 6, 7)`.
+    fn three() -> ConstraintSet {
+        ConstraintSet::from_vec(vec![
+            Constraint::hard(ConstraintKind::Position {
+                vertex: 2,
+                target: [1.0, 2.0, 3.0],
+            }),
+            Constraint::soft(
+                ConstraintKind::Relative {
+                    vertices: [0, 1],
+                    vector: [0.0, 0.0, 1.0],
+                },
+                4.0,
+            ),
+            Constraint::hard(ConstraintKind::Edge {
+                vertices: [1, 0],
+                t: 0.75,
+                target: [5.0, 6.0, 7.0],
+            }),
+        ])
+        .unwrap()
+    }
+
+    #[test]
+    fn rows_split_into_hard_and_soft_in_list_order() {
+        let (places, hard, soft) = split_rows(&three(), SoftWeightScale::NONE).unwrap();
+        assert_eq!(
+            places,
+            [RowPlace::Hard(0), RowPlace::Soft(0), RowPlace::Hard(1)]
+        );
+        assert_eq!(hard, [0, 2]);
+        assert_eq!(
+            soft,
+            [SoftRow {
+                index: 1,
+                weight: 4.0,
+                row_weight: 4.0
+            }]
+        );
+    }
+
+    #[test]
+    fn soft_row_weights_are_scaled_and_checked() {
+        let scale = SoftWeightScale {
+            length: 2.0,
+            power: 2,
+        };
+        assert_eq!(soft_row(3, 0.5, scale).unwrap().row_weight, 2.0);
+        assert_eq!(
+            soft_row(3, -1.0, scale),
+            Err(NumericalError::SoftWeightOutOfRange {
+                index: 3,
+                weight: -1.0,
+                length: 2.0,
+                power: 2
+            })
+        );
+        assert_eq!(
+            soft_row(4, 1e200, SoftWeightScale::NONE),
+            Err(NumericalError::SoftWeightTooLarge {
+                index: 4,
+                weight: 1e200,
+                row_weight: 1e200,
+                power: 0
+            })
+        );
+    }
+
+    #[test]
+    fn hard_rows_and_soft_columns_are_assembled_sorted() {
+        let set = three();
+        let (b, d) = assemble_hard(&set, &[0, 2], 3);
+        assert_eq!(b.symbolic().row_ptr(), [0, 1, 3]);
+        assert_eq!(b.symbolic().col_idx(), [2, 0, 1]);
+        assert_eq!(b.val(), [1.0, 0.25, 0.75]);
+        assert_eq!(d, faer::mat![[1.0, 2.0, 3.0], [5.0, 6.0, 7.0]]);
+        // L = 2 I (3 × 3); the soft row 3 is 4 (p_0 − p_1).
+        let l =
+            SparseColMat::try_new_from_triplets(3, 3, &[0, 1, 2].map(|i| Triplet::new(i, i, 2.0)))
+                .unwrap();
+        let soft = [SoftRow {
+            index: 1,
+            weight: 4.0,
+            row_weight: 4.0,
+        }];
+        let a = assemble_a(&l, &set, &soft);
+        assert_eq!((a.nrows(), a.ncols()), (4, 3));
+        assert_eq!(a.symbolic().col_ptr(), [0, 2, 4, 5]);
+        assert_eq!(a.symbolic().row_idx(), [0, 3, 1, 3, 2]);
+        assert_eq!(a.val(), [2.0, 4.0, 2.0, -4.0, 2.0]);
+    }
 }

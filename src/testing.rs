@@ -336,20 +336,7 @@ pub struct RandomLse {
 /// right-hand-side columns.
 pub fn random_lse(n: usize, independent: usize, extra: usize, k: usize, seed: u64) -> RandomLse {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let l = n + n / 2;
-    let mut a = Vec::new();
-    for j in 0..n {
-        a.push(Triplet::new(j, j, rng.random_range(1.0..2.0)));
-    }
-    for _ in 0..3 * n {
-        a.push(Triplet::new(
-            rng.random_range(0..l),
-            rng.random_range(0..n),
-            rng.random_range(-1.0..1.0),
-        ));
-    }
-    let a = SparseColMat::<usize, f64>::try_new_from_triplets(l, n, &a).unwrap();
-    let c = Mat::from_fn(l, k, |_, _| rng.random_range(-1.0..1.0));
+    let (a, c) = random_a_and_c(&mut rng, n, k);
     // Every independent row has a pivot column that no earlier row touches
     // (its other entries are on earlier pivots or on columns that are never
     // pivots), so the rows are independent in list order by construction.
@@ -386,29 +373,11 @@ pub fn random_lse(n: usize, independent: usize, extra: usize, k: usize, seed: u6
     for e in 0..extra {
         // Combinations of kept rows only (a combination involving a
         // conflicting row would be inconsistent with the kept ones).
-        let pick =
-            |rng: &mut ChaCha8Rng| independent_rows[rng.random_range(0..independent_rows.len())];
-        let (p, q) = (pick(&mut rng), pick(&mut rng));
-        let (s, t) = (rng.random_range(0.5..2.0), rng.random_range(-2.0..-0.5));
-        let mut dense = vec![0.0; n];
-        for &(j, v) in &rows[p] {
-            dense[j] += s * v;
-        }
-        for &(j, v) in &rows[q] {
-            dense[j] += t * v;
-        }
-        let row: Vec<(usize, f64)> = dense
-            .iter()
-            .enumerate()
-            .filter(|e| *e.1 != 0.0)
-            .map(|(j, &v)| (j, v))
-            .collect();
-        if row.is_empty() {
+        let Some((row, mut d)) =
+            two_row_combination(&mut rng, &rows, &d_rows, &independent_rows, n)
+        else {
             continue;
-        }
-        let mut d: Vec<f64> = (0..k)
-            .map(|c| s * d_rows[p][c] + t * d_rows[q][c])
-            .collect();
+        };
         if e % 2 == 1 {
             d[0] += 1.0;
             conflicting.push(rows.len());
@@ -425,6 +394,50 @@ pub fn random_lse(n: usize, independent: usize, extra: usize, k: usize, seed: u6
             d_rows.push((0..k).map(|_| rng.random_range(-1.0..1.0)).collect());
         }
     }
+    let (b, d) = assemble_b_d(&rows, &d_rows, n, k);
+    let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref()).unwrap();
+    RandomLse {
+        problem,
+        independent_rows,
+        redundant,
+        conflicting,
+    }
+}
+
+/// The random `A` (`l × n`, `l = 3n/2`: a diagonal in `[1, 2)` plus `3n`
+/// entries in `[−1, 1)` at random places, duplicates summed) and `C`
+/// (`l × k`, entries in `[−1, 1)`) of [`random_lse`] and
+/// [`constructed_lse`], drawn in that order from `rng`.
+fn random_a_and_c(
+    rng: &mut ChaCha8Rng,
+    n: usize,
+    k: usize,
+) -> (SparseColMat<usize, f64>, Mat<f64>) {
+    let l = n + n / 2;
+    let mut a = Vec::new();
+    for j in 0..n {
+        a.push(Triplet::new(j, j, rng.random_range(1.0..2.0)));
+    }
+    for _ in 0..3 * n {
+        a.push(Triplet::new(
+            rng.random_range(0..l),
+            rng.random_range(0..n),
+            rng.random_range(-1.0..1.0),
+        ));
+    }
+    let a = SparseColMat::<usize, f64>::try_new_from_triplets(l, n, &a).unwrap();
+    let c = Mat::from_fn(l, k, |_, _| rng.random_range(-1.0..1.0));
+    (a, c)
+}
+
+/// `B` (`rows.len() × n`, duplicate entries summed) and `D` (`k` columns)
+/// from sparse rows and their right-hand sides.
+fn assemble_b_d(
+    rows: &[Vec<(usize, f64)>],
+    d_rows: &[Vec<f64>],
+    n: usize,
+    k: usize,
+) -> (SparseColMat<usize, f64>, Mat<f64>) {
     let m = rows.len();
     let b: Vec<Triplet<usize, usize, f64>> = rows
         .iter()
@@ -433,13 +446,46 @@ pub fn random_lse(n: usize, independent: usize, extra: usize, k: usize, seed: u6
         .collect();
     let b = SparseColMat::<usize, f64>::try_new_from_triplets(m, n, &b).unwrap();
     let d = Mat::from_fn(m, k, |i, c| d_rows[i][c]);
-    let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref()).unwrap();
-    RandomLse {
-        problem,
-        independent_rows,
-        redundant,
-        conflicting,
+    (b, d)
+}
+
+/// A sparse row of `B` and its right-hand side.
+type RowAndRhs = (Vec<(usize, f64)>, Vec<f64>);
+
+/// `s · row p + t · row q` for two rows drawn from `independent_rows`,
+/// `s ∈ [0.5, 2)`, `t ∈ [−2, −0.5)`, with the same combination of their
+/// right-hand sides; `None` when the rows cancel exactly (`p = q`, `s = −t`).
+fn two_row_combination(
+    rng: &mut ChaCha8Rng,
+    rows: &[Vec<(usize, f64)>],
+    d_rows: &[Vec<f64>],
+    independent_rows: &[usize],
+    n: usize,
+) -> Option<RowAndRhs> {
+    let pick = |rng: &mut ChaCha8Rng| independent_rows[rng.random_range(0..independent_rows.len())];
+    let (p, q) = (pick(rng), pick(rng));
+    let (s, t) = (rng.random_range(0.5..2.0), rng.random_range(-2.0..-0.5));
+    let mut dense = vec![0.0; n];
+    for &(j, v) in &rows[p] {
+        dense[j] += s * v;
     }
+    for &(j, v) in &rows[q] {
+        dense[j] += t * v;
+    }
+    let row: Vec<(usize, f64)> = dense
+        .iter()
+        .enumerate()
+        .filter(|e| *e.1 != 0.0)
+        .map(|(j, &v)| (j, v))
+        .collect();
+    if row.is_empty() {
+        return None;
+    }
+    let k = d_rows[p].len();
+    let d: Vec<f64> = (0..k)
+        .map(|c| s * d_rows[p][c] + t * d_rows[q][c])
+        .collect();
+    Some((row, d))
 }
 
 /// Random surfaces of 4–8 × 4–8 cells ([`random_surface`]).
@@ -872,7 +918,11 @@ impl MixBuilder<'_> {
     }
 
     /// One row that depends on the kept ones exactly (a duplicate, or a
-    /// position, relative, edge or face built from forest paths).
+    /// position, relative, edge or face built from forest paths): a recipe
+    /// drawn (always a plain duplicate when `positions_only`), then built by
+    /// [`MixBuilder::duplicate`], [`MixBuilder::forest_relative`] or
+    /// [`MixBuilder::grounded_row`]. `false` when the recipe finds nothing
+    /// to build on.
     fn exact_dependent(&mut self, positions_only: bool) -> bool {
         let recipe = if positions_only {
             0
@@ -882,46 +932,63 @@ impl MixBuilder<'_> {
         let kept = self.out.kept.clone();
         let grounded = self.grounded_vertices();
         match recipe {
-            0 | 1 => {
-                // A duplicate of a kept constraint (a relative reversed, with
-                // its vector negated, is the same row up to sign).
-                let Some(&c) = kept.get(self.rng.random_range(0..kept.len().max(1))) else {
-                    return false;
-                };
-                let (kind, sign) = match self.out.constraints[c].kind.clone() {
-                    ConstraintKind::Relative { vertices, vector } if recipe == 1 => (
-                        ConstraintKind::Relative {
-                            vertices: [vertices[1], vertices[0]],
-                            vector: vector.map(|v| -v),
-                        },
-                        -1.0,
-                    ),
-                    other => (other, 1.0),
-                };
-                self.dependent(kind, &[(c, sign)]);
-            }
-            2 => {
-                // A relative between two connected vertices.
-                let trees: Vec<usize> = (0..self.p.len())
-                    .filter(|&v| self.in_forest(v) && !self.tainted[v])
-                    .collect();
-                if trees.len() < 2 {
-                    return false;
-                }
-                let a = trees[self.rng.random_range(0..trees.len())];
-                let b = trees[self.rng.random_range(0..trees.len())];
-                let Some(path) = (a != b).then(|| self.path(a, b)).flatten() else {
-                    return false;
-                };
-                let vector = self.value_of(&[(a, 1.0), (b, -1.0)]);
-                self.dependent(
-                    ConstraintKind::Relative {
-                        vertices: [a, b],
-                        vector,
-                    },
-                    &path,
-                );
-            }
+            0 | 1 => self.duplicate(&kept, recipe == 1),
+            2 => self.forest_relative(),
+            _ => self.grounded_row(recipe, &grounded),
+        }
+    }
+
+    /// A duplicate of a kept constraint; with `reverse`, a relative one is
+    /// reversed with its vector negated (the same row up to sign).
+    fn duplicate(&mut self, kept: &[usize], reverse: bool) -> bool {
+        let Some(&c) = kept.get(self.rng.random_range(0..kept.len().max(1))) else {
+            return false;
+        };
+        let (kind, sign) = match self.out.constraints[c].kind.clone() {
+            ConstraintKind::Relative { vertices, vector } if reverse => (
+                ConstraintKind::Relative {
+                    vertices: [vertices[1], vertices[0]],
+                    vector: vector.map(|v| -v),
+                },
+                -1.0,
+            ),
+            other => (other, 1.0),
+        };
+        self.dependent(kind, &[(c, sign)]);
+        true
+    }
+
+    /// A relative constraint between two distinct vertices of one
+    /// untainted forest tree, combining the rows along their path.
+    fn forest_relative(&mut self) -> bool {
+        let trees: Vec<usize> = (0..self.p.len())
+            .filter(|&v| self.in_forest(v) && !self.tainted[v])
+            .collect();
+        if trees.len() < 2 {
+            return false;
+        }
+        let a = trees[self.rng.random_range(0..trees.len())];
+        let b = trees[self.rng.random_range(0..trees.len())];
+        let Some(path) = (a != b).then(|| self.path(a, b)).flatten() else {
+            return false;
+        };
+        let vector = self.value_of(&[(a, 1.0), (b, -1.0)]);
+        self.dependent(
+            ConstraintKind::Relative {
+                vertices: [a, b],
+                vector,
+            },
+            &path,
+        );
+        true
+    }
+
+    /// A row on `grounded` vertices (their values fixed by kept rows):
+    /// recipe 3 a position, 4 an edge (`t` from [`T_VALUES`] or within
+    /// `1e-12` of 0 or 1), otherwise a face (`s = 0.2`, `t` from
+    /// [`T_VALUES`]).
+    fn grounded_row(&mut self, recipe: usize, grounded: &[usize]) -> bool {
+        match recipe {
             3 => {
                 let Some(&a) = grounded.get(self.rng.random_range(0..grounded.len().max(1))) else {
                     return false;
@@ -939,7 +1006,6 @@ impl MixBuilder<'_> {
                 if a == b {
                     return false;
                 }
-                // t from the usual values, or within 1e-12 of 0 or 1.
                 let t = match self.rng.random_range(0..4) {
                     0 => 10f64.powi(-self.rng.random_range(12..=15)),
                     1 => 1.0 - 10f64.powi(-self.rng.random_range(12..=15)),
@@ -948,9 +1014,10 @@ impl MixBuilder<'_> {
                 let terms = [(a, t), (b, 1.0 - t)];
                 let combination = self.grounded_combination(&terms);
                 let target = self.value_of(&terms);
+                let vertices = [a, b];
                 self.dependent(
                     ConstraintKind::Edge {
-                        vertices: [a, b],
+                        vertices,
                         t,
                         target,
                     },
@@ -961,21 +1028,20 @@ impl MixBuilder<'_> {
                 if grounded.len() < 3 {
                     return false;
                 }
-                let mut pick = grounded.clone();
+                let mut pick = grounded.to_vec();
                 pick.shuffle(&mut self.rng);
                 let (a, b, c) = (pick[0], pick[1], pick[2]);
                 let (s, t) = (0.2, T_VALUES[self.rng.random_range(0..5)]);
                 let terms = [(a, s), (b, t), (c, 1.0 - s - t)];
                 let combination = self.grounded_combination(&terms);
                 let target = self.value_of(&terms);
-                self.dependent(
-                    ConstraintKind::Face {
-                        vertices: [a, b, c],
-                        barycentric: [s, t],
-                        target,
-                    },
-                    &combination,
-                );
+                let (vertices, barycentric) = ([a, b, c], [s, t]);
+                let kind = ConstraintKind::Face {
+                    vertices,
+                    barycentric,
+                    target,
+                };
+                self.dependent(kind, &combination);
             }
         }
         true
@@ -1230,20 +1296,7 @@ pub fn constructed_lse(
     seed: u64,
 ) -> ConstructedLse {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let l = n + n / 2;
-    let mut a = Vec::new();
-    for j in 0..n {
-        a.push(Triplet::new(j, j, rng.random_range(1.0..2.0)));
-    }
-    for _ in 0..3 * n {
-        a.push(Triplet::new(
-            rng.random_range(0..l),
-            rng.random_range(0..n),
-            rng.random_range(-1.0..1.0),
-        ));
-    }
-    let a = SparseColMat::<usize, f64>::try_new_from_triplets(l, n, &a).unwrap();
-    let c = Mat::from_fn(l, k, |_, _| rng.random_range(-1.0..1.0));
+    let (a, c) = random_a_and_c(&mut rng, n, k);
     let mut columns: Vec<usize> = (0..n).collect();
     columns.shuffle(&mut rng);
     // A third of the columns are pivots, a third perturbation columns (each
@@ -1252,10 +1305,6 @@ pub fn constructed_lse(
     let mut pivots = columns[..third].iter().copied();
     let mut spare = columns[third..2 * third].iter().copied();
     let fillers = columns[2 * third..].to_vec();
-    let signed = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| {
-        let v = rng.random_range(lo..hi);
-        if rng.random_bool(0.5) { v } else { -v }
-    };
     // Unscaled rows and right-hand sides of the independent rows that later
     // rows may combine.
     let mut basis: Vec<BasisRow> = Vec::new();
@@ -1264,7 +1313,7 @@ pub fn constructed_lse(
     let mut d_rows: Vec<Vec<f64>> = Vec::new();
     let (mut kept_rows, mut redundant, mut conflicting) = (Vec::new(), Vec::new(), Vec::new());
     let (mut sources, mut near_tolerance, mut row_scales) = (Vec::new(), Vec::new(), Vec::new());
-    let norm = |v: &[(usize, f64)]| v.iter().map(|e| e.1 * e.1).sum::<f64>().sqrt();
+    let norm = row_norm;
     while b_rows.len() < rows {
         let index = b_rows.len();
         let dependent = mixture != Mixture::Independent && basis.len() >= 2 && rng.random_bool(0.5);
@@ -1273,38 +1322,10 @@ pub fn constructed_lse(
         let mut combination: Vec<(usize, f64)> = Vec::new();
         if !dependent {
             let Some(pivot) = pivots.next() else { break };
-            v = vec![(pivot, signed(&mut rng, 0.5, 1.5))];
-            let extra = rng.random_range(0..3);
-            for _ in 0..extra {
-                let j = if !used_pivots.is_empty() && rng.random_bool(0.5) {
-                    used_pivots[rng.random_range(0..used_pivots.len())]
-                } else {
-                    fillers[rng.random_range(0..fillers.len())]
-                };
-                if v.iter().all(|e| e.0 != j) {
-                    v.push((j, signed(&mut rng, 0.5, 1.5)));
-                }
-            }
+            (v, d) = pivot_row(&mut rng, pivot, &used_pivots, &fillers, k);
             used_pivots.push(pivot);
-            d = (0..k).map(|_| rng.random_range(-1.0..1.0)).collect();
         } else {
-            let terms = rng.random_range(1..=3.min(basis.len()));
-            let mut picks: Vec<usize> = (0..basis.len()).collect();
-            picks.shuffle(&mut rng);
-            let mut dense: std::collections::BTreeMap<usize, f64> = Default::default();
-            d = vec![0.0; k];
-            for &i in &picks[..terms] {
-                let alpha = signed(&mut rng, 0.5, 2.0);
-                let (row, entries, rhs) = &basis[i];
-                for &(j, x) in entries {
-                    *dense.entry(j).or_default() += alpha * x;
-                }
-                for (dc, r) in d.iter_mut().zip(rhs) {
-                    *dc += alpha * r;
-                }
-                combination.push((*row, alpha));
-            }
-            v = dense.into_iter().filter(|e| e.1 != 0.0).collect();
+            (v, d) = basis_combination(&mut rng, &basis, k, &mut combination);
             if norm(&v) < 0.1 {
                 continue;
             }
@@ -1314,24 +1335,8 @@ pub fn constructed_lse(
                 2 | 3 => SKIPPED_REMAINDERS[rng.random_range(0..SKIPPED_REMAINDERS.len())],
                 _ => KEPT_REMAINDERS[rng.random_range(0..KEPT_REMAINDERS.len())],
             };
-            if remainder > 0.0 {
-                let width = rng.random_range(1..=3);
-                let cols: Vec<usize> = spare.by_ref().take(width).collect();
-                if cols.len() < width {
-                    break;
-                }
-                let u: Vec<f64> = cols.iter().map(|_| signed(&mut rng, 0.5, 1.0)).collect();
-                let u_norm = u.iter().map(|x| x * x).sum::<f64>().sqrt();
-                let size = remainder * norm(&v);
-                // The consistent right-hand side of the perturbed row at
-                // X = q on the perturbation columns.
-                for (&j, &uj) in cols.iter().zip(&u) {
-                    let coefficient = size * uj / u_norm;
-                    v.push((j, coefficient));
-                    for dc in d.iter_mut() {
-                        *dc += coefficient * rng.random_range(-1.0..1.0);
-                    }
-                }
+            if remainder > 0.0 && !perturb(&mut rng, remainder, &mut spare, &mut v, &mut d) {
+                break;
             }
         }
         let kept = !dependent || remainder >= KEPT_REMAINDERS[0];
@@ -1371,14 +1376,7 @@ pub fn constructed_lse(
         b_rows.push(v.iter().map(|&(j, x)| (j, s * x)).collect());
         d_rows.push(d.iter().map(|x| s * x).collect());
     }
-    let m = b_rows.len();
-    let b: Vec<Triplet<usize, usize, f64>> = b_rows
-        .iter()
-        .enumerate()
-        .flat_map(|(i, r)| r.iter().map(move |&(j, v)| Triplet::new(i, j, v)))
-        .collect();
-    let b = SparseColMat::<usize, f64>::try_new_from_triplets(m, n, &b).unwrap();
-    let d = Mat::from_fn(m, k, |i, c| d_rows[i][c]);
+    let (b, d) = assemble_b_d(&b_rows, &d_rows, n, k);
     ConstructedLse {
         problem: LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref()).unwrap(),
         kept: kept_rows,
@@ -1388,6 +1386,103 @@ pub fn constructed_lse(
         near_tolerance,
         row_scales,
     }
+}
+
+/// `±` a draw from `[lo, hi)`, the sign a fair coin (drawn second).
+fn signed(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    let v = rng.random_range(lo..hi);
+    if rng.random_bool(0.5) { v } else { -v }
+}
+
+/// The Euclidean norm of a sparse row.
+fn row_norm(v: &[(usize, f64)]) -> f64 {
+    v.iter().map(|e| e.1 * e.1).sum::<f64>().sqrt()
+}
+
+/// An independent row of [`constructed_lse`]: `±[0.5, 1.5)` on its fresh
+/// `pivot`, and up to two more such entries on earlier pivots or fillers;
+/// a right-hand side of `k` entries in `[−1, 1)`.
+fn pivot_row(
+    rng: &mut ChaCha8Rng,
+    pivot: usize,
+    used_pivots: &[usize],
+    fillers: &[usize],
+    k: usize,
+) -> (Vec<(usize, f64)>, Vec<f64>) {
+    let mut v = vec![(pivot, signed(rng, 0.5, 1.5))];
+    let extra = rng.random_range(0..3);
+    for _ in 0..extra {
+        let j = if !used_pivots.is_empty() && rng.random_bool(0.5) {
+            used_pivots[rng.random_range(0..used_pivots.len())]
+        } else {
+            fillers[rng.random_range(0..fillers.len())]
+        };
+        if v.iter().all(|e| e.0 != j) {
+            v.push((j, signed(rng, 0.5, 1.5)));
+        }
+    }
+    let d = (0..k).map(|_| rng.random_range(-1.0..1.0)).collect();
+    (v, d)
+}
+
+/// A combination of 1–3 distinct rows of `basis` with coefficients
+/// `±[0.5, 2)`, right-hand sides combined alike; exact zeros dropped. The
+/// `(row, coefficient)` pairs are appended to `combination`.
+fn basis_combination(
+    rng: &mut ChaCha8Rng,
+    basis: &[BasisRow],
+    k: usize,
+    combination: &mut Vec<(usize, f64)>,
+) -> (Vec<(usize, f64)>, Vec<f64>) {
+    let terms = rng.random_range(1..=3.min(basis.len()));
+    let mut picks: Vec<usize> = (0..basis.len()).collect();
+    picks.shuffle(rng);
+    let mut dense: std::collections::BTreeMap<usize, f64> = Default::default();
+    let mut d = vec![0.0; k];
+    for &i in &picks[..terms] {
+        let alpha = signed(rng, 0.5, 2.0);
+        let (row, entries, rhs) = &basis[i];
+        for &(j, x) in entries {
+            *dense.entry(j).or_default() += alpha * x;
+        }
+        for (dc, r) in d.iter_mut().zip(rhs) {
+            *dc += alpha * r;
+        }
+        combination.push((*row, alpha));
+    }
+    (dense.into_iter().filter(|e| e.1 != 0.0).collect(), d)
+}
+
+/// Moves `v` off the span of the rows it combines by `remainder · ‖v‖`:
+/// 1–3 fresh perturbation columns from `spare`, a random unit direction
+/// `u` on them (entries `±[0.5, 1)`, normalised), and the right-hand side
+/// made consistent at random values of those unknowns. `false` when
+/// `spare` runs out.
+fn perturb(
+    rng: &mut ChaCha8Rng,
+    remainder: f64,
+    spare: &mut impl Iterator<Item = usize>,
+    v: &mut Vec<(usize, f64)>,
+    d: &mut [f64],
+) -> bool {
+    let width = rng.random_range(1..=3);
+    let cols: Vec<usize> = spare.by_ref().take(width).collect();
+    if cols.len() < width {
+        return false;
+    }
+    let u: Vec<f64> = cols.iter().map(|_| signed(rng, 0.5, 1.0)).collect();
+    let u_norm = u.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let size = remainder * row_norm(v);
+    // The consistent right-hand side of the perturbed row at X = q on the
+    // perturbation columns.
+    for (&j, &uj) in cols.iter().zip(&u) {
+        let coefficient = size * uj / u_norm;
+        v.push((j, coefficient));
+        for dc in d.iter_mut() {
+            *dc += coefficient * rng.random_range(-1.0..1.0);
+        }
+    }
+    true
 }
 
 /// [`ConstructedLse`]s: 24–300 unknowns, up to a sixth as many rows of
@@ -1611,4 +1706,56 @@ pub fn accurate_reference(problem: &LseProblem, rows: &[usize]) -> Mat<f64> {
         }
     }
     v.submatrix(l, 0, n, k).to_owned()
+}
+
+#[cfg(test)]
+mod helper_tests {
+    use super::*;
+
+    #[test]
+    fn row_norm_and_b_d_assembly() {
+        assert_eq!(row_norm(&[(0, 3.0), (5, -4.0)]), 5.0);
+        let rows = vec![vec![(2, 1.0), (0, -1.0)], vec![(1, 0.5), (1, 0.25)]];
+        let d_rows = vec![vec![1.0, 2.0], vec![3.0, 4.0]];
+        let (b, d) = assemble_b_d(&rows, &d_rows, 3, 2);
+        assert_eq!(b.to_dense(), faer::mat![[-1.0, 0.0, 1.0], [0.0, 0.75, 0.0]]);
+        assert_eq!(d, faer::mat![[1.0, 2.0], [3.0, 4.0]]);
+    }
+
+    #[test]
+    fn a_combination_of_one_row_with_itself_keeps_row_and_rhs_in_proportion() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let rows = vec![vec![(1, 2.0)]];
+        let (row, d) = two_row_combination(&mut rng, &rows, &[vec![4.0]], &[0], 3).expect("s ≠ −t");
+        assert_eq!(row.len(), 1);
+        assert_eq!(row[0].0, 1);
+        assert_eq!(d, [2.0 * row[0].1]);
+    }
+
+    #[test]
+    fn pivot_rows_lead_with_their_pivot_and_use_fillers() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..20 {
+            let (v, d) = pivot_row(&mut rng, 9, &[], &[4, 5], 2);
+            assert_eq!(v[0].0, 9);
+            assert!((0.5..1.5).contains(&v[0].1.abs()), "{v:?}");
+            assert!(v[1..].iter().all(|e| e.0 == 4 || e.0 == 5), "{v:?}");
+            assert!(d.len() == 2 && d.iter().all(|x| (-1.0..1.0).contains(x)));
+        }
+    }
+
+    #[test]
+    fn perturbation_adds_fresh_columns_of_the_asked_size() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut v = vec![(0, 3.0), (1, 4.0)];
+        let mut d = vec![0.0];
+        let mut spare = [7, 8, 9].into_iter();
+        assert!(perturb(&mut rng, 0.1, &mut spare, &mut v, &mut d));
+        let added = &v[2..];
+        assert!(!added.is_empty() && added.iter().zip(7..).all(|(e, j)| e.0 == j));
+        // ‖added‖ = 0.1 · ‖(3, 4)‖ = 0.5.
+        assert!((row_norm(added) - 0.5).abs() < 1e-15, "{added:?}");
+        let mut empty = std::iter::empty();
+        assert!(!perturb(&mut rng, 0.1, &mut empty, &mut v, &mut d));
+    }
 }

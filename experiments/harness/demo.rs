@@ -96,7 +96,7 @@ fn demo_render(
     let soft = deform(mesh, Some(1.0))?;
     // The handle moves along axis (up + 1) % 3, which a camera at azimuth
     // −70° sees mostly sideways.
-    let camera = Camera::new(-70.0, 15.0).with_up_axis(scene.axis);
+    let camera = Camera::new(-70.0, 15.0).with_up_axis(scene.axis.index());
     let layout = Layout {
         camera,
         title: Some(format!(

@@ -312,7 +312,7 @@ impl Drag {
         let scene = FixedAndHandle::paper_default(mesh);
         let (fixed, handle) = scene.regions(mesh)?;
         Ok(Drag {
-            axis: scene.axis,
+            axis: scene.axis.index(),
             fixed,
             handle,
             constraints: scene.constraints(mesh)?,

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use lse_deform::Error;
-use lse_deform::scene::{FixedAndHandle, MixedScene};
+use lse_deform::scene::{AxisDirection, FixedAndHandle, MixedScene, ParseAxisError};
 
 use super::files::check_distinct;
 use super::{check_outputs, load};
@@ -82,22 +82,13 @@ pub fn scene(a: SceneArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh, lse_deform::MemoryBudget::default())?;
     let mut s = FixedAndHandle::paper_default(&mesh);
     if let Some(axis) = &a.axis {
-        let (descending, name) = match axis.strip_prefix('-') {
-            Some(rest) => (true, rest),
-            None => (false, axis.strip_prefix('+').unwrap_or(axis)),
-        };
-        s.axis = match name {
-            "x" => 0,
-            "y" => 1,
-            "z" => 2,
-            _ => {
-                return Err(lse_deform::error::ProblemError::InvalidArgument {
-                    message: format!("--axis {axis}: expected x, y, z, -x, -y or -z"),
-                }
-                .into());
+        let dir: AxisDirection = axis.parse().map_err(|e: ParseAxisError| {
+            lse_deform::error::ProblemError::InvalidArgument {
+                message: format!("--axis {e}"),
             }
-        };
-        s.descending = descending;
+        })?;
+        s.axis = dir.axis;
+        s.descending = dir.descending;
         s.offset = FixedAndHandle::default_offset(&mesh, s.axis);
     }
     if let Some(o) = a.offset {
@@ -136,7 +127,7 @@ pub fn scene(a: SceneArgs) -> Result<(), Error> {
         fixed.len(),
         handle.len(),
         if s.descending { "-" } else { "" },
-        ["x", "y", "z"][s.axis],
+        s.axis.name(),
         s.offset,
         a.output.display()
     );

@@ -128,6 +128,156 @@ fn edge_groups(h: &[HalfEdge]) -> impl Iterator<Item = std::ops::Range<usize>> +
     })
 }
 
+/// The corner (`3f + k`) of `e`'s face at its vertex `lo` (`at_lo`) or
+/// `hi`: the half-edge runs from corner `k` to `k + 1`, so its tail is
+/// corner `k`.
+fn corner_id(faces: &[[usize; 3]], e: &HalfEdge, at_lo: bool) -> usize {
+    if at_lo == e.forward(faces) {
+        e.id
+    } else {
+        3 * e.face() + (e.id + 1) % 3
+    }
+}
+
+/// What one pass over the edges finds: the counts, the boundary
+/// half-edges, whether the faces agree in orientation (each interior edge
+/// used once in each direction; a non-manifold one as often each way), and
+/// the fans: corners at the same vertex joined across manifold edges.
+struct EdgeScan {
+    fans: UnionFind,
+    n_edges: usize,
+    n_boundary_edges: usize,
+    n_non_manifold_edges: usize,
+    consistently_oriented: bool,
+    boundary: Vec<HalfEdge>,
+}
+
+impl EdgeScan {
+    /// Scans the half-edges `h` (sorted by edge) of `faces`.
+    fn of(h: &[HalfEdge], faces: &[[usize; 3]]) -> EdgeScan {
+        let mut scan = EdgeScan {
+            fans: UnionFind::new(3 * faces.len()),
+            n_edges: 0,
+            n_boundary_edges: 0,
+            n_non_manifold_edges: 0,
+            consistently_oriented: true,
+            boundary: Vec::new(),
+        };
+        for r in edge_groups(h) {
+            scan.n_edges += 1;
+            let g = &h[r];
+            match g.len() {
+                1 => {
+                    scan.n_boundary_edges += 1;
+                    scan.boundary.push(g[0]);
+                }
+                2 => {
+                    if g[0].forward(faces) == g[1].forward(faces) {
+                        scan.consistently_oriented = false;
+                    }
+                    for at_lo in [true, false] {
+                        scan.fans.union(
+                            corner_id(faces, &g[0], at_lo),
+                            corner_id(faces, &g[1], at_lo),
+                        );
+                    }
+                }
+                _ => {
+                    scan.n_non_manifold_edges += 1;
+                    let fwd = g.iter().filter(|e| e.forward(faces)).count();
+                    if 2 * fwd != g.len() {
+                        scan.consistently_oriented = false;
+                    }
+                }
+            }
+        }
+        scan
+    }
+}
+
+/// Vertices (of `n`) with more than one fan of corners: non-manifold.
+fn non_manifold_vertices(fans: &mut UnionFind, faces: &[[usize; 3]], n: usize) -> usize {
+    let mut fan_count = vec![0usize; n];
+    for (f, face) in faces.iter().enumerate() {
+        for (k, &v) in face.iter().enumerate() {
+            if fans.find(3 * f + k) == 3 * f + k {
+                fan_count[v] += 1;
+            }
+        }
+    }
+    fan_count.iter().filter(|&&c| c > 1).count()
+}
+
+/// Boundary loops: boundary edges linked at a vertex when they lie in the
+/// same fan there. Returns their number and the number per component
+/// (`comp`: each vertex's component).
+fn boundary_loops(
+    boundary: &[HalfEdge],
+    fans: &mut UnionFind,
+    faces: &[[usize; 3]],
+    comp: &[usize],
+    n_components: usize,
+) -> (usize, Vec<i64>) {
+    let mut loops = UnionFind::new(boundary.len());
+    let mut slot = vec![usize::MAX; 3 * faces.len()];
+    for (i, e) in boundary.iter().enumerate() {
+        for at_lo in [true, false] {
+            let root = fans.find(corner_id(faces, e, at_lo));
+            if slot[root] == usize::MAX {
+                slot[root] = i;
+            } else {
+                loops.union(i, slot[root]);
+            }
+        }
+    }
+    let mut loops_per_comp = vec![0i64; n_components];
+    let mut n_boundary_loops = 0;
+    for i in 0..boundary.len() {
+        if loops.find(i) == i {
+            n_boundary_loops += 1;
+            loops_per_comp[comp[boundary[i].lo]] += 1;
+        }
+    }
+    (n_boundary_loops, loops_per_comp)
+}
+
+/// `χ = V − E + F` of each component (`comp`: each vertex's component;
+/// `h`: the half-edges sorted by edge).
+fn euler_per_component(
+    comp: &[usize],
+    n_components: usize,
+    h: &[HalfEdge],
+    faces: &[[usize; 3]],
+) -> Vec<i64> {
+    let mut chi = vec![0i64; n_components];
+    for &c in comp {
+        chi[c] += 1;
+    }
+    for r in edge_groups(h) {
+        chi[comp[h[r.start].lo]] -= 1;
+    }
+    for face in faces {
+        chi[comp[face[0]]] += 1;
+    }
+    chi
+}
+
+/// The total genus of orientable manifold components from `χ = 2 − 2g − b`
+/// (`b`: boundary loops): `None` when some component's `2 − χ − b` is
+/// negative or odd (not a surface of that kind).
+fn genus_of(chi: &[i64], loops_per_comp: &[i64]) -> Option<usize> {
+    chi.iter()
+        .zip(loops_per_comp)
+        .try_fold(0usize, |acc, (&x, &b)| {
+            let twice = 2 - x - b;
+            if twice < 0 || twice % 2 != 0 {
+                None
+            } else {
+                usize::try_from(twice / 2).ok().map(|g| acc + g)
+            }
+        })
+}
+
 /// Union–find with path halving; `union` keeps the smaller root, so every
 /// root is the smallest element of its set.
 pub(crate) struct UnionFind(Vec<usize>);
@@ -177,130 +327,45 @@ impl UnionFind {
 impl Topology {
     /// Computes the summary in `O(V + F log d)` (`d` the largest vertex
     /// degree).
+    ///
+    /// Phases: the edges ([`EdgeScan::of`], which also joins corner fans),
+    /// the non-manifold vertices ([`non_manifold_vertices`]), the boundary
+    /// loops ([`boundary_loops`]), the Euler characteristic per component
+    /// ([`euler_per_component`]) and the genus ([`genus_of`]).
     pub fn of(mesh: &Mesh) -> Topology {
         let n = mesh.n_vertices();
         let faces = mesh.faces();
         let h = sorted_half_edges(mesh);
-        let corner_id = |e: &HalfEdge, at_lo: bool| -> usize {
-            // Corner of the face at vertex lo (or hi): the half-edge runs
-            // from corner k to k+1, so its tail is corner k.
-            if at_lo == e.forward(faces) {
-                e.id
-            } else {
-                3 * e.face() + (e.id + 1) % 3
-            }
-        };
-
-        // Fans: corners (3f + k) at the same vertex joined across manifold
-        // edges.
-        let mut fans = UnionFind::new(3 * faces.len());
-        let mut n_edges = 0;
-        let mut n_boundary_edges = 0;
-        let mut n_non_manifold_edges = 0;
-        let mut consistently_oriented = true;
-        let mut boundary: Vec<HalfEdge> = Vec::new();
-        for r in edge_groups(&h) {
-            n_edges += 1;
-            let g = &h[r];
-            match g.len() {
-                1 => {
-                    n_boundary_edges += 1;
-                    boundary.push(g[0]);
-                }
-                2 => {
-                    if g[0].forward(faces) == g[1].forward(faces) {
-                        consistently_oriented = false;
-                    }
-                    fans.union(corner_id(&g[0], true), corner_id(&g[1], true));
-                    fans.union(corner_id(&g[0], false), corner_id(&g[1], false));
-                }
-                _ => {
-                    n_non_manifold_edges += 1;
-                    let fwd = g.iter().filter(|e| e.forward(faces)).count();
-                    if 2 * fwd != g.len() {
-                        consistently_oriented = false;
-                    }
-                }
-            }
-        }
-
-        // Non-manifold vertices: more fan roots than (referenced) vertices.
-        let mut fan_count = vec![0usize; n];
-        for (f, face) in faces.iter().enumerate() {
-            for (k, &v) in face.iter().enumerate() {
-                if fans.find(3 * f + k) == 3 * f + k {
-                    fan_count[v] += 1;
-                }
-            }
-        }
-        let n_non_manifold_vertices = fan_count.iter().filter(|&&c| c > 1).count();
-
-        // Boundary loops: boundary edges linked at a vertex when they lie in
-        // the same fan there.
-        let mut loops = UnionFind::new(boundary.len());
-        let mut slot = vec![usize::MAX; 3 * faces.len()];
-        for (i, e) in boundary.iter().enumerate() {
-            for at_lo in [true, false] {
-                let root = fans.find(corner_id(e, at_lo));
-                if slot[root] == usize::MAX {
-                    slot[root] = i;
-                } else {
-                    loops.union(i, slot[root]);
-                }
-            }
-        }
+        let mut scan = EdgeScan::of(&h, faces);
+        let n_non_manifold_vertices = non_manifold_vertices(&mut scan.fans, faces, n);
         let (comp, n_components) = vertex_components(n, faces);
         let mut component_sizes = vec![0usize; n_components];
         for &c in &comp {
             component_sizes[c] += 1;
         }
-        let mut loops_per_comp = vec![0i64; n_components];
-        let mut n_boundary_loops = 0;
-        for i in 0..boundary.len() {
-            if loops.find(i) == i {
-                n_boundary_loops += 1;
-                loops_per_comp[comp[boundary[i].lo]] += 1;
-            }
-        }
-
-        // Per-component Euler characteristic.
-        let mut chi = vec![0i64; n_components];
-        for &c in &comp {
-            chi[c] += 1;
-        }
-        for r in edge_groups(&h) {
-            chi[comp[h[r.start].lo]] -= 1;
-        }
-        for face in faces {
-            chi[comp[face[0]]] += 1;
-        }
+        let (n_boundary_loops, loops_per_comp) =
+            boundary_loops(&scan.boundary, &mut scan.fans, faces, &comp, n_components);
+        let chi = euler_per_component(&comp, n_components, &h, faces);
         let euler_characteristic = chi.iter().sum();
-        let genus =
-            if n_non_manifold_edges == 0 && n_non_manifold_vertices == 0 && consistently_oriented {
-                chi.iter()
-                    .zip(&loops_per_comp)
-                    .try_fold(0usize, |acc, (&x, &b)| {
-                        let twice = 2 - x - b;
-                        if twice < 0 || twice % 2 != 0 {
-                            None
-                        } else {
-                            usize::try_from(twice / 2).ok().map(|g| acc + g)
-                        }
-                    })
-            } else {
-                None
-            };
+        let genus = if scan.n_non_manifold_edges == 0
+            && n_non_manifold_vertices == 0
+            && scan.consistently_oriented
+        {
+            genus_of(&chi, &loops_per_comp)
+        } else {
+            None
+        };
         Topology {
             n_vertices: n,
             n_faces: faces.len(),
-            n_edges,
-            n_boundary_edges,
+            n_edges: scan.n_edges,
+            n_boundary_edges: scan.n_boundary_edges,
             n_boundary_loops,
-            n_non_manifold_edges,
+            n_non_manifold_edges: scan.n_non_manifold_edges,
             n_non_manifold_vertices,
             n_components,
             component_sizes,
-            consistently_oriented,
+            consistently_oriented: scan.consistently_oriented,
             euler_characteristic,
             genus,
         }
@@ -385,4 +450,71 @@ pub fn vertex_components(n_vertices: usize, faces: &[[usize; 3]]) -> (Vec<usize>
         }
     }
     sets.components()
+}
+
+#[cfg(test)]
+mod phase_tests {
+    use super::*;
+
+    /// Two triangles sharing only vertex 0 (a bowtie), the second listed
+    /// against the first's orientation at no shared edge.
+    fn bowtie() -> Mesh {
+        Mesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [-1.0, 0.0, 0.0],
+                [0.0, -1.0, 0.0],
+            ],
+            vec![[0, 1, 2], [0, 3, 4]],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn genus_from_euler_characteristic_and_boundary_loops() {
+        assert_eq!(genus_of(&[2], &[0]), Some(0)); // sphere
+        assert_eq!(genus_of(&[0], &[0]), Some(1)); // torus
+        assert_eq!(genus_of(&[1, -2], &[1, 0]), Some(2)); // disc + genus 2
+        assert_eq!(genus_of(&[1], &[0]), None); // odd
+        assert_eq!(genus_of(&[3], &[0]), None); // negative
+    }
+
+    #[test]
+    fn edge_scan_counts_and_fans_of_a_bowtie() {
+        let mesh = bowtie();
+        let h = sorted_half_edges(&mesh);
+        let mut scan = EdgeScan::of(&h, mesh.faces());
+        assert_eq!(
+            (
+                scan.n_edges,
+                scan.n_boundary_edges,
+                scan.n_non_manifold_edges
+            ),
+            (6, 6, 0)
+        );
+        assert!(scan.consistently_oriented);
+        // Vertex 0 has two fans (one per triangle): non-manifold.
+        assert_eq!(non_manifold_vertices(&mut scan.fans, mesh.faces(), 5), 1);
+        let comp = vec![0; 5];
+        let (loops, per_comp) =
+            boundary_loops(&scan.boundary, &mut scan.fans, mesh.faces(), &comp, 1);
+        assert_eq!((loops, per_comp), (2, vec![2]));
+        // V − E + F = 5 − 6 + 2.
+        assert_eq!(euler_per_component(&comp, 1, &h, mesh.faces()), [1]);
+    }
+
+    #[test]
+    fn a_flipped_neighbour_is_inconsistent_orientation() {
+        let mesh = Mesh::new(
+            vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]],
+            vec![[0, 1, 2], [1, 2, 3]],
+        )
+        .unwrap();
+        let h = sorted_half_edges(&mesh);
+        let scan = EdgeScan::of(&h, mesh.faces());
+        assert_eq!((scan.n_edges, scan.n_boundary_edges), (5, 4));
+        assert!(!scan.consistently_oriented);
+    }
 }

@@ -464,7 +464,9 @@ struct Layer {
 }
 
 /// Rasterises mesh number `index` at `style.supersample` times the
-/// resolution of `view` (style and size already checked).
+/// resolution of `view` (style and size already checked): vertex colours,
+/// normals and projections once, then each triangle in turn
+/// ([`screen_triangle`], [`draw_triangle`]) with a depth test.
 fn rasterise(
     index: usize,
     mesh: &RenderMesh<'_>,
@@ -482,128 +484,213 @@ fn rasterise(
         Edges::On => true,
         Edges::Auto => mean_edge_pixels(&projected, mesh.faces) / ss as f64 >= AUTO_EDGE_PIXELS,
     };
-    let edge_half = 0.5 * style.edge_width * ss as f64;
-    // Lights, in world coordinates: a key light from the upper left front
-    // and a weaker one from the camera.
-    let [right, up, toward] = hi.basis;
-    let key = normalize(add3(
-        add3(scale3(right, -0.4), scale3(up, 0.5)),
-        scale3(toward, 0.77),
-    ));
-    let mut colour_buf = vec![[0.0f32; 3]; w * h];
-    let mut depth = vec![f32::NEG_INFINITY; w * h];
-    let mut written = vec![false; w * h];
+    let [_, _, toward] = hi.basis;
+    let to_f = |c: [u8; 3]| c.map(|v| v as f32 / 255.0);
+    let shading = Shading {
+        key: key_light(hi.basis),
+        toward,
+        edges,
+        edge_half: 0.5 * style.edge_width * ss as f64,
+        edge_colour: to_f(style.edge_colour),
+    };
+    let mut layer = Layer {
+        colour: vec![[0.0f32; 3]; w * h],
+        depth: vec![f32::NEG_INFINITY; w * h],
+        written: vec![false; w * h],
+    };
     let mut stats = RenderStats {
         edges,
         ..RenderStats::default()
     };
-    let to_f = |c: [u8; 3]| c.map(|v| v as f32 / 255.0);
-    let edge_colour = to_f(style.edge_colour);
     for face in mesh.faces {
         let [i0, i1, i2] = *face;
-        let (a, b, c) = (projected[i0], projected[i1], projected[i2]);
-        let area = edge_fn(a, b, c[0], c[1]);
-        // Skip triangles seen edge-on, and any whose projection overflowed
-        // (coordinates near f64::MAX): they cover no pixel centre reliably.
-        if !(area.abs() >= 1e-12 && area.is_finite()) {
+        let corners = [projected[i0], projected[i1], projected[i2]];
+        let Some((area, bounds)) = screen_triangle(corners, w, h) else {
             continue;
-        }
-        // Clockwise on screen (y down) is counter-clockwise in the world
-        // seen from the camera: front facing when the signed area is < 0.
-        let back = area > 0.0;
-        let min_x = a[0].min(b[0]).min(c[0]).floor().max(0.0) as usize;
-        let min_y = a[1].min(b[1]).min(c[1]).floor().max(0.0) as usize;
-        let max_x = a[0].max(b[0]).max(c[0]).ceil().min(w as f64) as usize;
-        let max_y = a[1].max(b[1]).max(c[1]).ceil().min(h as f64) as usize;
-        if min_x >= max_x || min_y >= max_y {
-            continue;
-        }
-        stats.triangles_drawn += 1;
-        let inv = 1.0 / area;
-        // Heights of the triangle over each edge, in pixels (edge i is
-        // opposite vertex i): distance to edge i = λ_i · h_i.
-        let heights = if edges {
-            let len =
-                |p: [f64; 3], q: [f64; 3]| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt();
-            [
-                area.abs() / len(b, c).max(1e-12),
-                area.abs() / len(c, a).max(1e-12),
-                area.abs() / len(a, b).max(1e-12),
-            ]
-        } else {
-            [0.0; 3]
         };
-        let (n0, n1, n2) = (normals[i0], normals[i1], normals[i2]);
+        stats.triangles_drawn += 1;
         let face_normal = normalize(cross(
             sub3(mesh.positions[i1], mesh.positions[i0]),
             sub3(mesh.positions[i2], mesh.positions[i0]),
         ));
-        let (c0, c1, c2) = (colours[i0], colours[i1], colours[i2]);
-        for y in min_y..max_y {
-            let py = y as f64 + 0.5;
-            for x in min_x..max_x {
-                let px = x as f64 + 0.5;
-                let l0 = edge_fn(b, c, px, py) * inv;
-                let l1 = edge_fn(c, a, px, py) * inv;
-                let l2 = 1.0 - l0 - l1;
-                // Written so that NaN (overflow) counts as outside.
-                if !(l0 >= 0.0 && l1 >= 0.0 && l2 >= 0.0) {
-                    continue;
-                }
-                let z = (l0 * a[2] + l1 * b[2] + l2 * c[2]) as f32;
-                let idx = y * w + x;
-                if z <= depth[idx] {
-                    continue;
-                }
-                depth[idx] = z;
-                written[idx] = true;
-                stats.fragments_written += 1;
-                let mut nrm = [
-                    l0 * n0[0] + l1 * n1[0] + l2 * n2[0],
-                    l0 * n0[1] + l1 * n1[1] + l2 * n2[1],
-                    l0 * n0[2] + l1 * n1[2] + l2 * n2[2],
-                ];
-                let len = dot(nrm, nrm).sqrt();
-                nrm = if len > 1e-12 {
-                    scale3(nrm, 1.0 / len)
-                } else {
-                    face_normal
-                };
-                if back {
-                    nrm = scale3(nrm, -1.0);
-                }
-                let lambert = 0.7 * dot(nrm, key).max(0.0) + 0.3 * dot(nrm, toward).max(0.0);
-                let mut shade = style.ambient + style.diffuse * lambert;
-                if back {
-                    shade *= style.back_factor;
-                }
-                let shade = shade as f32;
-                let (f0, f1, f2) = (l0 as f32, l1 as f32, l2 as f32);
-                let mut rgb = [0.0f32; 3];
-                for k in 0..3 {
-                    rgb[k] = ((f0 * c0[k] + f1 * c1[k] + f2 * c2[k]) * shade).min(1.0);
-                }
-                if edges {
-                    let d = (l0 * heights[0]).min(l1 * heights[1]).min(l2 * heights[2]);
-                    let cover = (edge_half + 0.5 - d).clamp(0.0, 1.0) as f32 * 0.85;
-                    if cover > 0.0 {
-                        for k in 0..3 {
-                            rgb[k] += cover * (edge_colour[k] - rgb[k]);
-                        }
-                    }
-                }
-                colour_buf[idx] = rgb;
+        let triangle = Triangle {
+            corners,
+            area,
+            normals: [normals[i0], normals[i1], normals[i2]],
+            face_normal,
+            colours: [colours[i0], colours[i1], colours[i2]],
+        };
+        stats.fragments_written += draw_triangle(&mut layer, w, bounds, &triangle, &shading, style);
+    }
+    Ok((layer, stats))
+}
+
+/// The key light, in world coordinates, from the screen basis `(right, up,
+/// toward the camera)`: from the upper left front. (A weaker one comes
+/// from the camera, `toward`.)
+fn key_light([right, up, toward]: [[f64; 3]; 3]) -> [f64; 3] {
+    normalize(add3(
+        add3(scale3(right, -0.4), scale3(up, 0.5)),
+        scale3(toward, 0.77),
+    ))
+}
+
+/// The projected triangle's signed doubled area and its pixel bounds
+/// `[min_x, min_y, max_x, max_y)` clipped to the `w × h` raster, or `None`
+/// when it is seen edge-on (`|area| < 1e-12`), its projection overflowed
+/// (coordinates near `f64::MAX`: no pixel centre is covered reliably), or
+/// it is off screen.
+fn screen_triangle([a, b, c]: [[f64; 3]; 3], w: usize, h: usize) -> Option<(f64, [usize; 4])> {
+    let area = edge_fn(a, b, c[0], c[1]);
+    if !(area.abs() >= 1e-12 && area.is_finite()) {
+        return None;
+    }
+    let min_x = a[0].min(b[0]).min(c[0]).floor().max(0.0) as usize;
+    let min_y = a[1].min(b[1]).min(c[1]).floor().max(0.0) as usize;
+    let max_x = a[0].max(b[0]).max(c[0]).ceil().min(w as f64) as usize;
+    let max_y = a[1].max(b[1]).max(c[1]).ceil().min(h as f64) as usize;
+    if min_x >= max_x || min_y >= max_y {
+        return None;
+    }
+    Some((area, [min_x, min_y, max_x, max_y]))
+}
+
+/// Heights of the triangle over each edge, in pixels (edge `i` is opposite
+/// vertex `i`): the distance to edge `i` is `λ_i · h_i`. Edge lengths are
+/// floored at `1e-12` (a degenerate edge is not divided by).
+fn edge_heights([a, b, c]: [[f64; 3]; 3], area: f64) -> [f64; 3] {
+    let len = |p: [f64; 3], q: [f64; 3]| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt();
+    [
+        area.abs() / len(b, c).max(1e-12),
+        area.abs() / len(c, a).max(1e-12),
+        area.abs() / len(a, b).max(1e-12),
+    ]
+}
+
+/// What shading a sample needs besides its triangle: the lights, and the
+/// wireframe (whether drawn, its half width in samples, its colour).
+struct Shading {
+    key: [f64; 3],
+    toward: [f64; 3],
+    edges: bool,
+    edge_half: f64,
+    edge_colour: [f32; 3],
+}
+
+/// A projected triangle with what is interpolated across it.
+struct Triangle {
+    /// Projected corners (screen x, y in samples; depth).
+    corners: [[f64; 3]; 3],
+    /// Signed doubled area on screen (`> 0`: back facing).
+    area: f64,
+    /// Vertex normals of the corners.
+    normals: [[f64; 3]; 3],
+    /// The face normal, for a sample whose interpolated normal vanishes.
+    face_normal: [f64; 3],
+    /// Vertex colours of the corners.
+    colours: [[f32; 3]; 3],
+}
+
+/// Draws `t` into `layer` (width `w`) over the sample `bounds`: a sample
+/// centre is inside when its barycentric coordinates are all `≥ 0` (NaN
+/// counts as outside) and drawn when nearer than what is there (depth
+/// test); returns how many were written.
+fn draw_triangle(
+    layer: &mut Layer,
+    w: usize,
+    [min_x, min_y, max_x, max_y]: [usize; 4],
+    t: &Triangle,
+    shading: &Shading,
+    style: &Style,
+) -> usize {
+    let [a, b, c] = t.corners;
+    // Clockwise on screen (y down) is counter-clockwise in the world
+    // seen from the camera: front facing when the signed area is < 0.
+    let back = t.area > 0.0;
+    let inv = 1.0 / t.area;
+    let heights = if shading.edges {
+        edge_heights(t.corners, t.area)
+    } else {
+        [0.0; 3]
+    };
+    let mut written = 0;
+    for y in min_y..max_y {
+        let py = y as f64 + 0.5;
+        for x in min_x..max_x {
+            let px = x as f64 + 0.5;
+            let l0 = edge_fn(b, c, px, py) * inv;
+            let l1 = edge_fn(c, a, px, py) * inv;
+            let l2 = 1.0 - l0 - l1;
+            // Written so that NaN (overflow) counts as outside.
+            if !(l0 >= 0.0 && l1 >= 0.0 && l2 >= 0.0) {
+                continue;
+            }
+            let z = (l0 * a[2] + l1 * b[2] + l2 * c[2]) as f32;
+            let idx = y * w + x;
+            if z <= layer.depth[idx] {
+                continue;
+            }
+            layer.depth[idx] = z;
+            layer.written[idx] = true;
+            written += 1;
+            layer.colour[idx] = shade_sample([l0, l1, l2], back, heights, t, shading, style);
+        }
+    }
+    written
+}
+
+/// The colour of a sample at barycentric `[l0, l1, l2]` of `t`: the
+/// interpolated vertex colour times `ambient + diffuse · lambert` (`0.7`
+/// of the key light, `0.3` of the camera light, on the interpolated
+/// normal, the face normal when it vanishes below `1e-12`, flipped and
+/// darkened by `back_factor` on a back face), capped at 1; then blended
+/// towards the edge colour (at most 85 %) within `edge_half` samples of an
+/// edge.
+fn shade_sample(
+    [l0, l1, l2]: [f64; 3],
+    back: bool,
+    heights: [f64; 3],
+    t: &Triangle,
+    shading: &Shading,
+    style: &Style,
+) -> [f32; 3] {
+    let [n0, n1, n2] = t.normals;
+    let [c0, c1, c2] = t.colours;
+    let mut nrm = [
+        l0 * n0[0] + l1 * n1[0] + l2 * n2[0],
+        l0 * n0[1] + l1 * n1[1] + l2 * n2[1],
+        l0 * n0[2] + l1 * n1[2] + l2 * n2[2],
+    ];
+    let len = dot(nrm, nrm).sqrt();
+    nrm = if len > 1e-12 {
+        scale3(nrm, 1.0 / len)
+    } else {
+        t.face_normal
+    };
+    if back {
+        nrm = scale3(nrm, -1.0);
+    }
+    let lambert = 0.7 * dot(nrm, shading.key).max(0.0) + 0.3 * dot(nrm, shading.toward).max(0.0);
+    let mut shade = style.ambient + style.diffuse * lambert;
+    if back {
+        shade *= style.back_factor;
+    }
+    let shade = shade as f32;
+    let (f0, f1, f2) = (l0 as f32, l1 as f32, l2 as f32);
+    let mut rgb = [0.0f32; 3];
+    for k in 0..3 {
+        rgb[k] = ((f0 * c0[k] + f1 * c1[k] + f2 * c2[k]) * shade).min(1.0);
+    }
+    if shading.edges {
+        let d = (l0 * heights[0]).min(l1 * heights[1]).min(l2 * heights[2]);
+        let cover = (shading.edge_half + 0.5 - d).clamp(0.0, 1.0) as f32 * 0.85;
+        if cover > 0.0 {
+            for k in 0..3 {
+                rgb[k] += cover * (shading.edge_colour[k] - rgb[k]);
             }
         }
     }
-    Ok((
-        Layer {
-            colour: colour_buf,
-            depth,
-            written,
-        },
-        stats,
-    ))
+    rgb
 }
 
 /// Box-filters `layer` down to the size of `view`: background where nothing
@@ -876,6 +963,92 @@ fn normalize(a: [f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn screen_triangle_bounds_and_refusals() {
+        let tri = [[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]];
+        assert_eq!(screen_triangle(tri, 10, 10), Some((16.0, [0, 0, 4, 4])));
+        assert_eq!(screen_triangle(tri, 3, 2), Some((16.0, [0, 0, 3, 2])));
+        let edge_on = [[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
+        assert_eq!(screen_triangle(edge_on, 10, 10), None);
+        let left = [[-5.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [-5.0, 4.0, 0.0]];
+        assert_eq!(screen_triangle(left, 10, 10), None);
+        let huge = [[0.0, 0.0, 0.0], [f64::MAX, 0.0, 0.0], [0.0, f64::MAX, 0.0]];
+        assert_eq!(screen_triangle(huge, 10, 10), None);
+    }
+
+    #[test]
+    fn edge_heights_of_a_3_4_5_triangle() {
+        let tri = [[0.0, 0.0, 0.0], [3.0, 0.0, 0.0], [0.0, 4.0, 0.0]];
+        assert_eq!(edge_heights(tri, 12.0), [2.4, 3.0, 4.0]);
+    }
+
+    fn flat_triangle(colour: f32) -> Triangle {
+        Triangle {
+            corners: [[0.0, 0.0, 1.0], [4.0, 0.0, 1.0], [0.0, 4.0, 1.0]],
+            area: 16.0,
+            normals: [[0.0, 0.0, 1.0]; 3],
+            face_normal: [0.0, 0.0, 1.0],
+            colours: [[colour; 3]; 3],
+        }
+    }
+
+    fn shading(edges: bool) -> Shading {
+        Shading {
+            key: [0.0, 0.0, 1.0],
+            toward: [0.0, 0.0, 1.0],
+            edges,
+            edge_half: 0.5,
+            edge_colour: [1.0; 3],
+        }
+    }
+
+    #[test]
+    fn draw_triangle_covers_the_samples_inside_once() {
+        let mut layer = Layer {
+            colour: vec![[0.0; 3]; 16],
+            depth: vec![f32::NEG_INFINITY; 16],
+            written: vec![false; 16],
+        };
+        let t = flat_triangle(0.5);
+        let style = Style::default();
+        // Sample centres (x + ½, y + ½) inside x + y ≤ 3: 4 + 3 + 2 + 1.
+        let n = draw_triangle(&mut layer, 4, [0, 0, 4, 4], &t, &shading(false), &style);
+        assert_eq!(n, 10);
+        let inside: Vec<bool> = (0..16).map(|i| i % 4 + i / 4 <= 3).collect();
+        assert_eq!(layer.written, inside);
+        // The same triangle again is not nearer: nothing written.
+        assert_eq!(
+            draw_triangle(&mut layer, 4, [0, 0, 4, 4], &t, &shading(false), &style),
+            0
+        );
+    }
+
+    #[test]
+    fn shade_sample_ambient_back_factor_and_edge_blend() {
+        let style = Style {
+            ambient: 0.2,
+            diffuse: 0.0,
+            back_factor: 0.5,
+            ..Style::default()
+        };
+        let l = [0.5, 0.5, 0.0];
+        let t = flat_triangle(0.5);
+        assert_eq!(
+            shade_sample(l, false, [0.0; 3], &t, &shading(false), &style),
+            [0.1; 3]
+        );
+        assert_eq!(
+            shade_sample(l, true, [0.0; 3], &t, &shading(false), &style),
+            [0.05; 3]
+        );
+        // On an edge (l2 = 0): 85 % of the edge colour over black.
+        let black = flat_triangle(0.0);
+        assert_eq!(
+            shade_sample(l, false, [1.0; 3], &black, &shading(true), &style),
+            [0.85; 3]
+        );
+    }
     use crate::mesh::generate;
 
     /// A style without shading subtleties: no supersampling, no edges.

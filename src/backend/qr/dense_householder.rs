@@ -126,139 +126,35 @@ impl BlockHouseholderQr {
     /// (`8(k m + k min(k, m) + min(k, m)²)` bytes) and makes a dense block of
     /// at least `(k − min(k, m))²` entries in the normal matrix (16 bytes
     /// each with its index). Checked before anything is allocated.
+    ///
+    /// Phases: the blocks ([`partition_blocks`]), the size check, each
+    /// block's dense `Bᵀ` ([`dense_block`]) and its factorisation
+    /// ([`factor_block`]), then the free directions ([`free_directions`]).
     pub fn new(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
         budget: MemoryBudget,
     ) -> Result<Self, ProblemError> {
-        let (m, n) = (b.nrows(), b.ncols());
-        let row_ptr = b.symbolic().row_ptr();
-        let col_idx = b.symbolic().col_idx();
-        let vals = b.val();
-
-        // Union-find over unknowns linked by a constraint.
-        let mut parent: Vec<usize> = (0..n).collect();
-        fn find(parent: &mut [usize], mut x: usize) -> usize {
-            while parent[x] != x {
-                parent[x] = parent[parent[x]];
-                x = parent[x];
-            }
-            x
-        }
-        let mut touched = vec![false; n];
-        for i in 0..m {
-            let cols = &col_idx[row_ptr[i]..row_ptr[i + 1]];
-            for &c in cols {
-                touched[c] = true;
-            }
-            if let Some((&first, rest)) = cols.split_first() {
-                for &c in rest {
-                    let (ra, rb) = (find(&mut parent, first), find(&mut parent, c));
-                    if ra != rb {
-                        parent[ra.max(rb)] = ra.min(rb);
-                    }
-                }
-            }
-        }
-        // Blocks numbered by their smallest unknown; unknowns sorted.
-        let mut block_of_root = vec![usize::MAX; n];
-        let mut block_verts: Vec<Vec<usize>> = Vec::new();
-        let mut block_of = vec![usize::MAX; n];
-        for v in 0..n {
-            if touched[v] {
-                let r = find(&mut parent, v);
-                if block_of_root[r] == usize::MAX {
-                    block_of_root[r] = block_verts.len();
-                    block_verts.push(Vec::new());
-                }
-                block_of[v] = block_of_root[r];
-                block_verts[block_of_root[r]].push(v);
-            }
-        }
-        let mut block_rows: Vec<Vec<usize>> = vec![Vec::new(); block_verts.len()];
-        let mut skipped = Vec::new();
-        for i in 0..m {
-            match col_idx[row_ptr[i]..row_ptr[i + 1]].first() {
-                Some(&c) => block_rows[block_of[c]].push(i),
-                None => skipped.push(i), // an empty row is dependent on anything
-            }
-        }
-
+        let n = b.ncols();
+        let Partition {
+            touched,
+            block_of,
+            block_verts,
+            block_rows,
+            mut skipped,
+        } = partition_blocks(b);
         check_block_sizes(&block_verts, &block_rows, budget)?;
-
         let mut local = vec![usize::MAX; n];
         let mut blocks = Vec::with_capacity(block_verts.len());
         let mut y_offset = 0;
         for (verts, rows) in block_verts.into_iter().zip(block_rows) {
-            for (t, &v) in verts.iter().enumerate() {
-                local[v] = t;
-            }
-            let n_c = verts.len();
-            let mut bt = Mat::<f64>::zeros(n_c, rows.len());
-            for (j, &i) in rows.iter().enumerate() {
-                for p in row_ptr[i]..row_ptr[i + 1] {
-                    bt[(local[col_idx[p]], j)] += vals[p];
-                }
-            }
-            let mut block = Block {
-                verts,
-                v: Mat::zeros(n_c, n_c.min(rows.len())),
-                tau: Vec::new(),
-                r1: Mat::zeros(n_c.min(rows.len()), n_c.min(rows.len())),
-                kept: Vec::new(),
-                y_offset,
-                z_offset: 0,
-            };
-            for (j, &i) in rows.iter().enumerate() {
-                let k = block.rank();
-                let col_norm = (0..n_c).map(|t| bt[(t, j)].powi(2)).sum::<f64>().sqrt();
-                for h in 0..k {
-                    block.reflect(h, bt.as_mut().subcols_mut(j, 1));
-                }
-                let rest = (k..n_c).map(|t| bt[(t, j)].powi(2)).sum::<f64>().sqrt();
-                // NaN-safe: a NaN remainder counts as dependent.
-                let independent = rest > tolerance.relative * col_norm;
-                if k == n_c || !independent {
-                    skipped.push(i);
-                    continue;
-                }
-                let alpha = bt[(k, j)];
-                let beta = -rest.copysign(alpha);
-                let scale = 1.0 / (alpha - beta);
-                block.v[(k, k)] = 1.0;
-                for t in k + 1..n_c {
-                    block.v[(t, k)] = bt[(t, j)] * scale;
-                }
-                block.tau.push((beta - alpha) / beta);
-                for h in 0..k {
-                    block.r1[(h, k)] = bt[(h, j)];
-                }
-                block.r1[(k, k)] = beta;
-                block.kept.push(i);
-            }
-            let r = block.rank();
-            block.v = block.v.subcols(0, r).to_owned();
-            block.r1 = block.r1.submatrix(0, 0, r, r).to_owned();
-            y_offset += r;
+            let bt = dense_block(b, &verts, &rows, &mut local);
+            let block = factor_block(verts, &rows, bt, tolerance, y_offset, &mut skipped);
+            y_offset += block.rank();
             blocks.push(block);
         }
         skipped.sort_unstable();
-
-        // Free directions in unknown order.
-        let mut free = Vec::with_capacity(n - y_offset);
-        for v in 0..n {
-            if !touched[v] {
-                free.push(FreeSlot::Unknown(v));
-            } else {
-                let c = block_of[v];
-                if blocks[c].verts[0] == v {
-                    blocks[c].z_offset = free.len();
-                    for t in blocks[c].rank()..blocks[c].verts.len() {
-                        free.push(FreeSlot::Block { block: c, t });
-                    }
-                }
-            }
-        }
+        let free = free_directions(n - y_offset, &touched, &block_of, &mut blocks);
         let kept = blocks.iter().flat_map(|b| b.kept.iter().copied()).collect();
         Ok(BlockHouseholderQr {
             n,
@@ -268,6 +164,191 @@ impl BlockHouseholderQr {
             skipped,
         })
     }
+}
+
+/// The independent blocks of `B`: unknowns linked by a constraint, by
+/// union–find.
+#[derive(Debug, PartialEq)]
+struct Partition {
+    /// Whether an unknown appears in some constraint.
+    touched: Vec<bool>,
+    /// The block of each touched unknown (`usize::MAX`: untouched).
+    block_of: Vec<usize>,
+    /// Each block's unknowns, increasing; blocks numbered by their smallest.
+    block_verts: Vec<Vec<usize>>,
+    /// Each block's constraints, increasing.
+    block_rows: Vec<Vec<usize>>,
+    /// Empty constraints (dependent on anything).
+    skipped: Vec<usize>,
+}
+
+/// Partitions `b`'s unknowns and constraints into independent blocks (see
+/// [`Partition`]).
+fn partition_blocks(b: SparseRowMatRef<'_, usize, f64>) -> Partition {
+    let (m, n) = (b.nrows(), b.ncols());
+    let row_ptr = b.symbolic().row_ptr();
+    let col_idx = b.symbolic().col_idx();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(parent: &mut [usize], mut x: usize) -> usize {
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
+        }
+        x
+    }
+    let mut touched = vec![false; n];
+    for i in 0..m {
+        let cols = &col_idx[row_ptr[i]..row_ptr[i + 1]];
+        for &c in cols {
+            touched[c] = true;
+        }
+        if let Some((&first, rest)) = cols.split_first() {
+            for &c in rest {
+                let (ra, rb) = (find(&mut parent, first), find(&mut parent, c));
+                if ra != rb {
+                    parent[ra.max(rb)] = ra.min(rb);
+                }
+            }
+        }
+    }
+    // Blocks numbered by their smallest unknown; unknowns sorted.
+    let mut block_of_root = vec![usize::MAX; n];
+    let mut block_verts: Vec<Vec<usize>> = Vec::new();
+    let mut block_of = vec![usize::MAX; n];
+    for v in 0..n {
+        if touched[v] {
+            let r = find(&mut parent, v);
+            if block_of_root[r] == usize::MAX {
+                block_of_root[r] = block_verts.len();
+                block_verts.push(Vec::new());
+            }
+            block_of[v] = block_of_root[r];
+            block_verts[block_of_root[r]].push(v);
+        }
+    }
+    let mut block_rows: Vec<Vec<usize>> = vec![Vec::new(); block_verts.len()];
+    let mut skipped = Vec::new();
+    for i in 0..m {
+        match col_idx[row_ptr[i]..row_ptr[i + 1]].first() {
+            Some(&c) => block_rows[block_of[c]].push(i),
+            None => skipped.push(i), // an empty row is dependent on anything
+        }
+    }
+    Partition {
+        touched,
+        block_of,
+        block_verts,
+        block_rows,
+        skipped,
+    }
+}
+
+/// The block's `Bᵀ`, dense: `verts.len() × rows.len()`, duplicate entries
+/// summed in storage order. `local` (length `n`) is scratch: it maps the
+/// block's unknowns to their positions.
+fn dense_block(
+    b: SparseRowMatRef<'_, usize, f64>,
+    verts: &[usize],
+    rows: &[usize],
+    local: &mut [usize],
+) -> Mat<f64> {
+    let row_ptr = b.symbolic().row_ptr();
+    let col_idx = b.symbolic().col_idx();
+    let vals = b.val();
+    for (t, &v) in verts.iter().enumerate() {
+        local[v] = t;
+    }
+    let mut bt = Mat::<f64>::zeros(verts.len(), rows.len());
+    for (j, &i) in rows.iter().enumerate() {
+        for p in row_ptr[i]..row_ptr[i + 1] {
+            bt[(local[col_idx[p]], j)] += vals[p];
+        }
+    }
+    bt
+}
+
+/// Householder QR of a block's `Bᵀ` (`bt`), column by column in priority
+/// order: each column is reflected by the reflectors so far; its
+/// remainder below them, `rest`, makes it independent when
+/// `rest > η ‖b_j‖₂` ([`RankTolerance`]), and then a new reflector
+/// `v = [1; x/(α − β)]`, `τ = (β − α)/β`, `β = −sign(α) rest` (LAPACK's
+/// `dlarfg`) zeroes it below the diagonal. Dependent columns go to
+/// `skipped`.
+fn factor_block(
+    verts: Vec<usize>,
+    rows: &[usize],
+    mut bt: Mat<f64>,
+    tolerance: RankTolerance,
+    y_offset: usize,
+    skipped: &mut Vec<usize>,
+) -> Block {
+    let n_c = verts.len();
+    let mut block = Block {
+        verts,
+        v: Mat::zeros(n_c, n_c.min(rows.len())),
+        tau: Vec::new(),
+        r1: Mat::zeros(n_c.min(rows.len()), n_c.min(rows.len())),
+        kept: Vec::new(),
+        y_offset,
+        z_offset: 0,
+    };
+    for (j, &i) in rows.iter().enumerate() {
+        let k = block.rank();
+        let col_norm = (0..n_c).map(|t| bt[(t, j)].powi(2)).sum::<f64>().sqrt();
+        for h in 0..k {
+            block.reflect(h, bt.as_mut().subcols_mut(j, 1));
+        }
+        let rest = (k..n_c).map(|t| bt[(t, j)].powi(2)).sum::<f64>().sqrt();
+        // NaN-safe: a NaN remainder counts as dependent.
+        let independent = rest > tolerance.relative * col_norm;
+        if k == n_c || !independent {
+            skipped.push(i);
+            continue;
+        }
+        let alpha = bt[(k, j)];
+        let beta = -rest.copysign(alpha);
+        let scale = 1.0 / (alpha - beta);
+        block.v[(k, k)] = 1.0;
+        for t in k + 1..n_c {
+            block.v[(t, k)] = bt[(t, j)] * scale;
+        }
+        block.tau.push((beta - alpha) / beta);
+        for h in 0..k {
+            block.r1[(h, k)] = bt[(h, j)];
+        }
+        block.r1[(k, k)] = beta;
+        block.kept.push(i);
+    }
+    let r = block.rank();
+    block.v = block.v.subcols(0, r).to_owned();
+    block.r1 = block.r1.submatrix(0, 0, r, r).to_owned();
+    block
+}
+
+/// The free directions (`n_free` of them) in unknown order: an untouched
+/// unknown, or at a block's smallest unknown the block's `Q_c e_t` for
+/// `t ≥ rank` (setting the block's `z_offset`).
+fn free_directions(
+    n_free: usize,
+    touched: &[bool],
+    block_of: &[usize],
+    blocks: &mut [Block],
+) -> Vec<FreeSlot> {
+    let mut free = Vec::with_capacity(n_free);
+    for v in 0..touched.len() {
+        if !touched[v] {
+            free.push(FreeSlot::Unknown(v));
+        } else {
+            let c = block_of[v];
+            if blocks[c].verts[0] == v {
+                blocks[c].z_offset = free.len();
+                for t in blocks[c].rank()..blocks[c].verts.len() {
+                    free.push(FreeSlot::Block { block: c, t });
+                }
+            }
+        }
+    }
+    free
 }
 
 impl ConstraintQr for BlockHouseholderQr {
@@ -476,4 +557,90 @@ fn check_block_sizes(
         )
     })
     .map_err(|detail| ProblemError::TooLarge { detail })
+}
+
+#[cfg(test)]
+mod phase_tests {
+    use faer::sparse::{SparseRowMat, Triplet};
+
+    use super::*;
+
+    fn rows(m: usize, n: usize, t: &[(usize, usize, f64)]) -> SparseRowMat<usize, f64> {
+        let t: Vec<_> = t.iter().map(|&(i, j, v)| Triplet::new(i, j, v)).collect();
+        SparseRowMat::try_new_from_triplets(m, n, &t).unwrap()
+    }
+
+    #[test]
+    fn partition_links_unknowns_sharing_a_constraint() {
+        // Constraint 0 on u0, u1; 1 on u3; 2 empty; 3 on u1, u4 (joins
+        // block 0); u2 untouched.
+        let b = rows(
+            4,
+            5,
+            &[
+                (0, 0, 1.0),
+                (0, 1, 1.0),
+                (1, 3, 2.0),
+                (3, 1, 1.0),
+                (3, 4, 1.0),
+            ],
+        );
+        let m = usize::MAX;
+        assert_eq!(
+            partition_blocks(b.as_ref()),
+            Partition {
+                touched: vec![true, true, false, true, true],
+                block_of: vec![0, 0, m, 1, 0],
+                block_verts: vec![vec![0, 1, 4], vec![3]],
+                block_rows: vec![vec![0, 3], vec![1]],
+                skipped: vec![2],
+            }
+        );
+        let mut local = vec![m; 5];
+        let bt = dense_block(b.as_ref(), &[0, 1, 4], &[0, 3], &mut local);
+        assert_eq!(bt, faer::mat![[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+        assert_eq!(local, [0, 1, m, m, 2]);
+    }
+
+    #[test]
+    fn block_factor_is_dlarfg_and_skips_a_multiple() {
+        // Bᵀ = [3 6; 4 8]: column 1 is twice column 0.
+        let bt = faer::mat![[3.0, 6.0], [4.0, 8.0]];
+        let mut skipped = Vec::new();
+        let block = factor_block(
+            vec![0, 1],
+            &[10, 11],
+            bt,
+            RankTolerance::default(),
+            7,
+            &mut skipped,
+        );
+        // α = 3, ‖x‖ = 5: β = −5, v = [1, 4/(3 + 5)], τ = (−5 − 3)/−5.
+        assert_eq!(block.tau, [1.6]);
+        assert_eq!(block.v, faer::mat![[1.0], [0.5]]);
+        assert_eq!(block.r1, faer::mat![[-5.0]]);
+        assert_eq!((block.kept, block.y_offset), (vec![10], 7));
+        assert_eq!(skipped, [11]);
+    }
+
+    #[test]
+    fn free_directions_follow_unknown_order() {
+        let block = |verts: Vec<usize>, rank: usize| Block {
+            verts,
+            v: Mat::zeros(0, 0),
+            tau: vec![1.0; rank],
+            r1: Mat::zeros(0, 0),
+            kept: Vec::new(),
+            y_offset: 0,
+            z_offset: 0,
+        };
+        let mut blocks = vec![block(vec![0, 1], 1), block(vec![3], 1)];
+        let m = usize::MAX;
+        let free = free_directions(2, &[true, true, false, true], &[0, 0, m, 1], &mut blocks);
+        assert_eq!(
+            format!("{free:?}"),
+            "[Block { block: 0, t: 1 }, Unknown(2)]"
+        );
+        assert_eq!((blocks[0].z_offset, blocks[1].z_offset), (0, 2));
+    }
 }

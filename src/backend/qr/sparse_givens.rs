@@ -223,91 +223,22 @@ impl GivensQr {
         GivensQr::in_column_order(b, tolerance, order)
     }
 
-    /// The factorisation with the columns of `Bᵀ` in the order of `b`'s rows.
+    /// The factorisation with the columns of `Bᵀ` in the order of `b`'s rows:
+    /// `Bᵀ` ([`transpose_summed`]), the column tolerances
+    /// ([`column_tolerances`]), the row order ([`givens_row_order`]), the
+    /// sweep ([`Sweep::eliminate`], row by row) and the assembly
+    /// ([`Sweep::finish`]).
     fn in_column_order(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
         order: GivensRowOrder,
     ) -> Result<GivensQr, Error> {
         let (m, n) = (b.nrows(), b.ncols());
-        let (b_ptr, b_col, b_val) = (b.symbolic().row_ptr(), b.symbolic().col_idx(), b.val());
-
-        // Rows of Bᵀ (CSR of the transpose): constraint indices come out
-        // increasing because constraints are visited in order; duplicate
-        // (constraint, unknown) entries are summed.
-        let mut count = vec![0usize; n + 1];
-        for i in 0..m {
-            for p in b_ptr[i]..b_ptr[i + 1] {
-                let v = b_val[p];
-                if !v.is_finite() {
-                    return Err(ProblemError::InvalidArgument {
-                        message: format!(
-                            "hard constraint row {i} has a non-finite coefficient {v} on unknown {}",
-                            b_col[p]
-                        ),
-                    }
-                    .into());
-                }
-                count[b_col[p] + 1] += 1;
-            }
-        }
-        for u in 0..n {
-            count[u + 1] += count[u];
-        }
-        let mut bt_ptr = count.clone();
-        let mut next = count;
-        let nnz = bt_ptr[n];
-        let mut bt_col = vec![0usize; nnz];
-        let mut bt_val = vec![0.0f64; nnz];
-        for i in 0..m {
-            for p in b_ptr[i]..b_ptr[i + 1] {
-                let u = b_col[p];
-                let slot = next[u];
-                if slot > bt_ptr[u] && bt_col[slot - 1] == i {
-                    bt_val[slot - 1] += b_val[p];
-                } else {
-                    bt_col[slot] = i;
-                    bt_val[slot] = b_val[p];
-                    next[u] += 1;
-                }
-            }
-        }
-        // Compact away the slots freed by summed duplicates.
-        let mut w = 0;
-        for u in 0..n {
-            let (start, end) = (bt_ptr[u], next[u]);
-            bt_ptr[u] = w;
-            for p in start..end {
-                bt_col[w] = bt_col[p];
-                bt_val[w] = bt_val[p];
-                w += 1;
-            }
-        }
-        bt_ptr[n] = w;
-        bt_col.truncate(w);
-        bt_val.truncate(w);
-
-        // Column tolerances η ‖b_j‖₂.
-        let mut tol = vec![0.0f64; m];
-        for (&j, &v) in bt_col.iter().zip(&bt_val) {
-            tol[j] += v * v;
-        }
-        for t in &mut tol {
-            *t = tolerance.relative * t.sqrt();
-        }
-
-        // Row order.
-        let mut rows: Vec<usize> = (0..n).filter(|&u| bt_ptr[u + 1] > bt_ptr[u]).collect();
-        if order == GivensRowOrder::LeadingConstraint {
-            rows.sort_by_key(|&u| (bt_col[bt_ptr[u]], u));
-        }
-
-        let mut r_rows: Vec<SparseRow> = vec![SparseRow::default(); m];
-        let mut holder = vec![usize::MAX; m];
-        let mut rotations = Vec::new();
+        let bt = transpose_summed(b)?;
+        let tol = column_tolerances(&bt, m, tolerance);
+        let rows = givens_row_order(&bt, order);
+        let mut sweep = Sweep::new(m);
         let mut row = SparseRow::default();
-        let mut new_r = SparseRow::default();
-        let mut new_row = SparseRow::default();
         for (i, &u) in rows.iter().enumerate() {
             // A row's rotations can be few: check every 256th row.
             if i % 256 == 0 {
@@ -315,101 +246,15 @@ impl GivensQr {
             }
             row.cols.clear();
             row.vals.clear();
-            for p in bt_ptr[u]..bt_ptr[u + 1] {
-                if bt_val[p] != 0.0 {
-                    row.cols.push(bt_col[p]);
-                    row.vals.push(bt_val[p]);
+            for p in bt.ptr[u]..bt.ptr[u + 1] {
+                if bt.val[p] != 0.0 {
+                    row.cols.push(bt.col[p]);
+                    row.vals.push(bt.val[p]);
                 }
             }
-            // `start`: the row's leading entry (entries before it are gone).
-            let mut start = 0;
-            while start < row.cols.len() {
-                let j = row.cols[start];
-                let a = row.vals[start];
-                if holder[j] == usize::MAX {
-                    // Heath: a negligible entry may not pivot (NaN-safe:
-                    // coefficients were checked finite above).
-                    let significant = a.abs() > tol[j];
-                    if !significant {
-                        start += 1;
-                        continue;
-                    }
-                    let r = &mut r_rows[j];
-                    r.cols.clear();
-                    r.vals.clear();
-                    r.cols.extend_from_slice(&row.cols[start..]);
-                    r.vals.extend_from_slice(&row.vals[start..]);
-                    holder[j] = u;
-                    start = row.cols.len();
-                    break;
-                }
-                // Rotate the row into R's row j.
-                let r = &mut r_rows[j];
-                let rho = r.vals[0];
-                let h = rho.hypot(a);
-                let (c, s) = (rho / h, a / h);
-                rotations.push(Rotation {
-                    p: holder[j],
-                    q: u,
-                    c,
-                    s,
-                });
-                new_r.cols.clear();
-                new_r.vals.clear();
-                new_row.cols.clear();
-                new_row.vals.clear();
-                new_r.cols.push(j);
-                new_r.vals.push(h);
-                rotate_merge(
-                    (&r.cols[1..], &r.vals[1..]),
-                    (&row.cols[start + 1..], &row.vals[start + 1..]),
-                    c,
-                    s,
-                    (&mut new_r.cols, &mut new_r.vals),
-                    (&mut new_row.cols, &mut new_row.vals),
-                );
-                std::mem::swap(r, &mut new_r);
-                std::mem::swap(&mut row, &mut new_row);
-                start = 0;
-            }
-            debug_assert!(start >= row.cols.len());
+            sweep.eliminate(u, &mut row, &tol);
         }
-
-        let mut kept = Vec::new();
-        let mut skipped = Vec::new();
-        let mut kept_pos = vec![usize::MAX; m];
-        let mut y_slot = Vec::new();
-        let mut r_ptr = vec![0usize];
-        let mut r_col = Vec::new();
-        let mut r_val = Vec::new();
-        let mut is_holder = vec![false; n];
-        for j in 0..m {
-            if holder[j] == usize::MAX {
-                skipped.push(j);
-            } else {
-                kept_pos[j] = kept.len();
-                kept.push(j);
-                y_slot.push(holder[j]);
-                is_holder[holder[j]] = true;
-                r_col.extend_from_slice(&r_rows[j].cols);
-                r_val.extend_from_slice(&r_rows[j].vals);
-                r_ptr.push(r_col.len());
-            }
-        }
-        let free = (0..n).filter(|&u| !is_holder[u]).collect();
-        Ok(GivensQr {
-            n,
-            rotations,
-            d_row: kept.clone(),
-            kept,
-            skipped,
-            y_slot,
-            free,
-            kept_pos,
-            r_ptr,
-            r_col,
-            r_val,
-        })
+        Ok(sweep.finish(n))
     }
 
     /// Number of stored rotations.
@@ -520,6 +365,233 @@ impl ConstraintQr for GivensQr {
     }
 }
 
+/// `Bᵀ` in compressed rows (one row per unknown), column indices
+/// (constraints) increasing.
+#[derive(Debug, Clone, PartialEq)]
+struct Transposed {
+    ptr: Vec<usize>,
+    col: Vec<usize>,
+    val: Vec<f64>,
+}
+
+/// `Bᵀ` of `b`: constraint indices come out increasing because constraints
+/// are visited in order; duplicate (constraint, unknown) entries are summed
+/// (in the order they appear in `b`), and their freed slots compacted away.
+/// Errors: a non-finite coefficient, named by row and unknown.
+fn transpose_summed(b: SparseRowMatRef<'_, usize, f64>) -> Result<Transposed, Error> {
+    let (m, n) = (b.nrows(), b.ncols());
+    let (b_ptr, b_col, b_val) = (b.symbolic().row_ptr(), b.symbolic().col_idx(), b.val());
+    let mut count = vec![0usize; n + 1];
+    for i in 0..m {
+        for p in b_ptr[i]..b_ptr[i + 1] {
+            let v = b_val[p];
+            if !v.is_finite() {
+                return Err(ProblemError::InvalidArgument {
+                    message: format!(
+                        "hard constraint row {i} has a non-finite coefficient {v} on unknown {}",
+                        b_col[p]
+                    ),
+                }
+                .into());
+            }
+            count[b_col[p] + 1] += 1;
+        }
+    }
+    for u in 0..n {
+        count[u + 1] += count[u];
+    }
+    let mut bt_ptr = count.clone();
+    let mut next = count;
+    let nnz = bt_ptr[n];
+    let mut bt_col = vec![0usize; nnz];
+    let mut bt_val = vec![0.0f64; nnz];
+    for i in 0..m {
+        for p in b_ptr[i]..b_ptr[i + 1] {
+            let u = b_col[p];
+            let slot = next[u];
+            if slot > bt_ptr[u] && bt_col[slot - 1] == i {
+                bt_val[slot - 1] += b_val[p];
+            } else {
+                bt_col[slot] = i;
+                bt_val[slot] = b_val[p];
+                next[u] += 1;
+            }
+        }
+    }
+    // Compact away the slots freed by summed duplicates.
+    let mut w = 0;
+    for u in 0..n {
+        let (start, end) = (bt_ptr[u], next[u]);
+        bt_ptr[u] = w;
+        for p in start..end {
+            bt_col[w] = bt_col[p];
+            bt_val[w] = bt_val[p];
+            w += 1;
+        }
+    }
+    bt_ptr[n] = w;
+    bt_col.truncate(w);
+    bt_val.truncate(w);
+    Ok(Transposed {
+        ptr: bt_ptr,
+        col: bt_col,
+        val: bt_val,
+    })
+}
+
+/// Heath's column tolerances `η ‖b_j‖₂` for the `m` constraints (`η`:
+/// [`RankTolerance::relative`]): an entry at most this may not pivot.
+/// The squares are summed in `Bᵀ`'s storage order.
+fn column_tolerances(bt: &Transposed, m: usize, tolerance: RankTolerance) -> Vec<f64> {
+    let mut tol = vec![0.0f64; m];
+    for (&j, &v) in bt.col.iter().zip(&bt.val) {
+        tol[j] += v * v;
+    }
+    for t in &mut tol {
+        *t = tolerance.relative * t.sqrt();
+    }
+    tol
+}
+
+/// The non-empty rows of `Bᵀ` (unknowns) in the order the sweep takes them:
+/// increasing, or by their leading constraint (ties by unknown) for
+/// [`GivensRowOrder::LeadingConstraint`].
+fn givens_row_order(bt: &Transposed, order: GivensRowOrder) -> Vec<usize> {
+    let n = bt.ptr.len() - 1;
+    let mut rows: Vec<usize> = (0..n).filter(|&u| bt.ptr[u + 1] > bt.ptr[u]).collect();
+    if order == GivensRowOrder::LeadingConstraint {
+        rows.sort_by_key(|&u| (bt.col[bt.ptr[u]], u));
+    }
+    rows
+}
+
+/// The state of the row sweep: `R`'s row of each constraint, the unknown
+/// (row of `Bᵀ`) holding it (`usize::MAX`: none yet), the rotations so far,
+/// and scratch rows.
+struct Sweep {
+    r_rows: Vec<SparseRow>,
+    holder: Vec<usize>,
+    rotations: Vec<Rotation>,
+    new_r: SparseRow,
+    new_row: SparseRow,
+}
+
+impl Sweep {
+    fn new(m: usize) -> Sweep {
+        Sweep {
+            r_rows: vec![SparseRow::default(); m],
+            holder: vec![usize::MAX; m],
+            rotations: Vec::new(),
+            new_r: SparseRow::default(),
+            new_row: SparseRow::default(),
+        }
+    }
+
+    /// Eliminates `row` (row `u` of `Bᵀ`, zeros dropped) into `R`: its
+    /// leading entry in column `j` either becomes `R`'s row `j` (when no
+    /// row holds `j` yet and it is significant, `|a| > tol[j]`; Heath:
+    /// a negligible entry may not pivot, and is skipped) or is rotated
+    /// away against it (`h = hypot(ρ, a)`, `c = ρ/h`, `s = a/h`), until
+    /// nothing is left.
+    fn eliminate(&mut self, u: usize, row: &mut SparseRow, tol: &[f64]) {
+        // `start`: the row's leading entry (entries before it are gone).
+        let mut start = 0;
+        while start < row.cols.len() {
+            let j = row.cols[start];
+            let a = row.vals[start];
+            if self.holder[j] == usize::MAX {
+                // NaN-safe: coefficients were checked finite.
+                let significant = a.abs() > tol[j];
+                if !significant {
+                    start += 1;
+                    continue;
+                }
+                let r = &mut self.r_rows[j];
+                r.cols.clear();
+                r.vals.clear();
+                r.cols.extend_from_slice(&row.cols[start..]);
+                r.vals.extend_from_slice(&row.vals[start..]);
+                self.holder[j] = u;
+                start = row.cols.len();
+                break;
+            }
+            // Rotate the row into R's row j.
+            let r = &mut self.r_rows[j];
+            let rho = r.vals[0];
+            let h = rho.hypot(a);
+            let (c, s) = (rho / h, a / h);
+            self.rotations.push(Rotation {
+                p: self.holder[j],
+                q: u,
+                c,
+                s,
+            });
+            let (new_r, new_row) = (&mut self.new_r, &mut self.new_row);
+            new_r.cols.clear();
+            new_r.vals.clear();
+            new_row.cols.clear();
+            new_row.vals.clear();
+            new_r.cols.push(j);
+            new_r.vals.push(h);
+            rotate_merge(
+                (&r.cols[1..], &r.vals[1..]),
+                (&row.cols[start + 1..], &row.vals[start + 1..]),
+                c,
+                s,
+                (&mut new_r.cols, &mut new_r.vals),
+                (&mut new_row.cols, &mut new_row.vals),
+            );
+            std::mem::swap(r, new_r);
+            std::mem::swap(row, new_row);
+            start = 0;
+        }
+        debug_assert!(start >= row.cols.len());
+    }
+
+    /// The factorisation of `n` unknowns: constraints with an `R` row kept
+    /// (in increasing order, their rows concatenated), the others skipped,
+    /// and the unknowns holding no row free.
+    fn finish(self, n: usize) -> GivensQr {
+        let m = self.holder.len();
+        let mut kept = Vec::new();
+        let mut skipped = Vec::new();
+        let mut kept_pos = vec![usize::MAX; m];
+        let mut y_slot = Vec::new();
+        let mut r_ptr = vec![0usize];
+        let mut r_col = Vec::new();
+        let mut r_val = Vec::new();
+        let mut is_holder = vec![false; n];
+        for j in 0..m {
+            let holder = self.holder[j];
+            if holder == usize::MAX {
+                skipped.push(j);
+            } else {
+                kept_pos[j] = kept.len();
+                kept.push(j);
+                y_slot.push(holder);
+                is_holder[holder] = true;
+                r_col.extend_from_slice(&self.r_rows[j].cols);
+                r_val.extend_from_slice(&self.r_rows[j].vals);
+                r_ptr.push(r_col.len());
+            }
+        }
+        let free = (0..n).filter(|&u| !is_holder[u]).collect();
+        GivensQr {
+            n,
+            rotations: self.rotations,
+            d_row: kept.clone(),
+            kept,
+            skipped,
+            y_slot,
+            free,
+            kept_pos,
+            r_ptr,
+            r_col,
+            r_val,
+        }
+    }
+}
+
 /// `b` with its rows in the order `perm` (row `k` of the result is row
 /// `perm[k]` of `b`).
 fn permute_rows(
@@ -544,4 +616,84 @@ fn permute_rows(
         new_col,
     );
     Ok(faer::sparse::SparseRowMat::new(symbolic, new_val))
+}
+
+#[cfg(test)]
+mod phase_tests {
+    use faer::sparse::{SparseRowMat, Triplet};
+
+    use super::*;
+
+    fn rows(m: usize, n: usize, t: &[(usize, usize, f64)]) -> SparseRowMat<usize, f64> {
+        let t: Vec<_> = t.iter().map(|&(i, j, v)| Triplet::new(i, j, v)).collect();
+        SparseRowMat::try_new_from_triplets(m, n, &t).unwrap()
+    }
+
+    #[test]
+    fn transpose_lists_each_unknowns_constraints_in_order() {
+        // B = [1 0 2; 0 3 4]: Bᵀ rows u0: (0,1); u1: (1,3); u2: (0,2) (1,4).
+        let b = rows(2, 3, &[(0, 0, 1.0), (0, 2, 2.0), (1, 1, 3.0), (1, 2, 4.0)]);
+        assert_eq!(
+            transpose_summed(b.as_ref()).unwrap(),
+            Transposed {
+                ptr: vec![0, 1, 2, 4],
+                col: vec![0, 1, 0, 1],
+                val: vec![1.0, 3.0, 2.0, 4.0],
+            }
+        );
+        let bad = rows(2, 3, &[(0, 0, 1.0), (1, 2, f64::INFINITY)]);
+        assert_eq!(
+            transpose_summed(bad.as_ref()).unwrap_err().to_string(),
+            "invalid argument: hard constraint row 1 has a non-finite coefficient inf on unknown 2"
+        );
+    }
+
+    #[test]
+    fn tolerances_are_eta_times_column_norms_and_rows_go_by_leading_constraint() {
+        // Columns of Bᵀ: constraint 0 = (3, 4), constraint 1 = (0, 5, 12).
+        let bt = Transposed {
+            ptr: vec![0, 1, 3, 4, 4],
+            col: vec![0, 0, 1, 1],
+            val: vec![3.0, 4.0, 5.0, 12.0],
+        };
+        let tol = column_tolerances(&bt, 2, RankTolerance { relative: 0.5 });
+        assert_eq!(tol, [2.5, 6.5]);
+        // Unknown 3 is empty; 2 leads with constraint 1.
+        let lead = Transposed {
+            ptr: vec![0, 1, 2, 3, 3],
+            col: vec![1, 0, 0],
+            val: vec![1.0; 3],
+        };
+        assert_eq!(givens_row_order(&lead, GivensRowOrder::Natural), [0, 1, 2]);
+        assert_eq!(
+            givens_row_order(&lead, GivensRowOrder::LeadingConstraint),
+            [1, 2, 0]
+        );
+    }
+
+    #[test]
+    fn sweep_rotates_a_second_row_into_r_and_skips_a_dependent_constraint() {
+        // B = [3 4; 6 8]: constraint 1 is twice constraint 0.
+        let mut sweep = Sweep::new(2);
+        let tol = [5e-10, 1e-9];
+        let mut row = SparseRow {
+            cols: vec![0, 1],
+            vals: vec![3.0, 6.0],
+        };
+        sweep.eliminate(0, &mut row, &tol);
+        assert_eq!(sweep.holder, [0, usize::MAX]);
+        let mut row = SparseRow {
+            cols: vec![0, 1],
+            vals: vec![4.0, 8.0],
+        };
+        sweep.eliminate(1, &mut row, &tol);
+        // hypot(3, 4) = 5, c = 3/5, s = 4/5; the remainder of constraint 1
+        // is zero up to rounding, below its tolerance: no pivot.
+        assert_eq!(sweep.r_rows[0].vals[0], 5.0);
+        assert_eq!((sweep.rotations[0].p, sweep.rotations[0].q), (0, 1));
+        assert_eq!((sweep.rotations[0].c, sweep.rotations[0].s), (0.6, 0.8));
+        let qr = sweep.finish(2);
+        assert_eq!((qr.kept, qr.skipped, qr.free), (vec![0], vec![1], vec![1]));
+        assert_eq!((qr.y_slot, qr.r_ptr[..2].to_vec()), (vec![0], vec![0, 2]));
+    }
 }

@@ -323,6 +323,180 @@ unsafe fn copy_sparse(a: *const ss::cholmod_sparse) -> Result<Csc, Error> {
     }
 }
 
+/// What SPQR returns, copied out: the rank, `R` (`rank × m`, squeezed),
+/// the Householder vectors `H` (`n × nh`) and their `τ`, `HPinv` and the
+/// column permutation `E` (identity when SPQR returns none).
+struct Factored {
+    rank: usize,
+    r: Csc,
+    h: Csc,
+    tau: Vec<f64>,
+    hpinv: Vec<usize>,
+    e: Vec<usize>,
+}
+
+/// Calls `SuiteSparseQR_C` on the scaled `Bᵀ` (`n × m`) with the fixed
+/// ordering and `η` ([`RankTolerance::relative`]; the columns have unit
+/// norm, so it is relative to each constraint's norm) and copies the
+/// results out (SPQR's are freed on return). Errors: SPQR's failure, or
+/// results of unexpected shape.
+fn factor_scaled(
+    bt: &mut ScaledBt,
+    tolerance: RankTolerance,
+    m: usize,
+    n: usize,
+) -> Result<Factored, Error> {
+    let mut out = SpqrOutputs {
+        common: Common::new()?,
+        r: ptr::null_mut(),
+        e: ptr::null_mut(),
+        h: ptr::null_mut(),
+        hpinv: ptr::null_mut(),
+        htau: ptr::null_mut(),
+        m,
+        n,
+    };
+    let mut header = bt.header();
+    let cc = out.common.ptr();
+    // SAFETY: `header` describes arrays owned by `bt`, alive for the
+    // call; outputs are written into `out`, which frees them on drop.
+    let rank = unsafe {
+        SuiteSparseQR_C(
+            SPQR_ORDERING_FIXED,
+            tolerance.relative,
+            0,
+            0,
+            &mut header,
+            ptr::null_mut(),
+            ptr::null_mut(),
+            ptr::null_mut(),
+            ptr::null_mut(),
+            &mut out.r,
+            &mut out.e,
+            &mut out.h,
+            &mut out.hpinv,
+            &mut out.htau,
+            cc,
+        )
+    };
+    if rank < 0 || out.r.is_null() || out.h.is_null() || out.htau.is_null() {
+        return Err(backend_error(format!(
+            "SuiteSparseQR_C failed (status {})",
+            out.common.status()
+        )));
+    }
+    let rank = rank as usize;
+
+    // SAFETY: R and H are valid real sparse matrices returned by SPQR.
+    let r = unsafe { copy_sparse(out.r)? };
+    let h = unsafe { copy_sparse(out.h)? };
+    if r.ncol != m || r.nrow != rank || h.nrow != n {
+        return Err(backend_error(format!(
+            "unexpected shapes: R {}×{}, H {}×{} (rank {rank}, n {n}, m {m})",
+            r.nrow, r.ncol, h.nrow, h.ncol
+        )));
+    }
+    let nh = h.ncol;
+    // SAFETY: HTau is 1 × nh dense, HPinv has n entries, E (if any) m.
+    let (tau, hpinv, e) = unsafe {
+        let t = &*out.htau;
+        if (t.nrow as usize) * (t.ncol as usize) < nh {
+            return Err(backend_error("HTau too short"));
+        }
+        let tau = std::slice::from_raw_parts(t.x as *const f64, nh).to_vec();
+        let hpinv: Vec<usize> = if out.hpinv.is_null() {
+            (0..n).collect()
+        } else {
+            std::slice::from_raw_parts(out.hpinv, n)
+                .iter()
+                .map(|&v| v as usize)
+                .collect()
+        };
+        let e: Vec<usize> = if out.e.is_null() {
+            (0..m).collect()
+        } else {
+            std::slice::from_raw_parts(out.e, m)
+                .iter()
+                .map(|&v| v as usize)
+                .collect()
+        };
+        (tau, hpinv, e)
+    };
+    drop(out);
+    Ok(Factored {
+        rank,
+        r,
+        h,
+        tau,
+        hpinv,
+        e,
+    })
+}
+
+/// The inverse of `hpinv` (a permutation of `0..n`), checked.
+fn inverse_permutation(hpinv: &[usize], n: usize) -> Result<Vec<usize>, Error> {
+    let mut perm = vec![usize::MAX; n];
+    for (i, &pi) in hpinv.iter().enumerate() {
+        if pi >= n || perm[pi] != usize::MAX {
+            return Err(backend_error("HPinv is not a permutation"));
+        }
+        perm[pi] = i;
+    }
+    Ok(perm)
+}
+
+/// The leading column of each row of the squeezed `R` (`rank` rows, `m`
+/// columns, rows sorted within columns): strictly increasing, each the
+/// last entry of its column (squeezed upper trapezoidal), checked.
+fn leading_columns(r: &Csc, rank: usize, m: usize) -> Result<Vec<usize>, Error> {
+    let mut lead = vec![usize::MAX; rank];
+    for c in 0..m {
+        for q in r.p[c]..r.p[c + 1] {
+            let row = r.i[q];
+            if lead[row] == usize::MAX {
+                lead[row] = c;
+            }
+        }
+    }
+    for k in 0..rank {
+        let ok = lead[k] != usize::MAX
+            && (k == 0 || lead[k] > lead[k - 1])
+            && r.p[lead[k] + 1] > r.p[lead[k]]
+            && r.i[r.p[lead[k] + 1] - 1] == k;
+        if !ok {
+            return Err(backend_error(format!(
+                "R is not squeezed upper trapezoidal at row {k}"
+            )));
+        }
+    }
+    Ok(lead)
+}
+
+/// The kept constraints and `R1` by columns, unscaled: column `k` of `R1`
+/// is column `lead[k]` of `R` times `‖b_j‖` (`norms`) for the constraint
+/// `j = E[lead[k]]`.
+fn unscaled_r1(
+    r: &Csc,
+    lead: &[usize],
+    e: &[usize],
+    norms: &[f64],
+) -> (Vec<usize>, Vec<usize>, Vec<usize>, Vec<f64>) {
+    let mut kept = Vec::with_capacity(lead.len());
+    let mut r1_ptr = vec![0usize];
+    let mut r1_row = Vec::new();
+    let mut r1_val = Vec::new();
+    for &c in lead {
+        let j = e[c];
+        kept.push(j);
+        for q in r.p[c]..r.p[c + 1] {
+            r1_row.push(r.i[q]);
+            r1_val.push(r.x[q] * norms[j]);
+        }
+        r1_ptr.push(r1_row.len());
+    }
+    (kept, r1_ptr, r1_row, r1_val)
+}
+
 /// The factorisation produced by [`Spqr`]: `Bᵀ = Q R` with `Q` kept as
 /// SPQR's Householder vectors.
 #[derive(Debug, Clone)]
@@ -349,6 +523,11 @@ pub struct SpqrQr {
 impl SpqrQr {
     /// Factors `Bᵀ` for `b` (m × n, one row per constraint in priority
     /// order).
+    ///
+    /// Phases: the scaled `Bᵀ`, SPQR's factorisation copied out
+    /// ([`factor_scaled`]), `HPinv`'s inverse ([`inverse_permutation`]),
+    /// the rows of the squeezed `R` ([`leading_columns`]) and `R1` unscaled
+    /// ([`unscaled_r1`]).
     pub fn new(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
@@ -358,147 +537,22 @@ impl SpqrQr {
         if m == 0 || n == 0 || bt.x.is_empty() {
             // Nothing to factor: every constraint is empty (dependent), every
             // unknown free.
-            return Ok(SpqrQr {
-                n,
-                rank: 0,
-                kept: Vec::new(),
-                skipped: (0..m).collect(),
-                r1_ptr: vec![0],
-                r1_row: Vec::new(),
-                r1_val: Vec::new(),
-                h_ptr: vec![0],
-                h_row: Vec::new(),
-                h_val: Vec::new(),
-                tau: Vec::new(),
-                hpinv: (0..n).collect(),
-                perm: (0..n).collect(),
-            });
+            return Ok(SpqrQr::nothing(m, n));
         }
-        let mut out = SpqrOutputs {
-            common: Common::new()?,
-            r: ptr::null_mut(),
-            e: ptr::null_mut(),
-            h: ptr::null_mut(),
-            hpinv: ptr::null_mut(),
-            htau: ptr::null_mut(),
-            m,
-            n,
-        };
-        let mut header = bt.header();
-        let cc = out.common.ptr();
-        // SAFETY: `header` describes arrays owned by `bt`, alive for the
-        // call; outputs are written into `out`, which frees them on drop.
-        let rank = unsafe {
-            SuiteSparseQR_C(
-                SPQR_ORDERING_FIXED,
-                tolerance.relative,
-                0,
-                0,
-                &mut header,
-                ptr::null_mut(),
-                ptr::null_mut(),
-                ptr::null_mut(),
-                ptr::null_mut(),
-                &mut out.r,
-                &mut out.e,
-                &mut out.h,
-                &mut out.hpinv,
-                &mut out.htau,
-                cc,
-            )
-        };
-        if rank < 0 || out.r.is_null() || out.h.is_null() || out.htau.is_null() {
-            return Err(backend_error(format!(
-                "SuiteSparseQR_C failed (status {})",
-                out.common.status()
-            )));
-        }
-        let rank = rank as usize;
-
-        // SAFETY: R and H are valid real sparse matrices returned by SPQR.
-        let r = unsafe { copy_sparse(out.r)? };
-        let h = unsafe { copy_sparse(out.h)? };
-        if r.ncol != m || r.nrow != rank || h.nrow != n {
-            return Err(backend_error(format!(
-                "unexpected shapes: R {}×{}, H {}×{} (rank {rank}, n {n}, m {m})",
-                r.nrow, r.ncol, h.nrow, h.ncol
-            )));
-        }
-        let nh = h.ncol;
-        // SAFETY: HTau is 1 × nh dense, HPinv has n entries, E (if any) m.
-        let (tau, hpinv, e) = unsafe {
-            let t = &*out.htau;
-            if (t.nrow as usize) * (t.ncol as usize) < nh {
-                return Err(backend_error("HTau too short"));
-            }
-            let tau = std::slice::from_raw_parts(t.x as *const f64, nh).to_vec();
-            let hpinv: Vec<usize> = if out.hpinv.is_null() {
-                (0..n).collect()
-            } else {
-                std::slice::from_raw_parts(out.hpinv, n)
-                    .iter()
-                    .map(|&v| v as usize)
-                    .collect()
-            };
-            let e: Vec<usize> = if out.e.is_null() {
-                (0..m).collect()
-            } else {
-                std::slice::from_raw_parts(out.e, m)
-                    .iter()
-                    .map(|&v| v as usize)
-                    .collect()
-            };
-            (tau, hpinv, e)
-        };
-        drop(out);
-
-        let mut perm = vec![usize::MAX; n];
-        for (i, &pi) in hpinv.iter().enumerate() {
-            if pi >= n || perm[pi] != usize::MAX {
-                return Err(backend_error("HPinv is not a permutation"));
-            }
-            perm[pi] = i;
-        }
+        let Factored {
+            rank,
+            r,
+            h,
+            tau,
+            hpinv,
+            e,
+        } = factor_scaled(&mut bt, tolerance, m, n)?;
+        let perm = inverse_permutation(&hpinv, n)?;
         if e.iter().any(|&c| c >= m) {
             return Err(backend_error("E is not a permutation"));
         }
-
-        // Leading column of each row of the squeezed R.
-        let mut lead = vec![usize::MAX; rank];
-        for c in 0..m {
-            for q in r.p[c]..r.p[c + 1] {
-                let row = r.i[q];
-                if lead[row] == usize::MAX {
-                    lead[row] = c;
-                }
-            }
-        }
-        for k in 0..rank {
-            let ok = lead[k] != usize::MAX
-                && (k == 0 || lead[k] > lead[k - 1])
-                && r.p[lead[k] + 1] > r.p[lead[k]]
-                && r.i[r.p[lead[k] + 1] - 1] == k;
-            if !ok {
-                return Err(backend_error(format!(
-                    "R is not squeezed upper trapezoidal at row {k}"
-                )));
-            }
-        }
-        // R1 by columns, unscaled: column k of R1 = column lead[k] of R,
-        // times ‖b_j‖ for the constraint j = E[lead[k]].
-        let mut kept = Vec::with_capacity(rank);
-        let mut r1_ptr = vec![0usize];
-        let mut r1_row = Vec::new();
-        let mut r1_val = Vec::new();
-        for &c in &lead {
-            let j = e[c];
-            kept.push(j);
-            for q in r.p[c]..r.p[c + 1] {
-                r1_row.push(r.i[q]);
-                r1_val.push(r.x[q] * bt.norms[j]);
-            }
-            r1_ptr.push(r1_row.len());
-        }
+        let lead = leading_columns(&r, rank, m)?;
+        let (kept, r1_ptr, r1_row, r1_val) = unscaled_r1(&r, &lead, &e, &bt.norms);
         let mut is_kept = vec![false; m];
         for &j in &kept {
             is_kept[j] = true;
@@ -519,6 +573,26 @@ impl SpqrQr {
             hpinv,
             perm,
         })
+    }
+
+    /// The factorisation of nothing: `m` constraints all skipped, `n`
+    /// unknowns all free.
+    fn nothing(m: usize, n: usize) -> SpqrQr {
+        SpqrQr {
+            n,
+            rank: 0,
+            kept: Vec::new(),
+            skipped: (0..m).collect(),
+            r1_ptr: vec![0],
+            r1_row: Vec::new(),
+            r1_val: Vec::new(),
+            h_ptr: vec![0],
+            h_row: Vec::new(),
+            h_val: Vec::new(),
+            tau: Vec::new(),
+            hpinv: (0..n).collect(),
+            perm: (0..n).collect(),
+        }
     }
 
     /// Number of Householder vectors.
@@ -653,6 +727,39 @@ impl ConstraintQr for SpqrQr {
 mod tests {
     use super::*;
     use faer::sparse::{SparseRowMat, Triplet};
+
+    /// `R` (2 × 3) with rows leading at columns 0 and 2:
+    /// `[2 1 3; 0 0 4]`.
+    fn squeezed() -> Csc {
+        Csc {
+            nrow: 2,
+            ncol: 3,
+            p: vec![0, 1, 2, 4],
+            i: vec![0, 0, 0, 1],
+            x: vec![2.0, 1.0, 3.0, 4.0],
+        }
+    }
+
+    #[test]
+    fn permutation_is_inverted_and_checked() {
+        assert_eq!(inverse_permutation(&[2, 0, 1], 3).unwrap(), [1, 2, 0]);
+        assert!(inverse_permutation(&[0, 0, 1], 3).is_err());
+        assert!(inverse_permutation(&[0, 3, 1], 3).is_err());
+    }
+
+    #[test]
+    fn leading_columns_of_a_squeezed_r_and_r1_unscaled() {
+        let r = squeezed();
+        assert_eq!(leading_columns(&r, 2, 3).unwrap(), [0, 2]);
+        // E swaps constraints 0 and 2; their norms 10 and 100.
+        let (kept, ptr, row, val) = unscaled_r1(&r, &[0, 2], &[2, 1, 0], &[10.0, 1.0, 100.0]);
+        assert_eq!((kept, ptr, row), (vec![2, 0], vec![0, 1, 3], vec![0, 0, 1]));
+        assert_eq!(val, [200.0, 30.0, 40.0]);
+        // Row 1 leading before row 0 is not upper trapezoidal.
+        let mut bad = squeezed();
+        bad.i = vec![1, 0, 0, 1];
+        assert!(leading_columns(&bad, 2, 3).is_err());
+    }
 
     /// Our replay of `(H, τ, HPinv)` equals SPQR's own `SuiteSparseQR_C_qmult`
     /// on a `SuiteSparseQR_C_factorize` object of the same scaled matrix.

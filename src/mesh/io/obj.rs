@@ -7,93 +7,144 @@ use super::{
     Builder, LineReader, LoadedMesh, ReadError, parse_error, parse_f64, parse_i64, show,
     strip_comment, tokens,
 };
+use crate::error::MeshError;
 use crate::limits::MemoryBudget;
 use crate::mesh::Mesh;
 
+/// Reads an OBJ file line by line: `v` lines ([`parse_obj_vertex`]), `f`
+/// lines ([`parse_obj_face`]), known records without geometry skipped, and
+/// other records counted ([`Unknown`]) for a note ([`obj_notes`]).
 pub(super) fn read_obj<R: BufRead>(
     reader: R,
     budget: MemoryBudget,
 ) -> Result<LoadedMesh, ReadError> {
-    const F: &str = "OBJ";
     let mut lines = LineReader::new(reader, F);
     let mut b = Builder::within(budget);
     let mut poly: Vec<usize> = Vec::new();
-    let mut unknown: Vec<(String, usize)> = Vec::new();
-    let mut n_unknown = 0usize;
+    let mut unknown = Unknown::default();
     while let Some((line, text)) = lines.next_line()? {
         let mut it = tokens(strip_comment(text));
         let Some(keyword) = it.next() else { continue };
         match keyword {
-            b"v" => {
-                let mut p = [0.0; 3];
-                for (k, c) in p.iter_mut().enumerate() {
-                    let Some(tok) = it.next() else {
-                        return Err(parse_error(
-                            F,
-                            line,
-                            format!("expected 3 coordinates after 'v', found {k}"),
-                        )
-                        .into());
-                    };
-                    *c = parse_f64(tok).ok_or_else(|| {
-                        parse_error(F, line, format!("invalid number '{}'", show(tok)))
-                    })?;
-                }
-                b.vertex(p, Some(line))?;
-            }
+            b"v" => b.vertex(parse_obj_vertex(it, line)?, Some(line))?,
             b"f" => {
-                poly.clear();
-                for (corner, tok) in it.enumerate() {
-                    let head = tok.split(|&c| c == b'/').next().unwrap_or_default();
-                    let index = parse_i64(head).ok_or_else(|| {
-                        parse_error(F, line, format!("invalid face index '{}'", show(tok)))
-                    })?;
-                    let resolved = match index {
-                        0 => {
-                            return Err(parse_error(
-                                F,
-                                line,
-                                "face index 0 is invalid (OBJ indices start at 1)",
-                            )
-                            .into());
-                        }
-                        i if i > 0 => i - 1,
-                        // Relative: -1 is the last vertex defined so far.
-                        i => i64::try_from(b.positions.len())
-                            .unwrap_or(i64::MAX)
-                            .saturating_add(i),
-                    };
-                    poly.push(b.resolve(resolved, corner, Some(line))?);
-                }
+                let defined = b.positions.len();
+                parse_obj_face(
+                    it,
+                    line,
+                    defined,
+                    |index, corner| b.resolve(index, corner, Some(line)),
+                    &mut poly,
+                )?;
                 b.polygon(&poly, Some(line))?;
             }
             b"vn" | b"vt" | b"vp" | b"g" | b"o" | b"s" | b"usemtl" | b"mtllib" | b"l" => {}
-            other => {
-                n_unknown += 1;
-                if unknown.len() < 3 && !unknown.iter().any(|(k, _)| k.as_bytes() == other) {
-                    unknown.push((show(other), line));
-                }
-            }
+            other => unknown.record(other, line),
         }
     }
+    let notes = obj_notes(&unknown, lines.missing_final_newline, lines.line);
+    Ok(b.finish(F, notes)?)
+}
+
+/// The format name in OBJ errors.
+const F: &str = "OBJ";
+
+/// Parses the rest of a `v` line (`it`, after the keyword, at `line`):
+/// three coordinates; more (a `w`, or vertex colours) are ignored.
+fn parse_obj_vertex<'a>(
+    mut it: impl Iterator<Item = &'a [u8]>,
+    line: usize,
+) -> Result<[f64; 3], MeshError> {
+    let mut p = [0.0; 3];
+    for (k, c) in p.iter_mut().enumerate() {
+        let Some(tok) = it.next() else {
+            return Err(parse_error(
+                F,
+                line,
+                format!("expected 3 coordinates after 'v', found {k}"),
+            ));
+        };
+        *c = parse_f64(tok)
+            .ok_or_else(|| parse_error(F, line, format!("invalid number '{}'", show(tok))))?;
+    }
+    Ok(p)
+}
+
+/// Parses the rest of an `f` line (`it`, after the keyword, at `line`) into
+/// `poly`: each corner `v`, `v/vt`, `v//vn` or `v/vt/vn` keeps its vertex
+/// index, made 0-based by [`obj_index`] (`defined` vertices so far) and
+/// mapped by `resolve(index, corner)` (the builder's check) as it is read.
+fn parse_obj_face<'a>(
+    it: impl Iterator<Item = &'a [u8]>,
+    line: usize,
+    defined: usize,
+    mut resolve: impl FnMut(i64, usize) -> Result<usize, MeshError>,
+    poly: &mut Vec<usize>,
+) -> Result<(), MeshError> {
+    poly.clear();
+    for (corner, tok) in it.enumerate() {
+        let head = tok.split(|&c| c == b'/').next().unwrap_or_default();
+        let index = parse_i64(head)
+            .ok_or_else(|| parse_error(F, line, format!("invalid face index '{}'", show(tok))))?;
+        poly.push(resolve(obj_index(index, defined, line)?, corner)?);
+    }
+    Ok(())
+}
+
+/// An OBJ vertex index made 0-based: `i > 0` is 1-based, `i < 0` relative
+/// (`-1` is the last of the `defined` vertices so far; the sum saturates,
+/// and a result below 0 is left for the builder to refuse), `0` an error.
+fn obj_index(index: i64, defined: usize, line: usize) -> Result<i64, MeshError> {
+    match index {
+        0 => Err(parse_error(
+            F,
+            line,
+            "face index 0 is invalid (OBJ indices start at 1)",
+        )),
+        i if i > 0 => Ok(i - 1),
+        i => Ok(i64::try_from(defined).unwrap_or(i64::MAX).saturating_add(i)),
+    }
+}
+
+/// Lines of record types the reader does not know: how many, and the
+/// first three distinct keywords with their lines, for the note.
+#[derive(Debug, Default, PartialEq)]
+struct Unknown {
+    count: usize,
+    examples: Vec<(String, usize)>,
+}
+
+impl Unknown {
+    fn record(&mut self, keyword: &[u8], line: usize) {
+        self.count += 1;
+        if self.examples.len() < 3 && !self.examples.iter().any(|(k, _)| k.as_bytes() == keyword) {
+            self.examples.push((show(keyword), line));
+        }
+    }
+}
+
+/// The reader's notes: the unknown records, if any, and a missing final
+/// newline (the last line, `last_line`, may have been cut off).
+fn obj_notes(unknown: &Unknown, missing_final_newline: bool, last_line: usize) -> Vec<String> {
     let mut notes = Vec::new();
-    if n_unknown > 0 {
+    if unknown.count > 0 {
         let examples: Vec<String> = unknown
+            .examples
             .iter()
             .map(|(k, l)| format!("'{k}' at line {l}"))
             .collect();
         notes.push(format!(
-            "ignored {n_unknown} OBJ line(s) of unsupported record types (e.g. {})",
+            "ignored {} OBJ line(s) of unsupported record types (e.g. {})",
+            unknown.count,
             examples.join(", ")
         ));
     }
-    if lines.missing_final_newline {
+    if missing_final_newline {
         notes.push(format!(
-            "the OBJ file does not end with a newline: if it was cut off, line {} may be incomplete",
-            lines.line
+            "the OBJ file does not end with a newline: if it was cut off, line {last_line} may be incomplete"
         ));
     }
-    Ok(b.finish(F, notes)?)
+    notes
 }
 
 /// Writes ASCII OBJ: a comment line, `v x y z` per vertex (shortest
@@ -136,6 +187,89 @@ mod tests {
             line: Some(line),
             message: message.into(),
         }
+    }
+
+    #[test]
+    fn vertex_line_parser_alone() {
+        assert_eq!(
+            parse_obj_vertex(tokens(b"0.5 -1 2e-3 1.0"), 3),
+            Ok([0.5, -1.0, 0.002])
+        );
+        assert_eq!(
+            parse_obj_vertex(tokens(b"0.5 -1"), 3),
+            Err(parse_error_at(
+                3,
+                "expected 3 coordinates after 'v', found 2"
+            ))
+        );
+        assert_eq!(
+            parse_obj_vertex(tokens(b"0.5 one 2"), 3),
+            Err(parse_error_at(3, "invalid number 'one'"))
+        );
+    }
+
+    #[test]
+    fn index_mapping_alone() {
+        assert_eq!(obj_index(1, 10, 1), Ok(0));
+        assert_eq!(obj_index(10, 10, 1), Ok(9));
+        assert_eq!(obj_index(-1, 10, 1), Ok(9));
+        assert_eq!(obj_index(-10, 10, 1), Ok(0));
+        assert_eq!(obj_index(-11, 10, 1), Ok(-1));
+        assert_eq!(
+            obj_index(0, 10, 6),
+            Err(parse_error_at(
+                6,
+                "face index 0 is invalid (OBJ indices start at 1)"
+            ))
+        );
+    }
+
+    #[test]
+    fn face_line_parser_alone_keeps_the_vertex_of_each_corner() {
+        let mut poly = Vec::new();
+        let keep = |index: i64, _corner: usize| Ok(index as usize);
+        parse_obj_face(tokens(b"1/4/2 2//5 -1 3/1"), 2, 5, keep, &mut poly).unwrap();
+        assert_eq!(poly, [0, 1, 4, 2]);
+        assert_eq!(
+            parse_obj_face(tokens(b"1 x/2 3"), 2, 5, keep, &mut poly),
+            Err(parse_error_at(2, "invalid face index 'x/2'"))
+        );
+        // Corners are numbered as read: the resolver sees 0, 1, 2.
+        let mut corners = Vec::new();
+        parse_obj_face(
+            tokens(b"3 2 1"),
+            2,
+            5,
+            |index, corner| {
+                corners.push(corner);
+                Ok(index as usize)
+            },
+            &mut poly,
+        )
+        .unwrap();
+        assert_eq!((corners, poly), (vec![0, 1, 2], vec![2, 1, 0]));
+    }
+
+    #[test]
+    fn unknown_records_and_notes_alone() {
+        let mut unknown = Unknown::default();
+        assert_eq!(obj_notes(&unknown, false, 9), Vec::<String>::new());
+        for (keyword, line) in [
+            ("curv", 2),
+            ("curv", 3),
+            ("parm", 4),
+            ("cstype", 5),
+            ("deg", 6),
+        ] {
+            unknown.record(keyword.as_bytes(), line);
+        }
+        assert_eq!(
+            obj_notes(&unknown, true, 9),
+            [
+                "ignored 5 OBJ line(s) of unsupported record types (e.g. 'curv' at line 2, 'parm' at line 4, 'cstype' at line 5)",
+                "the OBJ file does not end with a newline: if it was cut off, line 9 may be incomplete",
+            ]
+        );
     }
 
     const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";

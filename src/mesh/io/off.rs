@@ -38,216 +38,45 @@ fn next_content<R: BufRead>(
     }
 }
 
+/// Reads an OFF file: the header ([`read_off_header`]), the counts
+/// ([`parse_off_counts`]) checked against the budget and the file size
+/// ([`off_reserve_cap`]), then exactly that many vertex lines
+/// ([`parse_off_vertex`]) and face lines ([`parse_off_face`]), and nothing
+/// after them but comments and blank lines.
 pub(super) fn read_off<R: BufRead>(
     reader: R,
     size: Option<u64>,
     budget: MemoryBudget,
 ) -> Result<LoadedMesh, ReadError> {
-    const F: &str = "OFF";
     let mut notes = Vec::new();
     let mut lines = LineReader::new(reader, F);
-    let Some((first_line, text)) = next_content(&mut lines)? else {
-        return Err(MeshError::Empty {
-            vertices: 0,
-            faces: 0,
-        }
-        .into());
-    };
-    let first: Vec<Vec<u8>> = tokens(text).map(<[u8]>::to_vec).collect();
-    let first_tok = first.first().map(Vec::as_slice).unwrap_or_default();
-    let (counts, counts_line): (Vec<Vec<u8>>, usize) = if parse_i64(first_tok).is_some() {
-        notes.push(
-            "the OFF file has no 'OFF' header line; read the counts from its first line"
-                .to_string(),
-        );
-        (first, first_line)
-    } else {
-        let header_ok =
-            first_tok.len() >= 3 && first_tok[first_tok.len() - 3..].eq_ignore_ascii_case(b"OFF");
-        let prefix = &first_tok[..first_tok.len().saturating_sub(3)];
-        if !header_ok {
-            return Err(parse_error(
-                F,
-                first_line,
-                format!(
-                    "expected the header 'OFF' (or COFF, NOFF, …), found '{}'",
-                    show(first_tok)
-                ),
-            )
-            .into());
-        }
-        if prefix.contains(&b'4') || prefix.contains(&b'n') {
-            return Err(parse_error(
-                F,
-                first_line,
-                format!(
-                    "'{}' (4D or n-dimensional OFF) is not supported; only 3D OFF is",
-                    show(first_tok)
-                ),
-            )
-            .into());
-        }
-        if !prefix
-            .iter()
-            .all(|c| matches!(c, b'S' | b'T' | b'C' | b'N'))
-        {
-            return Err(parse_error(
-                F,
-                first_line,
-                format!(
-                    "unknown OFF header '{}' (expected OFF, COFF, NOFF, CNOFF, STOFF, …)",
-                    show(first_tok)
-                ),
-            )
-            .into());
-        }
-        if first
-            .get(1)
-            .is_some_and(|t| t.eq_ignore_ascii_case(b"BINARY"))
-        {
-            return Err(parse_error(
-                F,
-                first_line,
-                "binary OFF is not supported; convert it to ASCII OFF, PLY or OBJ",
-            )
-            .into());
-        }
-        if first.len() > 1 {
-            (first[1..].to_vec(), first_line)
-        } else {
-            let Some((l, text)) = next_content(&mut lines)? else {
-                return Err(MeshError::Empty {
-                    vertices: 0,
-                    faces: 0,
-                }
-                .into());
-            };
-            (tokens(text).map(<[u8]>::to_vec).collect(), l)
-        }
-    };
-    let count = |k: usize, what: &str| -> Result<usize, MeshError> {
-        let tok = counts.get(k).ok_or_else(|| {
-            parse_error(
-                F,
-                counts_line,
-                format!("expected the counts line 'vertices faces edges', but the {what} count is missing"),
-            )
-        })?;
-        std::str::from_utf8(tok)
-            .ok()
-            .and_then(|s| s.parse::<usize>().ok())
-            .ok_or_else(|| {
-                parse_error(
-                    F,
-                    counts_line,
-                    format!(
-                        "invalid {what} count '{}' (expected a non-negative integer)",
-                        show(tok)
-                    ),
-                )
-            })
-    };
-    let n_vertices = count(0, "vertex")?;
-    let n_faces = count(1, "face")?;
-    if n_vertices == 0 || n_faces == 0 {
-        return Err(MeshError::Empty {
-            vertices: n_vertices,
-            faces: n_faces,
-        }
-        .into());
-    }
+    let (counts, counts_line) = read_off_header(&mut lines, &mut notes)?;
+    let (n_vertices, n_faces) = parse_off_counts(&counts, counts_line)?;
     check_declared_counts(n_vertices, n_faces, budget)?;
-    let needed = n_vertices as u128 * OFF_MIN_VERTEX_BYTES + n_faces as u128 * OFF_MIN_FACE_BYTES;
-    let reserve_cap = match size {
-        Some(size) => {
-            if needed > u128::from(size) + 1 {
-                return Err(parse_error(
-                    F,
-                    counts_line,
-                    format!(
-                        "the header declares {n_vertices} vertices and {n_faces} faces, which need at least {needed} bytes, but the whole file has only {size} bytes (wrong counts or truncated file)"
-                    ),
-                )
-                .into());
-            }
-            usize::try_from(size / 6).unwrap_or(usize::MAX)
-        }
-        None => MAX_BLIND_RESERVE,
-    };
+    let reserve_cap = off_reserve_cap(n_vertices, n_faces, size, counts_line)?;
     let mut b = Builder::within(budget);
     b.positions.reserve(n_vertices.min(reserve_cap));
     b.vertex_lines.reserve(n_vertices.min(reserve_cap));
     for v in 0..n_vertices {
         let Some((line, text)) = next_content(&mut lines)? else {
-            return Err(MeshError::Parse {
-                format: F,
-                line: Some(lines.line),
-                message: format!(
-                    "the file ends after {v} of the {n_vertices} vertices declared at line {counts_line} (truncated file or wrong count)"
-                ),
-            }
-            .into());
+            return Err(truncated(lines.line, v, n_vertices, "vertices", counts_line).into());
         };
-        let mut it = tokens(text);
-        let mut p = [0.0; 3];
-        for (k, c) in p.iter_mut().enumerate() {
-            let Some(tok) = it.next() else {
-                return Err(parse_error(
-                    F,
-                    line,
-                    format!("expected 3 coordinates for vertex {v}, found {k}"),
-                )
-                .into());
-            };
-            *c = parse_f64(tok)
-                .ok_or_else(|| parse_error(F, line, format!("invalid number '{}'", show(tok))))?;
-        }
-        b.vertex(p, Some(line))?;
+        b.vertex(parse_off_vertex(text, v, line)?, Some(line))?;
     }
     b.faces.reserve(n_faces.min(reserve_cap));
     b.face_lines.reserve(n_faces.min(reserve_cap));
     let mut poly = Vec::new();
     for f in 0..n_faces {
         let Some((line, text)) = next_content(&mut lines)? else {
-            return Err(MeshError::Parse {
-                format: F,
-                line: Some(lines.line),
-                message: format!(
-                    "the file ends after {f} of the {n_faces} faces declared at line {counts_line} (truncated file or wrong count)"
-                ),
-            }
-            .into());
+            return Err(truncated(lines.line, f, n_faces, "faces", counts_line).into());
         };
-        let mut it = tokens(text);
-        let k_tok = it.next().unwrap_or_default();
-        let k = std::str::from_utf8(k_tok)
-            .ok()
-            .and_then(|s| s.parse::<usize>().ok())
-            .ok_or_else(|| {
-                parse_error(
-                    F,
-                    line,
-                    format!(
-                        "invalid vertex count '{}' at the start of a face line",
-                        show(k_tok)
-                    ),
-                )
-            })?;
-        poly.clear();
-        for corner in 0..k {
-            let Some(tok) = it.next() else {
-                return Err(parse_error(
-                    F,
-                    line,
-                    format!("face {f} declares {k} vertices but only {corner} indices follow"),
-                )
-                .into());
-            };
-            let index = parse_i64(tok).ok_or_else(|| {
-                parse_error(F, line, format!("invalid face index '{}'", show(tok)))
-            })?;
-            poly.push(b.resolve(index, corner, Some(line))?);
-        }
+        parse_off_face(
+            text,
+            f,
+            line,
+            |index, corner| b.resolve(index, corner, Some(line)),
+            &mut poly,
+        )?;
         b.polygon(&poly, Some(line))?;
     }
     if let Some((line, _)) = next_content(&mut lines)? {
@@ -261,6 +90,249 @@ pub(super) fn read_off<R: BufRead>(
         .into());
     }
     Ok(b.finish(F, notes)?)
+}
+
+/// The format name in OFF errors.
+const F: &str = "OFF";
+
+/// No vertices and no faces: a file that ends before its counts.
+fn empty() -> MeshError {
+    MeshError::Empty {
+        vertices: 0,
+        faces: 0,
+    }
+}
+
+/// The error for a file that ends (at `line`, the last line read) after
+/// `done` of the `declared` vertices or faces (`what`) of the counts line.
+fn truncated(
+    line: usize,
+    done: usize,
+    declared: usize,
+    what: &str,
+    counts_line: usize,
+) -> MeshError {
+    MeshError::Parse {
+        format: F,
+        line: Some(line),
+        message: format!(
+            "the file ends after {done} of the {declared} {what} declared at line {counts_line} (truncated file or wrong count)"
+        ),
+    }
+}
+
+/// Reads the header: the optional `OFF` keyword line (checked by
+/// [`check_off_keyword`]) and the counts, on the same line after it or on
+/// the next line with content. Returns the counts tokens and their line
+/// number. A first token that is an integer means there is no keyword
+/// (accepted, with a note): that line holds the counts.
+fn read_off_header<R: BufRead>(
+    lines: &mut LineReader<R>,
+    notes: &mut Vec<String>,
+) -> Result<(Vec<Vec<u8>>, usize), ReadError> {
+    let Some((first_line, text)) = next_content(lines)? else {
+        return Err(empty().into());
+    };
+    let first: Vec<Vec<u8>> = tokens(text).map(<[u8]>::to_vec).collect();
+    let first_tok = first.first().map(Vec::as_slice).unwrap_or_default();
+    if parse_i64(first_tok).is_some() {
+        notes.push(
+            "the OFF file has no 'OFF' header line; read the counts from its first line"
+                .to_string(),
+        );
+        return Ok((first, first_line));
+    }
+    check_off_keyword(&first, first_line)?;
+    if first.len() > 1 {
+        return Ok((first[1..].to_vec(), first_line));
+    }
+    let Some((l, text)) = next_content(lines)? else {
+        return Err(empty().into());
+    };
+    Ok((tokens(text).map(<[u8]>::to_vec).collect(), l))
+}
+
+/// Checks the keyword line's tokens (`first`, at `line`): the keyword ends in
+/// `OFF` (any case), its prefix is made of the 3D variants' letters `S`,
+/// `T`, `C`, `N` (not `4` or `n`: 4D and n-dimensional OFF), and the
+/// next token is not `BINARY`.
+fn check_off_keyword(first: &[Vec<u8>], line: usize) -> Result<(), MeshError> {
+    let first_tok = first.first().map(Vec::as_slice).unwrap_or_default();
+    let header_ok =
+        first_tok.len() >= 3 && first_tok[first_tok.len() - 3..].eq_ignore_ascii_case(b"OFF");
+    let prefix = &first_tok[..first_tok.len().saturating_sub(3)];
+    if !header_ok {
+        return Err(parse_error(
+            F,
+            line,
+            format!(
+                "expected the header 'OFF' (or COFF, NOFF, …), found '{}'",
+                show(first_tok)
+            ),
+        ));
+    }
+    if prefix.contains(&b'4') || prefix.contains(&b'n') {
+        return Err(parse_error(
+            F,
+            line,
+            format!(
+                "'{}' (4D or n-dimensional OFF) is not supported; only 3D OFF is",
+                show(first_tok)
+            ),
+        ));
+    }
+    if !prefix
+        .iter()
+        .all(|c| matches!(c, b'S' | b'T' | b'C' | b'N'))
+    {
+        return Err(parse_error(
+            F,
+            line,
+            format!(
+                "unknown OFF header '{}' (expected OFF, COFF, NOFF, CNOFF, STOFF, …)",
+                show(first_tok)
+            ),
+        ));
+    }
+    if first
+        .get(1)
+        .is_some_and(|t| t.eq_ignore_ascii_case(b"BINARY"))
+    {
+        return Err(parse_error(
+            F,
+            line,
+            "binary OFF is not supported; convert it to ASCII OFF, PLY or OBJ",
+        ));
+    }
+    Ok(())
+}
+
+/// Parses the counts line's tokens (at `line`): the vertex and the face
+/// count, non-negative integers, both non-zero (else [`MeshError::Empty`]);
+/// the edge count, optional, is ignored.
+fn parse_off_counts(counts: &[Vec<u8>], line: usize) -> Result<(usize, usize), MeshError> {
+    let count = |k: usize, what: &str| -> Result<usize, MeshError> {
+        let tok = counts.get(k).ok_or_else(|| {
+            parse_error(
+                F,
+                line,
+                format!("expected the counts line 'vertices faces edges', but the {what} count is missing"),
+            )
+        })?;
+        std::str::from_utf8(tok)
+            .ok()
+            .and_then(|s| s.parse::<usize>().ok())
+            .ok_or_else(|| {
+                parse_error(
+                    F,
+                    line,
+                    format!(
+                        "invalid {what} count '{}' (expected a non-negative integer)",
+                        show(tok)
+                    ),
+                )
+            })
+    };
+    let n_vertices = count(0, "vertex")?;
+    let n_faces = count(1, "face")?;
+    if n_vertices == 0 || n_faces == 0 {
+        return Err(MeshError::Empty {
+            vertices: n_vertices,
+            faces: n_faces,
+        });
+    }
+    Ok((n_vertices, n_faces))
+}
+
+/// How many vertices or faces to reserve up front. For a file of known
+/// `size`, the declared counts must fit: every vertex line needs at least
+/// [`OFF_MIN_VERTEX_BYTES`] and every face line [`OFF_MIN_FACE_BYTES`]
+/// (one byte of slack: a missing final newline), else the counts are
+/// refused at `counts_line` before anything is allocated; the cap is then
+/// `size / 6`. Of unknown size, [`MAX_BLIND_RESERVE`].
+fn off_reserve_cap(
+    n_vertices: usize,
+    n_faces: usize,
+    size: Option<u64>,
+    counts_line: usize,
+) -> Result<usize, MeshError> {
+    let needed = n_vertices as u128 * OFF_MIN_VERTEX_BYTES + n_faces as u128 * OFF_MIN_FACE_BYTES;
+    match size {
+        Some(size) => {
+            if needed > u128::from(size) + 1 {
+                return Err(parse_error(
+                    F,
+                    counts_line,
+                    format!(
+                        "the header declares {n_vertices} vertices and {n_faces} faces, which need at least {needed} bytes, but the whole file has only {size} bytes (wrong counts or truncated file)"
+                    ),
+                ));
+            }
+            Ok(usize::try_from(size / 6).unwrap_or(usize::MAX))
+        }
+        None => Ok(MAX_BLIND_RESERVE),
+    }
+}
+
+/// Parses vertex `v`'s line (`text`, at `line`): three coordinates; values
+/// after them (a colour, a normal) are ignored.
+fn parse_off_vertex(text: &[u8], v: usize, line: usize) -> Result<[f64; 3], MeshError> {
+    let mut it = tokens(text);
+    let mut p = [0.0; 3];
+    for (k, c) in p.iter_mut().enumerate() {
+        let Some(tok) = it.next() else {
+            return Err(parse_error(
+                F,
+                line,
+                format!("expected 3 coordinates for vertex {v}, found {k}"),
+            ));
+        };
+        *c = parse_f64(tok)
+            .ok_or_else(|| parse_error(F, line, format!("invalid number '{}'", show(tok))))?;
+    }
+    Ok(p)
+}
+
+/// Parses face `f`'s line (`text`, at `line`): a vertex count `k`, then
+/// `k` 0-based indices, each mapped by `resolve(index, corner)` (the
+/// builder's range check) as it is read, into `poly`; values after them (a
+/// colour) are ignored.
+fn parse_off_face(
+    text: &[u8],
+    f: usize,
+    line: usize,
+    mut resolve: impl FnMut(i64, usize) -> Result<usize, MeshError>,
+    poly: &mut Vec<usize>,
+) -> Result<(), MeshError> {
+    let mut it = tokens(text);
+    let k_tok = it.next().unwrap_or_default();
+    let k = std::str::from_utf8(k_tok)
+        .ok()
+        .and_then(|s| s.parse::<usize>().ok())
+        .ok_or_else(|| {
+            parse_error(
+                F,
+                line,
+                format!(
+                    "invalid vertex count '{}' at the start of a face line",
+                    show(k_tok)
+                ),
+            )
+        })?;
+    poly.clear();
+    for corner in 0..k {
+        let Some(tok) = it.next() else {
+            return Err(parse_error(
+                F,
+                line,
+                format!("face {f} declares {k} vertices but only {corner} indices follow"),
+            ));
+        };
+        let index = parse_i64(tok)
+            .ok_or_else(|| parse_error(F, line, format!("invalid face index '{}'", show(tok))))?;
+        poly.push(resolve(index, corner)?);
+    }
+    Ok(())
 }
 
 /// Writes ASCII OFF: `OFF`, `V F 0` (the edge count is optional in OFF and
@@ -455,6 +527,166 @@ mod tests {
         assert_eq!(
             off("OFF\n3 1 0\n0 0 0\n1 0\n0 1 0\n3 0 1 2\n").unwrap_err(),
             parse_error_at(4, "expected 3 coordinates for vertex 1, found 2")
+        );
+    }
+
+    fn toks(text: &str) -> Vec<Vec<u8>> {
+        tokens(text.as_bytes()).map(<[u8]>::to_vec).collect()
+    }
+
+    #[test]
+    fn keyword_check_alone() {
+        for ok in ["OFF", "off", "COFF", "STCNOFF", "OFF 3 1 0"] {
+            assert_eq!(check_off_keyword(&toks(ok), 4), Ok(()), "{ok}");
+        }
+        assert_eq!(
+            check_off_keyword(&toks("PLY"), 4),
+            Err(parse_error_at(
+                4,
+                "expected the header 'OFF' (or COFF, NOFF, …), found 'PLY'"
+            ))
+        );
+        assert_eq!(
+            check_off_keyword(&toks("4OFF"), 1),
+            Err(parse_error_at(
+                1,
+                "'4OFF' (4D or n-dimensional OFF) is not supported; only 3D OFF is"
+            ))
+        );
+        assert_eq!(
+            check_off_keyword(&toks("XOFF"), 1),
+            Err(parse_error_at(
+                1,
+                "unknown OFF header 'XOFF' (expected OFF, COFF, NOFF, CNOFF, STOFF, …)"
+            ))
+        );
+        assert_eq!(
+            check_off_keyword(&toks("OFF binary"), 2),
+            Err(parse_error_at(
+                2,
+                "binary OFF is not supported; convert it to ASCII OFF, PLY or OBJ"
+            ))
+        );
+    }
+
+    #[test]
+    fn header_reader_alone_finds_the_counts_and_their_line() {
+        let header = |text: &str| {
+            let mut lines = LineReader::new(text.as_bytes(), F);
+            let mut notes = Vec::new();
+            match read_off_header(&mut lines, &mut notes) {
+                Ok((counts, line)) => Ok((counts, line, notes)),
+                Err(ReadError::Mesh(e)) => Err(e),
+                Err(ReadError::Io(e)) => panic!("{e}"),
+            }
+        };
+        assert_eq!(header("OFF 5 6 7\n").unwrap(), (toks("5 6 7"), 1, vec![]));
+        assert_eq!(
+            header("# c\nNOFF\n\n8 9\n").unwrap(),
+            (toks("8 9"), 4, vec![])
+        );
+        let (counts, line, notes) = header("\n3 1 0\n").unwrap();
+        assert_eq!((counts, line), (toks("3 1 0"), 2));
+        assert_eq!(
+            notes,
+            ["the OFF file has no 'OFF' header line; read the counts from its first line"]
+        );
+        assert_eq!(
+            header("OFF\n").unwrap_err(),
+            MeshError::Empty {
+                vertices: 0,
+                faces: 0
+            }
+        );
+    }
+
+    #[test]
+    fn counts_parser_alone() {
+        assert_eq!(parse_off_counts(&toks("3 1"), 7), Ok((3, 1)));
+        assert_eq!(parse_off_counts(&toks("12 20 30"), 7), Ok((12, 20)));
+        assert_eq!(
+            parse_off_counts(&toks("0 4 0"), 7),
+            Err(MeshError::Empty {
+                vertices: 0,
+                faces: 4
+            })
+        );
+        assert_eq!(
+            parse_off_counts(&toks("3 x"), 7),
+            Err(parse_error_at(
+                7,
+                "invalid face count 'x' (expected a non-negative integer)"
+            ))
+        );
+    }
+
+    #[test]
+    fn size_check_alone() {
+        // 2 vertices and 1 face need 2·6 + 8 = 20 bytes: 19 (a missing final
+        // newline) still fits, 18 does not.
+        assert_eq!(off_reserve_cap(2, 1, Some(19), 3), Ok(3));
+        assert_eq!(
+            off_reserve_cap(2, 1, Some(18), 3),
+            Err(parse_error_at(
+                3,
+                "the header declares 2 vertices and 1 faces, which need at least 20 bytes, but the whole file has only 18 bytes (wrong counts or truncated file)"
+            ))
+        );
+        assert_eq!(
+            off_reserve_cap(usize::MAX, 1, None, 3),
+            Ok(MAX_BLIND_RESERVE)
+        );
+    }
+
+    #[test]
+    fn vertex_line_parser_alone() {
+        assert_eq!(
+            parse_off_vertex(b"1 -2.5 3e2 0.5 0.5", 0, 1),
+            Ok([1.0, -2.5, 300.0])
+        );
+        assert_eq!(
+            parse_off_vertex(b"1 nope 3", 4, 9),
+            Err(parse_error_at(9, "invalid number 'nope'"))
+        );
+        assert_eq!(
+            parse_off_vertex(b"1", 4, 9),
+            Err(parse_error_at(
+                9,
+                "expected 3 coordinates for vertex 4, found 1"
+            ))
+        );
+    }
+
+    #[test]
+    fn face_line_parser_alone_resolves_each_index_as_it_reads_it() {
+        let mut poly = Vec::new();
+        let shift = |index: i64, _corner: usize| Ok(index as usize + 10);
+        parse_off_face(b"4 0 1 2 3 0.5", 0, 1, shift, &mut poly).unwrap();
+        assert_eq!(poly, [10, 11, 12, 13]);
+        // The resolver's error comes before a later bad token.
+        let refuse = |index: i64, corner: usize| {
+            Err(MeshError::IndexOutOfRange {
+                face: corner,
+                index,
+                vertex_count: 0,
+                line: None,
+            })
+        };
+        assert_eq!(
+            parse_off_face(b"3 7 x 2", 0, 1, refuse, &mut poly),
+            Err(MeshError::IndexOutOfRange {
+                face: 0,
+                index: 7,
+                vertex_count: 0,
+                line: None
+            })
+        );
+        assert_eq!(
+            parse_off_face(b"3 0 1", 5, 2, shift, &mut poly),
+            Err(parse_error_at(
+                2,
+                "face 5 declares 3 vertices but only 2 indices follow"
+            ))
         );
     }
 

@@ -5,7 +5,7 @@ use std::io::{self, Write};
 
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{
-    ElementDef, Encoding, PropertyAccess, PropertyAccessResult, PropertyType, ScalarType,
+    ElementDef, Encoding, Header, PropertyAccess, PropertyAccessResult, PropertyType, ScalarType,
 };
 
 use super::{Builder, LoadedMesh, ReadError, check_declared_counts, tokens};
@@ -215,6 +215,12 @@ fn ply_header_error(line: Option<usize>, message: impl Into<String>) -> MeshErro
     }
 }
 
+/// Reads a PLY file: the header (decoded by `ply-rs-bw`, then checked by
+/// [`check_ply_vertex`], [`check_ply_face`] and, against the bytes that
+/// follow it, [`check_ply_sizes`]), then every element in the declared
+/// order ([`read_ply_element`]), vertices and faces going to the builder
+/// ([`add_ply_element`]), and nothing after the last but whitespace
+/// ([`check_ply_trailing`]).
 pub(super) fn read_ply(bytes: &[u8], budget: MemoryBudget) -> Result<LoadedMesh, ReadError> {
     const F: &str = "PLY";
     let parser = Parser::<PlyElement>::new();
@@ -223,18 +229,59 @@ pub(super) fn read_ply(bytes: &[u8], budget: MemoryBudget) -> Result<LoadedMesh,
     let mut payload: &[u8] = reader.into_inner();
     let header_bytes = bytes.get(..bytes.len() - payload.len()).unwrap_or_default();
     let header_lines = header_bytes.iter().filter(|&&c| c == b'\n').count();
-    // 1-based header line declaring each element, for messages.
-    let element_line = |name: &str| -> Option<usize> {
-        header_bytes
-            .split(|&c| c == b'\n')
-            .position(|l| {
-                let mut t = tokens(l);
-                t.next() == Some(b"element") && t.next() == Some(name.as_bytes())
-            })
-            .map(|i| i + 1)
-    };
+    let vertex_def = check_ply_vertex(&header, header_bytes)?;
+    let face_def = check_ply_face(&header, header_bytes)?;
+    check_ply_sizes(&header, payload.len(), header_bytes)?;
+    check_declared_counts(vertex_def.count, face_def.count, budget)?;
+    let mut b = Builder::within(budget);
+    b.positions.reserve(vertex_def.count);
+    let ascii = header.encoding == Encoding::Ascii;
+    let mut line = header_lines;
+    let mut deferred: Option<MeshError> = None;
+    for (name, def) in &header.elements {
+        for i in 0..def.count {
+            let element = read_ply_element(
+                &parser,
+                header.encoding,
+                &mut payload,
+                &mut line,
+                name,
+                def,
+                i,
+            )?;
+            if let Err(e) = add_ply_element(&mut b, name, &element, ascii.then_some(line)) {
+                // Report it only once the data proved structurally sound: if
+                // the counts do not match the data, a garbage value here is a
+                // symptom, and the mismatch is the error to report.
+                deferred.get_or_insert(e);
+            }
+        }
+    }
+    check_ply_trailing(payload, ascii.then_some(line + 1))?;
+    if let Some(e) = deferred {
+        return Err(e.into());
+    }
+    Ok(b.finish(F, Vec::new())?)
+}
 
-    // The header must describe a triangle mesh we can read.
+/// The 1-based line of `header_bytes` that declares element `name`
+/// (`element NAME …`), for messages.
+fn element_line(header_bytes: &[u8], name: &str) -> Option<usize> {
+    header_bytes
+        .split(|&c| c == b'\n')
+        .position(|l| {
+            let mut t = tokens(l);
+            t.next() == Some(b"element") && t.next() == Some(name.as_bytes())
+        })
+        .map(|i| i + 1)
+}
+
+/// The header's `vertex` element, which must exist and have scalar
+/// properties `x`, `y` and `z`.
+fn check_ply_vertex<'h>(
+    header: &'h Header,
+    header_bytes: &[u8],
+) -> Result<&'h ElementDef, MeshError> {
     let vertex_def = header
         .elements
         .get("vertex")
@@ -244,29 +291,38 @@ pub(super) fn read_ply(bytes: &[u8], budget: MemoryBudget) -> Result<LoadedMesh,
             Some(PropertyType::Scalar(_)) => {}
             Some(PropertyType::List(..)) => {
                 return Err(ply_header_error(
-                    element_line("vertex"),
+                    element_line(header_bytes, "vertex"),
                     format!("vertex property '{name}' is a list; expected a number"),
-                )
-                .into());
+                ));
             }
             None => {
                 return Err(ply_header_error(
-                    element_line("vertex"),
+                    element_line(header_bytes, "vertex"),
                     format!("the 'vertex' element has no property '{name}'"),
-                )
-                .into());
+                ));
             }
         }
     }
+    Ok(vertex_def)
+}
+
+/// The header's `face` element, which must exist (else a hint: triangle
+/// strips, or a point cloud) and have an index list property (see
+/// [`is_index_list`]) of integers.
+fn check_ply_face<'h>(
+    header: &'h Header,
+    header_bytes: &[u8],
+) -> Result<&'h ElementDef, MeshError> {
     let Some(face_def) = header.elements.get("face") else {
         let hint = if header.elements.contains_key("tristrips") {
             " (triangle strips, element 'tristrips', are not supported: convert them to faces)"
         } else {
             " (a point cloud has no triangles to deform)"
         };
-        return Err(
-            ply_header_error(None, format!("the header declares no 'face' element{hint}")).into(),
-        );
+        return Err(ply_header_error(
+            None,
+            format!("the header declares no 'face' element{hint}"),
+        ));
     };
     let index_prop = face_def
         .properties
@@ -274,26 +330,29 @@ pub(super) fn read_ply(bytes: &[u8], budget: MemoryBudget) -> Result<LoadedMesh,
         .find(|(name, _)| is_index_list(name))
         .map(|(_, p)| p);
     match index_prop.map(|p| &p.data_type) {
-        Some(PropertyType::List(count, item)) if is_integer(count) && is_integer(item) => {}
-        Some(t) => {
-            return Err(ply_header_error(
-                element_line("face"),
-                format!(
-                    "face property 'vertex_indices' has type {t:?}; expected a list of integers"
-                ),
-            )
-            .into());
+        Some(PropertyType::List(count, item)) if is_integer(count) && is_integer(item) => {
+            Ok(face_def)
         }
-        None => {
-            return Err(ply_header_error(
-                element_line("face"),
-                "the 'face' element has no list property 'vertex_indices' (or 'vertex_index')",
-            )
-            .into());
-        }
+        Some(t) => Err(ply_header_error(
+            element_line(header_bytes, "face"),
+            format!("face property 'vertex_indices' has type {t:?}; expected a list of integers"),
+        )),
+        None => Err(ply_header_error(
+            element_line(header_bytes, "face"),
+            "the 'face' element has no list property 'vertex_indices' (or 'vertex_index')",
+        )),
     }
+}
 
-    // The declared counts must fit in the bytes that follow the header.
+/// The declared counts must fit in the `payload_len` bytes after the
+/// header: each element needs at least [`min_element_bytes`], summed in
+/// declaration order; ASCII gets one byte of slack (a missing final
+/// newline). The first element whose running sum does not fit is named.
+fn check_ply_sizes(
+    header: &Header,
+    payload_len: usize,
+    header_bytes: &[u8],
+) -> Result<(), MeshError> {
     let mut needed: u128 = 0;
     let mut declared: Vec<String> = Vec::new();
     for (name, def) in &header.elements {
@@ -301,119 +360,121 @@ pub(super) fn read_ply(bytes: &[u8], budget: MemoryBudget) -> Result<LoadedMesh,
             .saturating_add(def.count as u128 * min_element_bytes(name, def, header.encoding));
         declared.push(format!("{} '{name}'", def.count));
         let slack = u128::from(header.encoding == Encoding::Ascii);
-        if needed > payload.len() as u128 + slack {
+        if needed > payload_len as u128 + slack {
             return Err(ply_header_error(
-                element_line(name),
+                element_line(header_bytes, name),
                 format!(
-                    "the header declares {} elements, which need at least {needed} bytes, but only {} bytes follow the header (wrong count or truncated file)",
+                    "the header declares {} elements, which need at least {needed} bytes, but only {payload_len} bytes follow the header (wrong count or truncated file)",
                     declared.join(" and "),
-                    payload.len()
                 ),
-            )
-            .into());
+            ));
         }
     }
+    Ok(())
+}
 
-    check_declared_counts(vertex_def.count, face_def.count, budget)?;
-    let mut b = Builder::within(budget);
-    b.positions.reserve(vertex_def.count);
-    let ascii = header.encoding == Encoding::Ascii;
-    let mut line = header_lines;
-    let mut deferred: Option<MeshError> = None;
-    for (name, def) in &header.elements {
-        let is_vertex = name == "vertex";
-        let is_face = name == "face";
-        for i in 0..def.count {
-            let element = match header.encoding {
-                Encoding::Ascii => {
-                    if payload.is_empty() {
-                        return Err(ply_header_error(
-                            Some(line),
-                            format!(
-                                "the data ends after {i} of the {} '{name}' elements (the header's counts do not match the data, or the file is truncated)",
-                                def.count
-                            ),
-                        )
-                        .into());
-                    }
-                    let end = payload
-                        .iter()
-                        .position(|&c| c == b'\n')
-                        .map_or(payload.len(), |p| p + 1);
-                    let (text, rest) = payload.split_at(end);
-                    payload = rest;
-                    line += 1;
-                    let text = std::str::from_utf8(text).map_err(|_| {
-                        ply_header_error(Some(line), "the line is not valid text (UTF-8)")
-                    })?;
-                    parser
-                        .read_ascii_element(text, def)
-                        .map_err(|e| ply_header_error(Some(line), ply_message(&e)))?
-                }
-                Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
-                    let r = if header.encoding == Encoding::BinaryLittleEndian {
-                        parser.read_little_endian_element(&mut payload, def)
-                    } else {
-                        parser.read_big_endian_element(&mut payload, def)
-                    };
-                    r.map_err(|e| {
-                        if e.kind() == io::ErrorKind::UnexpectedEof {
-                            ply_header_error(
-                                None,
-                                format!(
-                                    "the data ends inside '{name}' element {i} of {} (the header's counts do not match the data, or the file is truncated)",
-                                    def.count
-                                ),
-                            )
-                        } else {
-                            ply_header_error(
-                                None,
-                                format!("'{name}' element {i}: {}", ply_message(&e)),
-                            )
-                        }
-                    })?
-                }
-            };
-            let here = ascii.then_some(line);
-            let result = if is_vertex {
-                b.vertex(element.xyz, here)
-            } else if is_face {
-                let indices = element
-                    .indices
-                    .as_ref()
-                    .map(IndexList::to_i64)
-                    .unwrap_or_default();
-                indices
-                    .iter()
-                    .enumerate()
-                    .map(|(corner, &index)| b.resolve(index, corner, here))
-                    .collect::<Result<Vec<usize>, MeshError>>()
-                    .and_then(|poly| b.polygon(&poly, here))
-            } else {
-                Ok(())
-            };
-            if let Err(e) = result {
-                // Report it only once the data proved structurally sound: if
-                // the counts do not match the data, a garbage value here is a
-                // symptom, and the mismatch is the error to report.
-                deferred.get_or_insert(e);
+/// Decodes element `i` of `name` (`def`) from the front of `payload`,
+/// advancing it. In ASCII an element is one line (`line`, the last line
+/// read, advances by one); in binary, a short read is a truncated file.
+fn read_ply_element(
+    parser: &Parser<PlyElement>,
+    encoding: Encoding,
+    payload: &mut &[u8],
+    line: &mut usize,
+    name: &str,
+    def: &ElementDef,
+    i: usize,
+) -> Result<PlyElement, MeshError> {
+    match encoding {
+        Encoding::Ascii => {
+            if payload.is_empty() {
+                return Err(ply_header_error(
+                    Some(*line),
+                    format!(
+                        "the data ends after {i} of the {} '{name}' elements (the header's counts do not match the data, or the file is truncated)",
+                        def.count
+                    ),
+                ));
             }
+            let end = payload
+                .iter()
+                .position(|&c| c == b'\n')
+                .map_or(payload.len(), |p| p + 1);
+            let (text, rest) = payload.split_at(end);
+            *payload = rest;
+            *line += 1;
+            let text = std::str::from_utf8(text)
+                .map_err(|_| ply_header_error(Some(*line), "the line is not valid text (UTF-8)"))?;
+            parser
+                .read_ascii_element(text, def)
+                .map_err(|e| ply_header_error(Some(*line), ply_message(&e)))
+        }
+        Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
+            let r = if encoding == Encoding::BinaryLittleEndian {
+                parser.read_little_endian_element(payload, def)
+            } else {
+                parser.read_big_endian_element(payload, def)
+            };
+            r.map_err(|e| {
+                if e.kind() == io::ErrorKind::UnexpectedEof {
+                    ply_header_error(
+                        None,
+                        format!(
+                            "the data ends inside '{name}' element {i} of {} (the header's counts do not match the data, or the file is truncated)",
+                            def.count
+                        ),
+                    )
+                } else {
+                    ply_header_error(None, format!("'{name}' element {i}: {}", ply_message(&e)))
+                }
+            })
         }
     }
-    if let Some(p) = payload.iter().position(|c| !c.is_ascii_whitespace()) {
-        let extra = payload.len() - p;
-        return Err(ply_header_error(
-            ascii.then_some(line + 1),
-            format!(
-                "{extra} bytes of data follow the last element (the header's element counts do not match the data)"
-            ),
-        )
-        .into());
+}
+
+/// Adds a decoded element to the builder: a `vertex` its position, a `face`
+/// its polygon (each index range-checked in turn); other elements are
+/// skipped. `here` is the element's line (ASCII) for errors.
+fn add_ply_element(
+    b: &mut Builder,
+    name: &str,
+    element: &PlyElement,
+    here: Option<usize>,
+) -> Result<(), MeshError> {
+    match name {
+        "vertex" => b.vertex(element.xyz, here),
+        "face" => {
+            let indices = element
+                .indices
+                .as_ref()
+                .map(IndexList::to_i64)
+                .unwrap_or_default();
+            let poly = indices
+                .iter()
+                .enumerate()
+                .map(|(corner, &index)| b.resolve(index, corner, here))
+                .collect::<Result<Vec<usize>, MeshError>>()?;
+            b.polygon(&poly, here)
+        }
+        _ => Ok(()),
     }
-    if let Some(e) = deferred {
-        return Err(e.into());
+}
+
+/// Refuses anything but whitespace after the last element; `line` is the
+/// first line after it (ASCII).
+fn check_ply_trailing(payload: &[u8], line: Option<usize>) -> Result<(), MeshError> {
+    match payload.iter().position(|c| !c.is_ascii_whitespace()) {
+        Some(p) => {
+            let extra = payload.len() - p;
+            Err(ply_header_error(
+                line,
+                format!(
+                    "{extra} bytes of data follow the last element (the header's element counts do not match the data)"
+                ),
+            ))
+        }
+        None => Ok(()),
     }
-    Ok(b.finish(F, Vec::new())?)
 }
 
 /// Writes PLY with `property double x, y, z` and
@@ -494,6 +555,191 @@ mod tests {
         let mut bytes = header.as_bytes().to_vec();
         bytes.extend_from_slice(payload);
         bytes
+    }
+
+    /// Decodes `text` as a header alone; returns it and its bytes.
+    fn header_of(text: &str) -> (Header, Vec<u8>) {
+        let parser = Parser::<PlyElement>::new();
+        let mut reader = Reader::new(text.as_bytes());
+        let header = parser.read_header(&mut reader).unwrap();
+        (header, text.as_bytes().to_vec())
+    }
+
+    const ASCII_HEAD: &str = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+
+    #[test]
+    fn element_line_alone() {
+        let bytes = ASCII_HEAD.as_bytes();
+        assert_eq!(element_line(bytes, "vertex"), Some(3));
+        assert_eq!(element_line(bytes, "face"), Some(7));
+        assert_eq!(element_line(bytes, "edge"), None);
+    }
+
+    #[test]
+    fn vertex_and_face_checks_alone() {
+        let (header, bytes) = header_of(ASCII_HEAD);
+        assert_eq!(check_ply_vertex(&header, &bytes).unwrap().count, 2);
+        assert_eq!(check_ply_face(&header, &bytes).unwrap().count, 1);
+        let (header, bytes) = header_of(&ASCII_HEAD.replace("property float y\n", ""));
+        assert_eq!(
+            check_ply_vertex(&header, &bytes).unwrap_err(),
+            parse_error(Some(3), "the 'vertex' element has no property 'y'")
+        );
+        let (header, bytes) = header_of(&ASCII_HEAD.replace("vertex_indices", "corners"));
+        assert_eq!(
+            check_ply_face(&header, &bytes).unwrap_err(),
+            parse_error(
+                Some(7),
+                "the 'face' element has no list property 'vertex_indices' (or 'vertex_index')"
+            )
+        );
+        let (header, bytes) =
+            header_of("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nend_header\n");
+        assert_eq!(
+            check_ply_face(&header, &bytes).unwrap_err(),
+            parse_error(
+                None,
+                "the header declares no 'face' element (a point cloud has no triangles to deform)"
+            )
+        );
+    }
+
+    #[test]
+    fn size_check_alone_names_the_first_element_that_does_not_fit() {
+        // ASCII: 2 bytes per property at least, so 2 vertices need 12 bytes
+        // and the face 2 more; one byte of slack.
+        let (header, bytes) = header_of(ASCII_HEAD);
+        assert_eq!(check_ply_sizes(&header, 13, &bytes), Ok(()));
+        assert_eq!(
+            check_ply_sizes(&header, 12, &bytes),
+            Err(parse_error(
+                Some(7),
+                "the header declares 2 'vertex' and 1 'face' elements, which need at least 14 bytes, but only 12 bytes follow the header (wrong count or truncated file)"
+            ))
+        );
+        assert_eq!(
+            check_ply_sizes(&header, 10, &bytes),
+            Err(parse_error(
+                Some(3),
+                "the header declares 2 'vertex' elements, which need at least 12 bytes, but only 10 bytes follow the header (wrong count or truncated file)"
+            ))
+        );
+    }
+
+    #[test]
+    fn element_reader_alone_advances_payload_and_line() {
+        let (header, _) = header_of(ASCII_HEAD);
+        let parser = Parser::<PlyElement>::new();
+        let (vertex, face) = (&header.elements["vertex"], &header.elements["face"]);
+        let mut payload: &[u8] = b"1 2 3\n3 0 1 1\n";
+        let mut line = 9;
+        let v = read_ply_element(
+            &parser,
+            Encoding::Ascii,
+            &mut payload,
+            &mut line,
+            "vertex",
+            vertex,
+            0,
+        )
+        .unwrap();
+        assert_eq!(
+            (v.xyz, line, payload),
+            ([1.0, 2.0, 3.0], 10, &b"3 0 1 1\n"[..])
+        );
+        let f = read_ply_element(
+            &parser,
+            Encoding::Ascii,
+            &mut payload,
+            &mut line,
+            "face",
+            face,
+            0,
+        )
+        .unwrap();
+        assert_eq!(
+            f.indices.as_ref().map(IndexList::to_i64),
+            Some(vec![0, 1, 1])
+        );
+        assert_eq!((line, payload.len()), (11, 0));
+        assert_eq!(
+            read_ply_element(
+                &parser,
+                Encoding::Ascii,
+                &mut payload,
+                &mut line,
+                "face",
+                face,
+                1
+            )
+            .err(),
+            Some(parse_error(
+                Some(11),
+                "the data ends after 1 of the 1 'face' elements (the header's counts do not match the data, or the file is truncated)"
+            ))
+        );
+        let mut short: &[u8] = &[0, 0, 0];
+        assert_eq!(
+            read_ply_element(
+                &parser,
+                Encoding::BinaryLittleEndian,
+                &mut short,
+                &mut line,
+                "vertex",
+                vertex,
+                1
+            )
+            .err(),
+            Some(parse_error(
+                None,
+                "the data ends inside 'vertex' element 1 of 2 (the header's counts do not match the data, or the file is truncated)"
+            ))
+        );
+    }
+
+    #[test]
+    fn add_element_alone_routes_vertices_and_faces_and_skips_others() {
+        let mut b = Builder::within(MemoryBudget::unlimited());
+        for (name, xyz, indices) in [
+            ("vertex", [1.0, 0.0, 0.0], None),
+            ("vertex", [0.0, 1.0, 0.0], None),
+            ("vertex", [0.0, 0.0, 1.0], None),
+            ("edge", [9.0, 9.0, 9.0], Some(IndexList::U8(vec![0, 1]))),
+            ("face", [0.0; 3], Some(IndexList::I32(vec![2, 1, 0]))),
+        ] {
+            add_ply_element(&mut b, name, &PlyElement { xyz, indices }, Some(4)).unwrap();
+        }
+        let bad = PlyElement {
+            xyz: [0.0; 3],
+            indices: Some(IndexList::I16(vec![0, 1, -1])),
+        };
+        assert_eq!(
+            add_ply_element(&mut b, "face", &bad, Some(5)),
+            Err(MeshError::IndexOutOfRange {
+                face: 1,
+                index: -1,
+                vertex_count: 3,
+                line: Some(5)
+            })
+        );
+        let mesh = b.finish("PLY", Vec::new()).unwrap().mesh;
+        assert_eq!(
+            mesh.positions(),
+            &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+        );
+        assert_eq!(mesh.faces(), &[[2, 1, 0]]);
+    }
+
+    #[test]
+    fn trailing_check_alone() {
+        assert_eq!(check_ply_trailing(b" \r\n\n", Some(8)), Ok(()));
+        assert_eq!(
+            check_ply_trailing(b"\n1 2\n", Some(8)),
+            Err(parse_error(
+                Some(8),
+                "4 bytes of data follow the last element (the header's element counts do not match the data)"
+            ))
+        );
     }
 
     const SQUARE_AND_APEX: [[f64; 3]; 5] = [
