@@ -4,7 +4,7 @@
 //!
 //! - a Python with numpy, scipy and libigl (`arap`, `python`): `$LSE_PYTHON`
 //!   if set, else the virtual environment `target/experiments/venv`,
-//!   created if missing as the README's Python section and `.ci/run` do
+//!   created if missing as docs/python.md §1 and `.ci/run` do
 //!   (`python3 -m venv`, `pip install numpy scipy libigl`); `python` also
 //!   installs this checkout's package into it (`pip install .`, built by
 //!   maturin), so that it measures this revision;

@@ -136,7 +136,7 @@ pub fn assemble_readme(
         "Everything in this directory is written by the `experiments` program; nothing is edited by hand. \
          Regenerate all of it with\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- all --mesh-dir ../shared/meshes --out results\n```\n\n\
          (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out; \
-         without a Python with libigl, Node or Chromium, found or created as the README's experiment list says, the sections of `arap`, `python` and `editor` say what was not measured; \
+         without a Python with libigl, Node or Chromium, found or created as docs/development.md §2 says, the sections of `arap`, `python` and `editor` say what was not measured; \
          without `--out results` it writes to a fresh directory under `target/experiments/`). \
          Each section names the command that regenerates it alone. CSV files start with a `#` line describing the machine and build.\n"
     );
