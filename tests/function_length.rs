@@ -53,7 +53,7 @@ fn code_of(line: &str) -> String {
                 let mut it = rest.chars();
                 match (it.next(), it.next(), it.next()) {
                     (Some('\\'), _, _) => {
-                        while let Some(d) = chars.next() {
+                        for d in chars.by_ref() {
                             if d == '\'' {
                                 break;
                             }
