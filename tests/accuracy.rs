@@ -595,7 +595,9 @@ fn penalty_refinement_reaches_the_constrained_solution_and_stops_on_conflicts() 
         );
         let warnings = &d.report().warnings;
         assert!(
-            warnings.iter().all(|w| !w.contains("forward error")),
+            warnings
+                .iter()
+                .all(|w| !w.message.contains("forward error")),
             "w = {w:e}: {warnings:?}"
         );
     }
@@ -610,7 +612,7 @@ fn penalty_refinement_reaches_the_constrained_solution_and_stops_on_conflicts() 
     assert_eq!(refinement.stop_reason, RefineStop::ConflictingConstraints);
     assert!(refinement.steps < 30);
     assert!(
-        r.warnings.iter().any(|w| w.contains("conflict")),
+        r.warnings.iter().any(|w| w.message.contains("conflict")),
         "{:?}",
         r.warnings
     );

@@ -439,7 +439,7 @@ fn arap_warns_about_its_forward_error_like_the_laplacian_path() {
         |warnings: &[lse_deform::report::Warning]| -> Vec<lse_deform::report::Warning> {
             warnings
                 .iter()
-                .filter(|w| w.contains("estimated forward error"))
+                .filter(|w| w.message.contains("estimated forward error"))
                 .cloned()
                 .collect()
         };
@@ -470,8 +470,11 @@ fn arap_warns_about_its_forward_error_like_the_laplacian_path() {
             "{refine:?}: {arap_warnings:?}"
         );
         for w in &arap_warnings {
-            assert!(w.starts_with("penalty: estimated forward error"), "{w}");
-            assert!(w.contains("refinement is off"), "{w}");
+            assert!(
+                w.message.starts_with("penalty: estimated forward error"),
+                "{w}"
+            );
+            assert!(w.message.contains("refinement is off"), "{w}");
         }
     }
 }

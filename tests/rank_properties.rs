@@ -227,7 +227,10 @@ fn check_conflict_warnings(
         };
         let needle = format!("constraint {i} conflicts with {with} and was dropped");
         prop_assert!(
-            report.warnings.iter().any(|w| w.starts_with(&needle)),
+            report
+                .warnings
+                .iter()
+                .any(|w| w.message.starts_with(&needle)),
             "{label}: no warning '{needle}' in {:?}",
             report.warnings
         );
@@ -236,15 +239,15 @@ fn check_conflict_warnings(
         .conflicting
         .len()
         .saturating_sub(CONFLICT_WARNINGS_SHOWN);
-    let counted = report
-        .warnings
-        .iter()
-        .any(|w| w.starts_with(&format!("… and {more} more conflicting constraints")));
+    let counted = report.warnings.iter().any(|w| {
+        w.message
+            .starts_with(&format!("… and {more} more conflicting constraints"))
+    });
     prop_assert_eq!(counted, more > 0, "{}: {:?}", label, report.warnings);
     let listed = report
         .warnings
         .iter()
-        .filter(|w| w.contains(" conflicts with "))
+        .filter(|w| w.message.contains(" conflicts with "))
         .count();
     prop_assert_eq!(
         listed,
@@ -354,7 +357,10 @@ fn check_method(
                     r
                 );
                 prop_assert!(
-                    report.warnings.iter().any(|w| w.contains("conflict")),
+                    report
+                        .warnings
+                        .iter()
+                        .any(|w| w.message.contains("conflict")),
                     "{label}"
                 );
             }

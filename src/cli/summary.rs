@@ -69,10 +69,11 @@ pub fn check_strict_conflicts(report: &Report, strict: bool) -> Result<(), Error
         .warnings
         .iter()
         .find(|w| {
-            w.starts_with(&format!(
-                "constraint {} conflicts",
-                report.conflicting[0].index
-            ))
+            w.kind == WarningKind::ConflictingConstraint
+                && w.message.starts_with(&format!(
+                    "constraint {} conflicts",
+                    report.conflicting[0].index
+                ))
         })
         .map(|w| w.message.clone())
         .unwrap_or_else(|| {

@@ -236,7 +236,7 @@ fn warn<W: pyo3::PyTypeInfo>(py: Python<'_>, message: &str) -> PyResult<()> {
 /// The report as a dict, its warnings raised as `RuntimeWarning`s.
 fn report_with_warnings<'py>(py: Python<'py>, report: &Report) -> PyResult<Bound<'py, PyAny>> {
     for w in &report.warnings {
-        warn::<PyRuntimeWarning>(py, w)?;
+        warn::<PyRuntimeWarning>(py, &w.message)?;
     }
     convert::report_dict(py, report)
 }
@@ -677,7 +677,7 @@ impl PyDeformer {
             let (positions, warnings) =
                 self.with_state(py, move |s| basis::solve_frame(s, refine, estimate))?;
             for w in &warnings {
-                warn::<PyRuntimeWarning>(py, w)?;
+                warn::<PyRuntimeWarning>(py, &w.message)?;
             }
             Ok(convert::positions_to_numpy(py, &positions).into_any())
         })

@@ -102,10 +102,10 @@ impl Serialize for WarningKind {
     }
 }
 
-/// One warning: its kind and the sentence shown to the user. Reads as its
-/// message (`Deref<Target = str>`, `Display`), as the warnings did when
-/// they were plain strings; serialised as the message (the report adds the
-/// codes under `"warning_codes"`).
+/// One warning: its kind and the sentence shown to the user (`Display`);
+/// serialised as the message (the report adds the codes under
+/// `"warning_codes"`). Code that needs to tell warnings apart matches on
+/// [`Warning::kind`], never on the sentence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Warning {
     /// What it is about.
@@ -129,36 +129,9 @@ impl Warning {
     }
 }
 
-impl std::ops::Deref for Warning {
-    type Target = str;
-    fn deref(&self) -> &str {
-        &self.message
-    }
-}
-
 impl std::fmt::Display for Warning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(&self.message)
-    }
-}
-
-/// A warning equals a text when its message is that text (what comparing
-/// warnings meant when they were strings).
-impl PartialEq<String> for Warning {
-    fn eq(&self, other: &String) -> bool {
-        self.message == *other
-    }
-}
-
-impl PartialEq<str> for Warning {
-    fn eq(&self, other: &str) -> bool {
-        self.message == other
-    }
-}
-
-impl PartialEq<&str> for Warning {
-    fn eq(&self, other: &&str) -> bool {
-        self.message == *other
     }
 }
 
