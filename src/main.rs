@@ -54,12 +54,35 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    // Under `mpirun`, every rank but 0 serves rank 0's MUMPS commands
+    // until rank 0 ends the run, then exits with rank 0's code.
+    #[cfg(feature = "mumps")]
+    if let Some(code) = lse_deform::backend::mumps::serve_if_worker() {
+        return ExitCode::from(code);
+    }
+    let code = run();
+    // Every MUMPS object is dropped by now: the other ranks may go.
+    #[cfg(feature = "mumps")]
+    lse_deform::backend::mumps::end_ranks(code);
+    ExitCode::from(code)
+}
+
+/// Parses the command line and runs the command; the exit code.
+fn run() -> u8 {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // Help and version print to stdout with code 0; errors to
+            // stderr with code 2.
+            let _ = e.print();
+            return e.exit_code() as u8;
+        }
+    };
     // A malformed LSE_MEMORY_LIMIT is bad input, before anything is read
     // (the default budget of every command comes from it).
     if let Err(e) = lse_deform::MemoryBudget::from_environment() {
         eprintln!("error: {e}");
-        return ExitCode::from(2);
+        return 2;
     }
     let result = match cli.command {
         Command::Deform(a) => cli::deform::deform(a),
@@ -74,7 +97,7 @@ fn main() -> ExitCode {
         Command::Edit(a) => cli::edit::edit(a),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => 0,
         Err(e) => {
             eprintln!("error: {e}");
             if cli.verbose {
@@ -84,7 +107,7 @@ fn main() -> ExitCode {
                     source = s.source();
                 }
             }
-            ExitCode::from(e.exit_code() as u8)
+            e.exit_code() as u8
         }
     }
 }

@@ -45,7 +45,7 @@ pub const INTERACTIVE_ARAP_ITERATIONS_PER_FRAME: usize = 2;
 /// Laplacian energy with [`DEFAULT_LAPLACIAN`], the null-space QR method on
 /// its default back ends with the formulation's default refinement and the
 /// process's memory budget ([`SolveOptions::default`]), not strict.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct DeformOptions {
     /// The energy: the linear Laplacian one ([`crate::Deformer`]) or ARAP
     /// ([`crate::arap::ArapDeformer`], whose own options are

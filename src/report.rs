@@ -291,6 +291,10 @@ pub struct Report {
     /// `rlimit`, `cgroup`, `unlimited`: [`crate::limits::BudgetSource`]);
     /// `None` before a precompute.
     pub memory_budget: Option<crate::limits::MemoryBudget>,
+    /// What a MUMPS factorisation says of its ranks (key `mumps`, present
+    /// only when MUMPS factored: `{"ranks", "factor_entries_per_rank",
+    /// "peak_bytes_per_rank", "ordering", "out_of_core"}`).
+    pub mumps: Option<crate::backend::MumpsFacts>,
 }
 
 impl Report {

@@ -46,6 +46,7 @@ use std::time::Instant;
 
 use faer::{Mat, MatMut, MatRef};
 
+use crate::backend::FactorStorage;
 use crate::condition::ConditionEstimate;
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{
@@ -73,7 +74,7 @@ use crate::report::{
 /// otherwise the smallest of the available memory, the address-space limit
 /// and the cgroup's memory limit), which is what a solve without options
 /// does.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SolveOptions {
     /// The formulation and its back ends.
     pub formulation: FormulationChoice,
@@ -83,6 +84,9 @@ pub struct SolveOptions {
     pub refine: Option<Refine>,
     /// The memory the precompute may use ([`crate::limits`]).
     pub memory_budget: MemoryBudget,
+    /// Where the factor is kept: in core, or out of core under a directory
+    /// (the `mumps` back end only).
+    pub factor_storage: FactorStorage,
 }
 
 impl Default for SolveOptions {
@@ -98,6 +102,7 @@ impl SolveOptions {
             formulation,
             refine: None,
             memory_budget: MemoryBudget::default(),
+            factor_storage: FactorStorage::InCore,
         }
     }
 }
@@ -173,7 +178,7 @@ impl LseSolver {
     /// Errors: those of [`FormulationChoice::build`] (the previous system is
     /// kept then) and of [`LseSolver::precompute`].
     pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
-        let formulation = options.formulation.build()?;
+        let formulation = options.formulation.build_with(&options.factor_storage)?;
         self.set_refine(options.refine);
         self.set_memory_budget(options.memory_budget);
         self.precompute(formulation.as_ref())
@@ -522,7 +527,9 @@ fn apply_record(report: &mut Report, record: PrecomputeRecord) {
         timings,
         warnings,
         facts,
+        mumps,
     } = record;
+    report.mumps = mumps;
     report.method = method;
     report.qr_backend = qr_backend;
     report.factor_backend = Some(factor_backend);

@@ -6,13 +6,59 @@
 //! two factorisations a formulation ran.
 
 pub mod ldlt;
+#[cfg(feature = "mumps")]
+pub mod mumps;
 pub mod qr;
 pub mod spd;
 #[cfg(feature = "suitesparse")]
 mod suitesparse;
 
+use std::path::PathBuf;
+
 use ldlt::LdltKind;
 use spd::SpdKind;
+
+/// Where a factor is kept while it is used.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
+pub enum FactorStorage {
+    /// In memory (every back end).
+    #[default]
+    InCore,
+    /// In files under this directory, which must exist (MUMPS only,
+    /// `ICNTL(22) = 1`): each rank makes its own subdirectory there and
+    /// removes it with its files when the factor is dropped, also after an
+    /// error. Only what MUMPS keeps in memory counts against the budget.
+    OutOfCore(PathBuf),
+}
+
+impl FactorStorage {
+    /// The directory, out of core.
+    pub fn directory(&self) -> Option<&std::path::Path> {
+        match self {
+            FactorStorage::InCore => None,
+            FactorStorage::OutOfCore(dir) => Some(dir),
+        }
+    }
+}
+
+/// What a MUMPS factorisation reports of its ranks (the report's `mumps`
+/// object; its keys are the field names).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct MumpsFacts {
+    /// The number of MPI ranks that factored.
+    pub ranks: usize,
+    /// Entries of each rank's share of the factor (`INFO(29)`), rank by
+    /// rank.
+    pub factor_entries_per_rank: Vec<u64>,
+    /// Bytes each rank's factorisation effectively used (`INFO(22)`, which
+    /// MUMPS counts in millions of bytes), rank by rank.
+    pub peak_bytes_per_rank: Vec<u64>,
+    /// The fill-reducing ordering MUMPS used (`INFOG(7)`): `given` when the
+    /// caller fixed the order (KKT).
+    pub ordering: String,
+    /// Whether the factor was kept out of core.
+    pub out_of_core: bool,
+}
 
 /// The factorisation a formulation ran, for the report: an SPD back end's
 /// Cholesky, or (the KKT method) an `LDLᵀ` back end's factorisation.

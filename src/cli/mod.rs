@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use lse_deform::backend::FactorStorage;
 use lse_deform::constraints::{ConstraintSet, read_constraints_file_within};
 use lse_deform::error::{ProblemError, SolveOption};
 use lse_deform::formulation::Refine;
@@ -72,6 +73,12 @@ pub struct MethodArgs {
     /// cgroup's memory limit.
     #[arg(long, value_parser = memory_budget)]
     pub memory_limit: Option<MemoryBudget>,
+    /// Keep the factor in files under this directory (it must exist; each
+    /// MPI rank makes its own subdirectory there and removes it, also on
+    /// error): --factor mumps only. The memory budget then counts what
+    /// stays in memory.
+    #[arg(long, value_name = "DIR")]
+    pub out_of_core: Option<std::path::PathBuf>,
 }
 
 /// A help line naming the default, for an option left `None` when not
@@ -96,7 +103,11 @@ impl MethodArgs {
             eprintln!("warning: {warning}");
         }
         let options = self.parse();
-        options.solve.formulation.build().map_err(with_flag)?;
+        options
+            .solve
+            .formulation
+            .build_with(&options.solve.factor_storage)
+            .map_err(with_flag)?;
         Ok(options)
     }
 
@@ -110,6 +121,9 @@ impl MethodArgs {
         solve.formulation.weight = self.weight;
         solve.refine = self.refine.or(solve.refine);
         solve.memory_budget = self.memory_limit.unwrap_or(solve.memory_budget);
+        if let Some(dir) = &self.out_of_core {
+            solve.factor_storage = FactorStorage::OutOfCore(dir.clone());
+        }
         options
     }
 

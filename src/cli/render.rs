@@ -6,7 +6,6 @@
 //! `--up`, `--azimuth` or `--elevation` say otherwise.
 
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 use clap::{Args, ValueEnum};
 use lse_deform::mesh::{self, Mesh};
@@ -106,9 +105,9 @@ const GROUP_COLOURS: [[u8; 3]; 6] = [
 
 /// Runs `render` and reports an error like the other commands (one line,
 /// causes with `--verbose`, exit code 2).
-pub fn main(args: RenderArgs, verbose: bool) -> ExitCode {
+pub fn main(args: RenderArgs, verbose: bool) -> u8 {
     match run(&args) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => 0,
         Err(e) => {
             eprintln!("error: {e}");
             let mut source = std::error::Error::source(&e);
@@ -116,7 +115,7 @@ pub fn main(args: RenderArgs, verbose: bool) -> ExitCode {
                 eprintln!("  caused by: {s}");
                 source = s.source();
             }
-            ExitCode::from(2)
+            2
         }
     }
 }

@@ -207,7 +207,7 @@ fn build_arap(
     // ARAP refines with the formulation's default, as it always has.
     arap.precompute_with(&SolveOptions {
         refine: None,
-        ..options.solve
+        ..options.solve.clone()
     })?;
     arap.initialize(defaults.init)?;
     arap.iterate(settings.arap_iterations_per_frame)?;

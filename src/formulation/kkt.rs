@@ -63,8 +63,9 @@ use super::record::{PrecomputeRecord, Precomputed};
 use super::util::{RowKind, split_normal};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
-use crate::backend::ldlt::{LdltFactor, LdltKind, Pivot};
-use crate::backend::spd::{SpdKind, check_factor_size};
+use crate::backend::FactorStorage;
+use crate::backend::ldlt::{DetectedPivots, LdltFactor, LdltKind, Pivot};
+use crate::backend::spd::SpdKind;
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
 use crate::limits::MemoryBudget;
@@ -105,10 +106,13 @@ pub const KKT_BACKWARD_ERROR_TOLERANCE: f64 = 1e-10;
 
 /// The KKT / Lagrange-multiplier formulation, factored by an `LDLᵀ` back
 /// end ([`crate::backend::ldlt`]) in a static order.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub struct Kkt {
-    /// The `LDLᵀ` back end (faer's, simplicial, supernodal or its choice).
+    /// The `LDLᵀ` back end (faer's, simplicial, supernodal or its choice;
+    /// MUMPS's).
     pub ldlt: LdltKind,
+    /// Where the factor is kept (out of core: MUMPS only).
+    pub storage: FactorStorage,
 }
 
 impl Kkt {
@@ -116,13 +120,17 @@ impl Kkt {
     /// ([`LdltKind::for_spd`]): `FaerAuto`, `FaerSimplicial` or
     /// `FaerSupernodal`; `None` for the other kinds, which have no `LDLᵀ`.
     pub fn for_spd(spd: SpdKind) -> Option<Kkt> {
-        LdltKind::for_spd(spd).map(|ldlt| Kkt { ldlt })
+        LdltKind::for_spd(spd).map(|ldlt| Kkt {
+            ldlt,
+            storage: FactorStorage::InCore,
+        })
     }
 
     /// Always simplicial (column by column).
     pub fn simplicial() -> Kkt {
         Kkt {
             ldlt: LdltKind::FaerSimplicial,
+            storage: FactorStorage::InCore,
         }
     }
 
@@ -130,6 +138,7 @@ impl Kkt {
     pub fn supernodal() -> Kkt {
         Kkt {
             ldlt: LdltKind::FaerSupernodal,
+            storage: FactorStorage::InCore,
         }
     }
 }
@@ -392,24 +401,23 @@ impl Formulation for Kkt {
 
         crate::interrupt::check()?;
         let t = Instant::now();
-        let backend = self.ldlt.backend();
+        let backend = self.ldlt.backend_with(&self.storage)?;
         let symbolic = backend.analyze(k_lower.symbolic(), &order)?;
         record.timings.symbolic = t.elapsed().as_secs_f64();
-        check_factor_size(
-            symbolic.factor_values(),
-            n + m,
-            "the KKT matrix [AᵀA Bᵀ; B 0]",
-            budget,
-        )?;
+        symbolic.check_budget(budget, n + m, "the KKT matrix [AᵀA Bᵀ; B 0]")?;
 
         crate::interrupt::check()?;
         let t = Instant::now();
         let factor = symbolic.factorize(k_lower.as_ref())?;
         crate::interrupt::check()?;
-        check_pivots(factor.as_ref(), &k_lower, problem)?;
+        match factor.detected_pivots() {
+            Some(detected) => check_detected_pivots(&detected, &order, problem)?,
+            None => check_pivots(factor.as_ref(), &k_lower, problem)?,
+        }
         record.timings.numeric = t.elapsed().as_secs_f64();
         record.sizes.factor = Some(factor.nnz());
         record.sizes.factor_bytes = Some(factor.bytes());
+        record.mumps = factor.mumps_facts();
 
         let norm = lower_sym_norm_inf(k_lower.as_ref());
         let system = Box::new(PreparedKkt {
@@ -482,6 +490,65 @@ fn assemble_kkt(
         SymbolicSparseColMat::new_checked(n + m, n + m, col_ptr, None, out_rows),
         out_vals,
     )
+}
+
+/// The pivots as a back end that judges them itself reports them (MUMPS's
+/// null pivots, [`DetectedPivots`]), mapped to the errors of
+/// [`check_pivots`]: the null pivot first in the static `order` names its
+/// constraint (a multiplier) or its vertex; with no null pivot, a count of
+/// negative pivots other than the number of multipliers means a vertex
+/// pivot of the wrong sign (the inertia of a nonsingular KKT matrix in this
+/// order is `n` positive, `m` negative).
+fn check_detected_pivots(
+    detected: &DetectedPivots,
+    order: &[usize],
+    problem: &LseProblem,
+) -> Result<(), Error> {
+    let (n, m) = (problem.n(), problem.b().nrows());
+    let mut position = vec![0usize; order.len()];
+    for (i, &unknown) in order.iter().enumerate() {
+        position[unknown] = i;
+    }
+    let first = detected
+        .null
+        .iter()
+        .copied()
+        .filter(|&u| u < position.len())
+        .min_by_key(|&u| position[u]);
+    let rule = format!(
+        "MUMPS found its pivot null (the norm of its row below {KKT_PIVOT_TOLERANCE:e} of ‖K‖∞)"
+    );
+    let detail = match first {
+        Some(unknown) if unknown < n && problem.is_general() => {
+            return Err(NumericalError::FreeUnknown {
+                matrix: MATRIX.into(),
+                unknown,
+                detail: rule,
+            }
+            .into());
+        }
+        Some(unknown) if unknown < n => format!(
+            "vertex {unknown}: {rule}: AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)"
+        ),
+        Some(unknown) => {
+            let k = unknown - n;
+            format!(
+                "hard constraint {} (row {k} of B, {}) depends on the constraints eliminated before it: for its multiplier, {rule}; redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
+                problem.hard_constraints()[k],
+                RowKind::of_row(problem.b().as_ref(), k),
+            )
+        }
+        None if detected.negative == m => return Ok(()),
+        None => format!(
+            "MUMPS found {} negative pivots where the {m} multipliers need exactly {m}: AᵀA is not positive definite on the unknowns the hard constraints leave free (use nullspace-qr)",
+            detected.negative
+        ),
+    };
+    Err(NumericalError::Singular {
+        matrix: MATRIX.into(),
+        detail,
+    }
+    .into())
 }
 
 /// The pivot test of the module documentation, in elimination order; the

@@ -13,6 +13,7 @@
 use faer::sparse::SparseColMat;
 use faer::{Mat, MatMut};
 
+use crate::backend::FactorStorage;
 use crate::backend::qr::QrKind;
 use crate::backend::spd::SpdKind;
 pub use crate::choice::Method;
@@ -194,12 +195,25 @@ impl FormulationChoice {
     /// [`ProblemError::InvalidArgument`] for a back end missing from this
     /// build.
     pub fn build(&self) -> Result<Box<dyn Formulation>, ProblemError> {
+        self.build_with(&FactorStorage::InCore)
+    }
+
+    /// The formulation, its factor kept in `storage` (out of core: the
+    /// `mumps` back end only).
+    ///
+    /// Errors: as [`FormulationChoice::build`], and
+    /// [`ProblemError::InvalidArgument`] for out-of-core storage with
+    /// another back end.
+    pub fn build_with(
+        &self,
+        storage: &FactorStorage,
+    ) -> Result<Box<dyn Formulation>, ProblemError> {
         let invalid =
             |option: SolveOption, message: String| ProblemError::InvalidOption { option, message };
         match self.method {
             Method::NullSpaceQr => Ok(Box::new(NullSpaceQr::new(
                 self.qr.backend()?,
-                self.spd.backend()?,
+                self.spd.backend_with(storage)?,
             ))),
             Method::Penalty => {
                 let w = self.weight.ok_or_else(|| {
@@ -214,19 +228,30 @@ impl FormulationChoice {
                         format!("weight {w} must be finite and > 0"),
                     ));
                 }
-                Ok(Box::new(Penalty::with_backend(w, self.spd.backend()?)))
+                Ok(Box::new(Penalty::with_backend(
+                    w,
+                    self.spd.backend_with(storage)?,
+                )))
             }
             Method::Kkt => match Kkt::for_spd(self.spd) {
-                Some(kkt) => Ok(Box::new(kkt)),
+                Some(kkt) => {
+                    // Refuses out-of-core storage with faer's LDLᵀ, and a
+                    // build without MUMPS, here rather than at precompute.
+                    kkt.ldlt.backend_with(storage)?;
+                    Ok(Box::new(Kkt {
+                        storage: storage.clone(),
+                        ..kkt
+                    }))
+                }
                 None => Err(invalid(
                     SolveOption::Spd,
                     format!(
-                        "the KKT method factors a symmetric indefinite matrix with faer's LDLᵀ: its SPD back end must be faer-auto, faer-simplicial or faer-supernodal, not '{}'",
+                        "the KKT method factors a symmetric indefinite matrix with faer's or MUMPS's LDLᵀ: its SPD back end must be faer-auto, faer-simplicial, faer-supernodal or mumps, not '{}'",
                         self.spd
                     ),
                 )),
             },
-            Method::Eliminate => Ok(Box::new(Elimination::new(self.spd.backend()?))),
+            Method::Eliminate => Ok(Box::new(Elimination::new(self.spd.backend_with(storage)?))),
         }
     }
 }

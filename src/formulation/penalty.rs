@@ -37,7 +37,7 @@ use super::record::{PrecomputeRecord, Precomputed};
 use super::util::{split_normal, with_context};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
-use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic, check_factor_size};
+use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
@@ -137,6 +137,7 @@ impl Formulation for Penalty {
         record.timings.numeric = t.elapsed().as_secs_f64();
         record.sizes.factor = Some(prepared.factor.nnz());
         record.sizes.factor_bytes = Some(prepared.factor.bytes());
+        record.mumps = prepared.factor.mumps_facts();
         if problem.b().nrows() > 0 {
             record.warnings.push(Warning::new(
                 WarningKind::PenaltyApproximate,
@@ -240,12 +241,7 @@ impl PenaltySweep {
         let t = Instant::now();
         let symbolic = spd.analyze(pattern.as_ref())?;
         let symbolic_s = t.elapsed().as_secs_f64();
-        check_factor_size(
-            symbolic.factor_nnz(),
-            pattern.ncols(),
-            "AᵀA + w²BᵀB",
-            budget,
-        )?;
+        symbolic.check_budget(budget, pattern.ncols(), "AᵀA + w²BᵀB")?;
         let ata_lower = faer::sparse::SparseColMatRef::new(pattern.as_ref(), &ata);
         let max_diagonal = (0..pattern.ncols())
             .map(|j| lower_diag(ata_lower, j))

@@ -66,6 +66,9 @@ pub struct PrecomputeRecord {
     pub warnings: Vec<Warning>,
     /// What only this method has.
     pub facts: MethodFacts,
+    /// What a MUMPS factorisation says of its ranks (`None` for the other
+    /// back ends).
+    pub mumps: Option<crate::backend::MumpsFacts>,
 }
 
 impl PrecomputeRecord {
@@ -80,6 +83,7 @@ impl PrecomputeRecord {
             timings: PhaseTimings::default(),
             warnings: Vec::new(),
             facts,
+            mumps: None,
         }
     }
 }

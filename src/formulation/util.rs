@@ -9,7 +9,7 @@ use std::time::Instant;
 use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef, SymbolicSparseColMat};
 
 use super::record::PrecomputeRecord;
-use crate::backend::spd::{SpdBackend, SpdFactor, check_factor_size};
+use crate::backend::spd::{SpdBackend, SpdFactor};
 use crate::error::{Error, NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 use crate::sparse::{NormalPattern, stack_rows};
@@ -112,7 +112,7 @@ pub(crate) type FactoredNormal = (SparseColMat<usize, f64>, Box<dyn SpdFactor>);
 
 /// `tril(MᵀM)` and its Cholesky factor by `spd`: the normal matrix, the
 /// symbolic analysis, the factor's size checked against the memory `budget`
-/// ([`check_factor_size`]) before the numeric factorisation, and the
+/// ([`crate::backend::spd::SpdSymbolic::check_budget`]) before the numeric factorisation, and the
 /// numeric factorisation, each phase's time and size recorded in `record`.
 /// `matrix` names `MᵀM` in errors and `vertex_of` gives the vertex of one
 /// of its unknowns.
@@ -135,7 +135,7 @@ pub(crate) fn factor_normal_matrix(
     let t = Instant::now();
     let symbolic = spd.analyze(normal.symbolic())?;
     record.timings.symbolic = t.elapsed().as_secs_f64();
-    check_factor_size(symbolic.factor_nnz(), normal.ncols(), matrix, budget)?;
+    symbolic.check_budget(budget, normal.ncols(), matrix)?;
 
     // The numeric factorisation is one back-end call: not interruptible
     // inside (crate::interrupt), checked before and after.
@@ -148,6 +148,7 @@ pub(crate) fn factor_normal_matrix(
     record.timings.numeric = t.elapsed().as_secs_f64();
     record.sizes.factor = Some(factor.nnz());
     record.sizes.factor_bytes = Some(factor.bytes());
+    record.mumps = factor.mumps_facts();
     Ok((normal, factor))
 }
 

@@ -1,14 +1,15 @@
 //! The report's serialised form: the keys and values scripts, the Python
 //! package and the editor read, in the order they have always had, with
-//! the keys added since (`factor_backend`, `warning_codes`). The typed
+//! the keys added since (`factor_backend`, `warning_codes`, and `mumps`,
+//! present only when MUMPS factored). The typed
 //! fields of [`Report`] map onto them here and nowhere else.
 
 use serde::{Serialize, Serializer};
 
 use super::{ArapReport, Conflict, Detected, EnergyOperator, Nnz, Report, SoftResidual, Timings};
 use super::{Warning, WarningKind};
-use crate::backend::FactorKind;
 use crate::backend::qr::QrKind;
+use crate::backend::{FactorKind, MumpsFacts};
 use crate::choice::Method;
 use crate::condition::ConditionEstimate;
 use crate::limits::MemoryBudget;
@@ -51,6 +52,8 @@ struct Wire<'a> {
     kkt_multiplier_scale: Option<f64>,
     arap: Option<&'a ArapReport>,
     memory_budget: Option<MemoryBudget>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mumps: Option<&'a MumpsFacts>,
 }
 
 impl Serialize for Report {
@@ -89,6 +92,7 @@ impl Serialize for Report {
             kkt_multiplier_scale: self.kkt_multiplier_scale(),
             arap: self.arap.as_ref(),
             memory_budget: self.memory_budget,
+            mumps: self.mumps.as_ref(),
         }
         .serialize(s)
     }

@@ -52,6 +52,8 @@ impl FaerLdlt {
             LdltKind::FaerAuto => SupernodalThreshold::AUTO,
             LdltKind::FaerSimplicial => SupernodalThreshold::FORCE_SIMPLICIAL,
             LdltKind::FaerSupernodal => SupernodalThreshold::FORCE_SUPERNODAL,
+            // Not a faer kind (LdltKind::backend makes no FaerLdlt of it).
+            LdltKind::Mumps => SupernodalThreshold::AUTO,
         }
     }
 }

@@ -20,7 +20,10 @@
 use faer::MatMut;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
-use crate::error::NumericalError;
+use crate::backend::FactorStorage;
+use crate::backend::spd::check_factor_size;
+use crate::error::{NumericalError, ProblemError};
+use crate::limits::MemoryBudget;
 
 mod faer_ldlt;
 
@@ -38,14 +41,18 @@ pub enum LdltKind {
     FaerSimplicial,
     /// faer's supernodal `LDLᵀ` (dense blocks of columns).
     FaerSupernodal,
+    /// MUMPS's multifrontal `LDLᵀ` in the given order, on one rank or many
+    /// (cargo feature `mumps`).
+    Mumps,
 }
 
 impl LdltKind {
     /// Every kind, in the order they are listed to users.
-    pub const ALL: [LdltKind; 3] = [
+    pub const ALL: [LdltKind; 4] = [
         LdltKind::FaerAuto,
         LdltKind::FaerSimplicial,
         LdltKind::FaerSupernodal,
+        LdltKind::Mumps,
     ];
 
     /// The word in reports.
@@ -54,6 +61,7 @@ impl LdltKind {
             LdltKind::FaerAuto => "faer-ldlt-auto",
             LdltKind::FaerSimplicial => "faer-ldlt-simplicial",
             LdltKind::FaerSupernodal => "faer-ldlt-supernodal",
+            LdltKind::Mumps => "mumps-ldlt",
         }
     }
 
@@ -67,13 +75,42 @@ impl LdltKind {
             SpdKind::FaerAuto => Some(LdltKind::FaerAuto),
             SpdKind::FaerSimplicial => Some(LdltKind::FaerSimplicial),
             SpdKind::FaerSupernodal => Some(LdltKind::FaerSupernodal),
+            SpdKind::Mumps => Some(LdltKind::Mumps),
             SpdKind::Nalgebra | SpdKind::Cholmod => None,
         }
     }
 
-    /// The back end.
-    pub fn backend(self) -> Box<dyn LdltBackend> {
-        Box::new(FaerLdlt::new(self))
+    /// The back end, keeping its factor in core.
+    ///
+    /// Errors: [`ProblemError::InvalidArgument`] for `Mumps` in a build
+    /// without the feature `mumps`.
+    pub fn backend(self) -> Result<Box<dyn LdltBackend>, ProblemError> {
+        self.backend_with(&FactorStorage::InCore)
+    }
+
+    /// The back end keeping its factor in `storage` (out of core: `Mumps`
+    /// only).
+    pub fn backend_with(
+        self,
+        storage: &FactorStorage,
+    ) -> Result<Box<dyn LdltBackend>, ProblemError> {
+        match self {
+            #[cfg(feature = "mumps")]
+            LdltKind::Mumps => Ok(Box::new(crate::backend::mumps::MumpsLdlt::new(
+                storage.directory().map(std::path::Path::to_path_buf),
+            ))),
+            #[cfg(not(feature = "mumps"))]
+            LdltKind::Mumps => Err(ProblemError::InvalidArgument {
+                message: crate::backend::spd::MUMPS_MISSING.into(),
+            }),
+            _ if storage.directory().is_some() => Err(ProblemError::InvalidArgument {
+                message: format!(
+                    "out-of-core storage of the factor needs the back end 'mumps', not '{}'",
+                    self.name()
+                ),
+            }),
+            _ => Ok(Box::new(FaerLdlt::new(self))),
+        }
     }
 }
 
@@ -120,6 +157,29 @@ pub trait LdltSymbolic: Send + Sync {
     /// Number of `f64` values the numeric factor will store, known after
     /// analysis (what the memory budget is checked against).
     fn factor_values(&self) -> usize;
+
+    /// Refuses a factorisation that would not fit in `budget`: by default
+    /// [`check_factor_size`] on [`LdltSymbolic::factor_values`]; MUMPS
+    /// checks its own estimate on every rank.
+    fn check_budget(
+        &self,
+        budget: MemoryBudget,
+        dim: usize,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        check_factor_size(self.factor_values(), dim, matrix, budget)
+    }
+}
+
+/// The pivots as a back end that judges them itself reports them
+/// (MUMPS's null-pivot detection): the unknowns whose pivots it found null
+/// (0-based, original order) and the number of negative pivots.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DetectedPivots {
+    /// Unknowns with a null pivot.
+    pub null: Vec<usize>,
+    /// How many pivots were negative (the inertia's negative count).
+    pub negative: usize,
 }
 
 /// A pivot `d_i` of the factorisation, in elimination order, with the
@@ -159,6 +219,17 @@ pub trait LdltFactor: Send + Sync {
     /// The back end's own report of a failed pivot during the numeric
     /// factorisation (its error, as text), if any.
     fn reported_failure(&self) -> Option<&str>;
+
+    /// `Some` for a back end that judges the pivots itself instead of
+    /// handing them out ([`LdltFactor::pivots`] is then empty).
+    fn detected_pivots(&self) -> Option<DetectedPivots> {
+        None
+    }
+
+    /// What a MUMPS factor reports of its ranks; `None` for the others.
+    fn mumps_facts(&self) -> Option<crate::backend::MumpsFacts> {
+        None
+    }
 }
 
 #[cfg(test)]
@@ -198,8 +269,14 @@ mod tests {
     fn every_variant_factors_solves_and_hands_out_the_pivots() {
         let k = kkt_like();
         let full = [[2.0, 1.0, 1.0], [1.0, 2.0, 0.0], [1.0, 0.0, 0.0]];
-        for kind in LdltKind::ALL {
-            let backend = kind.backend();
+        // MUMPS judges its pivots itself (tests/distributed.rs).
+        let faer_kinds = [
+            LdltKind::FaerAuto,
+            LdltKind::FaerSimplicial,
+            LdltKind::FaerSupernodal,
+        ];
+        for kind in faer_kinds {
+            let backend = kind.backend().unwrap();
             assert_eq!(backend.kind(), kind);
             let symbolic = backend.analyze(k.symbolic(), &[0, 1, 2]).unwrap();
             assert!(symbolic.factor_values() >= 6, "{kind}");
@@ -236,6 +313,7 @@ mod tests {
         let k = kkt_like();
         let symbolic = LdltKind::FaerSimplicial
             .backend()
+            .unwrap()
             .analyze(k.symbolic(), &[2, 0, 1])
             .unwrap();
         let factor = symbolic.factorize(k.as_ref()).unwrap();
@@ -260,6 +338,7 @@ mod tests {
         );
         let symbolic = LdltKind::FaerAuto
             .backend()
+            .unwrap()
             .analyze(k.symbolic(), &[0, 1, 2])
             .unwrap();
         let factor = symbolic.factorize(k.as_ref()).unwrap();

@@ -17,6 +17,7 @@ use std::sync::Arc;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, MatRef};
 
+use crate::backend::FactorStorage;
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 
@@ -49,16 +50,20 @@ pub enum SpdKind {
     Nalgebra,
     /// SuiteSparse CHOLMOD (cargo feature `suitesparse`).
     Cholmod,
+    /// MUMPS's multifrontal Cholesky, on one rank or many (cargo feature
+    /// `mumps`).
+    Mumps,
 }
 
 impl SpdKind {
     /// Every kind, in the order they are listed to users.
-    pub const ALL: [SpdKind; 5] = [
+    pub const ALL: [SpdKind; 6] = [
         SpdKind::FaerSupernodal,
         SpdKind::FaerSimplicial,
         SpdKind::FaerAuto,
         SpdKind::Nalgebra,
         SpdKind::Cholmod,
+        SpdKind::Mumps,
     ];
 
     /// The name the CLI and Python use.
@@ -69,13 +74,18 @@ impl SpdKind {
             SpdKind::FaerAuto => "faer-auto",
             SpdKind::Nalgebra => "nalgebra",
             SpdKind::Cholmod => "cholmod",
+            SpdKind::Mumps => "mumps",
         }
     }
 
     /// Whether this build has the back end (`Cholmod` needs the cargo
-    /// feature `suitesparse`).
+    /// feature `suitesparse`, `Mumps` the feature `mumps`).
     pub fn in_this_build(self) -> bool {
-        self != SpdKind::Cholmod || cfg!(feature = "suitesparse")
+        match self {
+            SpdKind::Cholmod => cfg!(feature = "suitesparse"),
+            SpdKind::Mumps => cfg!(feature = "mumps"),
+            _ => true,
+        }
     }
 
     /// The kinds of this build, in [`SpdKind::ALL`]'s order.
@@ -92,6 +102,26 @@ impl SpdKind {
     /// without the `suitesparse` feature (the message says how to enable
     /// it).
     pub fn backend(self) -> Result<Arc<dyn SpdBackend>, ProblemError> {
+        self.backend_with(&FactorStorage::InCore)
+    }
+
+    /// The back end keeping its factor in `storage`.
+    ///
+    /// Errors: as [`SpdKind::backend`], and
+    /// [`ProblemError::InvalidArgument`] for out-of-core storage with any
+    /// back end but `Mumps`.
+    pub fn backend_with(
+        self,
+        storage: &FactorStorage,
+    ) -> Result<Arc<dyn SpdBackend>, ProblemError> {
+        if storage.directory().is_some() && self != SpdKind::Mumps {
+            return Err(ProblemError::InvalidArgument {
+                message: format!(
+                    "out-of-core storage of the factor needs the SPD back end 'mumps', not '{}'",
+                    self.name()
+                ),
+            });
+        }
         match self {
             SpdKind::FaerSupernodal => Ok(Arc::new(FaerLlt::supernodal())),
             SpdKind::FaerSimplicial => Ok(Arc::new(FaerLlt::simplicial())),
@@ -103,9 +133,21 @@ impl SpdKind {
             SpdKind::Cholmod => Err(ProblemError::InvalidArgument {
                 message: "the SPD back end 'cholmod' (SuiteSparse CHOLMOD) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
             }),
+            #[cfg(feature = "mumps")]
+            SpdKind::Mumps => Ok(Arc::new(crate::backend::mumps::MumpsLlt::new(
+                storage.directory().map(std::path::Path::to_path_buf),
+            ))),
+            #[cfg(not(feature = "mumps"))]
+            SpdKind::Mumps => Err(ProblemError::InvalidArgument {
+                message: MUMPS_MISSING.into(),
+            }),
         }
     }
 }
+
+/// Why `mumps` is refused by a build without it.
+#[cfg(not(feature = "mumps"))]
+pub(crate) const MUMPS_MISSING: &str = "the back end 'mumps' (MUMPS over MPI) is not in this build: rebuild with `--features mumps` (needs the system packages libmumps-ptscotch-dev, libmumps-headers-dev, libopenmpi-dev, openmpi-bin and libclang-dev)";
 
 /// Threshold on `L_kk² / A_kk` below which a completed Cholesky
 /// factorisation is declared broken down.
@@ -178,6 +220,19 @@ pub trait SpdSymbolic: Send + Sync {
     /// Number of stored entries of the factor `L` (lower triangle, diagonal
     /// included), known after analysis.
     fn factor_nnz(&self) -> usize;
+
+    /// Refuses a factorisation that would not fit in `budget`: by default
+    /// [`check_factor_size`] on [`SpdSymbolic::factor_nnz`]; MUMPS checks
+    /// its own estimate on every rank. `dim` and `matrix` are for the
+    /// message.
+    fn check_budget(
+        &self,
+        budget: MemoryBudget,
+        dim: usize,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        check_factor_size(self.factor_nnz(), dim, matrix, budget)
+    }
 }
 
 /// A numeric factorisation `P A Pᵀ = L Lᵀ`.
@@ -194,6 +249,11 @@ pub trait SpdFactor: Send + Sync {
     /// Bytes of the factor's numerical values and indices (what a solve must
     /// read twice: the bandwidth floor of a solve).
     fn bytes(&self) -> usize;
+
+    /// What a MUMPS factor reports of its ranks; `None` for the others.
+    fn mumps_facts(&self) -> Option<crate::backend::MumpsFacts> {
+        None
+    }
 }
 
 /// Solves with a factor, returning the solution (convenience).

@@ -1,0 +1,122 @@
+//! MUMPS (feature `mumps`): the multifrontal sparse direct solver, in
+//! Debian's MPI build, behind the SPD seam ([`MumpsLlt`], `SYM = 1`) and
+//! the `LDLᵀ` seam ([`MumpsLdlt`], `SYM = 2`), in one process or on many
+//! under `mpirun` (docs/distributed.md).
+//!
+//! **Phases.** Analysis once (`JOB = 1`), a numeric factorisation per
+//! matrix of the analysed pattern (`JOB = 2`: per weight of a sweep), and
+//! one solve of all right-hand sides together (`JOB = 3`).
+//!
+//! **Ranks.** Rank 0 reads the inputs, assembles, and does everything but
+//! the factorisation and the solves, which run on every rank; only rank 0
+//! holds the matrix and the right-hand sides (centralised input,
+//! `ICNTL(18) = 0`). The binary calls [`serve_if_worker`] first: on the
+//! other ranks it carries out rank 0's MUMPS commands until rank 0 calls
+//! [`end_ranks`] with its exit code, and every rank exits with that code.
+//!
+//! **Memory.** After the analysis every rank checks MUMPS's estimate of
+//! its own share (`INFO(15)` in core, `INFO(17)` out of core: what stays
+//! in memory) against its budget; any refusal refuses the run on every
+//! rank, before the factorisation.
+
+mod cholesky;
+mod driver;
+mod ffi;
+mod instance;
+mod ldlt;
+mod ranks;
+mod session;
+
+pub use cholesky::MumpsLlt;
+pub use ldlt::MumpsLdlt;
+pub use ranks::launched_by_mpirun;
+
+use instance::Failure;
+
+use crate::backend::MumpsFacts;
+use crate::error::{NumericalError, ProblemError};
+
+/// The name in errors and reports.
+const NAME: &str = "mumps";
+
+/// What the binary calls before anything else. Launched by `mpirun`, it
+/// starts MPI; on rank 0 it returns `None` (go on with the command), on any
+/// other rank it serves rank 0's MUMPS commands until rank 0 ends the run,
+/// then returns rank 0's exit code. Not launched by `mpirun`, it does
+/// nothing and returns `None` (MUMPS then starts MPI as one rank when first
+/// used).
+pub fn serve_if_worker() -> Option<u8> {
+    if !launched_by_mpirun() {
+        return None;
+    }
+    let rt = ranks::runtime();
+    if rt.size > 1 {
+        ranks::abort_all_on_panic();
+    }
+    if rt.rank == 0 {
+        return None;
+    }
+    let code = instance::serve(&rt.world());
+    ranks::finalize();
+    Some(code)
+}
+
+/// What rank 0 (or a lone process) calls last, once every MUMPS object is
+/// dropped: tells the other ranks to exit with `exit_code`, then ends MPI.
+/// Does nothing if MPI was never started.
+pub fn end_ranks(exit_code: u8) {
+    if !ranks::started() {
+        return;
+    }
+    let rt = ranks::runtime();
+    if rt.rank == 0 {
+        let _turn = rt.serial();
+        instance::send(&rt.world(), &instance::Command::Exit { code: exit_code });
+    }
+    ranks::finalize();
+}
+
+/// The number of ranks (starting MPI if needed).
+pub fn ranks() -> usize {
+    ranks::runtime().size as usize
+}
+
+/// A failure as the seams' error.
+pub(crate) fn numerical(failure: Failure) -> NumericalError {
+    let message = match failure {
+        Failure::Mumps { infog1, infog2 } => describe(infog1, infog2),
+        Failure::Memory(m) | Failure::Rank(m) => m,
+    };
+    NumericalError::Backend {
+        backend: NAME.to_string(),
+        message,
+    }
+}
+
+/// A refused memory check as the usual refusal.
+pub(crate) fn too_large(failure: Failure, matrix: &str) -> ProblemError {
+    let detail = match failure {
+        Failure::Memory(m) | Failure::Rank(m) => m,
+        Failure::Mumps { infog1, infog2 } => describe(infog1, infog2),
+    };
+    ProblemError::TooLarge {
+        detail: format!("factoring {matrix}: {detail}"),
+    }
+}
+
+/// MUMPS's error codes in words (user's guide, §8), with the code.
+fn describe(infog1: i32, infog2: i32) -> String {
+    let what = match infog1 {
+        -5 | -7 | -13 => format!("could not allocate memory ({infog2} entries or MB asked)"),
+        -8 | -9 | -11 | -14 | -15 | -17 | -20 => {
+            "its workspace was too small even after relaxing ICNTL(14) three times".to_string()
+        }
+        -10 => "the matrix is numerically singular".to_string(),
+        -40 => "the matrix is not positive definite (a pivot that is not positive in the Cholesky factorisation)".to_string(),
+        -16 => format!("the order {infog2} is out of range"),
+        -90 => format!("out-of-core: a file of the factor could not be written or read (system error {infog2})"),
+        e if (-79..=-70).contains(&e) => format!("out-of-core: file error (INFOG(2) = {infog2})"),
+        _ => format!("error (INFOG(2) = {infog2})"),
+    };
+    format!("MUMPS {what} [INFOG(1) = {infog1}]")
+}
