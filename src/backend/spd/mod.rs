@@ -81,11 +81,9 @@ impl SpdKind {
     /// Whether this build has the back end (`Cholmod` needs the cargo
     /// feature `suitesparse`, `Mumps` the feature `mumps`).
     pub fn in_this_build(self) -> bool {
-        match self {
-            SpdKind::Cholmod => cfg!(feature = "suitesparse"),
-            SpdKind::Mumps => cfg!(feature = "mumps"),
-            _ => true,
-        }
+        let missing = (self == SpdKind::Cholmod && !cfg!(feature = "suitesparse"))
+            || (self == SpdKind::Mumps && !cfg!(feature = "mumps"));
+        !missing
     }
 
     /// The kinds of this build, in [`SpdKind::ALL`]'s order.
