@@ -47,7 +47,7 @@ impl FactorStorage {
 pub struct MumpsFacts {
     /// The number of MPI ranks that factored.
     pub ranks: usize,
-    /// Entries of each rank's share of the factor (`INFO(29)`), rank by
+    /// Entries of each rank's share of the factor (`INFO(27)`), rank by
     /// rank.
     pub factor_entries_per_rank: Vec<u64>,
     /// Bytes each rank's factorisation effectively used (`INFO(22)`, which

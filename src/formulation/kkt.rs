@@ -56,7 +56,7 @@ use std::time::Instant;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::amd;
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::sparse::{SparseColMat, SparseRowMat, SymbolicSparseColMat, Triplet};
 use faer::{Mat, MatMut};
 
 use super::record::{PrecomputeRecord, Precomputed};
@@ -65,6 +65,7 @@ use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
 use crate::backend::FactorStorage;
 use crate::backend::ldlt::{DetectedPivots, LdltFactor, LdltKind, Pivot};
+use crate::backend::qr::{QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::SpdKind;
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
@@ -509,12 +510,22 @@ fn check_detected_pivots(
     for (i, &unknown) in order.iter().enumerate() {
         position[unknown] = i;
     }
-    let first = detected
+    let mut first = detected
         .null
         .iter()
         .copied()
         .filter(|&u| u < position.len())
         .min_by_key(|&u| position[u]);
+    // MUMPS may eliminate the members of a dependent group in another
+    // order than the static one (it compresses rows with one pattern into
+    // one node), so it can flag another member than faer would: the one
+    // named is the first row, in the static order's sequence of
+    // multipliers, that depends on the rows before it.
+    if first.is_some_and(|u| u >= n) {
+        if let Some(k) = first_dependent_row(problem, order)? {
+            first = Some(n + k);
+        }
+    }
     let rule = format!(
         "MUMPS found its pivot null (the norm of its row below {KKT_PIVOT_TOLERANCE:e} of ‖K‖∞)"
     );
@@ -549,6 +560,32 @@ fn check_detected_pivots(
         detail,
     }
     .into())
+}
+
+/// The first hard row, in the order in which `order` eliminates the
+/// multipliers, that depends on the rows before it: a rank-revealing QR of
+/// `Bᵀ` with the rows in that order (sparse Givens, the null-space method's
+/// rank tolerance). In the static order every multiplier comes after all
+/// its vertices, so the multiplier pivot of faer's `LDLᵀ` vanishes exactly
+/// at such a row (module documentation): this names the constraint faer
+/// names, for the dependences both tolerances see.
+fn first_dependent_row(problem: &LseProblem, order: &[usize]) -> Result<Option<usize>, Error> {
+    let n = problem.n();
+    let b = problem.b().as_ref();
+    let sequence: Vec<usize> = order.iter().filter(|&&u| u >= n).map(|&u| u - n).collect();
+    let mut triplets = Vec::new();
+    for (i, &k) in sequence.iter().enumerate() {
+        let (cols, vals) = row_entries(b, k);
+        triplets.extend(cols.iter().zip(vals).map(|(&j, &v)| Triplet::new(i, j, v)));
+    }
+    let reordered =
+        SparseRowMat::try_new_from_triplets(sequence.len(), n, &triplets).map_err(backend_error)?;
+    let qr = SparseGivens::default().factor(reordered.as_ref(), RankTolerance::default())?;
+    let mut kept = vec![false; sequence.len()];
+    for &i in qr.kept() {
+        kept[i] = true;
+    }
+    Ok(kept.iter().position(|&k| !k).map(|i| sequence[i]))
 }
 
 /// The pivot test of the module documentation, in elimination order; the

@@ -27,6 +27,7 @@ use pyo3::exceptions::{PyRuntimeError, PyRuntimeWarning, PyUserWarning};
 use pyo3::prelude::*;
 
 use crate::arap::ArapDeformer;
+use crate::backend::FactorStorage;
 use crate::choice::{ArapEnergy, ArapInit, Energy, Method};
 use crate::compare::{self, CompareOptions};
 use crate::constraints::ConstraintSet;
@@ -66,7 +67,8 @@ fn with_keyword(e: ProblemError) -> ProblemError {
 }
 
 /// The keyword arguments `method`, `qr`, `factor` (or `spd`, its old
-/// name), `weight`, `refine` and `memory_limit` (the CLI's options); each
+/// name), `weight`, `refine`, `memory_limit` and `out_of_core` (the CLI's
+/// options); each
 /// `None` keeps [`DeformOptions::default`]'s value.
 struct Keywords<'a, 'py> {
     method: Option<&'a str>,
@@ -75,6 +77,9 @@ struct Keywords<'a, 'py> {
     weight: Option<f64>,
     refine: Option<&'a Bound<'py, PyAny>>,
     memory_limit: Option<&'a Bound<'py, PyAny>>,
+    /// `out_of_core=`: the directory of an out-of-core factor (`None`: in
+    /// core).
+    out_of_core: Option<std::path::PathBuf>,
 }
 
 /// The `factor=` keyword and `spd=`, its old name (kept for one release).
@@ -114,7 +119,12 @@ impl Keywords<'_, '_> {
             f.spd = option_word(spd)?;
         }
         f.weight = self.weight.or(f.weight);
-        f.build().map_err(|e| to_py(with_keyword(e).into()))?;
+        if let Some(dir) = self.out_of_core {
+            options.solve.factor_storage = FactorStorage::OutOfCore(dir);
+        }
+        let f = &options.solve.formulation;
+        f.build_with(&options.solve.factor_storage)
+            .map_err(|e| to_py(with_keyword(e).into()))?;
         options.solve.refine = parse_refine(self.refine)?.or(options.solve.refine);
         options.solve.memory_budget = parse_memory_limit(self.memory_limit)?;
         Ok(options)
@@ -323,7 +333,7 @@ fn deform_arap(
 /// solve in one call (with `energy="arap"`, the ARAP iterations). Returns
 /// `(U, report)`.
 #[pyfunction]
-#[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, energy=None, arap_energy=None, iterations=None, tolerance=None, arap_init=None, memory_limit=None, spd=None))]
+#[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, energy=None, arap_energy=None, iterations=None, tolerance=None, arap_init=None, memory_limit=None, out_of_core=None, spd=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn deform<'py>(
     py: Python<'py>,
@@ -342,6 +352,7 @@ fn deform<'py>(
     tolerance: Option<f64>,
     arap_init: Option<&str>,
     memory_limit: Option<&Bound<'py, PyAny>>,
+    out_of_core: Option<std::path::PathBuf>,
     spd: Option<&str>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
@@ -353,6 +364,7 @@ fn deform<'py>(
             weight,
             refine,
             memory_limit,
+            out_of_core,
         }
         .options()?
         .solve;
@@ -473,7 +485,7 @@ fn laplacian_matrix<'py>(
 /// Solves `min ‖A X − C‖ subject to B X = D` for sparse `A` (l × n) and
 /// `B` (m × n) and dense `C` (l × k) and `D` (m × k); returns `(X, report)`.
 #[pyfunction]
-#[pyo3(signature = (A, C, B, D, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, spd=None))]
+#[pyo3(signature = (A, C, B, D, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, out_of_core=None, spd=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn solve_lse<'py>(
     py: Python<'py>,
@@ -487,6 +499,7 @@ fn solve_lse<'py>(
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
     memory_limit: Option<&Bound<'py, PyAny>>,
+    out_of_core: Option<std::path::PathBuf>,
     spd: Option<&str>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
@@ -497,6 +510,7 @@ fn solve_lse<'py>(
             weight,
             refine,
             memory_limit,
+            out_of_core,
         }
         .options()?
         .solve;
@@ -559,7 +573,7 @@ impl PyDeformer {
     /// Set-up: validates the mesh and constraints, builds the Laplacian and
     /// the system. Options as for `deform`.
     #[new]
-    #[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, spd=None))]
+    #[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, out_of_core=None, spd=None))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -573,6 +587,7 @@ impl PyDeformer {
         weight: Option<f64>,
         refine: Option<&Bound<'_, PyAny>>,
         memory_limit: Option<&Bound<'_, PyAny>>,
+        out_of_core: Option<std::path::PathBuf>,
         spd: Option<&str>,
     ) -> PyResult<PyDeformer> {
         guarded(|| {
@@ -584,6 +599,7 @@ impl PyDeformer {
                 weight,
                 refine,
                 memory_limit,
+                out_of_core,
             }
             .options()?
             .solve;

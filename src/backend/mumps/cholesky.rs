@@ -9,12 +9,15 @@
 //! - **solve**: `JOB = 3` with every right-hand side in one dense block on
 //!   rank 0.
 //!
-//! A pivot that is not positive ends the factorisation with `INFOG(1) =
-//! −40` (or −10); MUMPS does not say which unknown, so the error names the
-//! code. The breakdown check of the other back ends ([`super::super::spd::BREAKDOWN_RATIO`])
-//! needs the factor's diagonal, which MUMPS does not hand out: a factor
-//! that lost its digits shows in the solve's forward-error estimate
-//! instead (docs/distributed.md §4).
+//! MUMPS's `SYM = 1` factorisation stops at an exactly zero pivot (error
+//! −10) but not at a negative one: it counts them (`INFOG(12)`), and any
+//! count refuses the factor (MUMPS does not say where). The breakdown test
+//! of the other back ends (`L_kk²/A_kk` below
+//! [`crate::backend::spd::BREAKDOWN_RATIO`]) needs the factor's diagonal,
+//! which MUMPS does not hand out, and its null-pivot detection
+//! (`ICNTL(24)`) does not act on `SYM = 1`: a pivot that lost its digits
+//! without turning negative is seen only by the solve's forward-error
+//! estimate (docs/distributed.md §4).
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -26,6 +29,7 @@ use super::driver::Driver;
 use super::instance::Params;
 use super::session::{Assembled, Factorisation, Session, Shared, lock};
 use super::{MumpsFacts, numerical, too_large};
+use crate::backend::ldlt::DetectedPivots;
 use crate::backend::spd::{SpdBackend, SpdFactor, SpdKind, SpdSymbolic};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
@@ -49,6 +53,18 @@ fn analysis_params() -> Params {
     Params {
         icntl: vec![(7, 7), (28, 1)],
         cntl: Vec::new(),
+    }
+}
+
+/// A factor with negative pivots (MUMPS's count, `INFOG(12)`) as the
+/// seam's error.
+fn check_pivots(detected: &DetectedPivots) -> Result<(), NumericalError> {
+    match detected.negative {
+        0 => Ok(()),
+        count => Err(numerical(super::instance::Failure::Rank(format!(
+            "the matrix is not positive definite: MUMPS's factorisation met {count} negative pivot{}",
+            if count == 1 { "" } else { "s" }
+        )))),
     }
 }
 
@@ -96,6 +112,7 @@ impl SpdSymbolic for MumpsSymbolic {
         lower: SparseColMatRef<'_, usize, f64>,
     ) -> Result<Box<dyn SpdFactor>, NumericalError> {
         let factor = Factorisation::new(&self.shared, lower).map_err(numerical)?;
+        check_pivots(&lock(&self.shared).detected_pivots())?;
         Ok(Box::new(MumpsFactor(factor)))
     }
 

@@ -57,10 +57,10 @@ pub(crate) struct Params {
 /// §6.1), in the order of [`RankFigures::from_values`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) struct RankFigures {
-    /// `INFO(3)`: estimated real entries of this rank's share of the
-    /// factor (after analysis).
+    /// `INFO(24)`: estimated entries of this rank's share of the factor
+    /// (after analysis).
     pub factor_entries_estimate: u64,
-    /// `INFO(29)`: entries of this rank's share of the factor (after
+    /// `INFO(27)`: entries of this rank's share of the factor (after
     /// factorisation).
     pub factor_entries: u64,
     /// `INFO(15)`: estimated bytes of this rank's in-core factorisation.
@@ -75,8 +75,8 @@ pub(crate) struct RankFigures {
 impl RankFigures {
     fn read(struc: &Struc) -> [u64; 5] {
         [
-            ffi::count(struc.info(3)),
-            ffi::count(struc.info(29)),
+            ffi::count(struc.info(24)),
+            ffi::count(struc.info(27)),
             megabytes(struc.info(15)),
             megabytes(struc.info(17)),
             megabytes(struc.info(22)),

@@ -2,19 +2,21 @@
 //! ([`crate::backend::ldlt`]), for the KKT formulation.
 //!
 //! The seam's contract is a **static** order given by the caller. MUMPS
-//! gets it as `PERM_IN` (`ICNTL(7) = 1`) with numerical pivoting off
-//! (`CNTL(1) = 0`), no scaling (`ICNTL(8) = 0`), the usual (not
-//! compressed) ordering (`ICNTL(12) = 1`) and the root node factored like
-//! any other (`ICNTL(13) = 1`), so that it eliminates in the caller's
-//! order as faer does. MUMPS does not hand out the pivots: it judges them
-//! itself with its null-pivot detection (`ICNTL(24) = 1`), which flags a
-//! pivot whose row in the frontal matrix has an infinity norm below
-//! `CNTL(3)·‖K‖∞`; `CNTL(3)` is the KKT pivot tolerance
-//! ([`crate::formulation::KKT_PIVOT_TOLERANCE`]) and `K` is already scaled
-//! so that its constraint block matches `AᵀA`. The flagged unknowns
-//! (`PIVNUL_LIST`) and the count of negative pivots (`INFOG(12)`) are what
-//! [`LdltFactor::detected_pivots`] returns; the KKT formulation maps them to
-//! the same errors as faer's pivots (docs/distributed.md §3).
+//! gets it as `PERM_IN` (`ICNTL(7) = 1`) with numerical pivoting only for
+//! pivots below `1e-10` of their column (`CNTL(1)`, [`PIVOT_THRESHOLD`]),
+//! no scaling (`ICNTL(8) = 0`), the usual (not compressed) ordering
+//! (`ICNTL(12) = 1`) and the root node factored like any other
+//! (`ICNTL(13) = 1`). MUMPS still orders within its own tree: unknowns with
+//! one pattern (duplicate constraints) are merged into one node and may be
+//! eliminated in another order than the given one. MUMPS does not hand
+//! out the pivots: it judges them itself with its null-pivot detection
+//! (`ICNTL(24) = 1`), which flags a pivot whose row in the frontal matrix
+//! has an infinity norm below `CNTL(3)·‖K‖∞`; `CNTL(3)` is the KKT pivot
+//! tolerance `1000 ε` and `K` is already scaled so that its constraint
+//! block matches `AᵀA`. The flagged unknowns (`PIVNUL_LIST`) and the count
+//! of negative pivots (`INFOG(12)`) are what [`LdltFactor::detected_pivots`]
+//! returns; the KKT formulation maps them to the same errors as faer's
+//! pivots (docs/distributed.md §3).
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -37,6 +39,14 @@ use crate::limits::MemoryBudget;
 /// formulation's pivot tolerance.
 const NULL_PIVOT_THRESHOLD: f64 = 1000.0 * f64::EPSILON;
 
+/// `CNTL(1)`, the relative threshold of numerical pivoting: MUMPS keeps a
+/// pivot in place unless it is below this fraction of the largest entry
+/// of its column in the front. Zero would turn pivoting off, but MUMPS's
+/// null-pivot detection lives in its pivot search and stops with it (a
+/// zero pivot is then error −10), so the threshold is tiny rather than
+/// zero: the static order is kept for every pivot that is not almost null.
+const PIVOT_THRESHOLD: f64 = 1e-10;
+
 /// MUMPS's `LDLᵀ` in a static order.
 #[derive(Debug, Clone, Default)]
 pub struct MumpsLdlt {
@@ -53,7 +63,7 @@ impl MumpsLdlt {
 fn analysis_params() -> Params {
     Params {
         icntl: vec![(6, 0), (7, 1), (8, 0), (12, 1), (13, 1), (24, 1), (28, 1)],
-        cntl: vec![(1, 0.0), (3, NULL_PIVOT_THRESHOLD)],
+        cntl: vec![(1, PIVOT_THRESHOLD), (3, NULL_PIVOT_THRESHOLD)],
     }
 }
 
@@ -92,27 +102,7 @@ impl LdltSymbolic for MumpsLdltSymbolic {
         lower: SparseColMatRef<'_, usize, f64>,
     ) -> Result<Box<dyn LdltFactor>, NumericalError> {
         let factor = Factorisation::new(&self.0.shared, lower).map_err(numerical)?;
-        let detected = {
-            let session = lock(&self.0.shared);
-            let struc = session.driver.struc();
-            let count = struc.infog(28).max(0) as usize;
-            let list = struc.0.pivnul_list;
-            let null = if list.is_null() {
-                Vec::new()
-            } else {
-                // SAFETY: with ICNTL(24) = 1, MUMPS allocates PIVNUL_LIST on
-                // the host with at least INFOG(28) entries (user's guide,
-                // §5.13).
-                unsafe { std::slice::from_raw_parts(list, count) }
-                    .iter()
-                    .map(|&i| (i - 1).max(0) as usize)
-                    .collect()
-            };
-            DetectedPivots {
-                null,
-                negative: struc.infog(12).max(0) as usize,
-            }
-        };
+        let detected = lock(&self.0.shared).detected_pivots();
         Ok(Box::new(MumpsLdltFactor { factor, detected }))
     }
 

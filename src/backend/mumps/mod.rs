@@ -120,3 +120,6 @@ fn describe(infog1: i32, infog2: i32) -> String {
     };
     format!("MUMPS {what} [INFOG(1) = {infog1}]")
 }
+
+#[cfg(test)]
+mod tests;

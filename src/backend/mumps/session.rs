@@ -16,6 +16,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use super::driver::Driver;
 use super::instance::{Failure, Params};
 use super::{MumpsFacts, numerical};
+use crate::backend::ldlt::DetectedPivots;
 use crate::error::NumericalError;
 
 /// The lower triangle of a symmetric matrix as MUMPS's centralised
@@ -164,6 +165,28 @@ impl Session {
             s.lrhs = n as i32;
             s.a = a.cast_mut();
         })
+    }
+
+    /// The null pivots (`PIVNUL_LIST`, 0-based) and the number of negative
+    /// pivots (`INFOG(12)`) of the current factor.
+    pub fn detected_pivots(&self) -> DetectedPivots {
+        let struc = self.driver.struc();
+        let count = struc.infog(28).max(0) as usize;
+        let list = struc.0.pivnul_list;
+        let null = if list.is_null() {
+            Vec::new()
+        } else {
+            // SAFETY: with ICNTL(24) = 1, MUMPS allocates PIVNUL_LIST on
+            // the host with at least INFOG(28) entries (1-based indices).
+            unsafe { std::slice::from_raw_parts(list, count) }
+                .iter()
+                .map(|&i| (i - 1).max(0) as usize)
+                .collect()
+        };
+        DetectedPivots {
+            null,
+            negative: struc.infog(12).max(0) as usize,
+        }
     }
 
     /// What the report says of the current factor.

@@ -68,6 +68,7 @@ def deform(
     tolerance: Optional[float] = None,
     arap_init: Optional[str] = None,
     memory_limit: MemoryLimit = None,
+    out_of_core: Optional[str | os.PathLike[str]] = None,
     spd: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """Deforms (V, F) under the constraints; returns (U, report).
@@ -79,8 +80,9 @@ def deform(
     method: 'nullspace-qr' (the paper; default), 'penalty' (needs weight),
     'kkt', 'eliminate'. qr: 'sparse-givens' (default), 'dense-householder'.
     factor: the matrix factorisation, the Cholesky back end ('faer-auto'
-    (default), 'faer-supernodal', 'faer-simplicial', 'nalgebra') and for
-    kkt the faer LDLT variant. spd: its old name, still accepted (both
+    (default), 'faer-supernodal', 'faer-simplicial', 'nalgebra', and
+    'mumps' in a wheel built with the feature mumps) and for kkt the LDLT
+    variant (the faer ones or 'mumps'). spd: its old name, still accepted (both
     given with different values is an InputError).
     energy: 'laplacian' (default) or 'arap' (as-rigid-as-possible, cotangent
     weights; report['arap'] says what the iterations did), with
@@ -89,6 +91,10 @@ def deform(
     arap_init 'linear' (default) or 'rest'. Options the energy does not use
     are RuntimeWarnings, as the CLI warns.
     memory_limit: the precompute's memory budget (see MemoryLimit).
+    out_of_core: a directory (it must exist) in which factor='mumps' keeps
+    its factor (removed afterwards, also on error); only what stays in
+    memory then counts against memory_limit. Any other factor with
+    out_of_core is an InputError.
     """
 
 def compare(
@@ -133,6 +139,7 @@ def solve_lse(
     weight: Optional[float] = None,
     refine: Refine = None,
     memory_limit: MemoryLimit = None,
+    out_of_core: Optional[str | os.PathLike[str]] = None,
     spd: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """min ||A X - C|| subject to B X = D; returns (X, report).
@@ -156,6 +163,7 @@ class Deformer:
         weight: Optional[float] = None,
         refine: Refine = None,
         memory_limit: MemoryLimit = None,
+        out_of_core: Optional[str | os.PathLike[str]] = None,
         spd: Optional[str] = None,
     ) -> None: ...
     def precompute(self) -> None:

@@ -1,0 +1,192 @@
+//! MUMPS in this process (MPI started as one rank; the tests take turns
+//! through the process-wide lock). Expected values are worked out by hand.
+
+use faer::Mat;
+use faer::sparse::{SparseColMat, Triplet};
+
+use super::{MumpsLdlt, MumpsLlt};
+use crate::backend::ldlt::LdltBackend;
+use crate::backend::spd::{SpdBackend, solve};
+use crate::limits::MemoryBudget;
+
+/// The lower triangle of a symmetric matrix from its `(row ≥ col)` entries.
+fn lower(n: usize, entries: &[(usize, usize, f64)]) -> SparseColMat<usize, f64> {
+    let t: Vec<_> = entries
+        .iter()
+        .map(|&(i, j, v)| Triplet::new(i, j, v))
+        .collect();
+    SparseColMat::try_new_from_triplets(n, n, &t).unwrap()
+}
+
+/// `[4 1; 1 3] x = [1; 2]`: `x = [1/11; 7/11]`.
+#[test]
+fn cholesky_solves_a_two_by_two_system() {
+    let a = lower(2, &[(0, 0, 4.0), (1, 0, 1.0), (1, 1, 3.0)]);
+    let symbolic = MumpsLlt::default().analyze(a.symbolic()).unwrap();
+    assert_eq!(symbolic.factor_nnz(), 3);
+    let mut factor = symbolic.factorize(a.as_ref()).unwrap();
+    let x = solve(
+        factor.as_mut(),
+        Mat::from_fn(2, 1, |i, _| (i + 1) as f64).as_ref(),
+    );
+    assert!((x[(0, 0)] - 1.0 / 11.0).abs() < 1e-15);
+    assert!((x[(1, 0)] - 7.0 / 11.0).abs() < 1e-15);
+    let facts = factor.mumps_facts().unwrap();
+    assert_eq!(facts.ranks, 1);
+    assert_eq!(facts.factor_entries_per_rank, vec![3]);
+    assert!(!facts.out_of_core);
+}
+
+/// Two factors of one analysis, solved in turn: each solves with its own
+/// matrix (`diag(2, 4)` and `diag(8, 16)`), although MUMPS holds one factor.
+#[test]
+fn factors_of_one_analysis_keep_their_own_matrices() {
+    let a = lower(2, &[(0, 0, 2.0), (1, 0, 0.0), (1, 1, 4.0)]);
+    let b = lower(2, &[(0, 0, 8.0), (1, 0, 0.0), (1, 1, 16.0)]);
+    let symbolic = MumpsLlt::default().analyze(a.symbolic()).unwrap();
+    let mut fa = symbolic.factorize(a.as_ref()).unwrap();
+    let mut fb = symbolic.factorize(b.as_ref()).unwrap();
+    let ones = Mat::from_fn(2, 3, |_, _| 1.0);
+    for _ in 0..2 {
+        let xa = solve(fa.as_mut(), ones.as_ref());
+        let xb = solve(fb.as_mut(), ones.as_ref());
+        for c in 0..3 {
+            assert_eq!((xa[(0, c)], xa[(1, c)]), (0.5, 0.25));
+            assert_eq!((xb[(0, c)], xb[(1, c)]), (0.125, 0.0625));
+        }
+    }
+}
+
+/// A matrix that is not positive definite (`[1 2; 2 1]`, eigenvalues 3 and
+/// −1: pivots 1 and 1 − 4 = −3) is refused, naming the negative pivot.
+#[test]
+fn an_indefinite_matrix_is_refused_by_the_cholesky() {
+    let a = lower(2, &[(0, 0, 1.0), (1, 0, 2.0), (1, 1, 1.0)]);
+    let symbolic = MumpsLlt::default().analyze(a.symbolic()).unwrap();
+    let e = symbolic.factorize(a.as_ref()).err().unwrap().to_string();
+    assert!(e.contains("mumps") && e.contains("1 negative pivot"), "{e}");
+}
+
+/// A singular matrix (`[1 1; 1 1]`: pivots 1 and exactly 0) is refused
+/// with MUMPS's code −10.
+#[test]
+fn a_singular_matrix_is_refused_by_the_cholesky() {
+    let a = lower(2, &[(0, 0, 1.0), (1, 0, 1.0), (1, 1, 1.0)]);
+    let symbolic = MumpsLlt::default().analyze(a.symbolic()).unwrap();
+    let e = symbolic.factorize(a.as_ref()).err().unwrap().to_string();
+    assert!(e.contains("numerically singular [INFOG(1) = -10]"), "{e}");
+}
+
+/// The tridiagonal `[-1 4 -1]` of order `n`.
+fn tridiagonal(n: usize) -> SparseColMat<usize, f64> {
+    let mut entries = vec![(0, 0, 4.0)];
+    for i in 1..n {
+        entries.push((i, i, 4.0));
+        entries.push((i, i - 1, -1.0));
+    }
+    lower(n, &entries)
+}
+
+/// A budget of one byte is refused before the factorisation, naming
+/// MUMPS's estimate (of a matrix large enough that MUMPS, which counts in
+/// millions of bytes, estimates more than zero).
+#[test]
+fn a_tiny_budget_is_refused_after_the_analysis() {
+    let a = tridiagonal(200_000);
+    let symbolic = MumpsLlt::default().analyze(a.symbolic()).unwrap();
+    let e = symbolic
+        .check_budget(MemoryBudget::bytes(1), 200_000, "A")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("INFO(15)"), "{e}");
+    assert!(e.contains("more than the memory budget"), "{e}");
+    symbolic
+        .check_budget(MemoryBudget::bytes(1 << 40), 200_000, "A")
+        .unwrap();
+}
+
+/// Out of core: the factor solves, and the rank's scratch directory is
+/// gone once the factor and its analysis are dropped.
+#[test]
+fn out_of_core_solves_and_leaves_the_directory_empty() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = lower(2, &[(0, 0, 4.0), (1, 0, 1.0), (1, 1, 3.0)]);
+    {
+        let backend = MumpsLlt::new(Some(dir.path().to_path_buf()));
+        let symbolic = backend.analyze(a.symbolic()).unwrap();
+        let mut factor = symbolic.factorize(a.as_ref()).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        let x = solve(
+            factor.as_mut(),
+            Mat::from_fn(2, 1, |i, _| (i + 1) as f64).as_ref(),
+        );
+        assert!((x[(1, 0)] - 7.0 / 11.0).abs() < 1e-15);
+        assert!(factor.mumps_facts().unwrap().out_of_core);
+    }
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    let missing = dir.path().join("missing");
+    let e = MumpsLlt::new(Some(missing))
+        .analyze(a.symbolic())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("cannot make the out-of-core directory"), "{e}");
+}
+
+/// `LDLᵀ` in a static order: `K = [1 1 1; 1 0 0; 1 0 0]` (one vertex, the
+/// same constraint twice) has the null pivot at the second multiplier
+/// (unknown 2: `0 − 1·1 − 1·(−1) = 0`), and one negative pivot (`−1`).
+#[test]
+fn ldlt_flags_the_dependent_multiplier() {
+    let k = lower(
+        3,
+        &[
+            (0, 0, 1.0),
+            (1, 0, 1.0),
+            (2, 0, 1.0),
+            (1, 1, 0.0),
+            (2, 2, 0.0),
+        ],
+    );
+    let symbolic = MumpsLdlt::default()
+        .analyze(k.symbolic(), &[0, 1, 2])
+        .unwrap();
+    let factor = symbolic.factorize(k.as_ref()).unwrap();
+    let detected = factor.detected_pivots().unwrap();
+    // Unknowns 1 and 2 have one pattern: MUMPS merges them into one node and
+    // eliminates them in either order, so either copy's pivot is the null
+    // one (the KKT formulation names the constraint itself).
+    assert_eq!(detected.null.len(), 1);
+    assert!([1, 2].contains(&detected.null[0]), "{detected:?}");
+    assert_eq!(detected.negative, 1);
+}
+
+/// `K = [2 1 1; 1 2 0; 1 0 0]` is nonsingular in the order 0, 1, 2: no null
+/// pivot, one negative (`d = (2, 3/2, −2/3)`), and it solves.
+#[test]
+fn ldlt_solves_a_regular_kkt_matrix() {
+    let k = lower(
+        3,
+        &[
+            (0, 0, 2.0),
+            (1, 0, 1.0),
+            (2, 0, 1.0),
+            (1, 1, 2.0),
+            (2, 2, 0.0),
+        ],
+    );
+    let symbolic = MumpsLdlt::default()
+        .analyze(k.symbolic(), &[0, 1, 2])
+        .unwrap();
+    let mut factor = symbolic.factorize(k.as_ref()).unwrap();
+    let detected = factor.detected_pivots().unwrap();
+    assert!(detected.null.is_empty());
+    assert_eq!(detected.negative, 1);
+    // K [1; 1; 1] = [4; 3; 1].
+    let mut x = Mat::from_fn(3, 1, |i, _| [4.0, 3.0, 1.0][i]);
+    factor.solve_in_place(x.as_mut());
+    for i in 0..3 {
+        assert!((x[(i, 0)] - 1.0).abs() < 1e-14, "{x:?}");
+    }
+    assert_eq!(factor.mumps_facts().unwrap().ordering, "given");
+}

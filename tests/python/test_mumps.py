@@ -1,0 +1,64 @@
+"""The MUMPS back end from Python: `factor="mumps"` and `out_of_core=`.
+
+A wheel built with the cargo feature `mumps` (`.ci/run` builds it so and
+sets LSE_DEFORM_EXPECT_MUMPS=1) must solve with MUMPS in this process (MPI
+started as one rank) to within 1e-10 of the diagonal of faer's answer,
+report its `mumps` object and leave the out-of-core directory empty; a wheel
+without it must refuse `factor="mumps"` with an InputError that says how to
+rebuild. Either way `out_of_core=` with another factor is an InputError."""
+
+import os
+
+import numpy as np
+import pytest
+
+import lse_deform
+from conftest import bumpy_grid, scene_items
+
+
+def expect_mumps():
+    return os.environ.get("LSE_DEFORM_EXPECT_MUMPS", "") not in ("", "0")
+
+
+def problem():
+    V, F = bumpy_grid(20)
+    return V, F, scene_items(V)
+
+
+def mumps_in_this_wheel():
+    V, F, items = problem()
+    try:
+        lse_deform.deform(V, F, items, factor="mumps")
+    except lse_deform.InputError as e:
+        assert "not in this build" in str(e) and "--features mumps" in str(e), str(e)
+        return False
+    return True
+
+
+def test_the_wheel_has_mumps_exactly_when_ci_says_so():
+    assert mumps_in_this_wheel() == expect_mumps()
+
+
+def test_out_of_core_needs_mumps():
+    V, F, items = problem()
+    with pytest.raises(lse_deform.InputError, match="mumps"):
+        lse_deform.deform(V, F, items, factor="faer-auto", out_of_core=".")
+
+
+@pytest.mark.parametrize("method", ["nullspace-qr", "kkt", "eliminate"])
+def test_mumps_equals_faer_and_cleans_up(method, tmp_path):
+    if not mumps_in_this_wheel():
+        pytest.skip("this wheel was built without the feature mumps")
+    V, F, items = problem()
+    U_faer, _ = lse_deform.deform(V, F, items, method=method)
+    diagonal = np.linalg.norm(V.max(0) - V.min(0))
+    for out_of_core in (None, tmp_path):
+        U, report = lse_deform.deform(
+            V, F, items, method=method, factor="mumps", out_of_core=out_of_core
+        )
+        assert np.abs(U - U_faer).max() <= 1e-10 * diagonal
+        facts = report["mumps"]
+        assert facts["ranks"] == 1
+        assert facts["out_of_core"] == (out_of_core is not None)
+        assert facts["factor_entries_per_rank"][0] > 0
+        assert list(tmp_path.iterdir()) == []
