@@ -521,10 +521,10 @@ fn check_detected_pivots(
     // one node), so it can flag another member than faer would: the one
     // named is the first row, in the static order's sequence of
     // multipliers, that depends on the rows before it.
-    if first.is_some_and(|u| u >= n) {
-        if let Some(k) = first_dependent_row(problem, order)? {
-            first = Some(n + k);
-        }
+    if first.is_some_and(|u| u >= n)
+        && let Some(k) = first_dependent_row(problem, order)?
+    {
+        first = Some(n + k);
     }
     let rule = format!(
         "MUMPS found its pivot null (the norm of its row below {KKT_PIVOT_TOLERANCE:e} of ‖K‖∞)"
