@@ -517,10 +517,17 @@ struct Model {
     c_mumps_bytes: f64,
     /// The mesh of the 2-rank run the imbalance factors come from.
     imbalance_mesh: String,
-    /// Largest rank's factor share over the mean share, 2 ranks.
+    /// The factor entries of the largest rank of the 2-rank run over half
+    /// the 1-rank total of the same mesh: [`Split::unevenness`] ×
+    /// [`Split::growth`], what the projection multiplies `total / ranks`
+    /// by.
     imbalance_entries: f64,
     /// The same of MUMPS's bytes.
     imbalance_bytes: f64,
+    /// The two parts of `imbalance_entries`.
+    split_entries: Split,
+    /// The two parts of `imbalance_bytes`.
+    split_bytes: Split,
     /// Rank 0's peak resident set beyond rank 1's, per vertex (2 ranks,
     /// the same mesh): the centralised input and rank 0's own pipeline.
     rank0_extra_bytes_per_vertex: Option<f64>,
@@ -528,6 +535,33 @@ struct Model {
     /// ranks' `INFO(29)` on the largest one-rank run: the two counts
     /// differ, and the fit is of the second (what the ranks store).
     infog29_over_info29: Option<f64>,
+}
+
+/// How a quantity split between the two ranks of a run.
+#[derive(Debug, Clone, Copy, Serialize)]
+struct Split {
+    /// Largest rank over the mean of the two ranks (1: even).
+    unevenness: f64,
+    /// The two ranks' total over the one-rank total (1: nothing added by
+    /// splitting).
+    growth: f64,
+}
+
+impl Split {
+    /// The split of `two` (per rank, 2 ranks) against `one` (1 rank).
+    fn of(two: &[u64], one: &[u64]) -> Option<Split> {
+        let one: u64 = one.iter().sum();
+        (one > 0).then_some(())?;
+        Some(Split {
+            unevenness: imbalance(two)?,
+            growth: two.iter().sum::<u64>() as f64 / one as f64,
+        })
+    }
+
+    /// Largest rank over half the one-rank total.
+    fn factor(self) -> f64 {
+        self.unevenness * self.growth
+    }
 }
 
 /// One projected configuration.
@@ -551,7 +585,8 @@ fn one_rank_points(rows: &[Row], y: fn(&Row) -> u64) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// The model, from the rows; `None` without a one-rank and a two-rank run.
+/// The model, from the rows; `None` without a one-rank and a two-rank run
+/// of the same mesh.
 fn model(rows: &[Row]) -> Option<Model> {
     let entries = one_rank_points(rows, |r| r.factor_entries_per_rank.iter().sum());
     let bytes = one_rank_points(rows, |r| r.peak_bytes_per_rank.iter().sum());
@@ -559,6 +594,11 @@ fn model(rows: &[Row]) -> Option<Model> {
         .iter()
         .filter(|r| r.mumps && r.ranks == 2 && r.status == "ok")
         .max_by_key(|r| r.vertices)?;
+    let one = rows.iter().find(|r| {
+        r.mumps && r.ranks == 1 && !r.out_of_core && r.status == "ok" && r.mesh == two.mesh
+    })?;
+    let split_entries = Split::of(&two.factor_entries_per_rank, &one.factor_entries_per_rank)?;
+    let split_bytes = Split::of(&two.peak_bytes_per_rank, &one.peak_bytes_per_rank)?;
     let rank0_extra = match two.peak_rss_per_rank.as_slice() {
         [r0, r1] => Some(r0.saturating_sub(*r1) as f64 / two.vertices as f64),
         _ => None,
@@ -578,8 +618,10 @@ fn model(rows: &[Row]) -> Option<Model> {
         c_factor_entries: fit_n_log_n(&entries)?,
         c_mumps_bytes: fit_n_log_n(&bytes)?,
         imbalance_mesh: two.mesh.clone(),
-        imbalance_entries: imbalance(&two.factor_entries_per_rank)?,
-        imbalance_bytes: imbalance(&two.peak_bytes_per_rank)?,
+        imbalance_entries: split_entries.factor(),
+        imbalance_bytes: split_bytes.factor(),
+        split_entries,
+        split_bytes,
         rank0_extra_bytes_per_vertex: rank0_extra,
     })
 }
@@ -827,6 +869,7 @@ fn runs_table(rows: &[Row]) -> String {
         "MUMPS peak per rank (MiB)",
         "peak RSS per rank (MiB)",
         "max difference to faer (× diagonal)",
+        "ordering",
     ];
     let t = |v: Option<f64>| v.map_or("—".into(), fmt_time);
     let cells: Vec<Vec<String>> = rows
@@ -850,6 +893,7 @@ fn runs_table(rows: &[Row]) -> String {
                 per_rank(&r.peak_rss_per_rank, mib),
                 r.max_difference_to_faer
                     .map_or("—".into(), |d| format!("{d:.1e}")),
+                r.ordering.clone().unwrap_or_else(|| "—".into()),
             ];
             if r.status != "ok" {
                 cells[3] = r.status.replace('|', "/");
@@ -872,8 +916,10 @@ fn projection_text(m: &Model, projection: &[Projection]) -> String {
         "**Projection (not a measurement).** A nested-dissection ordering of a surface mesh (a planar-like graph) fills its Cholesky factor with O(n log n) entries, \
          so the one-rank in-core runs above are fitted (least squares through the origin) with \
          **nnz(L) ≈ c·n·log₂n, c = {:.3}** (nnz(L) = the ranks' INFO(29) summed: what they store{}), and MUMPS's memory summed over ranks (INFO(22)) with **bytes ≈ c_b·n·log₂n, c_b = {:.1}**. \
-         Per rank = total / ranks × the imbalance factor measured on the 2-rank run of {} (largest rank over the mean: {:.3} for the factor entries, {:.3} for the memory); \
-         this assumes the split stays that even on 8 and 64 ranks, which MUMPS's tree mapping does not promise. \
+         Per rank = total / ranks × the imbalance factor measured on the 2-rank run of {}: its largest rank over half the 1-rank total of the same mesh, \
+         {:.3} for the factor entries ({:.3} unevenness between the two ranks × {:.3} growth of the total when split) and {:.3} for the memory ({:.3} × {:.3}). \
+         This assumes an even split up to that factor on 8 and 64 ranks; MUMPS's tree mapping does not promise it, and the growth of the total when split is likely to be larger with more ranks, \
+         so the per-rank figures are if anything optimistic. \
          Rank 0 also holds the centralised input (mesh, assembled matrix, the null-space pipeline before MUMPS: `ICNTL(18) = 0`, sequential analysis `ICNTL(28) = 1`): \
          its peak resident set beyond rank 1's on that run, {extra}, is added to rank 0.\n",
         m.c_factor_entries,
@@ -883,7 +929,11 @@ fn projection_text(m: &Model, projection: &[Projection]) -> String {
         m.c_mumps_bytes,
         m.imbalance_mesh,
         m.imbalance_entries,
-        m.imbalance_bytes
+        m.split_entries.unevenness,
+        m.split_entries.growth,
+        m.imbalance_bytes,
+        m.split_bytes.unevenness,
+        m.split_bytes.growth
     );
     let cells: Vec<Vec<String>> = projection
         .iter()
@@ -1139,6 +1189,16 @@ mod tests {
     }
 
     #[test]
+    fn a_split_is_unevenness_times_growth() {
+        let s = Split::of(&[60, 40], &[80]).unwrap();
+        assert!((s.unevenness - 1.2).abs() < 1e-12);
+        assert!((s.growth - 1.25).abs() < 1e-12);
+        // The largest rank (60) over half the one-rank total (40).
+        assert!((s.factor() - 1.5).abs() < 1e-12);
+        assert!(Split::of(&[1, 1], &[0]).is_none());
+    }
+
+    #[test]
     fn gnu_time_output_is_read_from_its_last_line() {
         assert_eq!(parse_time_kib("1234\n"), Some(1234 * 1024));
         assert_eq!(
@@ -1158,6 +1218,14 @@ mod tests {
             imbalance_mesh: "m".into(),
             imbalance_entries: 1.1,
             imbalance_bytes: 1.2,
+            split_entries: Split {
+                unevenness: 1.0,
+                growth: 1.1,
+            },
+            split_bytes: Split {
+                unevenness: 1.2,
+                growth: 1.0,
+            },
             rank0_extra_bytes_per_vertex: Some(100.0),
             infog29_over_info29: None,
         };
