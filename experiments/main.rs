@@ -31,8 +31,8 @@ use harness::demo;
 use harness::registry::{self, Experiment, Summary, assemble_readme};
 use harness::rows::markdown_table;
 use studies::{
-    accuracy, arap, breakdown, conflicts, drag, editor, performance, python, relative, renders,
-    scaling, table1, weight_sweep,
+    accuracy, arap, breakdown, conflicts, distributed, drag, editor, performance, python, relative,
+    renders, scaling, table1, weight_sweep,
 };
 
 /// Every experiment, in the order of `all` and of `results/README.md`: the
@@ -49,6 +49,7 @@ const EXPERIMENTS: &[Experiment] = &[
     drag::EXPERIMENT,
     renders::EXPERIMENT,
     performance::EXPERIMENT,
+    distributed::EXPERIMENT,
     arap::EXPERIMENT,
     python::EXPERIMENT,
     editor::EXPERIMENT,

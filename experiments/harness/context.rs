@@ -79,6 +79,9 @@ impl Machine {
         if cfg!(feature = "suitesparse") {
             features.push("suitesparse".to_string());
         }
+        if cfg!(feature = "mumps") {
+            features.push("mumps".to_string());
+        }
         Machine {
             cpu,
             cores: std::thread::available_parallelism()
@@ -387,7 +390,7 @@ impl Context {
     /// with this run's meshes and `--out results`.
     pub fn regenerate(&self, name: &str) -> String {
         format!(
-            "Regenerate this section alone:\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- {name}{} --out results\n```\n\n",
+            "Regenerate this section alone:\n\n```sh\ncargo run --release --features suitesparse,mumps --bin experiments -- {name}{} --out results\n```\n\n",
             self.mesh_args()
         )
     }

@@ -11,8 +11,10 @@
 //! - Node with playwright-core and Chromium (`editor`), as `.ci/run`'s
 //!   browser test: `node`, `chromium` (or `$CHROMIUM`), and
 //!   `npm ci` in `tests/browser` when its `node_modules` is missing;
-//! - the `lse-deform` command-line tool (`editor`): `cargo build --release
-//!   --bin lse-deform`.
+//! - the `lse-deform` command-line tool (`editor`, `distributed`): `cargo
+//!   build --release --bin lse-deform`, with this build's `suitesparse` and
+//!   `mumps` features;
+//! - `mpirun` (`distributed`), on `PATH`.
 //!
 //! Paths in the reasons are relative to the repository, never a machine's.
 
@@ -57,7 +59,7 @@ impl Python {
 }
 
 /// The last non-empty line of a program's output (its error, usually).
-fn last_line(bytes: &[u8]) -> String {
+pub fn last_line(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes)
         .lines()
         .rev()
@@ -194,15 +196,33 @@ pub fn browser() -> Result<Browser, String> {
     Ok(Browser { chromium })
 }
 
-/// Builds the `lse-deform` command-line tool (release, default features)
-/// and returns its path.
+/// The optional features of this experiments build that the
+/// `lse-deform` command-line tool is built with too (`suitesparse`,
+/// `mumps`), so that every study that runs the tool runs the same binary.
+fn mirrored_features() -> Vec<&'static str> {
+    let mut features = Vec::new();
+    if cfg!(feature = "suitesparse") {
+        features.push("suitesparse");
+    }
+    if cfg!(feature = "mumps") {
+        features.push("mumps");
+    }
+    features
+}
+
+/// Builds the `lse-deform` command-line tool (release, default features
+/// plus this build's `suitesparse` and `mumps`) and returns its path.
 pub fn cli_binary() -> Result<PathBuf, String> {
     let root = workspace_root();
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let features = mirrored_features();
+    let mut command = Command::new(cargo);
+    command.args(["build", "--release", "--bin", "lse-deform"]);
+    if !features.is_empty() {
+        command.args(["--features", &features.join(",")]);
+    }
     run(
-        Command::new(cargo)
-            .args(["build", "--release", "--bin", "lse-deform"])
-            .current_dir(&root),
+        command.current_dir(&root),
         "`cargo build --release --bin lse-deform`",
     )?;
     let exe = root.join("target").join("release").join("lse-deform");
@@ -211,4 +231,20 @@ pub fn cli_binary() -> Result<PathBuf, String> {
     } else {
         Err("`cargo build` left no target/release/lse-deform".into())
     }
+}
+
+/// `mpirun` on `PATH`, or why not.
+pub fn mpirun() -> Result<PathBuf, String> {
+    if on_path("mpirun") {
+        Ok(PathBuf::from("mpirun"))
+    } else {
+        Err("no `mpirun` on PATH (Debian: openmpi-bin)".into())
+    }
+}
+
+/// GNU time (`/usr/bin/time`, which reports a process's peak resident set
+/// with `-f %M`), if present.
+pub fn gnu_time() -> Option<PathBuf> {
+    let p = PathBuf::from("/usr/bin/time");
+    p.is_file().then_some(p)
 }

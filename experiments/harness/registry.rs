@@ -30,6 +30,9 @@ pub enum Input {
     /// Optionally the SuiteSparse feature (its columns are left out
     /// without it).
     SuiteSparse,
+    /// Optionally the MUMPS feature (its columns are left out without it;
+    /// `distributed` then says what it could not measure).
+    Mumps,
     /// A Python environment with libigl (found or created as the section
     /// says; the comparison is left out without it).
     Python,
@@ -46,6 +49,7 @@ impl Input {
             Input::OneMesh => "one mesh",
             Input::Constraints => "optional -c constraints",
             Input::SuiteSparse => "optional suitesparse feature",
+            Input::Mumps => "optional mumps feature",
             Input::Python => "optional Python with libigl",
             Input::Browser => "optional Node and Chromium",
         }
@@ -69,14 +73,23 @@ pub struct Experiment {
 }
 
 /// What an experiment could not measure because this build lacks an
-/// optional input it names (today: the SuiteSparse feature), as a line for
-/// the end of its section.
+/// optional input it names (the SuiteSparse and MUMPS features), as lines
+/// for the end of its section.
 pub fn missing_build_inputs(e: &Experiment) -> Option<String> {
-    (e.inputs.contains(&Input::SuiteSparse) && !cfg!(feature = "suitesparse")).then(|| {
-        "**Not measured:** the CHOLMOD and SPQR back ends (the reference rows and columns above are missing): \
-         this build has no `--features suitesparse` (it needs libsuitesparse-dev, libclang-dev and libopenblas0-pthread; see the README)."
-            .to_string()
-    })
+    let mut notes = Vec::new();
+    if e.inputs.contains(&Input::SuiteSparse) && !cfg!(feature = "suitesparse") {
+        notes.push(
+            "**Not measured:** the CHOLMOD and SPQR back ends (the reference rows and columns above are missing): \
+             this build has no `--features suitesparse` (it needs libsuitesparse-dev, libclang-dev and libopenblas0-pthread; see the README).",
+        );
+    }
+    if e.inputs.contains(&Input::Mumps) && !cfg!(feature = "mumps") {
+        notes.push(
+            "**Not measured:** the MUMPS back end (its rows and columns above are missing; MUMPS is not in this build): \
+             this build has no `--features mumps` (it needs libmumps-ptscotch-dev, libmumps-headers-dev, libopenmpi-dev, openmpi-bin and libclang-dev).",
+        );
+    }
+    (!notes.is_empty()).then(|| notes.join("\n\n"))
 }
 
 /// The git revision in a section's machine line (`… (git REV, …`), if any.
@@ -134,8 +147,8 @@ pub fn assemble_readme(
     let _ = writeln!(
         s,
         "Everything in this directory is written by the `experiments` program; nothing is edited by hand. \
-         Regenerate all of it with\n\n```sh\ncargo run --release --features suitesparse --bin experiments -- all --mesh-dir ../shared/meshes --out results\n```\n\n\
-         (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out; \
+         Regenerate all of it with\n\n```sh\ncargo run --release --features suitesparse,mumps --bin experiments -- all --mesh-dir ../shared/meshes --out results\n```\n\n\
+         (without `--mesh-dir` it runs on generated meshes; without `--features suitesparse` the CHOLMOD and SPQR columns are left out, without `--features mumps` the MUMPS columns and the `distributed` section's measurements; \
          without a Python with libigl, Node or Chromium, found or created as docs/development.md §2 says, the sections of `arap`, `python` and `editor` say what was not measured; \
          without `--out results` it writes to a fresh directory under `target/experiments/`). \
          Each section names the command that regenerates it alone. CSV files start with a `#` line describing the machine and build.\n"

@@ -66,12 +66,23 @@ pub fn precompute_phase_values(t: &Timings) -> Vec<f64> {
 }
 
 /// The SPD back ends of this build (CHOLMOD only with `--features
-/// suitesparse`), in the library's order.
+/// suitesparse`, MUMPS only with `--features mumps`), in the library's
+/// order. With MUMPS in the build it also starts MPI (once, as one rank in
+/// this process), so that MPI's start-up is not timed as part of a study's
+/// first MUMPS analysis.
 pub fn spd_backends() -> Vec<&'static str> {
+    start_mpi();
     SpdKind::available()
         .into_iter()
         .map(SpdKind::name)
         .collect()
+}
+
+/// Starts MPI as one rank in this process if MUMPS is in the build (a no-op
+/// after the first call, and without the feature).
+pub fn start_mpi() {
+    #[cfg(feature = "mumps")]
+    let _ = lse_deform::backend::mumps::ranks();
 }
 
 /// The SPD back end called `name` (one of [`spd_backends`]).
@@ -160,6 +171,7 @@ mod tests {
         let spds = spd_backends();
         assert!(spds.contains(&"faer-auto"));
         assert_eq!(spds.contains(&"cholmod"), cfg!(feature = "suitesparse"));
+        assert_eq!(spds.contains(&"mumps"), cfg!(feature = "mumps"));
         let qrs = qr_backends();
         assert!(qrs.contains(&"dense-householder"));
         assert_eq!(qrs.contains(&"spqr"), cfg!(feature = "suitesparse"));

@@ -42,7 +42,7 @@ pub const NAME: &str = "precompute-breakdown";
 pub const EXPERIMENT: Experiment = Experiment {
     name: NAME,
     title: "Precompute breakdown (paper Fig. 7 and 8)",
-    inputs: &[Input::Meshes, Input::SuiteSparse],
+    inputs: &[Input::Meshes, Input::SuiteSparse, Input::Mumps],
     run,
 };
 

@@ -7,6 +7,7 @@ pub mod accuracy;
 pub mod arap;
 pub mod breakdown;
 pub mod conflicts;
+pub mod distributed;
 pub mod drag;
 pub mod editor;
 pub mod performance;

@@ -2,7 +2,9 @@
 //!
 //! Every figure is a median of repetitions measured **in this process, side
 //! by side**: each repetition runs ours and the reference back to back, so
-//! that the noise of a shared 2-core machine hits both alike. The targets:
+//! that the noise of a shared 2-core machine hits both alike. The MUMPS
+//! rows (feature `mumps`; one rank in this process) are a comparison on the
+//! same matrix, without a target. The targets:
 //!
 //! 1. precompute of the paper's method (QR + preparation + normal matrix +
 //!    symbolic + numeric, SparseGivens × faer supernodal) against CHOLMOD's
@@ -57,7 +59,7 @@ pub const NAME: &str = "performance";
 pub const EXPERIMENT: Experiment = Experiment {
     name: NAME,
     title: "Performance against CHOLMOD and the bandwidth floor",
-    inputs: &[Input::Meshes, Input::SuiteSparse],
+    inputs: &[Input::Meshes, Input::SuiteSparse, Input::Mumps],
     run,
 };
 
@@ -69,6 +71,19 @@ fn reference_backend() -> Option<Arc<dyn SpdBackend>> {
 
 #[cfg(not(feature = "suitesparse"))]
 fn reference_backend() -> Option<Arc<dyn SpdBackend>> {
+    None
+}
+
+/// MUMPS on one rank in this process, when it is compiled in: measured
+/// beside CHOLMOD on the same matrix, a comparison without a target.
+#[cfg(feature = "mumps")]
+fn mumps_backend() -> Option<Arc<dyn SpdBackend>> {
+    crate::harness::timing::start_mpi();
+    Some(Arc::new(lse_deform::backend::mumps::MumpsLlt::new(None)))
+}
+
+#[cfg(not(feature = "mumps"))]
+fn mumps_backend() -> Option<Arc<dyn SpdBackend>> {
     None
 }
 
@@ -191,7 +206,10 @@ struct SideBySide {
     ours_call_s: f64,
     ours_factor_nnz: usize,
     ours_factor_bytes: usize,
+    /// CHOLMOD (`None` without `--features suitesparse`).
     reference: Option<ReferenceTimes>,
+    /// MUMPS on one rank (`None` without `--features mumps`).
+    mumps: Option<ReferenceTimes>,
 }
 
 /// The "ours" cell of a solve target: the solve phase, and the whole call.
@@ -203,6 +221,66 @@ fn solve_cell(case: &SideBySide) -> String {
     )
 }
 
+/// One reference back end's repetitions on the reduced normal matrix.
+struct ReferenceRuns {
+    backend: Arc<dyn SpdBackend>,
+    analyse: Vec<f64>,
+    factorise: Vec<f64>,
+    solve: Vec<f64>,
+    factor: Option<Box<dyn SpdFactor>>,
+}
+
+impl ReferenceRuns {
+    fn new(backend: Arc<dyn SpdBackend>) -> ReferenceRuns {
+        ReferenceRuns {
+            backend,
+            analyse: Vec::new(),
+            factorise: Vec::new(),
+            solve: Vec::new(),
+            factor: None,
+        }
+    }
+
+    /// One analysis and factorisation from scratch, timed.
+    fn precompute(
+        &mut self,
+        normal: &faer::sparse::SparseColMat<usize, f64>,
+    ) -> Result<(), AnyError> {
+        drop(self.factor.take()); // free the previous factor first
+        let t0 = Instant::now();
+        let sym = self.backend.analyze(normal.symbolic())?;
+        let t1 = Instant::now();
+        let factor = sym.factorize(normal.as_ref())?;
+        let t2 = Instant::now();
+        self.analyse.push((t1 - t0).as_secs_f64());
+        self.factorise.push((t2 - t1).as_secs_f64());
+        self.factor = Some(factor);
+        Ok(())
+    }
+
+    /// One solve of `rhs` (copied into `work`), timed.
+    fn solve(&mut self, rhs: &Mat<f64>, work: &mut Mat<f64>) {
+        if let Some(factor) = self.factor.as_mut() {
+            work.copy_from(rhs);
+            let t = Instant::now();
+            factor.solve_in_place(work.as_mut());
+            self.solve.push(t.elapsed().as_secs_f64());
+        }
+    }
+
+    /// The medians, with the last factor's size.
+    fn times(self) -> Option<ReferenceTimes> {
+        let factor = self.factor?;
+        Some(ReferenceTimes {
+            analyse_s: median(&self.analyse),
+            factorise_s: median(&self.factorise),
+            solve_s: median(&self.solve),
+            factor_nnz: factor.nnz(),
+            factor_bytes: factor.bytes(),
+        })
+    }
+}
+
 fn side_by_side(
     case: &str,
     mesh: &Mesh,
@@ -212,14 +290,16 @@ fn side_by_side(
 ) -> Result<SideBySide, AnyError> {
     let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone())?;
     let f = ours();
-    let reference = reference_backend();
-    let normal = match reference {
-        Some(_) => Some(reduced_normal(&d)?),
-        None => None,
+    // CHOLMOD first, then MUMPS.
+    let mut refs: Vec<Option<ReferenceRuns>> = [reference_backend(), mumps_backend()]
+        .into_iter()
+        .map(|b| b.map(ReferenceRuns::new))
+        .collect();
+    let normal = match refs.iter().any(Option::is_some) {
+        true => Some(reduced_normal(&d)?),
+        false => None,
     };
     let (mut pre, mut phases) = (Vec::new(), vec![Vec::new(); 5]);
-    let (mut an, mut fa) = (Vec::new(), Vec::new());
-    let mut ref_factor: Option<Box<dyn SpdFactor>> = None;
     for _ in 0..reps {
         d.precompute(&f)?;
         let t = &d.report().timings_s;
@@ -230,43 +310,29 @@ fn side_by_side(
         {
             phases[k].push(v);
         }
-        if let (Some(backend), Some(normal)) = (&reference, &normal) {
-            drop(ref_factor.take()); // free the previous factor first
-            let t0 = Instant::now();
-            let sym = backend.analyze(normal.symbolic())?;
-            let t1 = Instant::now();
-            let factor = sym.factorize(normal.as_ref())?;
-            let t2 = Instant::now();
-            an.push((t1 - t0).as_secs_f64());
-            fa.push((t2 - t1).as_secs_f64());
-            ref_factor = Some(factor);
+        if let Some(normal) = &normal {
+            for r in refs.iter_mut().flatten() {
+                r.precompute(normal)?;
+            }
         }
     }
     let report = d.report().clone();
     let unknowns = normal.as_ref().map_or(0, |n| n.ncols());
     let rhs = Mat::<f64>::from_fn(unknowns, 3, |i, c| ((i * 7 + c * 13) % 17) as f64 - 8.0);
     let mut work = rhs.clone();
-    let (mut ts, mut tc, mut tr) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut ts, mut tc) = (Vec::new(), Vec::new());
     for _ in 0..solves {
         let t = Instant::now();
         let x = d.solve_matrix()?;
         tc.push(t.elapsed().as_secs_f64());
         ts.push(d.report().timings_s.solve);
         std::hint::black_box(x);
-        if let Some(factor) = ref_factor.as_mut() {
-            work.copy_from(&rhs);
-            let t = Instant::now();
-            factor.solve_in_place(work.as_mut());
-            tr.push(t.elapsed().as_secs_f64());
+        for r in refs.iter_mut().flatten() {
+            r.solve(&rhs, &mut work);
         }
     }
-    let reference = ref_factor.map(|factor| ReferenceTimes {
-        analyse_s: median(&an),
-        factorise_s: median(&fa),
-        solve_s: median(&tr),
-        factor_nnz: factor.nnz(),
-        factor_bytes: factor.bytes(),
-    });
+    let mumps = refs.pop().flatten().and_then(ReferenceRuns::times);
+    let reference = refs.pop().flatten().and_then(ReferenceRuns::times);
     Ok(SideBySide {
         case: case.into(),
         vertices: mesh.n_vertices(),
@@ -278,6 +344,7 @@ fn side_by_side(
         ours_factor_nnz: report.nnz.factor.unwrap_or(0),
         ours_factor_bytes: report.nnz.factor_bytes.unwrap_or(0),
         reference,
+        mumps,
     })
 }
 
@@ -718,6 +785,55 @@ fn floor(all: &Everything, bytes: usize) -> f64 {
     2.0 * bytes as f64 / all.bandwidth_bytes_per_s
 }
 
+/// The MUMPS rows of a case (beside the targets `numbers`: precompute,
+/// solve): ours against MUMPS on one
+/// rank in this process, on the same matrix. A comparison, not a target
+/// (the targets are stated against CHOLMOD): no limit, no status.
+fn mumps_rows(numbers: [&str; 2], case: &SideBySide) -> Vec<TargetRow> {
+    let [pre, solve] = numbers;
+    let comparison =
+        |target: String, ours: String, reference: String, ratio: Option<f64>| TargetRow {
+            target,
+            case: case.case.clone(),
+            ours,
+            reference,
+            ratio,
+            limit: "— (comparison)".into(),
+            met: None,
+        };
+    let Some(m) = &case.mumps else {
+        return vec![comparison(
+            if pre == solve {
+                format!("{pre} vs MUMPS")
+            } else {
+                format!("{pre}, {solve} vs MUMPS")
+            },
+            ms(case.ours_precompute_s),
+            "not in this build (needs --features mumps)".into(),
+            None,
+        )];
+    };
+    vec![
+        comparison(
+            format!("{pre} precompute vs MUMPS (1 rank) analyse + factorise"),
+            ms(case.ours_precompute_s),
+            format!(
+                "{} (analyse {} + factorise {})",
+                ms(m.analyse_s + m.factorise_s),
+                ms(m.analyse_s),
+                ms(m.factorise_s)
+            ),
+            Some(case.ours_precompute_s / (m.analyse_s + m.factorise_s)),
+        ),
+        comparison(
+            format!("{solve} solve vs MUMPS (1 rank) solve"),
+            solve_cell(case),
+            ms(m.solve_s),
+            Some(case.ours_solve_s / m.solve_s),
+        ),
+    ]
+}
+
 /// Targets 1–4: the main case against CHOLMOD and the floor, relative
 /// constraints, the weight sweep.
 fn main_targets(all: &Everything) -> Vec<TargetRow> {
@@ -760,6 +876,7 @@ fn main_targets(all: &Everything) -> Vec<TargetRow> {
             met: None,
         }),
     }
+    targets.extend(mumps_rows(["1", "2"], main));
     let main_floor = floor(all, main.ours_factor_bytes);
     targets.push(row(
         "2 solve vs bandwidth floor",
@@ -824,6 +941,7 @@ fn large_targets(all: &Everything) -> Vec<TargetRow> {
             1.0,
         ));
     }
+    targets.extend(mumps_rows(["5", "5"], large));
     let large_floor = floor(all, large.ours_factor_bytes);
     targets.push(row(
         "5 solve vs bandwidth floor",
@@ -940,7 +1058,8 @@ fn section(ctx: &Context, all: &Everything, reps: usize, solves: usize) -> Strin
         md,
         "Ours (the paper's method: SparseGivens QR × faer supernodal Cholesky with our own supernodal triangular solve) against CHOLMOD \
          on the same reduced normal matrix `(AQ2)ᵀ(AQ2)`, medians of {reps} precomputes and {solves} solves, each repetition running ours and CHOLMOD back to back in one process. \
-         A ratio below the limit meets the target. Our solve is the solve phase of docs/formulations.md §2 (y, right-hand side, two triangular solves, X = Q[y; z]; \
+         A ratio below the limit meets the target. \
+         The MUMPS rows (one rank in this process, the same matrix, measured in the same repetitions) are a comparison without a target. Our solve is the solve phase of docs/formulations.md §2 (y, right-hand side, two triangular solves, X = Q[y; z]; \
          `report.timings_s.solve`); the whole `solve_matrix` call adds the checks and diagnostics the library computes after every solve (constraint residuals, ‖AX − C‖), given in brackets. \
          The numeric factorisation runs on one thread below 50 M factor values and on two above; the triangular solves on one. \
          The bandwidth floor is 2 × the factor's bytes / the single-thread read bandwidth measured in the same run ({:.1} GB/s).\n",
@@ -971,13 +1090,18 @@ fn section(ctx: &Context, all: &Everything, reps: usize, solves: usize) -> Strin
         all.main.ours_factor_nnz,
         mib(all.main.ours_factor_bytes as f64)
     );
-    if let Some(r) = &all.main.reference {
-        let _ = writeln!(
-            md,
-            "CHOLMOD factor nnz {} ({}).\n",
-            r.factor_nnz,
-            mib(r.factor_bytes as f64)
-        );
+    for (name, r) in [
+        ("CHOLMOD", &all.main.reference),
+        ("MUMPS (1 rank)", &all.main.mumps),
+    ] {
+        if let Some(r) = r {
+            let _ = writeln!(
+                md,
+                "{name} factor nnz {} ({}).\n",
+                r.factor_nnz,
+                mib(r.factor_bytes as f64)
+            );
+        }
     }
     let _ = writeln!(
         md,
@@ -985,7 +1109,7 @@ fn section(ctx: &Context, all: &Everything, reps: usize, solves: usize) -> Strin
     );
     let _ = writeln!(
         md,
-        "Regenerate: `cargo run --release --features suitesparse --bin experiments -- {NAME}{} --out results` (without `--mesh-dir` the main case is a generated 35k-vertex bumpy sphere and the large case a generated 250k one; without `--features suitesparse` the CHOLMOD rows are missing).",
+        "Regenerate: `cargo run --release --features suitesparse,mumps --bin experiments -- {NAME}{} --out results` (without `--mesh-dir` the main case is a generated 35k-vertex bumpy sphere and the large case a generated 250k one; without `--features suitesparse` the CHOLMOD rows are missing, without `--features mumps` the MUMPS rows).",
         ctx.mesh_args()
     );
     md

@@ -35,7 +35,7 @@ pub const NAME: &str = "scaling";
 pub const EXPERIMENT: Experiment = Experiment {
     name: NAME,
     title: "Scaling with mesh size",
-    inputs: &[Input::Meshes, Input::SuiteSparse],
+    inputs: &[Input::Meshes, Input::SuiteSparse, Input::Mumps],
     run,
 };
 
