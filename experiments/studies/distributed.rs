@@ -7,7 +7,7 @@
 //! Per run: MUMPS's analysis (`JOB = 1`, the report's `timings_s.symbolic`),
 //! factorisation (`JOB = 2`, `numeric`) and solve (`JOB = 3` plus the
 //! library's checks, `solve`); each rank's share of the factor
-//! (`INFO(29)`) and the bytes MUMPS used on it (`INFO(22)`), from the
+//! (`INFO(27)`) and the bytes MUMPS used on it (`INFO(22)`), from the
 //! report's `mumps` object; each process's peak resident set (GNU time's
 //! `%M`, when `/usr/bin/time` exists); and the largest vertex distance to
 //! the faer-auto result of the same command without MPI, relative to the
@@ -136,7 +136,7 @@ struct Row {
     solve_s: Option<f64>,
     /// Entries of the whole factor (`nnz.factor`).
     factor_entries: Option<u64>,
-    /// MUMPS: each rank's share of the factor (`INFO(29)`).
+    /// MUMPS: each rank's share of the factor (`INFO(27)`).
     factor_entries_per_rank: Vec<u64>,
     /// MUMPS: the bytes each rank's factorisation used (`INFO(22)`).
     peak_bytes_per_rank: Vec<u64>,
@@ -532,8 +532,9 @@ struct Model {
     /// the same mesh): the centralised input and rank 0's own pipeline.
     rank0_extra_bytes_per_vertex: Option<f64>,
     /// The report's `nnz.factor` (MUMPS's `INFOG(29)`) over the sum of the
-    /// ranks' `INFO(29)` on the largest one-rank run: the two counts
-    /// differ, and the fit is of the second (what the ranks store).
+    /// ranks' `INFO(27)` on the largest one-rank run: 1 when the ranks'
+    /// shares add up to the total (a check of what is read); the fit is of
+    /// the second (what the ranks store).
     infog29_over_info29: Option<f64>,
 }
 
@@ -818,7 +819,7 @@ fn figures(dir: &Path, rows: &[Row], notes: &mut Vec<String>) -> Result<Vec<Stri
         dir,
         rows,
         "per_rank_factor",
-        "MUMPS factor entries per rank (INFO(29)), 1 and 2 ranks",
+        "MUMPS factor entries per rank (INFO(27)), 1 and 2 ranks",
         ("factor entries (millions)", 1e6),
         |r| &r.factor_entries_per_rank,
         notes,
@@ -915,7 +916,7 @@ fn projection_text(m: &Model, projection: &[Projection]) -> String {
         s,
         "**Projection (not a measurement).** A nested-dissection ordering of a surface mesh (a planar-like graph) fills its Cholesky factor with O(n log n) entries, \
          so the one-rank in-core runs above are fitted (least squares through the origin) with \
-         **nnz(L) ≈ c·n·log₂n, c = {:.3}** (nnz(L) = the ranks' INFO(29) summed: what they store{}), and MUMPS's memory summed over ranks (INFO(22)) with **bytes ≈ c_b·n·log₂n, c_b = {:.1}**. \
+         **nnz(L) ≈ c·n·log₂n, c = {:.3}** (nnz(L) = the ranks' INFO(27) summed: what they store{}), and MUMPS's memory summed over ranks (INFO(22)) with **bytes ≈ c_b·n·log₂n, c_b = {:.1}**. \
          Per rank = total / ranks × the imbalance factor measured on the 2-rank run of {}: its largest rank over half the 1-rank total of the same mesh, \
          {:.3} for the factor entries ({:.3} unevenness between the two ranks × {:.3} growth of the total when split) and {:.3} for the memory ({:.3} × {:.3}). \
          This assumes an even split up to that factor on 8 and 64 ranks; MUMPS's tree mapping does not promise it, and the growth of the total when split is likely to be larger with more ranks, \
@@ -1007,7 +1008,7 @@ fn section(ctx: &Context, tables: &Tables, figures: &[String], notes: &[String])
          once per setting: `deform` with faer-auto without MPI (the reference), and `deform --factor mumps` under `mpirun` with 1 and 2 ranks in core and with 1 rank out of core (`--out-of-core`). \
          Rank 0 reads, assembles and drives; the other rank serves its MUMPS commands. \
          Analysis, factorisation and solve are the report's `timings_s.symbolic` (MUMPS: JOB = 1), `numeric` (JOB = 2) and `solve` (JOB = 3 plus the library's checks); \
-         the factor entries and MUMPS's memory per rank are the report's `mumps.factor_entries_per_rank` (INFO(29)) and `peak_bytes_per_rank` (INFO(22)); \
+         the factor entries and MUMPS's memory per rank are the report's `mumps.factor_entries_per_rank` (INFO(27)) and `peak_bytes_per_rank` (INFO(22)); \
          the peak resident set of each process is GNU time's `%M`. The difference to faer is the largest vertex distance between the two deformed meshes over the rest mesh's bounding-box diagonal. \
          One run per setting (no repetitions): the times carry the noise of a shared machine.\n"
     );
@@ -1023,7 +1024,7 @@ fn section(ctx: &Context, tables: &Tables, figures: &[String], notes: &[String])
     );
     for stem in figures {
         let what = if stem == "per_rank_factor" {
-            "MUMPS's factor entries per rank (INFO(29), millions)"
+            "MUMPS's factor entries per rank (INFO(27), millions)"
         } else {
             "MUMPS's memory per rank (INFO(22), MiB)"
         };
