@@ -2,11 +2,12 @@
 //! ([`crate::backend::ldlt`]), for the KKT formulation.
 //!
 //! The seam's contract is a **static** order given by the caller. MUMPS
-//! gets it as `PERM_IN` (`ICNTL(7) = 1`) with numerical pivoting off
-//! (`CNTL(1) = 0`), no scaling (`ICNTL(8) = 0`), the usual (not
+//! gets it as `PERM_IN` (`ICNTL(7) = 1`) with numerical pivoting all but
+//! off (`CNTL(1)` = the smallest normal double, [`PIVOT_THRESHOLD`]), no
+//! scaling (`ICNTL(8) = 0`), the usual (not
 //! compressed) ordering (`ICNTL(12) = 1`) and the root node factored like
 //! any other (`ICNTL(13) = 1`), so that it eliminates in the caller's
-//! order as faer does. MUMPS does not hand out the pivots: it judges them
+//! order as faer does, up to MUMPS's own order inside a front. MUMPS does not hand out the pivots: it judges them
 //! itself with its null-pivot detection (`ICNTL(24) = 1`), which flags a
 //! pivot whose row in the frontal matrix has an infinity norm below
 //! `CNTL(3)·‖K‖∞`; `CNTL(3)` is the KKT pivot tolerance
@@ -37,6 +38,16 @@ use crate::limits::MemoryBudget;
 /// formulation's pivot tolerance.
 const NULL_PIVOT_THRESHOLD: f64 = 1000.0 * f64::EPSILON;
 
+/// The relative pivoting threshold `CNTL(1)`: the smallest positive normal
+/// double, so that only a pivot that is (nearly) exactly zero is passed
+/// over. Not 0: with `CNTL(1) = 0` MUMPS 5.5 takes only the first candidate
+/// of a front (`DMUMPS_FAC_I_LDLT`) and delays it when it is exactly zero;
+/// MUMPS's order of the fully summed variables inside a front is not
+/// exactly `PERM_IN`'s (of two duplicated constraints it finds the earlier
+/// one null), so a multiplier can meet a zero pivot, and independent
+/// constraints (a grid with relative constraints) ended in `INFOG(1) = −10`.
+const PIVOT_THRESHOLD: f64 = f64::MIN_POSITIVE;
+
 /// MUMPS's `LDLᵀ` in a static order.
 #[derive(Debug, Clone, Default)]
 pub struct MumpsLdlt {
@@ -53,7 +64,7 @@ impl MumpsLdlt {
 fn analysis_params() -> Params {
     Params {
         icntl: vec![(6, 0), (7, 1), (8, 0), (12, 1), (13, 1), (24, 1), (28, 1)],
-        cntl: vec![(1, 0.0), (3, NULL_PIVOT_THRESHOLD)],
+        cntl: vec![(1, PIVOT_THRESHOLD), (3, NULL_PIVOT_THRESHOLD)],
     }
 }
 
