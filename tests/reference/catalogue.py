@@ -348,13 +348,15 @@ def configs(suitesparse, factor=None):
 
 def runs_for(scene_no, full, suitesparse, factor=None):
     """The runs of one scene. `full`: every null-space back end, else two of
-    them (rotating; with `factor`, one QR back end, rotating); penalty, kkt
-    and eliminate each once with a rotating SPD back end (or `factor`)."""
+    them (rotating); penalty, kkt and eliminate each once with a rotating
+    SPD back end. With `factor`: nullspace-qr once, its QR back end
+    rotating (the QR pairings are the default catalogue's; this one tests
+    the factor), then penalty, kkt and eliminate."""
     ns, pen, kkt, eli = configs(suitesparse, factor)
-    if full:
-        chosen = list(ns)
-    elif factor:
+    if factor:
         chosen = [ns[scene_no % len(ns)]]
+    elif full:
+        chosen = list(ns)
     else:
         chosen = [ns[scene_no % len(ns)], ns[(scene_no + 1) % len(ns)]]
     chosen.append(pen[scene_no % len(pen)])
