@@ -115,12 +115,10 @@ fn on_ranks(n: usize, args: &[&str]) -> Output {
     finish(c, "mpirun")
 }
 
-/// Runs `lse-deform ARGS` (the generators), which must succeed; returns
-/// its standard output.
-fn setup(args: &[&str]) -> String {
+/// Runs `lse-deform ARGS` (the generators), which must succeed.
+fn setup(args: &[&str]) {
     let o = alone(args);
     assert!(o.status.success(), "{args:?}: {}", stderr(&o));
-    String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o)
 }
 
 fn mesh(path: &str) -> Mesh {
@@ -147,9 +145,10 @@ fn report(path: &str) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-/// A grid of about `vertices` vertices and a scene with every constraint
-/// kind; `extra` adds `--duplicate` or `--conflict`. Returns `(mesh,
-/// scene)` paths.
+/// A grid of about `vertices` vertices (`dir/grid.obj`, made by the first
+/// call for `dir`) and a scene `dir/name` with every constraint kind;
+/// `extra` adds `--duplicate` or `--conflict`. Returns `(mesh, scene)`
+/// paths.
 fn grid_scene(dir: &Path, vertices: usize, name: &str, extra: &[&str]) -> (String, String) {
     let mesh = path_in(dir, "grid.obj");
     if !Path::new(&mesh).exists() {
