@@ -17,6 +17,11 @@ One line per run, a summary, the wall time and, last, `N passed, N failed`.
 Exit status 1 on any failure.
 
     python tests/reference/catalogue.py [--mesh-dir DIR] [--bin PATH] [--jobs N] [--keep DIR] [--only SUBSTRING]
+                                        [--factor NAME [--launcher CMD]]
+
+With --factor NAME (e.g. mumps) only the methods that take a factor back
+end run, each with `--factor NAME`, against the same targets; --launcher CMD
+runs every deform through CMD (e.g. `mpirun -np 2 ...`).
 
 Environment: LSE_DEFORM_BIN (the binary; default target/release/lse-deform
 if it exists and is newer than target/debug/lse-deform, else the debug one),
@@ -30,6 +35,7 @@ import concurrent.futures
 import json
 import os
 import pathlib
+import shlex
 import shutil
 import subprocess
 import sys
@@ -309,8 +315,22 @@ def rel(i, j, vec, w=None):
 # --------------------------------------------------------------------------
 
 
-def configs(suitesparse):
-    """(label, arguments) for every formulation and back end of the build."""
+def configs_for_factor(factor, suitesparse):
+    """(label, arguments) of every method that takes a factor back end, each
+    with `--factor factor`; nullspace-qr with each QR back end of the build."""
+    qrs = ["sparse-givens", "dense-householder"] + (["spqr"] if suitesparse else [])
+    ns = [(f"nullspace-qr {q} {factor}", ["--method", "nullspace-qr", "--qr", q, "--factor", factor]) for q in qrs]
+    pen = [(f"penalty 1e4 {factor}", ["--method", "penalty", "--weight", "1e4", "--refine", "auto", "--factor", factor])]
+    kkt = [(f"kkt {factor}", ["--method", "kkt", "--factor", factor])]
+    eli = [(f"eliminate {factor}", ["--method", "eliminate", "--factor", factor])]
+    return ns, pen, kkt, eli
+
+
+def configs(suitesparse, factor=None):
+    """(label, arguments) for every formulation and back end of the build,
+    or with `factor` only the runs of that factor back end."""
+    if factor:
+        return configs_for_factor(factor, suitesparse)
     ns = [
         ("nullspace-qr sparse-givens faer-auto", ["--method", "nullspace-qr", "--qr", "sparse-givens", "--spd", "faer-auto"]),
         ("nullspace-qr dense-householder faer-supernodal", ["--method", "nullspace-qr", "--qr", "dense-householder", "--spd", "faer-supernodal"]),
@@ -326,12 +346,16 @@ def configs(suitesparse):
     return ns, pen, kkt, eli
 
 
-def runs_for(scene_no, full, suitesparse):
+def runs_for(scene_no, full, suitesparse, factor=None):
     """The runs of one scene. `full`: every null-space back end, else two of
     them (rotating); penalty, kkt and eliminate each once with a rotating
-    SPD back end."""
-    ns, pen, kkt, eli = configs(suitesparse)
-    if full:
+    SPD back end. With `factor`: nullspace-qr once, its QR back end
+    rotating (the QR pairings are the default catalogue's; this one tests
+    the factor), then penalty, kkt and eliminate."""
+    ns, pen, kkt, eli = configs(suitesparse, factor)
+    if factor:
+        chosen = [ns[scene_no % len(ns)]]
+    elif full:
         chosen = list(ns)
     else:
         chosen = [ns[scene_no % len(ns)], ns[(scene_no + 1) % len(ns)]]
@@ -346,10 +370,10 @@ def runs_for(scene_no, full, suitesparse):
 # --------------------------------------------------------------------------
 
 
-def run_binary(binary, mesh, cons, lap, label, args, workdir, tag):
+def run_binary(binary, mesh, cons, lap, label, args, workdir, tag, launcher=()):
     out = workdir / f"{tag}.obj"
     rep = workdir / f"{tag}.report.json"
-    cmd = [str(binary), "deform", str(mesh), "-c", str(cons), "--laplacian", lap, "-o", str(out), "--report", str(rep)] + args
+    cmd = list(launcher) + [str(binary), "deform", str(mesh), "-c", str(cons), "--laplacian", lap, "-o", str(out), "--report", str(rep)] + args
     t0 = time.time()
     p = subprocess.run(cmd, capture_output=True, text=True)
     return {"rc": p.returncode, "stderr": p.stderr, "stdout": p.stdout, "out": out, "report": rep, "seconds": time.time() - t0}
@@ -371,6 +395,16 @@ def expected_refusal(method, cons_kinds_hard, has_dependent):
 # library detects this and exits 3 (docs/cli.md §6: "numerical failure: a
 # non-positive pivot ..."); recorded as not applicable, with the message.
 PENALTY_BREAKDOWN = "the penalty normal matrix"
+
+# MUMPS's Cholesky does not hand out its pivots, so the breakdown above is
+# not refused at the factorisation (docs/distributed.md §4): an exactly zero
+# pivot is its error -10 ("numerically singular", exit 3), and a pivot that
+# lost its digits without turning negative shows only in the forward-error
+# warning of the solve, with exit 0 and a wrong mesh. With --factor mumps a
+# penalty run that fails the comparison *and* carries that warning is the
+# same breakdown, not applicable; one without the warning is a failure.
+MUMPS_PENALTY_SINGULAR = "numerically singular"
+FORWARD_ERROR_WARNING = "estimated forward error"
 
 
 
@@ -412,6 +446,25 @@ def compare(ref, V, F, res, method):
         if rep["redundant"] != "not detected" or rep["conflicting"] != "not detected":
             problems.append("penalty reports rank detection it does not have")
     return not problems, detail, "; ".join(problems)
+
+
+def check_mumps_report(rep, launched):
+    """The report's `mumps` object of a `--factor mumps` run: present, with
+    one entry per rank; under a launcher, more than one rank (otherwise the
+    pass would not test the distributed factorisation). Returns the problem
+    or None."""
+    m = rep.get("mumps")
+    if not isinstance(m, dict):
+        return "the report has no mumps object"
+    ranks = m.get("ranks")
+    if not isinstance(ranks, int) or ranks < 1:
+        return f"mumps.ranks is {ranks!r}"
+    if launched and ranks < 2:
+        return f"mumps.ranks is {ranks} under the launcher (expected several ranks)"
+    entries = m.get("factor_entries_per_rank")
+    if not isinstance(entries, list) or len(entries) != ranks or not all(e > 0 for e in entries):
+        return f"mumps.factor_entries_per_rank is {entries!r} for {ranks} ranks"
+    return None
 
 
 def find_binary(arg):
@@ -463,7 +516,21 @@ def main():
         "in DIR, a --keep directory of an earlier run (a refactoring that may not change a computed number)",
     )
     ap.add_argument("--no-real", action="store_true", help="generated meshes only (not allowed under CI)")
+    ap.add_argument(
+        "--factor",
+        metavar="NAME",
+        help="only the methods that take a factor back end (nullspace-qr, penalty, kkt, eliminate), each with "
+        "--factor NAME (e.g. mumps); the build must have it",
+    )
+    ap.add_argument(
+        "--launcher",
+        metavar="CMD",
+        help="run every deform through this command (shell words), e.g. "
+        "'mpirun -np 2 --mca btl self,tcp --mca btl_tcp_if_include lo'; with --factor mumps the report must then "
+        "show several ranks",
+    )
     args = ap.parse_args()
+    launcher = shlex.split(args.launcher) if args.launcher else []
     if args.same_outputs_as and not args.keep:
         ap.error("--same-outputs-as needs --keep DIR (the outputs are compared after the run)")
     t_start = time.time()
@@ -517,6 +584,19 @@ def main():
     )
     suitesparse = p.returncode == 0
     emit(f"suitesparse back ends (spqr, cholmod): {'yes' if suitesparse else 'no (' + p.stderr.strip().splitlines()[0][:90] + '...)'}")
+    if args.factor:
+        p = subprocess.run(
+            launcher
+            + [str(binary), "deform", str(generated["icosphere"]), "-c", str(probe), "-o", str(work / "probe.obj"), "--factor", args.factor],
+            capture_output=True,
+            text=True,
+        )
+        emit(f"factor back end: {args.factor} only{'; launcher: ' + args.launcher if launcher else ''}")
+        if p.returncode != 0:
+            # every run would fail the same way: stop here
+            emit(f"FAIL  setup: --factor {args.factor}{' under the launcher' if launcher else ''}: exit {p.returncode}: {p.stderr.strip()[:300]}")
+            emit(f"{passes} passed, {failures + 1} failed")
+            return 1
     for msg in setup_fail:
         emit(f"FAIL  setup: {msg}")
         failures += 1
@@ -599,14 +679,14 @@ def main():
         cons_path.write_text(json.dumps({"constraints": rows}, indent=0))
         cons = R.read_constraints(cons_path, len(V))
         hard_kinds = [cons.kinds[i] for i in cons.hard]
-        runs = runs_for(si, full, suitesparse)
+        runs = runs_for(si, full, suitesparse, args.factor)
         futures = []
         for label, rargs in runs:
             method = rargs[1]
             if method == "penalty" and cls == "conflicting":
                 futures.append((label, method, None, "penalty has no rank detection and no exact solution under conflicting hard constraints (docs/cli.md §5)"))
                 continue
-            fut = pool.submit(run_binary, binary, mesh, cons_path, lap, label, rargs, work, f"{tag}__{label.replace(' ', '_')}")
+            fut = pool.submit(run_binary, binary, mesh, cons_path, lap, label, rargs, work, f"{tag}__{label.replace(' ', '_')}", launcher)
             futures.append((label, method, fut, None))
             n_runs += 1
         # the reference, while the binary runs
@@ -655,11 +735,25 @@ def main():
                     emit(f"N/A   {prefix}: penalty breakdown, exit 3 (W=1e4 relative to a soft weight of up to 100; see PENALTY_BREAKDOWN): {first[:160]}")
                     na += 1
                     na_penalty += 1
+                elif method == "penalty" and args.factor == "mumps" and res["rc"] == 3 and MUMPS_PENALTY_SINGULAR in res["stderr"]:
+                    emit(f"N/A   {prefix}: penalty breakdown, exit 3 as MUMPS's error -10 (see MUMPS_PENALTY_SINGULAR): {first[:160]}")
+                    na += 1
+                    na_penalty += 1
                 else:
                     emit(f"FAIL  {prefix}: exit {res['rc']}: {first[:200]}")
                     failures += 1
                 continue
             ok, detail, msg = compare(ref, V, F, res, method)
+            if args.factor == "mumps":
+                problem = check_mumps_report(json.loads(res["report"].read_text()), bool(launcher))
+                if problem:
+                    ok, msg = False, "; ".join(m for m in (msg, problem) if m)
+                elif not ok and method == "penalty" and FORWARD_ERROR_WARNING in res["stderr"]:
+                    warning = next((l for l in res["stderr"].splitlines() if FORWARD_ERROR_WARNING in l), "")
+                    emit(f"N/A   {prefix}: penalty breakdown, exit 0 with the forward-error warning (see FORWARD_ERROR_WARNING; {msg}): {warning[:160]}")
+                    na += 1
+                    na_penalty += 1
+                    continue
             note = " (an expected refusal did not happen)" if refusal else ""
             extra = f" conf_res={detail['conf_res']:.1e}" if ref["conflicting"] and "conf_res" in detail else ""
             fee = detail.get("fee")
