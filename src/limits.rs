@@ -295,6 +295,17 @@ impl MemoryBudget {
     }
 }
 
+/// Bytes of this process's resident memory (`VmRSS` of
+/// `/proc/self/status`), where the system says; what a check of memory
+/// still to be allocated adds to its estimate when the budget is of the
+/// whole process.
+pub fn resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
 /// The detail of a refusal of `name`, a stream that went on beyond `cap`,
 /// the bytes read (`after`: e.g. " after decompression"), the most that
 /// `budget` allows at `per_byte` bytes of memory (of `of`) per byte read.

@@ -489,13 +489,16 @@ fn formulation_choices_name_themselves_and_refuse_what_they_cannot_build() {
         };
         refused(choice, "weight");
     }
-    // KKT factors with faer's LDLᵀ only.
+    // KKT factors with faer's or MUMPS's LDLᵀ only.
     for spd in [SpdKind::Nalgebra, SpdKind::Cholmod] {
         let choice = FormulationChoice {
             spd,
             ..FormulationChoice::new(Method::Kkt)
         };
-        refused(choice, "faer-auto, faer-simplicial or faer-supernodal");
+        refused(
+            choice,
+            "faer-auto, faer-simplicial, faer-supernodal or mumps",
+        );
     }
 }
 

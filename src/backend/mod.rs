@@ -39,6 +39,21 @@ impl FactorStorage {
             FactorStorage::OutOfCore(dir) => Some(dir),
         }
     }
+
+    /// Refuses an out-of-core directory that is not an existing directory
+    /// (bad input, before any work; each rank still reports its own failure
+    /// to make its subdirectory there).
+    pub fn check(&self) -> Result<(), crate::error::ProblemError> {
+        match self.directory() {
+            Some(dir) if !dir.is_dir() => Err(crate::error::ProblemError::InvalidArgument {
+                message: format!(
+                    "the out-of-core directory {} does not exist or is not a directory",
+                    dir.display()
+                ),
+            }),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// What a MUMPS factorisation reports of its ranks (the report's `mumps`
@@ -130,7 +145,10 @@ mod tests {
                 ldlt.is_some(),
                 matches!(
                     spd,
-                    SpdKind::FaerAuto | SpdKind::FaerSimplicial | SpdKind::FaerSupernodal
+                    SpdKind::FaerAuto
+                        | SpdKind::FaerSimplicial
+                        | SpdKind::FaerSupernodal
+                        | SpdKind::Mumps
                 ),
                 "{spd}"
             );

@@ -208,6 +208,7 @@ impl FormulationChoice {
         &self,
         storage: &FactorStorage,
     ) -> Result<Box<dyn Formulation>, ProblemError> {
+        storage.check()?;
         let invalid =
             |option: SolveOption, message: String| ProblemError::InvalidOption { option, message };
         match self.method {

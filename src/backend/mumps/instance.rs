@@ -220,9 +220,17 @@ impl Mumps {
         } else {
             (15, "its in-core factorisation (INFO(15))")
         };
-        let estimate = megabytes(self.struc.info(info));
+        // The budget is of the whole process: what it holds already (on
+        // rank 0 the mesh, the problem and the matrix) comes on top of what
+        // MUMPS will allocate.
+        let resident = crate::limits::resident_bytes().unwrap_or(0);
+        let estimate = megabytes(self.struc.info(info)).saturating_add(resident);
         let local = budget.check(estimate, || {
-            format!("MUMPS estimates that {what} would need")
+            format!(
+                "MUMPS estimates that {what} would need {} on top of the {} this process holds; together",
+                crate::limits::format_bytes(megabytes(self.struc.info(info))),
+                crate::limits::format_bytes(resident)
+            )
         });
         agree(world, local).map_err(Failure::Memory)
     }

@@ -16,7 +16,8 @@
 //!
 //! **Memory.** After the analysis every rank checks MUMPS's estimate of
 //! its own share (`INFO(15)` in core, `INFO(17)` out of core: what stays
-//! in memory) against its budget; any refusal refuses the run on every
+//! in memory) plus what the process already holds (its resident set)
+//! against its budget; any refusal refuses the run on every
 //! rank, before the factorisation.
 
 mod cholesky;
