@@ -527,7 +527,7 @@ fn check_detected_pivots(
         first = Some(n + k);
     }
     let rule = format!(
-        "MUMPS found its pivot null (the norm of its row below {KKT_PIVOT_TOLERANCE:e} of ‖K‖∞)"
+        "MUMPS found its pivot null (the norm of its row below {KKT_PIVOT_TOLERANCE:e} of the scaled matrix's)"
     );
     let detail = match first {
         Some(unknown) if unknown < n && problem.is_general() => {

@@ -397,13 +397,15 @@ def expected_refusal(method, cons_kinds_hard, has_dependent):
 PENALTY_BREAKDOWN = "the penalty normal matrix"
 
 # MUMPS's Cholesky does not hand out its pivots, so the breakdown above is
-# not refused at the factorisation (docs/distributed.md §4): an exactly zero
-# pivot is its error -10 ("numerically singular", exit 3), and a pivot that
-# lost its digits without turning negative shows only in the forward-error
-# warning of the solve, with exit 0 and a wrong mesh. With --factor mumps a
-# penalty run that fails the comparison *and* carries that warning is the
-# same breakdown, not applicable; one without the warning is a failure.
-MUMPS_PENALTY_SINGULAR = "numerically singular"
+# not refused as faer refuses it (docs/distributed.md §4): an exactly zero
+# pivot is its error -10 ("numerically singular", exit 3), a pivot that
+# rounding turned negative is refused by MUMPS's count of negative pivots
+# ("negative pivot", exit 3), and a pivot that lost its digits without
+# turning negative shows only in the forward-error warning of the solve,
+# with exit 0 and a wrong mesh. With --factor mumps a penalty run that fails
+# the comparison *and* carries that warning is the same breakdown, not
+# applicable; one without the warning is a failure.
+MUMPS_PENALTY_SINGULAR = ("numerically singular", "negative pivot")
 FORWARD_ERROR_WARNING = "estimated forward error"
 
 
@@ -735,8 +737,8 @@ def main():
                     emit(f"N/A   {prefix}: penalty breakdown, exit 3 (W=1e4 relative to a soft weight of up to 100; see PENALTY_BREAKDOWN): {first[:160]}")
                     na += 1
                     na_penalty += 1
-                elif method == "penalty" and args.factor == "mumps" and res["rc"] == 3 and MUMPS_PENALTY_SINGULAR in res["stderr"]:
-                    emit(f"N/A   {prefix}: penalty breakdown, exit 3 as MUMPS's error -10 (see MUMPS_PENALTY_SINGULAR): {first[:160]}")
+                elif method == "penalty" and args.factor == "mumps" and res["rc"] == 3 and any(m in res["stderr"] for m in MUMPS_PENALTY_SINGULAR):
+                    emit(f"N/A   {prefix}: penalty breakdown, exit 3 as MUMPS's refusal (see MUMPS_PENALTY_SINGULAR): {first[:160]}")
                     na += 1
                     na_penalty += 1
                 else:

@@ -3,15 +3,18 @@
 //!
 //! The seam's contract is a **static** order given by the caller. MUMPS
 //! gets it as `PERM_IN` (`ICNTL(7) = 1`) with numerical pivoting only for
-//! pivots below `1e-10` of their column (`CNTL(1)`, [`PIVOT_THRESHOLD`]),
-//! no scaling (`ICNTL(8) = 0`), the usual (not compressed) ordering
+//! a pivot that is exactly zero (`CNTL(1)`, [`PIVOT_THRESHOLD`]), MUMPS's
+//! automatic symmetric scaling (`ICNTL(8) = 77`: a diagonal scaling, which
+//! changes no pivot's zero-ness and makes the null-pivot test below
+//! relative to rows of comparable size), the usual (not compressed) ordering
 //! (`ICNTL(12) = 1`) and the root node factored like any other
 //! (`ICNTL(13) = 1`). MUMPS still orders within its own tree: unknowns with
 //! one pattern (duplicate constraints) are merged into one node and may be
 //! eliminated in another order than the given one. MUMPS does not hand
 //! out the pivots: it judges them itself with its null-pivot detection
 //! (`ICNTL(24) = 1`), which flags a pivot whose row in the frontal matrix
-//! has an infinity norm below `CNTL(3)·‖K‖∞`; `CNTL(3)` is the KKT pivot
+//! has an infinity norm below `CNTL(3)` times the norm of the scaled `K`;
+//! `CNTL(3)` is the KKT pivot
 //! tolerance `1000 ε` and `K` is already scaled so that its constraint
 //! block matches `AᵀA`. The flagged unknowns (`PIVNUL_LIST`) and the count
 //! of negative pivots (`INFOG(12)`) are what [`LdltFactor::detected_pivots`]
@@ -35,7 +38,8 @@ use crate::backend::ldlt::{
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 
-/// The null-pivot threshold relative to `‖K‖∞` (`CNTL(3)`): the KKT
+/// The null-pivot threshold relative to the norm of the scaled `K`
+/// (`CNTL(3)`): the KKT
 /// formulation's pivot tolerance.
 const NULL_PIVOT_THRESHOLD: f64 = 1000.0 * f64::EPSILON;
 
@@ -43,9 +47,11 @@ const NULL_PIVOT_THRESHOLD: f64 = 1000.0 * f64::EPSILON;
 /// pivot in place unless it is below this fraction of the largest entry
 /// of its column in the front. Zero would turn pivoting off, but MUMPS's
 /// null-pivot detection lives in its pivot search and stops with it (a
-/// zero pivot is then error −10), so the threshold is tiny rather than
-/// zero: the static order is kept for every pivot that is not almost null.
-const PIVOT_THRESHOLD: f64 = 1e-10;
+/// zero pivot is then error −10), so the threshold is the smallest normal
+/// double rather than zero: only an exactly zero pivot leaves its place.
+/// (With `1e-10`, small but sound pivots of sliver-heavy meshes were
+/// delayed out of the static order and met as null ones later.)
+const PIVOT_THRESHOLD: f64 = f64::MIN_POSITIVE;
 
 /// MUMPS's `LDLᵀ` in a static order.
 #[derive(Debug, Clone, Default)]
@@ -62,7 +68,7 @@ impl MumpsLdlt {
 
 fn analysis_params() -> Params {
     Params {
-        icntl: vec![(6, 0), (7, 1), (8, 0), (12, 1), (13, 1), (24, 1), (28, 1)],
+        icntl: vec![(6, 0), (7, 1), (8, 77), (12, 1), (13, 1), (24, 1), (28, 1)],
         cntl: vec![(1, PIVOT_THRESHOLD), (3, NULL_PIVOT_THRESHOLD)],
     }
 }
