@@ -178,6 +178,10 @@ pub trait LdltSymbolic: Send + Sync {
 pub struct DetectedPivots {
     /// Unknowns with a null pivot.
     pub null: Vec<usize>,
+    /// When `null` is not empty: the unknowns still null when the matrix is
+    /// factored again with a threshold at the level of rounding (a pivot in
+    /// `null` but not here was small but sound, as on sliver-heavy meshes).
+    pub null_at_rounding: Vec<usize>,
     /// How many pivots were negative (the inertia's negative count).
     pub negative: usize,
 }

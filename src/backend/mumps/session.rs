@@ -75,6 +75,9 @@ pub(crate) struct Session {
     /// The values of the current factor (MUMPS reads them at `JOB = 2`).
     values: Vec<f64>,
     generation: u64,
+    /// `CNTL` entries every factorisation sets (the null-pivot threshold
+    /// of a second look).
+    factorisation_cntl: Vec<(usize, f64)>,
 }
 
 /// Workspace failures MUMPS asks to retry with a larger `ICNTL(14)`
@@ -107,6 +110,7 @@ impl Session {
             perm_in,
             values: Vec::new(),
             generation: 0,
+            factorisation_cntl: Vec::new(),
         })
     }
 
@@ -126,7 +130,7 @@ impl Session {
             let has_perm = !self.perm_in.is_empty();
             let params = Params {
                 icntl: vec![(14, relaxation)],
-                cntl: Vec::new(),
+                cntl: self.factorisation_cntl.clone(),
             };
             let outcome = self.driver.job(2, &params, |s| {
                 s.irn = irn.cast_mut();
@@ -167,6 +171,11 @@ impl Session {
         })
     }
 
+    /// Sets `CNTL` entries for the factorisations from now on.
+    pub fn set_factorisation_cntl(&mut self, cntl: Vec<(usize, f64)>) {
+        self.factorisation_cntl = cntl;
+    }
+
     /// The null pivots (`PIVNUL_LIST`, 0-based) and the number of negative
     /// pivots (`INFOG(12)`) of the current factor.
     pub fn detected_pivots(&self) -> DetectedPivots {
@@ -185,6 +194,7 @@ impl Session {
         };
         DetectedPivots {
             null,
+            null_at_rounding: Vec::new(),
             negative: struc.infog(12).max(0) as usize,
         }
     }
