@@ -40,6 +40,22 @@ impl FactorStorage {
         }
     }
 
+    /// Refuses out-of-core storage for the back end named `backend`, which
+    /// is not MUMPS (the only one that keeps a factor in files).
+    pub(crate) fn refuse_out_of_core(
+        &self,
+        backend: &str,
+    ) -> Result<(), crate::error::ProblemError> {
+        match self.directory() {
+            Some(_) => Err(crate::error::ProblemError::InvalidArgument {
+                message: format!(
+                    "out-of-core storage of the factor needs the back end 'mumps', not '{backend}'"
+                ),
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Refuses an out-of-core directory that is not an existing directory
     /// (bad input, before any work; each rank still reports its own failure
     /// to make its subdirectory there).

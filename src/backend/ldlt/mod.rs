@@ -103,13 +103,10 @@ impl LdltKind {
             LdltKind::Mumps => Err(ProblemError::InvalidArgument {
                 message: crate::backend::spd::MUMPS_MISSING.into(),
             }),
-            _ if storage.directory().is_some() => Err(ProblemError::InvalidArgument {
-                message: format!(
-                    "out-of-core storage of the factor needs the back end 'mumps', not '{}'",
-                    self.name()
-                ),
-            }),
-            _ => Ok(Box::new(FaerLdlt::new(self))),
+            _ => {
+                storage.refuse_out_of_core(self.name())?;
+                Ok(Box::new(FaerLdlt::new(self)))
+            }
         }
     }
 }

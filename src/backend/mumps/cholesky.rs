@@ -77,15 +77,14 @@ impl SpdBackend for MumpsLlt {
         &self,
         lower: SymbolicSparseColMatRef<'_, usize>,
     ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
-        let matrix = Assembled::from_lower(lower)?;
-        let driver = Driver::create(1, self.out_of_core.as_deref()).map_err(numerical)?;
-        let session =
-            Session::analyse(driver, matrix, Vec::new(), &analysis_params()).map_err(numerical)?;
-        let estimate = super::ffi::count(session.driver.struc().infog(20)) as usize;
-        Ok(Box::new(MumpsSymbolic {
-            shared: Arc::new(Mutex::new(session)),
-            estimate,
-        }))
+        let symbolic = MumpsSymbolic::analyse(
+            lower,
+            1,
+            Vec::new(),
+            &analysis_params(),
+            self.out_of_core.as_deref(),
+        )?;
+        Ok(Box::new(symbolic))
     }
 }
 
@@ -97,6 +96,25 @@ pub(crate) struct MumpsSymbolic {
 }
 
 impl MumpsSymbolic {
+    /// A new instance with `SYM = sym` (out of core under `out_of_core`)
+    /// that analyses `lower` with `params` (and `perm_in` when not empty).
+    pub fn analyse(
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        sym: i32,
+        perm_in: Vec<i32>,
+        params: &Params,
+        out_of_core: Option<&std::path::Path>,
+    ) -> Result<MumpsSymbolic, NumericalError> {
+        let matrix = Assembled::from_lower(lower)?;
+        let driver = Driver::create(sym, out_of_core).map_err(numerical)?;
+        let session = Session::analyse(driver, matrix, perm_in, params).map_err(numerical)?;
+        let estimate = super::ffi::count(session.driver.struc().infog(20)) as usize;
+        Ok(MumpsSymbolic {
+            shared: Arc::new(Mutex::new(session)),
+            estimate,
+        })
+    }
+
     /// Every rank checks MUMPS's estimate of its share against its budget.
     pub fn check_every_rank(&self, budget: MemoryBudget, matrix: &str) -> Result<(), ProblemError> {
         lock(&self.shared)

@@ -22,15 +22,13 @@
 //! pivots (docs/distributed.md §3).
 
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
 
 use faer::MatMut;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::cholesky::MumpsSymbolic;
-use super::driver::Driver;
 use super::instance::Params;
-use super::session::{Assembled, Factorisation, Session, lock};
+use super::session::{Factorisation, lock};
 use super::{MumpsFacts, numerical};
 use crate::backend::ldlt::{
     DetectedPivots, LdltBackend, LdltFactor, LdltKind, LdltSymbolic, Pivot,
@@ -93,20 +91,19 @@ impl LdltBackend for MumpsLdlt {
         lower: SymbolicSparseColMatRef<'_, usize>,
         order: &[usize],
     ) -> Result<Box<dyn LdltSymbolic>, NumericalError> {
-        let matrix = Assembled::from_lower(lower)?;
         // PERM_IN(i): the (1-based) position of unknown i in the order.
         let mut perm_in = vec![0i32; order.len()];
         for (position, &unknown) in order.iter().enumerate() {
             perm_in[unknown] = position as i32 + 1;
         }
-        let driver = Driver::create(2, self.out_of_core.as_deref()).map_err(numerical)?;
-        let session =
-            Session::analyse(driver, matrix, perm_in, &analysis_params()).map_err(numerical)?;
-        let estimate = super::ffi::count(session.driver.struc().infog(20)) as usize;
-        Ok(Box::new(MumpsLdltSymbolic(MumpsSymbolic {
-            shared: Arc::new(Mutex::new(session)),
-            estimate,
-        })))
+        let symbolic = MumpsSymbolic::analyse(
+            lower,
+            2,
+            perm_in,
+            &analysis_params(),
+            self.out_of_core.as_deref(),
+        )?;
+        Ok(Box::new(MumpsLdltSymbolic(symbolic)))
     }
 }
 

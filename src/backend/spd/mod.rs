@@ -112,13 +112,8 @@ impl SpdKind {
         self,
         storage: &FactorStorage,
     ) -> Result<Arc<dyn SpdBackend>, ProblemError> {
-        if storage.directory().is_some() && self != SpdKind::Mumps {
-            return Err(ProblemError::InvalidArgument {
-                message: format!(
-                    "out-of-core storage of the factor needs the SPD back end 'mumps', not '{}'",
-                    self.name()
-                ),
-            });
+        if self != SpdKind::Mumps {
+            storage.refuse_out_of_core(self.name())?;
         }
         match self {
             SpdKind::FaerSupernodal => Ok(Arc::new(FaerLlt::supernodal())),
