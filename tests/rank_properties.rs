@@ -180,8 +180,13 @@ fn penalty_out_of_reach(expected: &Expected<'_>) -> bool {
 /// A KKT singularity at a vertex pivot whose digits cancelled (not at a
 /// multiplier: that names a constraint).
 fn vertex_pivot_lost(e: &Error) -> bool {
-    matches!(e, Error::Numerical(NumericalError::Singular { detail, .. })
-        if detail.starts_with("the pivot of vertex"))
+    match e {
+        Error::Numerical(NumericalError::Singular { detail, .. }) => detail
+            .strip_prefix("vertex ")
+            .and_then(|rest| rest.split_once(':'))
+            .is_some_and(|(index, _)| index.parse::<usize>().is_ok()),
+        _ => false,
+    }
 }
 
 /// The index of the constraint a KKT singularity names ("hard constraint
@@ -579,4 +584,58 @@ fn an_edge_with_t_near_the_largest_double_is_conflicting_not_redundant() {
             conflicts[0].1
         );
     }
+}
+
+/// The two KKT refusals the properties above tell apart, from the library's
+/// own messages: a vertex pivot (`vertex_pivot_lost`) and a multiplier
+/// (`kkt_names`). The vertex case is the one `kkt_ordering` documents as
+/// beyond its rule: a component all of whose vertices hard rows touch,
+/// where the rows placed before its deferred vertex do not pin it. Here a
+/// lone triangle beside a grid, tied internally by a relative row and held
+/// by an edge row from the grid to the vertex the order defers.
+#[test]
+fn kkt_refusals_are_told_apart_by_their_messages() {
+    use lse_deform::constraints::{Constraint, ConstraintKind};
+    let grid = lse_deform::mesh::generate::grid(3, 3).unwrap();
+    let n = grid.positions().len();
+    let mut positions = grid.positions().to_vec();
+    positions.extend([[2.0, 0.0, 0.0], [3.0, 0.0, 0.0], [2.0, 1.0, 0.0]]);
+    let mut faces = grid.faces().to_vec();
+    faces.push([n, n + 1, n + 2]);
+    let two = lse_deform::mesh::Mesh::new(positions, faces).unwrap();
+    let p = two.positions().to_vec();
+    let pin = |v: usize| {
+        Constraint::hard(ConstraintKind::Position {
+            vertex: v,
+            target: p[v],
+        })
+    };
+    let deformer = |mesh: &lse_deform::mesh::Mesh, cs: Vec<Constraint>| {
+        let cs = ConstraintSet::from_vec(cs).unwrap();
+        Deformer::new(mesh.clone(), LaplacianKind::Uniform, cs).unwrap()
+    };
+    let kkt = formulation(Method::Kkt, QrKind::SparseGivens);
+    let relative = Constraint::hard(ConstraintKind::Relative {
+        vertices: [n, n + 1],
+        vector: [1.0, 0.0, 0.0],
+    });
+    let bridge = Constraint::hard(ConstraintKind::Edge {
+        vertices: [n - 1, n + 2],
+        t: 0.5,
+        target: [1.5, 1.0, 0.0],
+    });
+    let mut held = deformer(&two, vec![pin(0), pin(n - 1), relative, bridge]);
+    let vertex = held.precompute(kkt.as_ref()).err().expect("KKT refuses");
+    assert!(vertex_pivot_lost(&vertex), "{vertex}");
+    assert_eq!(kkt_names(&vertex), None, "{vertex}");
+    // The problem itself is sound: the null-space method solves it.
+    held.precompute(formulation(Method::NullSpaceQr, QrKind::SparseGivens).as_ref())
+        .unwrap();
+    let mut pinned_twice = deformer(&grid, vec![pin(0), pin(n - 1), pin(0)]);
+    let duplicate = pinned_twice
+        .precompute(kkt.as_ref())
+        .err()
+        .expect("KKT refuses");
+    assert_eq!(kkt_names(&duplicate), Some(2), "{duplicate}");
+    assert!(!vertex_pivot_lost(&duplicate), "{duplicate}");
 }
