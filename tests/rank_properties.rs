@@ -625,7 +625,7 @@ fn kkt_refusals_are_told_apart_by_their_messages() {
         target: [1.5, 1.0, 0.0],
     });
     let mut held = deformer(&two, vec![pin(0), pin(n - 1), relative, bridge]);
-    let vertex = held.precompute(kkt.as_ref()).err().expect("KKT refuses");
+    let vertex = held.precompute(kkt.as_ref()).expect_err("KKT refuses");
     assert!(vertex_pivot_lost(&vertex), "{vertex}");
     assert_eq!(kkt_names(&vertex), None, "{vertex}");
     // The problem itself is sound: the null-space method solves it.
