@@ -634,8 +634,7 @@ fn kkt_refusals_are_told_apart_by_their_messages() {
     let mut pinned_twice = deformer(&grid, vec![pin(0), pin(n - 1), pin(0)]);
     let duplicate = pinned_twice
         .precompute(kkt.as_ref())
-        .err()
-        .expect("KKT refuses");
+        .expect_err("KKT refuses");
     assert_eq!(kkt_names(&duplicate), Some(2), "{duplicate}");
     assert!(!vertex_pivot_lost(&duplicate), "{duplicate}");
 }
