@@ -42,6 +42,14 @@
 //!   multiplier updates contract by nearly 1 per step (estimate 1.5e-6,
 //!   true error 1.26 after 30 steps), may break down with a typed error,
 //!   and cannot tell a conflict from slow convergence.
+//! - `auto`'s measured-floor stop (docs/refinement.md §8) after a first
+//!   correction that understated the contraction: the second correction,
+//!   still mostly error, is taken for the floor and reported as the
+//!   estimate, which then overstates the error left (estimate 1.9e-12,
+//!   true error 1.2e-13, for null-space QR and eliminate alike; once in
+//!   about 1,100 cases, found by 49 runs of this test). An overstatement
+//!   within the stop's guard of 1024 ulps of the solution is allowed; an
+//!   understatement never is.
 
 use faer::Mat;
 use lse_deform::error::{Error, NumericalError};
@@ -70,6 +78,11 @@ const ERROR_FLOOR: f64 = 1e-13;
 /// attainable accuracy is that of its residuals through the penalty
 /// system's conditioning (see `check_method`).
 const PENALTY_REFINED_FLOOR: f64 = 1e-11;
+
+/// The guard of `auto`'s measured-floor stop (docs/refinement.md §8): a
+/// correction it takes for the rounding floor is at most this many ulps of
+/// the solution's size.
+const FLOOR_GUARD_ULPS: f64 = 1024.0;
 
 fn formulation(method: Method, qr: QrKind) -> Box<dyn Formulation> {
     FormulationChoice {
@@ -388,7 +401,20 @@ fn check_method(
     } else {
         ERROR_FLOOR
     };
-    if truth > floor && !nearly_dependent && !out_of_reach {
+    // A measured-floor stop that took a correction still mostly error for
+    // the floor reports that correction: an overstatement, bounded by the
+    // stop's guard (module documentation).
+    let floor_stop_overstates = refine == Refine::Auto
+        && report
+            .refinement
+            .as_ref()
+            .is_some_and(|r| r.stop_reason == RefineStop::Converged)
+        && estimate > truth
+        && estimate
+            <= FLOOR_GUARD_ULPS
+                * f64::EPSILON
+                * vertex_error(&x, &Mat::zeros(x.nrows(), x.ncols()), scale);
+    if truth > floor && !nearly_dependent && !out_of_reach && !floor_stop_overstates {
         prop_assert!(
             estimate <= 10.0 * truth && truth <= 10.0 * estimate,
             "{label}: forward_error_estimate {estimate:e}, true error {truth:e} (refinement {:?}; near tolerance {:?})",
