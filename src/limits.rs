@@ -158,6 +158,20 @@ impl BudgetSource {
         }
     }
 
+    /// The source whose [`BudgetSource::word`] is `word`.
+    fn from_word(word: &str) -> Option<BudgetSource> {
+        [
+            BudgetSource::Option,
+            BudgetSource::Environment,
+            BudgetSource::Available,
+            BudgetSource::AddressSpace,
+            BudgetSource::Cgroup,
+            BudgetSource::Unlimited,
+        ]
+        .into_iter()
+        .find(|s| s.word() == word)
+    }
+
     /// The source as messages name it.
     fn describe(self) -> &'static str {
         match self {
@@ -225,6 +239,26 @@ impl serde::Serialize for MemoryBudget {
         out.serialize_field("bytes", &bytes)?;
         out.serialize_field("source", self.source.word())?;
         out.end()
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for MemoryBudget {
+    /// The inverse of its serialisation: `{"bytes": N or null, "source":
+    /// "word"}` (how a budget travels to other MPI ranks).
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<MemoryBudget, D::Error> {
+        #[derive(serde::Deserialize)]
+        struct Parts {
+            bytes: Option<u64>,
+            source: String,
+        }
+        let parts = Parts::deserialize(d)?;
+        let source = BudgetSource::from_word(&parts.source).ok_or_else(|| {
+            serde::de::Error::custom(format!("unknown budget source {:?}", parts.source))
+        })?;
+        Ok(MemoryBudget {
+            bytes: parts.bytes.unwrap_or(u64::MAX),
+            source,
+        })
     }
 }
 
@@ -464,6 +498,40 @@ pub fn check(estimate: u64, what: impl FnOnce() -> String) -> Result<(), String>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every source and an unlimited budget survive a round trip through
+    /// JSON (how rank 0's budget reaches the other MPI ranks), and an
+    /// unknown source is an error, not a default.
+    #[test]
+    fn budgets_round_trip_through_json() {
+        let sources = [
+            BudgetSource::Option,
+            BudgetSource::Environment,
+            BudgetSource::Available,
+            BudgetSource::AddressSpace,
+            BudgetSource::Cgroup,
+        ];
+        for source in sources {
+            let budget = MemoryBudget {
+                bytes: 7 << 20,
+                source,
+            };
+            let text = serde_json::to_string(&budget).unwrap();
+            assert_eq!(
+                serde_json::from_str::<MemoryBudget>(&text).unwrap(),
+                budget,
+                "{text}"
+            );
+        }
+        let unlimited = serde_json::to_string(&MemoryBudget::unlimited()).unwrap();
+        assert_eq!(unlimited, r#"{"bytes":null,"source":"unlimited"}"#);
+        assert_eq!(
+            serde_json::from_str::<MemoryBudget>(&unlimited).unwrap(),
+            MemoryBudget::unlimited()
+        );
+        let odd = serde_json::from_str::<MemoryBudget>(r#"{"bytes":1,"source":"guess"}"#);
+        assert!(odd.unwrap_err().to_string().contains("guess"));
+    }
 
     #[test]
     fn parses_sizes() {

@@ -317,7 +317,8 @@ fn a_missing_mesh_on_two_ranks_is_one_error() {
 
 /// Rank 1 alone refuses its memory budget (its own LSE_MEMORY_LIMIT, far
 /// below MUMPS's estimate of its share): the whole job exits 2 with the
-/// refusal naming rank 1.
+/// refusal naming rank 1 and the budget's source; the same when every rank
+/// refuses, rank 0's refusal.
 #[test]
 fn one_rank_refusing_its_budget_refuses_the_job() {
     let dir = tempfile::tempdir().unwrap();
@@ -335,6 +336,23 @@ fn one_rank_refusing_its_budget_refuses_the_job() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("system too large"), "{err}");
     assert!(err.contains("on rank 1 of 2"), "{err}");
+    assert!(err.contains("(LSE_MEMORY_LIMIT)"), "{err}");
+    assert!(!Path::new(&out).exists());
+    // Every rank under one budget below what a process holds: rank 0's
+    // refusal is the one reported, naming where its budget comes from
+    // (rank 0 sends its budget with its source to the others).
+    let mut c = Command::new("mpirun");
+    c.args(MPIRUN_OPTIONS)
+        .args(["-x", "LSE_MEMORY_LIMIT=16M", "-np", "2", BIN])
+        .args(&args);
+    let o = finish(c, "mpirun");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("on rank 0 of 2"), "{err}");
+    assert!(
+        err.contains("more than the memory budget of 16.0 MiB (LSE_MEMORY_LIMIT)"),
+        "{err}"
+    );
     assert!(!Path::new(&out).exists());
 }
 

@@ -119,7 +119,7 @@ impl MumpsSymbolic {
     pub fn check_every_rank(&self, budget: MemoryBudget, matrix: &str) -> Result<(), ProblemError> {
         lock(&self.shared)
             .driver
-            .check_memory(budget.limit())
+            .check_memory(budget)
             .map_err(|f| too_large(f, matrix))
     }
 }

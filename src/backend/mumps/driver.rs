@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use super::ffi::{DMUMPS_STRUC_C, Struc};
 use super::instance::{Command, Failure, Mumps, Params, RankFigures, Setup, send};
 use super::ranks::runtime;
+use crate::limits::MemoryBudget;
 
 /// Numbers instances so that the other ranks can tell them apart.
 static NEXT_ID: AtomicU64 = AtomicU64::new(0);
@@ -79,9 +80,9 @@ impl Driver {
         mumps.job(&world, job, params)
     }
 
-    /// Every rank checks its memory estimate against `budget` bytes (or its
-    /// own smaller budget).
-    pub fn check_memory(&self, budget: u64) -> Result<(), Failure> {
+    /// Every rank checks its memory estimate against `budget` (or its own
+    /// smaller budget).
+    pub fn check_memory(&self, budget: MemoryBudget) -> Result<(), Failure> {
         let rt = runtime();
         let _turn = rt.serial();
         let world = rt.world();

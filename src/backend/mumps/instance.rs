@@ -25,9 +25,9 @@ pub(crate) enum Command {
     Create { id: u64, setup: Setup },
     /// Run `JOB = job` on instance `id` with these parameters.
     Job { id: u64, job: i32, params: Params },
-    /// Check every rank's memory estimate against its budget (rank 0's in
-    /// bytes; another rank uses the smaller of this and its own).
-    CheckMemory { id: u64, budget: u64 },
+    /// Check every rank's memory estimate against its budget (rank 0's,
+    /// with its source; another rank uses the smaller of this and its own).
+    CheckMemory { id: u64, budget: MemoryBudget },
     /// Free instance `id` (`JOB = −2`) and its scratch directory.
     Destroy { id: u64 },
     /// Finalise MPI and exit with this code.
@@ -208,12 +208,16 @@ impl Mumps {
     /// Collective: each rank checks its own estimate of the factorisation's
     /// memory (out of core: what stays in memory) against its budget: rank
     /// 0's `budget`, or a rank's own when that is smaller.
-    pub fn check_memory(&self, world: &SimpleCommunicator, budget: u64) -> Result<(), Failure> {
+    pub fn check_memory(
+        &self,
+        world: &SimpleCommunicator,
+        budget: MemoryBudget,
+    ) -> Result<(), Failure> {
         let own = MemoryBudget::default();
-        let budget = if own.limit() < budget {
+        let budget = if own.limit() < budget.limit() {
             own
         } else {
-            MemoryBudget::bytes(budget)
+            budget
         };
         let (info, what) = if self.scratch.is_some() {
             (17, "its out-of-core factorisation (INFO(17))")
