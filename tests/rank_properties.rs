@@ -190,14 +190,19 @@ fn penalty_out_of_reach(expected: &Expected<'_>) -> bool {
     !expected.near_tolerance.is_empty() || expected.scaled_rows
 }
 
-/// A KKT singularity at a vertex pivot whose digits cancelled (not at a
-/// multiplier: that names a constraint).
+/// A KKT singularity where vertex pivots lost their digits: at a vertex
+/// pivot ("vertex N: …"), or at a multiplier pivot of the wrong sign far
+/// from zero ("the pivots eliminated before …"). A vanishing multiplier
+/// pivot names a constraint instead ([`kkt_names`]).
 fn vertex_pivot_lost(e: &Error) -> bool {
     match e {
-        Error::Numerical(NumericalError::Singular { detail, .. }) => detail
-            .strip_prefix("vertex ")
-            .and_then(|rest| rest.split_once(':'))
-            .is_some_and(|(index, _)| index.parse::<usize>().is_ok()),
+        Error::Numerical(NumericalError::Singular { detail, .. }) => {
+            detail.starts_with("the pivots eliminated before hard constraint ")
+                || detail
+                    .strip_prefix("vertex ")
+                    .and_then(|rest| rest.split_once(':'))
+                    .is_some_and(|(index, _)| index.parse::<usize>().is_ok())
+        }
         _ => false,
     }
 }
@@ -300,7 +305,8 @@ fn check_method(
         (Method::Kkt, Err(e)) if vertex_pivot_lost(&e) => {
             // KKT factors without pivoting in a static order: on a mesh
             // whose AᵀA has lost its digits at a vertex (slivers) it stops
-            // with a typed error naming the vertex.
+            // with a typed error naming the vertex, or the multiplier
+            // whose pivot then has the wrong sign.
             return Ok(());
         }
         (Method::Kkt, Err(e)) => {

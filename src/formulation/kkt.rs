@@ -30,7 +30,11 @@
 //! [`KKT_PIVOT_TOLERANCE`], or when it has the wrong sign. A failing
 //! multiplier pivot means its constraint depends on the constraints
 //! eliminated before it (duplicates: the later in the list); the error is
-//! [`NumericalError::Singular`] naming that constraint. faer's `LDLᵀ` only
+//! [`NumericalError::Singular`] naming that constraint. The exception is a
+//! multiplier pivot that is positive and above the tolerance: that is no
+//! vanishing pivot but a leading vertex block that lost its definiteness in
+//! floating point (vertex pivots that passed with few digits left, on
+//! sliver meshes), and the error says so instead of blaming the constraint. faer's `LDLᵀ` only
 //! stops at a pivot that is exactly zero, and rounding rarely leaves one, so
 //! this check is what turns a singular `K` into an error instead of inf/NaN.
 //!
@@ -637,6 +641,17 @@ fn check_pivots(
         let detail = if is_vertex {
             format!(
                 "vertex {unknown}: {} (expected positive and above {KKT_PIVOT_TOLERANCE:e} of that magnitude): AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",
+                describe_pivot(i, dim, d, magnitude)
+            )
+        } else if d > 0.0 && ratio > KKT_PIVOT_TOLERANCE {
+            // Not a vanishing pivot: the vertex pivots before it passed the
+            // test with too few digits left, and their block is no longer
+            // definite in floating point.
+            let k = unknown - n;
+            let index = problem.hard_constraints()[k];
+            format!(
+                "the pivots eliminated before hard constraint {index} (row {k} of B, {}) lost their digits: for its multiplier, {} (expected negative; a positive pivot this far from zero is not a dependence but AᵀA nearly singular on the vertices eliminated before it, as on meshes with slivers) — the static pivot order fails here (use nullspace-qr)",
+                RowKind::of_row(problem.b().as_ref(), k),
                 describe_pivot(i, dim, d, magnitude)
             )
         } else {
