@@ -643,25 +643,23 @@ fn check_pivots(
                 "vertex {unknown}: {} (expected positive and above {KKT_PIVOT_TOLERANCE:e} of that magnitude): AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",
                 describe_pivot(i, dim, d, magnitude)
             )
-        } else if d > 0.0 && ratio > KKT_PIVOT_TOLERANCE {
-            // Not a vanishing pivot: the vertex pivots before it passed the
-            // test with too few digits left, and their block is no longer
-            // definite in floating point.
-            let k = unknown - n;
-            let index = problem.hard_constraints()[k];
-            format!(
-                "the pivots eliminated before hard constraint {index} (row {k} of B, {}) lost their digits: for its multiplier, {} (expected negative; a positive pivot this far from zero is not a dependence but AᵀA nearly singular on the vertices eliminated before it, as on meshes with slivers) — the static pivot order fails here (use nullspace-qr)",
-                RowKind::of_row(problem.b().as_ref(), k),
-                describe_pivot(i, dim, d, magnitude)
-            )
         } else {
             let k = unknown - n;
             let index = problem.hard_constraints()[k];
-            format!(
-                "hard constraint {index} (row {k} of B, {}) depends on the constraints eliminated before it: for its multiplier, {} (expected negative and above {KKT_PIVOT_TOLERANCE:e} of that magnitude); redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
-                RowKind::of_row(problem.b().as_ref(), k),
-                describe_pivot(i, dim, d, magnitude)
-            )
+            let row = RowKind::of_row(problem.b().as_ref(), k);
+            let pivot = describe_pivot(i, dim, d, magnitude);
+            if d > 0.0 && ratio > KKT_PIVOT_TOLERANCE {
+                // Not a vanishing pivot: the vertex pivots before it passed
+                // the test with too few digits left, and their block is no
+                // longer definite in floating point.
+                format!(
+                    "the pivots eliminated before hard constraint {index} (row {k} of B, {row}) lost their digits: for its multiplier, {pivot} (expected negative; a positive pivot this far from zero is not a dependence but AᵀA nearly singular on the vertices eliminated before it, as on meshes with slivers) — the static pivot order fails here (use nullspace-qr)"
+                )
+            } else {
+                format!(
+                    "hard constraint {index} (row {k} of B, {row}) depends on the constraints eliminated before it: for its multiplier, {pivot} (expected negative and above {KKT_PIVOT_TOLERANCE:e} of that magnitude); redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it"
+                )
+            }
         };
         return Err(NumericalError::Singular {
             matrix: MATRIX.into(),
