@@ -400,12 +400,15 @@ PENALTY_BREAKDOWN = "the penalty normal matrix"
 # not refused as faer refuses it (docs/distributed.md §4): an exactly zero
 # pivot is its error -10 ("numerically singular", exit 3), a pivot that
 # rounding turned negative is refused by MUMPS's count of negative pivots
-# ("negative pivot", exit 3), and a pivot that lost its digits without
+# ("negative pivot", exit 3) or met in the factorisation as not positive
+# (its error -40, "not positive definite", exit 3; seen once on two ranks,
+# bunny-35k-watertight/cotan/all-kinds at 1e4, which faer refuses as a
+# breakdown and one rank by its count of negative pivots), and a pivot that lost its digits without
 # turning negative shows only in the forward-error warning of the solve,
 # with exit 0 and a wrong mesh. With --factor mumps a penalty run that fails
 # the comparison *and* carries that warning is the same breakdown, not
 # applicable; one without the warning is a failure.
-MUMPS_PENALTY_SINGULAR = ("numerically singular", "negative pivot")
+MUMPS_PENALTY_SINGULAR = ("numerically singular", "negative pivot", "not positive definite")
 FORWARD_ERROR_WARNING = "estimated forward error"
 
 
