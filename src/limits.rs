@@ -158,18 +158,19 @@ impl BudgetSource {
         }
     }
 
+    /// Every source.
+    const ALL: [BudgetSource; 6] = [
+        BudgetSource::Option,
+        BudgetSource::Environment,
+        BudgetSource::Available,
+        BudgetSource::AddressSpace,
+        BudgetSource::Cgroup,
+        BudgetSource::Unlimited,
+    ];
+
     /// The source whose [`BudgetSource::word`] is `word`.
     fn from_word(word: &str) -> Option<BudgetSource> {
-        [
-            BudgetSource::Option,
-            BudgetSource::Environment,
-            BudgetSource::Available,
-            BudgetSource::AddressSpace,
-            BudgetSource::Cgroup,
-            BudgetSource::Unlimited,
-        ]
-        .into_iter()
-        .find(|s| s.word() == word)
+        BudgetSource::ALL.into_iter().find(|s| s.word() == word)
     }
 
     /// The source as messages name it.
@@ -504,14 +505,10 @@ mod tests {
     /// unknown source is an error, not a default.
     #[test]
     fn budgets_round_trip_through_json() {
-        let sources = [
-            BudgetSource::Option,
-            BudgetSource::Environment,
-            BudgetSource::Available,
-            BudgetSource::AddressSpace,
-            BudgetSource::Cgroup,
-        ];
-        for source in sources {
+        let bounded = BudgetSource::ALL
+            .into_iter()
+            .filter(|&s| s != BudgetSource::Unlimited);
+        for source in bounded {
             let budget = MemoryBudget {
                 bytes: 7 << 20,
                 source,

@@ -473,11 +473,9 @@ fn check_method(
     // A measured-floor stop that took a correction still mostly error for
     // the floor reports that correction: an overstatement, bounded by the
     // stop's guard (module documentation).
+    let stop = report.refinement.as_ref().map(|r| r.stop_reason);
     let floor_stop_overstates = refine == Refine::Auto
-        && report
-            .refinement
-            .as_ref()
-            .is_some_and(|r| r.stop_reason == RefineStop::Converged)
+        && stop == Some(RefineStop::Converged)
         && estimate > truth
         && estimate
             <= FLOOR_GUARD_ULPS
@@ -488,22 +486,17 @@ fn check_method(
     // the error of the penalty system's own solve (module documentation).
     let penalty_stalled = method == Method::Penalty
         && refine != Refine::EstimateOnly
-        && report
-            .refinement
-            .as_ref()
-            .is_some_and(|r| r.stop_reason == RefineStop::Stagnated)
+        && stop == Some(RefineStop::Stagnated)
         && truth <= PENALTY_STALLED_ERROR;
     // An exact method refined to its rounding floor: its estimate is a
     // sample of the noise there, and the error of the computed null space
     // is beyond the corrections' sight (module documentation).
     let noise_sample = method != Method::Penalty
         && refine != Refine::EstimateOnly
-        && report.refinement.as_ref().is_some_and(|r| {
-            matches!(
-                r.stop_reason,
-                RefineStop::Converged | RefineStop::Stagnated | RefineStop::Predicted
-            )
-        })
+        && matches!(
+            stop,
+            Some(RefineStop::Converged | RefineStop::Stagnated | RefineStop::Predicted)
+        )
         && estimate <= truth
         && truth <= STAGNATED_FACTOR * estimate;
     if truth > floor
