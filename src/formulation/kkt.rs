@@ -35,8 +35,9 @@
 //! vanishing pivot but a leading vertex block that lost its definiteness in
 //! floating point (vertex pivots that passed with few digits left, on
 //! sliver meshes), and the error says so instead of blaming the
-//! constraint. faer's `LDLᵀ` only stops at a pivot that is exactly zero, and rounding rarely leaves one, so
-//! this check is what turns a singular `K` into an error instead of inf/NaN.
+//! constraint. faer's `LDLᵀ` only stops at a pivot that is exactly zero,
+//! and rounding rarely leaves one, so this check is what turns a singular
+//! `K` into an error instead of inf/NaN.
 //!
 //! **Why `LDLᵀ` in a designed order rather than faer's intranode
 //! Bunch–Kaufman `LBLᵀ`.** The intranode factorisation pivots only inside a
