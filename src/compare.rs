@@ -11,6 +11,7 @@
 use faer::Mat;
 use serde::Serialize;
 
+use crate::backend::BackendName;
 use crate::backend::qr::QrKind;
 use crate::backend::spd::SpdKind;
 use crate::choice::Method;
@@ -71,13 +72,16 @@ impl CompareOptions {
         let mut configs = Vec::new();
         for &method in &self.methods {
             let with = |spd: SpdKind| FormulationChoice {
-                spd,
+                spd: spd.into(),
                 ..FormulationChoice::new(method)
             };
             match method {
                 Method::NullSpaceQr => {
                     for &qr in &qrs {
-                        configs.extend(spds.iter().map(|&s| FormulationChoice { qr, ..with(s) }));
+                        configs.extend(spds.iter().map(|&s| FormulationChoice {
+                            qr: qr.into(),
+                            ..with(s)
+                        }));
                     }
                 }
                 Method::Penalty => {
@@ -155,15 +159,47 @@ pub fn delta_e(energy: f64, reference: f64) -> f64 {
     }
 }
 
+/// A configuration to compare, with the label its row carries: any
+/// [`FormulationChoice`], built-in back ends or a researcher's own
+/// ([`crate::formulation::Chosen::Own`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Configuration {
+    /// The row's label (by default [`FormulationChoice::label`]).
+    pub label: String,
+    /// What to run.
+    pub choice: FormulationChoice,
+}
+
+impl Configuration {
+    /// `choice` under its default label.
+    pub fn new(choice: FormulationChoice) -> Configuration {
+        Configuration {
+            label: choice.label(),
+            choice,
+        }
+    }
+
+    /// `choice` under `label`.
+    pub fn labelled(label: impl Into<String>, choice: FormulationChoice) -> Configuration {
+        Configuration {
+            label: label.into(),
+            choice,
+        }
+    }
+}
+
 /// One configuration's result.
 #[derive(Debug, Clone, Serialize)]
 pub struct CompareRow {
+    /// The configuration's label.
+    pub label: String,
     /// The formulation.
     pub method: Method,
-    /// The QR back end (null-space method only).
-    pub qr: Option<QrKind>,
-    /// The SPD back end (KKT: the `LDLᵀ` variant it selects).
-    pub spd: SpdKind,
+    /// The QR back end's name (null-space method only).
+    pub qr: Option<BackendName>,
+    /// The SPD back end's name (KKT: the SPD kind that selects its `LDLᵀ`
+    /// variant, or the `LDLᵀ` back end's name when one was given).
+    pub spd: BackendName,
     /// The penalty weight.
     pub weight: Option<f64>,
     /// `ok`, `ok, warning: …` or `error (input|numerical): …`.
@@ -190,12 +226,18 @@ pub struct CompareRow {
 
 impl CompareRow {
     /// An empty row for `config`.
-    fn new(config: &FormulationChoice) -> CompareRow {
+    fn new(config: &Configuration) -> CompareRow {
+        let choice = &config.choice;
+        let spd = match (&choice.method, &choice.ldlt) {
+            (Method::Kkt, Some(ldlt)) => ldlt.name(),
+            _ => choice.spd.name(),
+        };
         CompareRow {
-            method: config.method,
-            qr: (config.method == Method::NullSpaceQr).then_some(config.qr),
-            spd: config.spd,
-            weight: config.weight,
+            label: config.label.clone(),
+            method: choice.method,
+            qr: (choice.method == Method::NullSpaceQr).then(|| choice.qr.name()),
+            spd,
+            weight: choice.weight,
             status: "ok".into(),
             precompute_s: None,
             solve_median_s: None,
@@ -215,7 +257,7 @@ impl CompareRow {
 /// constraint kind) is its row's status, not an error of the comparison.
 pub fn run_one(
     deformer: &mut Deformer,
-    config: &FormulationChoice,
+    config: &Configuration,
     options: &CompareOptions,
     reference: &Reference,
 ) -> CompareRow {
@@ -250,12 +292,12 @@ pub fn run_one(
 /// The measurements of [`run_one`].
 fn measure(
     deformer: &mut Deformer,
-    config: &FormulationChoice,
+    config: &Configuration,
     options: &CompareOptions,
     reference: &Reference,
     row: &mut CompareRow,
 ) -> Result<(), Error> {
-    let f = config.build()?;
+    let f = config.choice.build()?;
     deformer.solver_mut().set_refine(options.refine);
     deformer.precompute(f.as_ref())?;
     let mut times = Vec::new();
@@ -287,12 +329,41 @@ fn measure(
 pub fn compare(
     deformer: &mut Deformer,
     options: &CompareOptions,
-    progress: &mut dyn FnMut(&FormulationChoice),
+    progress: &mut dyn FnMut(&Configuration),
 ) -> Result<(Reference, Vec<CompareRow>), Error> {
-    let configs = options.configurations()?;
+    let configs: Vec<Configuration> = options
+        .configurations()?
+        .into_iter()
+        .map(Configuration::new)
+        .collect();
+    compare_configurations(deformer, &configs, options, progress)
+}
+
+/// `configs`, built-in or not, on `deformer`'s problem after the
+/// reference, each measured as [`compare`] measures the built-ins (the
+/// same reference, ΔX, ΔE, phase timings, condition estimate, weights and
+/// refinement from `options`; `options`' lists of methods, back ends and
+/// weights are not used). `progress` is told each configuration before it
+/// runs.
+///
+/// Errors: [`ProblemError::InvalidArgument`] for an empty list; the
+/// reference's errors; an interruption. A configuration's own failure is
+/// its row's status.
+pub fn compare_configurations(
+    deformer: &mut Deformer,
+    configs: &[Configuration],
+    options: &CompareOptions,
+    progress: &mut dyn FnMut(&Configuration),
+) -> Result<(Reference, Vec<CompareRow>), Error> {
+    if configs.is_empty() {
+        return Err(ProblemError::InvalidArgument {
+            message: "no configuration to compare".into(),
+        }
+        .into());
+    }
     let reference = reference(deformer)?;
     let mut rows = Vec::with_capacity(configs.len());
-    for config in &configs {
+    for config in configs {
         // An interruption is no configuration's failure: it ends the
         // comparison (a row that recorded one is not kept).
         crate::interrupt::check()?;

@@ -4,8 +4,7 @@
 
 use serde::{Serialize, Serializer};
 
-use crate::backend::FactorKind;
-use crate::backend::qr::QrKind;
+use crate::backend::{BackendName, FactorKind};
 use crate::choice::{ArapEnergy, ArapInit, Method};
 use crate::laplacian::LaplacianKind;
 
@@ -198,8 +197,8 @@ impl Serialize for EnergyOperator {
 pub struct Report {
     /// The formulation (serialised as its word, e.g. `nullspace-qr`).
     pub method: Method,
-    /// The QR back end, if the method uses one.
-    pub qr_backend: Option<QrKind>,
+    /// The QR back end's name, if the method uses one.
+    pub qr_backend: Option<BackendName>,
     /// The factorisation of the matrix factored: the SPD back end's
     /// Cholesky, or the KKT method's `LDLᵀ`. Serialised as
     /// `factor_backend` and, for one release, also as `spd_backend` (the
@@ -291,10 +290,19 @@ pub struct Report {
     /// `rlimit`, `cgroup`, `unlimited`: [`crate::limits::BudgetSource`]);
     /// `None` before a precompute.
     pub memory_budget: Option<crate::limits::MemoryBudget>,
-    /// What a MUMPS factorisation says of its ranks (key `mumps`, present
-    /// only when MUMPS factored: `{"ranks", "factor_entries_per_rank",
-    /// "peak_bytes_per_rank", "ordering", "out_of_core"}`).
-    pub mumps: Option<crate::backend::MumpsFacts>,
+    /// What the factor's back end reports of its factorisation beyond the
+    /// generic keys, serialised under the key its section names, present
+    /// only when the back end reports something: for MUMPS the key `mumps`,
+    /// `{"ranks", "factor_entries_per_rank", "peak_bytes_per_rank",
+    /// "ordering", "out_of_core"}` ([`crate::backend::BackendFacts`]).
+    pub backend_facts: Option<crate::backend::BackendFacts>,
+    /// How many times the solves since the precompute had to factor the
+    /// matrix again (key `refactorizations`): a back end that keeps one
+    /// numeric factor per analysis refactors when another factorisation
+    /// of the same analysis solved in between
+    /// ([`crate::backend::spd::SpdFactor::refactorizations`]); `0` for the
+    /// others.
+    pub refactorizations: usize,
 }
 
 impl Report {
@@ -321,7 +329,7 @@ impl Report {
     /// Deprecated alias of [`Report::factor_backend`] (the key
     /// `spd_backend`, kept for one release).
     pub fn spd_backend(&self) -> Option<FactorKind> {
-        self.factor_backend
+        self.factor_backend.clone()
     }
 
     /// The codes of [`Report::warnings`], in order (the key

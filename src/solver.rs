@@ -363,6 +363,7 @@ impl LseSolver {
                 solve_in_blocks(system.as_mut(), &mut self.problem, x.as_mut(), blocks_mode)?;
             self.report.timings_s.solve = t.elapsed().as_secs_f64();
         }
+        self.report.refactorizations = system.refactorizations();
         self.last_refinement = refinements.into_iter().max_by(|a, b| {
             a.forward_error_estimate
                 .total_cmp(&b.forward_error_estimate)
@@ -527,9 +528,10 @@ fn apply_record(report: &mut Report, record: PrecomputeRecord) {
         timings,
         warnings,
         facts,
-        mumps,
+        backend_facts,
     } = record;
-    report.mumps = mumps;
+    report.backend_facts = backend_facts;
+    report.refactorizations = 0;
     report.method = method;
     report.qr_backend = qr_backend;
     report.factor_backend = Some(factor_backend);

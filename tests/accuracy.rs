@@ -112,7 +112,7 @@ fn dense_lse(a: &Mat<f64>, c: &Mat<f64>, b: &Mat<f64>, d: &Mat<f64>) -> Mat<f64>
 /// The null-space method with QR back end `qr` and the default SPD back end.
 fn nullspace_qr_with(qr: QrKind) -> Box<dyn Formulation> {
     let choice = FormulationChoice {
-        qr,
+        qr: qr.into(),
         ..FormulationChoice::new(Method::NullSpaceQr)
     };
     choice.build().unwrap()

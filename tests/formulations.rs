@@ -124,8 +124,8 @@ struct CountingSymbolic {
 }
 
 impl SpdBackend for Counting {
-    fn kind(&self) -> lse_deform::SpdKind {
-        self.inner.kind()
+    fn name(&self) -> lse_deform::backend::BackendName {
+        self.inner.name()
     }
     fn analyze(
         &self,

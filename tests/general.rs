@@ -23,8 +23,8 @@ fn null_space_on_every_back_end_matches_the_dense_reference_and_names_dependent_
         for q in QrKind::available() {
             for s in SpdKind::available() {
                 let choice = FormulationChoice {
-                    qr: q,
-                    spd: s,
+                    qr: q.into(),
+                    spd: s.into(),
                     ..FormulationChoice::new(Method::NullSpaceQr)
                 };
                 let f = choice.build().unwrap();
@@ -492,7 +492,7 @@ fn formulation_choices_name_themselves_and_refuse_what_they_cannot_build() {
     // KKT factors with faer's or MUMPS's LDLᵀ only.
     for spd in [SpdKind::Nalgebra, SpdKind::Cholmod] {
         let choice = FormulationChoice {
-            spd,
+            spd: spd.into(),
             ..FormulationChoice::new(Method::Kkt)
         };
         refused(
@@ -896,7 +896,7 @@ fn the_recorded_general_case_keeps_its_rank_and_dependent_rows() {
     );
     for q in QrKind::available() {
         let choice = FormulationChoice {
-            qr: q,
+            qr: q.into(),
             ..FormulationChoice::new(Method::NullSpaceQr)
         };
         let mut solver = LseSolver::new(problem.clone());

@@ -53,7 +53,7 @@ const TETRA_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float
 /// The null-space method with QR back end `qr` and the default SPD back end.
 fn nullspace_qr_with(qr: QrKind) -> Box<dyn Formulation> {
     let choice = FormulationChoice {
-        qr,
+        qr: qr.into(),
         ..FormulationChoice::new(Method::NullSpaceQr)
     };
     choice.build().unwrap()

@@ -246,7 +246,7 @@ fn no_hard_constraint_solves_like_the_other_methods() {
     ]
     .into_iter()
     .map(|(method, qr)| FormulationChoice {
-        qr,
+        qr: qr.into(),
         weight: Some(1e3),
         ..FormulationChoice::new(method)
     })

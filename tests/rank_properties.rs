@@ -122,7 +122,7 @@ const FLOOR_GUARD_ULPS: f64 = 1024.0;
 
 fn formulation(method: Method, qr: QrKind) -> Box<dyn Formulation> {
     FormulationChoice {
-        qr,
+        qr: qr.into(),
         weight: (method == Method::Penalty).then_some(PENALTY_WEIGHT),
         ..FormulationChoice::new(method)
     }

@@ -20,7 +20,7 @@ use common::{path_in, run, stderr};
 use serde_json::Value;
 
 /// The keys added to the report since 9e12bbd.
-const ADDED: [&str; 2] = ["factor_backend", "warning_codes"];
+const ADDED: [&str; 3] = ["factor_backend", "warning_codes", "refactorizations"];
 
 fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -72,7 +72,7 @@ fn a_tiny_budget_is_refused_per_solve_and_the_default_succeeds_in_the_same_proce
         (FormulationChoice::new(Method::NullSpaceQr), &set),
         (
             FormulationChoice {
-                qr: QrKind::DenseHouseholder,
+                qr: QrKind::DenseHouseholder.into(),
                 ..FormulationChoice::new(Method::NullSpaceQr)
             },
             &set,
@@ -85,7 +85,7 @@ fn a_tiny_budget_is_refused_per_solve_and_the_default_succeeds_in_the_same_proce
         let name = format!("{} / {}", formulation.method, formulation.qr);
         let mut small =
             Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone()).unwrap();
-        let detail = too_large(small.precompute_with(&tiny(formulation)));
+        let detail = too_large(small.precompute_with(&tiny(formulation.clone())));
         assert!(
             detail.ends_with(
                 "more than the memory budget of 64 B (the memory budget of the solve options)"
@@ -97,7 +97,7 @@ fn a_tiny_budget_is_refused_per_solve_and_the_default_succeeds_in_the_same_proce
         let mut default =
             Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone()).unwrap();
         default
-            .precompute_with(&SolveOptions::new(formulation))
+            .precompute_with(&SolveOptions::new(formulation.clone()))
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let solution = default.solve().unwrap();
         // Penalty only approximates the hard rows.
@@ -128,7 +128,7 @@ fn the_qr_factor_is_checked_against_the_solve_budget_before_the_cholesky_factor(
     let (mesh, set) = scene();
     let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
     let formulation = FormulationChoice {
-        qr: QrKind::DenseHouseholder,
+        qr: QrKind::DenseHouseholder.into(),
         ..FormulationChoice::new(Method::NullSpaceQr)
     };
     let detail = too_large(d.precompute_with(&tiny(formulation)));
@@ -159,7 +159,7 @@ fn arap_takes_the_options_budget_and_refinement() {
     let (mesh, set) = scene();
     let mut arap = ArapDeformer::new(mesh.clone(), set.clone(), ArapEnergy::SpokesAndRims).unwrap();
     let formulation = FormulationChoice::new(Method::NullSpaceQr);
-    too_large(arap.precompute_with(&tiny(formulation)));
+    too_large(arap.precompute_with(&tiny(formulation.clone())));
     let mut arap = ArapDeformer::new(mesh, set, ArapEnergy::SpokesAndRims).unwrap();
     arap.precompute_with(&SolveOptions::new(formulation))
         .unwrap();

@@ -78,11 +78,11 @@ fn choices(spd_name: &str) -> Result<[FormulationChoice; 2], AnyError> {
     let spd: SpdKind = spd_name.parse()?;
     Ok([
         FormulationChoice {
-            spd,
+            spd: spd.into(),
             ..FormulationChoice::new(Method::NullSpaceQr)
         },
         FormulationChoice {
-            spd,
+            spd: spd.into(),
             weight: Some(PENALTY_RELATIVE_WEIGHT),
             ..FormulationChoice::new(Method::Penalty)
         },

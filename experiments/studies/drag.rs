@@ -19,6 +19,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use faer::Mat;
+use lse_deform::backend::qr::QrKind;
+use lse_deform::backend::spd::SpdKind;
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::deform::Affine;
 use lse_deform::formulation::{Refine, max_hard_residual};
@@ -129,7 +131,7 @@ fn default_variants(prefix: &str, choice: FormulationChoice) -> Result<Vec<Confi
         ("Python transform_group + solve", FrameCall::PythonSolve),
     ]
     .into_iter()
-    .map(|(what, call)| Config::calling(format!("{prefix}, {what}"), choice, call))
+    .map(|(what, call)| Config::calling(format!("{prefix}, {what}"), choice.clone(), call))
     .collect()
 }
 
@@ -149,6 +151,7 @@ fn default_variants(prefix: &str, choice: FormulationChoice) -> Result<Vec<Confi
 fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
     let default = FormulationChoice::new(Method::NullSpaceQr);
     let (default_qr, default_spd) = (default.qr.name(), default.spd.name());
+    let (default_qr, default_spd) = (default_qr.as_ref(), default_spd.as_ref());
     let mut spds: Vec<&str> = vec![default_spd];
     spds.extend(spd_backends().into_iter().filter(|&s| {
         s != default_spd
@@ -158,12 +161,12 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
     let mut out = Vec::new();
     for &s in &spds {
         let choice = FormulationChoice {
-            spd: s.parse()?,
-            ..default
+            spd: s.parse::<SpdKind>()?.into(),
+            ..default.clone()
         };
         out.push(Config::new(
             format!("null-space {default_qr} + {s}"),
-            choice,
+            choice.clone(),
         )?);
         if s == default_spd {
             out.extend(default_variants(
@@ -174,8 +177,8 @@ fn configs(weight: f64, slow_backends: bool) -> Result<Vec<Config>, AnyError> {
     }
     for q in qr_backends().into_iter().filter(|&q| q != default_qr) {
         let choice = FormulationChoice {
-            qr: q.parse()?,
-            ..default
+            qr: q.parse::<QrKind>()?.into(),
+            ..default.clone()
         };
         out.push(Config::new(
             format!("null-space {q} + {default_spd}"),

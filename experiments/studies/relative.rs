@@ -78,8 +78,8 @@ fn methods() -> Result<Vec<Config>, AnyError> {
             },
             key: format!("nullspace-qr/{name}"),
             formulation: FormulationChoice {
-                qr: name.parse()?,
-                ..default
+                qr: name.parse::<lse_deform::backend::qr::QrKind>()?.into(),
+                ..default.clone()
             }
             .build()?,
             growth,

@@ -339,7 +339,7 @@ fn write_data(ctx: &Context, dir: &Path, rows: &[Row]) -> Result<(), AnyError> {
         })
         .collect();
     ctx.write_csv(&dir.join("scaling.csv"), &header, &csv_rows)?;
-    let budget = budget_for(ctx, NullSpaceQr::default().spd.name());
+    let budget = budget_for(ctx, &NullSpaceQr::default().spd.name());
     let budget_other = budget_for(ctx, "nalgebra");
     ctx.write_json(
         &dir.join("scaling.json"),

@@ -196,7 +196,7 @@ fn equilibrated_condition(full: &SparseColMat<usize, f64>) -> Option<f64> {
     let mut factor = symbolic.factorize(lower.as_ref()).ok()?;
     let mut matrix = LowerSymmetricOperator::new(lower.as_ref());
     let mut inverse = InverseOperator::new(n, |rhs| {
-        factor.solve_in_place(rhs);
+        factor.solve_in_place(rhs)?;
         Ok(())
     });
     condition::estimate(&mut matrix, &mut inverse, "D M D")

@@ -2,9 +2,13 @@
 //! against: [`qr::QrBackend`] (QR of `Bᵀ` with rank detection),
 //! [`spd::SpdBackend`] (sparse Cholesky) and [`ldlt::LdltBackend`] (sparse
 //! symmetric indefinite `LDLᵀ` in a given order), the last two with their
-//! symbolic and numeric phases kept apart; and [`FactorKind`], which of the
-//! two factorisations a formulation ran.
+//! symbolic and numeric phases kept apart; the [`catalogue`] of the
+//! crate's own back ends; and what every back end tells the report: its
+//! name ([`BackendName`], [`FactorKind`]) and its own facts
+//! ([`BackendFacts`]). The contract a back end must meet, the crate's own
+//! or one brought from outside, is docs/backends.md.
 
+pub mod catalogue;
 pub mod ldlt;
 #[cfg(feature = "mumps")]
 pub mod mumps;
@@ -13,101 +17,88 @@ pub mod spd;
 #[cfg(feature = "suitesparse")]
 mod suitesparse;
 
-use std::path::PathBuf;
+use std::borrow::Cow;
 
-use ldlt::LdltKind;
-use spd::SpdKind;
+pub use catalogue::FactorStorage;
 
-/// Where a factor is kept while it is used.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
-pub enum FactorStorage {
-    /// In memory (every back end).
-    #[default]
-    InCore,
-    /// In files under this directory, which must exist (MUMPS only,
-    /// `ICNTL(22) = 1`): each rank makes its own subdirectory there and
-    /// removes it with its files when the factor is dropped, also after an
-    /// error. Only what MUMPS keeps in memory counts against the budget.
-    OutOfCore(PathBuf),
+/// A back end's name, as it appears in reports, `compare` rows, CSVs and
+/// plots: a built-in's word (`faer-auto`, `mumps-ldlt`, ...) or whatever
+/// name a back end from outside gives itself. Names are compared as
+/// strings; a name is the back end's identity in every table, so two back
+/// ends that differ in anything that changes a computed number must not
+/// share one (docs/backends.md §2).
+pub type BackendName = Cow<'static, str>;
+
+/// What a back end reports of one factorisation beyond the generic
+/// record (sizes, timings): a section of the report under its own key
+/// (`mumps` for MUMPS: ranks, per-rank entries and peaks, ordering,
+/// out-of-core), holding key → value pairs in the back end's own terms.
+/// The one channel for such facts: the formulations and the solver pass
+/// it through without reading it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BackendFacts {
+    /// The report key the facts appear under.
+    pub section: BackendName,
+    /// The facts, in the order the back end gives them (and the report
+    /// keeps).
+    pub values: Vec<(BackendName, serde_json::Value)>,
 }
 
-impl FactorStorage {
-    /// The directory, out of core.
-    pub fn directory(&self) -> Option<&std::path::Path> {
-        match self {
-            FactorStorage::InCore => None,
-            FactorStorage::OutOfCore(dir) => Some(dir),
+impl BackendFacts {
+    /// No facts yet, under `section`.
+    pub fn new(section: impl Into<BackendName>) -> Self {
+        BackendFacts {
+            section: section.into(),
+            values: Vec::new(),
         }
     }
 
-    /// Refuses out-of-core storage for the back end named `backend`, which
-    /// is not MUMPS (the only one that keeps a factor in files).
-    pub(crate) fn refuse_out_of_core(
-        &self,
-        backend: &str,
-    ) -> Result<(), crate::error::ProblemError> {
-        match self.directory() {
-            Some(_) => Err(crate::error::ProblemError::InvalidArgument {
-                message: format!(
-                    "out-of-core storage of the factor needs the back end 'mumps', not '{backend}'"
-                ),
-            }),
-            None => Ok(()),
-        }
+    /// These facts and `key` → `value`.
+    pub fn with(
+        mut self,
+        key: impl Into<BackendName>,
+        value: impl Into<serde_json::Value>,
+    ) -> Self {
+        self.values.push((key.into(), value.into()));
+        self
     }
 
-    /// Refuses an out-of-core directory that is not an existing directory
-    /// (bad input, before any work; each rank still reports its own failure
-    /// to make its subdirectory there).
-    pub fn check(&self) -> Result<(), crate::error::ProblemError> {
-        match self.directory() {
-            Some(dir) if !dir.is_dir() => Err(crate::error::ProblemError::InvalidArgument {
-                message: format!(
-                    "the out-of-core directory {} does not exist or is not a directory",
-                    dir.display()
-                ),
-            }),
-            _ => Ok(()),
-        }
+    /// The value of `key`, if given.
+    pub fn get(&self, key: &str) -> Option<&serde_json::Value> {
+        self.values.iter().find(|(k, _)| k == key).map(|(_, v)| v)
     }
 }
 
-/// What a MUMPS factorisation reports of its ranks (the report's `mumps`
-/// object; its keys are the field names).
-#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct MumpsFacts {
-    /// The number of MPI ranks that factored.
-    pub ranks: usize,
-    /// Entries of each rank's share of the factor (`INFO(27)`), rank by
-    /// rank.
-    pub factor_entries_per_rank: Vec<u64>,
-    /// Bytes each rank's factorisation effectively used (`INFO(22)`, which
-    /// MUMPS counts in millions of bytes), rank by rank.
-    pub peak_bytes_per_rank: Vec<u64>,
-    /// The fill-reducing ordering MUMPS used (`INFOG(7)`): `given` when the
-    /// caller fixed the order (KKT).
-    pub ordering: String,
-    /// Whether the factor was kept out of core.
-    pub out_of_core: bool,
+/// The facts as a JSON object (their section is the key it is stored
+/// under, not part of it).
+impl serde::Serialize for BackendFacts {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = s.serialize_map(Some(self.values.len()))?;
+        for (key, value) in &self.values {
+            map.serialize_entry(key, value)?;
+        }
+        map.end()
+    }
 }
 
 /// The factorisation a formulation ran, for the report: an SPD back end's
-/// Cholesky, or (the KKT method) an `LDLᵀ` back end's factorisation.
-/// Serialised as its kind's word (`faer-auto`, `faer-ldlt-simplicial`, ...).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// Cholesky, or (the KKT method) an `LDLᵀ` back end's factorisation, each
+/// by its back end's name. Serialised as the name (`faer-auto`,
+/// `faer-ldlt-simplicial`, or an outside back end's own).
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum FactorKind {
-    /// `LLᵀ` by this back end.
-    Cholesky(SpdKind),
-    /// `LDLᵀ` by this back end.
-    Ldlt(LdltKind),
+    /// `LLᵀ` by the back end of this name.
+    Cholesky(BackendName),
+    /// `LDLᵀ` by the back end of this name.
+    Ldlt(BackendName),
 }
 
 impl FactorKind {
-    /// The word in reports.
-    pub fn name(self) -> &'static str {
+    /// The word in reports: the back end's name.
+    pub fn name(&self) -> &str {
         match self {
-            FactorKind::Cholesky(kind) => kind.name(),
-            FactorKind::Ldlt(kind) => kind.name(),
+            FactorKind::Cholesky(name) | FactorKind::Ldlt(name) => name,
         }
     }
 }
@@ -127,15 +118,17 @@ impl serde::Serialize for FactorKind {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use catalogue::{LdltKind, SpdKind};
 
     /// Scripts read these words from reports: they must not change.
     #[test]
     fn factor_kinds_serialise_as_the_report_words() {
         let words: Vec<String> = [
-            FactorKind::Cholesky(SpdKind::FaerAuto),
-            FactorKind::Ldlt(LdltKind::FaerAuto),
-            FactorKind::Ldlt(LdltKind::FaerSimplicial),
-            FactorKind::Ldlt(LdltKind::FaerSupernodal),
+            FactorKind::Cholesky(SpdKind::FaerAuto.name().into()),
+            FactorKind::Ldlt(LdltKind::FaerAuto.name().into()),
+            FactorKind::Ldlt(LdltKind::FaerSimplicial.name().into()),
+            FactorKind::Ldlt(LdltKind::FaerSupernodal.name().into()),
+            FactorKind::Cholesky(String::from("my-cg").into()),
         ]
         .iter()
         .map(|k| {
@@ -152,7 +145,8 @@ mod tests {
                 "faer-auto",
                 "faer-ldlt-auto",
                 "faer-ldlt-simplicial",
-                "faer-ldlt-supernodal"
+                "faer-ldlt-supernodal",
+                "my-cg"
             ]
         );
         for spd in SpdKind::ALL {
@@ -169,5 +163,16 @@ mod tests {
                 "{spd}"
             );
         }
+    }
+
+    #[test]
+    fn backend_facts_keep_their_order() {
+        let facts = BackendFacts::new("x").with("b", 1).with("a", vec![2, 3]);
+        assert_eq!(facts.section, "x");
+        assert_eq!(facts.get("a"), Some(&serde_json::json!([2, 3])));
+        assert_eq!(
+            serde_json::to_string(&facts).unwrap(),
+            r#"{"b":1,"a":[2,3]}"#
+        );
     }
 }

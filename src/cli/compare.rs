@@ -122,18 +122,12 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     }
     bar.inc(1);
     let mut rows = Vec::new();
-    for config in &configs {
-        // The QR back end is named for the null-space method only.
-        let qr = (config.method == Method::NullSpaceQr).then_some(config.qr.name());
-        bar.set_message(format!(
-            "{} {} {}",
-            config.method,
-            qr.unwrap_or(""),
-            config.spd
-        ));
+    for choice in configs {
+        let config = compare::Configuration::new(choice);
+        bar.set_message(config.label.clone());
         rows.push(compare::run_one(
             &mut deformer,
-            config,
+            &config,
             &options,
             &reference,
         ));
@@ -166,7 +160,7 @@ fn print_compare_table(rows: &[CompareRow]) {
         out!(
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.method,
-            r.qr.map_or("—", |q| q.name()),
+            r.qr.as_deref().unwrap_or("—"),
             r.spd,
             opt(r.weight, &|w| format!("{w:.0e}")),
             opt(r.precompute_s, &|t| format!("{t:.3}")),

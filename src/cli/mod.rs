@@ -47,14 +47,14 @@ pub struct MethodArgs {
     /// nullspace-qr (the paper), penalty, kkt or eliminate.
     #[arg(long, default_value_t = DeformOptions::default().solve.formulation.method)]
     pub method: Method,
-    #[arg(long, help = with_default("QR back end of nullspace-qr: dense-householder, sparse-givens or spqr", DeformOptions::default().solve.formulation.qr))]
+    #[arg(long, help = with_default("QR back end of nullspace-qr: dense-householder, sparse-givens or spqr", lse_deform::formulation::DEFAULT_QR))]
     pub qr: Option<QrKind>,
     /// The matrix factorisation: the Cholesky back end of nullspace-qr,
     /// penalty and eliminate (faer-auto, faer-supernodal, faer-simplicial,
     /// nalgebra or cholmod), and for kkt the faer LDLT variant
     /// (faer-auto, faer-supernodal, faer-simplicial). `--spd` is the old
     /// name, still accepted.
-    #[arg(long, visible_alias = "spd", default_value_t = DeformOptions::default().solve.formulation.spd)]
+    #[arg(long, visible_alias = "spd", default_value_t = lse_deform::formulation::DEFAULT_SPD)]
     pub factor: SpdKind,
     /// Relative penalty weight of the hard rows (--method penalty only;
     /// required there).
@@ -116,8 +116,10 @@ impl MethodArgs {
         let mut options = DeformOptions::default();
         let solve = &mut options.solve;
         solve.formulation.method = self.method;
-        solve.formulation.qr = self.qr.unwrap_or(solve.formulation.qr);
-        solve.formulation.spd = self.factor;
+        if let Some(qr) = self.qr {
+            solve.formulation.qr = qr.into();
+        }
+        solve.formulation.spd = self.factor.into();
         solve.formulation.weight = self.weight;
         solve.refine = self.refine.or(solve.refine);
         solve.memory_budget = self.memory_limit.unwrap_or(solve.memory_budget);

@@ -76,7 +76,7 @@ impl Formulation for Elimination {
     ) -> Result<Precomputed, Error> {
         let mut record = PrecomputeRecord::new(
             self.method(),
-            FactorKind::Cholesky(self.spd.kind()),
+            FactorKind::Cholesky(self.spd.name()),
             MethodFacts::Eliminate,
         );
         let n = problem.n();
@@ -169,7 +169,7 @@ impl Prepared for PreparedElimination {
             let full = at_times(problem.a().as_ref(), residual.as_ref());
             let mut z =
                 Mat::<f64>::from_fn(self.unknown.len(), 3, |j, c| full[(self.unknown[j], c)]);
-            factor.solve_in_place(z.as_mut());
+            factor.solve_in_place(z.as_mut())?;
             for (j, &v) in self.unknown.iter().enumerate() {
                 for c in 0..3 {
                     x[(v, c)] = z[(j, c)];
@@ -194,7 +194,7 @@ impl Prepared for PreparedElimination {
         let k = x.ncols();
         let mut dz =
             Mat::<f64>::from_fn(self.unknown.len(), k, |j, c| gradient[(self.unknown[j], c)]);
-        factor.solve_in_place(dz.as_mut());
+        factor.solve_in_place(dz.as_mut())?;
         let mut dx = Mat::<f64>::zeros(x.nrows(), k);
         for (j, &v) in self.unknown.iter().enumerate() {
             for c in 0..k {
@@ -202,6 +202,10 @@ impl Prepared for PreparedElimination {
             }
         }
         Ok(Some(dx))
+    }
+
+    fn refactorizations(&self) -> usize {
+        self.factor.as_ref().map_or(0, |f| f.refactorizations())
     }
 
     fn skipped(&self) -> &[usize] {
@@ -214,7 +218,7 @@ impl Prepared for PreparedElimination {
         };
         let mut matrix = LowerSymmetricOperator::new(lower.as_ref());
         let mut inverse = InverseOperator::new(lower.ncols(), |rhs| {
-            factor.solve_in_place(rhs);
+            factor.solve_in_place(rhs)?;
             Ok(())
         });
         condition::estimate(&mut matrix, &mut inverse, "A_UᵀA_U")

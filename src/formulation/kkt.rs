@@ -57,6 +57,7 @@
 //! system with the residual taken from `A` and `B` themselves:
 //! `K [Δx; Δμ] = [Aᵀ(C − A x) − s Bᵀ μ; s (D − B x)]`.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -68,8 +69,7 @@ use super::record::{PrecomputeRecord, Precomputed};
 use super::util::{RowKind, split_normal};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
-use crate::backend::FactorStorage;
-use crate::backend::ldlt::{DetectedPivots, LdltFactor, LdltKind, Pivot};
+use crate::backend::ldlt::{FaerLdlt, LdltBackend, LdltKind, PivotFault, PivotRule};
 use crate::backend::qr::{QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::SpdKind;
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
@@ -112,40 +112,52 @@ pub const KKT_BACKWARD_ERROR_TOLERANCE: f64 = 1e-10;
 
 /// The KKT / Lagrange-multiplier formulation, factored by an `LDLᵀ` back
 /// end ([`crate::backend::ldlt`]) in a static order.
-#[derive(Debug, Clone, Default)]
+#[derive(Clone)]
 pub struct Kkt {
-    /// The `LDLᵀ` back end (faer's, simplicial, supernodal or its choice;
-    /// MUMPS's).
-    pub ldlt: LdltKind,
-    /// Where the factor is kept (out of core: MUMPS only).
-    pub storage: FactorStorage,
+    /// The `LDLᵀ` back end: one of the catalogue's ([`LdltKind::backend`]:
+    /// faer's simplicial, supernodal or its choice; MUMPS's) or one brought
+    /// from outside.
+    pub ldlt: Arc<dyn LdltBackend>,
+}
+
+impl Default for Kkt {
+    /// faer's `LDLᵀ`, simplicial or supernodal by its own choice.
+    fn default() -> Kkt {
+        Kkt::with_backend(Arc::new(FaerLdlt::new(LdltKind::FaerAuto)))
+    }
+}
+
+impl std::fmt::Debug for Kkt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Kkt")
+            .field("ldlt", &self.ldlt.name())
+            .finish()
+    }
 }
 
 impl Kkt {
+    /// The KKT formulation over `ldlt`.
+    pub fn with_backend(ldlt: Arc<dyn LdltBackend>) -> Kkt {
+        Kkt { ldlt }
+    }
+
     /// The KKT formulation in the `LDLᵀ` variant an SPD kind selects
-    /// ([`LdltKind::for_spd`]): `FaerAuto`, `FaerSimplicial` or
-    /// `FaerSupernodal`; `None` for the other kinds, which have no `LDLᵀ`.
+    /// ([`LdltKind::for_spd`]): `FaerAuto`, `FaerSimplicial`,
+    /// `FaerSupernodal` or `Mumps` (in a build with it); `None` for the
+    /// other kinds, which have no `LDLᵀ`.
     pub fn for_spd(spd: SpdKind) -> Option<Kkt> {
-        LdltKind::for_spd(spd).map(|ldlt| Kkt {
-            ldlt,
-            storage: FactorStorage::InCore,
-        })
+        let backend = LdltKind::for_spd(spd)?.backend().ok()?;
+        Some(Kkt::with_backend(backend))
     }
 
     /// Always simplicial (column by column).
     pub fn simplicial() -> Kkt {
-        Kkt {
-            ldlt: LdltKind::FaerSimplicial,
-            storage: FactorStorage::InCore,
-        }
+        Kkt::with_backend(Arc::new(FaerLdlt::new(LdltKind::FaerSimplicial)))
     }
 
     /// Always supernodal (dense `LDLᵀ` on blocks of columns).
     pub fn supernodal() -> Kkt {
-        Kkt {
-            ldlt: LdltKind::FaerSupernodal,
-            storage: FactorStorage::InCore,
-        }
+        Kkt::with_backend(Arc::new(FaerLdlt::new(LdltKind::FaerSupernodal)))
     }
 }
 
@@ -390,7 +402,7 @@ impl Formulation for Kkt {
         };
         let mut record = PrecomputeRecord::new(
             self.method(),
-            FactorKind::Ldlt(self.ldlt),
+            FactorKind::Ldlt(self.ldlt.name()),
             MethodFacts::Kkt {
                 multiplier_scale: scale,
             },
@@ -407,8 +419,7 @@ impl Formulation for Kkt {
 
         crate::interrupt::check()?;
         let t = Instant::now();
-        let backend = self.ldlt.backend_with(&self.storage)?;
-        let symbolic = backend.analyze(k_lower.symbolic(), &order)?;
+        let symbolic = self.ldlt.analyze(k_lower.symbolic(), &order)?;
         record.timings.symbolic = t.elapsed().as_secs_f64();
         symbolic.check_budget(budget, n + m, "the KKT matrix [AᵀA Bᵀ; B 0]")?;
 
@@ -416,14 +427,17 @@ impl Formulation for Kkt {
         let t = Instant::now();
         let factor = symbolic.factorize(k_lower.as_ref())?;
         crate::interrupt::check()?;
-        match factor.detected_pivots() {
-            Some(detected) => check_detected_pivots(&detected, &order, problem)?,
-            None => check_pivots(factor.as_ref(), &k_lower, problem)?,
+        let rule = PivotRule {
+            positive: n,
+            tolerance: KKT_PIVOT_TOLERANCE,
+        };
+        if let Some(fault) = factor.pivot_fault(k_lower.as_ref(), rule) {
+            return Err(pivot_error(fault, &order, problem)?.into());
         }
         record.timings.numeric = t.elapsed().as_secs_f64();
         record.sizes.factor = Some(factor.nnz());
         record.sizes.factor_bytes = Some(factor.bytes());
-        record.mumps = factor.mumps_facts();
+        record.backend_facts = factor.facts();
 
         let norm = lower_sym_norm_inf(k_lower.as_ref());
         let system = Box::new(PreparedKkt {
@@ -498,81 +512,112 @@ fn assemble_kkt(
     )
 }
 
-/// The pivots as a back end that judges them itself reports them (MUMPS's
-/// null pivots, [`DetectedPivots`]), mapped to the errors of
-/// [`check_pivots`]: the null pivot first in the static `order` names its
-/// constraint (a multiplier, named as faer names it:
-/// [`first_dependent_row`]) or its vertex.
-fn check_detected_pivots(
-    detected: &DetectedPivots,
+/// How a failing pivot was found.
+enum FoundKind {
+    /// Computed, and too small or of the wrong sign.
+    Computed,
+    /// A multiplier pivot computed positive and far from zero: the vertex
+    /// pivots before it lost their digits.
+    LostDigits,
+    /// Flagged by the back end's own test.
+    Test,
+}
+
+/// The error of the first pivot that breaks the module documentation's
+/// rule ([`PivotRule`]: vertex pivots positive, multiplier pivots
+/// negative, each above [`KKT_PIVOT_TOLERANCE`] of its magnitude), from
+/// whichever back end reported it: a [`NumericalError::Singular`] naming
+/// its constraint or vertex ([`NumericalError::FreeUnknown`] for a general
+/// problem's unknown).
+fn pivot_error(
+    fault: PivotFault,
     order: &[usize],
     problem: &LseProblem,
-) -> Result<(), Error> {
+) -> Result<NumericalError, Error> {
     let n = problem.n();
-    let mut position = vec![0usize; order.len()];
-    for (i, &unknown) in order.iter().enumerate() {
-        position[unknown] = i;
-    }
-    // A flagged multiplier is a dependent constraint. Flagged vertices
-    // alone may be small sound pivots of a norm set by slivers: those still
-    // null at rounding level are null.
-    let multiplier_flagged = detected.null.iter().any(|&u| u >= n);
-    let suspects = if multiplier_flagged {
-        &detected.null
-    } else {
-        &detected.null_at_rounding
-    };
-    let mut first = suspects
-        .iter()
-        .copied()
-        .filter(|&u| u < position.len())
-        .min_by_key(|&u| position[u]);
-    // MUMPS may eliminate the members of a dependent group in another
-    // order than the static one (it compresses rows with one pattern into
-    // one node), so it can flag another member than faer would: the one
-    // named is the first row, in the static order's sequence of
-    // multipliers, that depends on the rows before it.
-    if first.is_some_and(|u| u >= n)
-        && let Some(k) = first_dependent_row(problem, order)?
-    {
-        first = Some(n + k);
-    }
-    let rule = format!(
-        "MUMPS found its pivot null (the norm of its row below {KKT_PIVOT_TOLERANCE:e} of the scaled matrix's)"
-    );
-    let detail = match first {
-        Some(unknown) if unknown < n && problem.is_general() => {
-            return Err(NumericalError::FreeUnknown {
+    let (unknown, found, found_kind) = match fault {
+        PivotFault::Reported { message } => {
+            return Ok(NumericalError::Singular {
                 matrix: MATRIX.into(),
-                unknown,
-                detail: rule,
-            }
-            .into());
+                detail: message,
+            });
         }
-        Some(unknown) if unknown < n => format!(
-            "vertex {unknown}: {rule}: AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)"
-        ),
-        Some(unknown) => {
-            let k = unknown - n;
+        PivotFault::Computed {
+            position,
+            dim,
+            pivot,
+        } => {
+            let found = describe_pivot(position, dim, pivot.value, pivot.magnitude);
+            // A multiplier pivot positive and far from zero is not a
+            // vanishing pivot: the vertex pivots before it passed the test
+            // with too few digits left.
+            let lost = pivot.unknown >= n
+                && pivot.value > 0.0
+                && pivot.value.abs() / pivot.magnitude > KKT_PIVOT_TOLERANCE;
+            let kind = if lost {
+                FoundKind::LostDigits
+            } else {
+                FoundKind::Computed
+            };
+            (pivot.unknown, found, kind)
+        }
+        PivotFault::Null { unknown, test } if unknown >= n => {
+            // A back end that merges the members of a dependent group may
+            // flag another member than the static order's first: name the
+            // first row that depends on the rows before it.
+            let unknown = first_dependent_row(problem, order)?.map_or(unknown, |k| n + k);
+            (unknown, test, FoundKind::Test)
+        }
+        PivotFault::Null { unknown, test } => (unknown, test, FoundKind::Test),
+    };
+    // A computed pivot states what was expected of it; a back end's own
+    // test speaks for itself.
+    let computed = !matches!(found_kind, FoundKind::Test);
+    let expected =
+        |sign: &str| format!("expected {sign} and above {KKT_PIVOT_TOLERANCE:e} of that magnitude");
+    if unknown < n && problem.is_general() {
+        let detail = if computed {
+            format!("{found}; {}", expected("positive"))
+        } else {
+            found
+        };
+        return Ok(NumericalError::FreeUnknown {
+            matrix: MATRIX.into(),
+            unknown,
+            detail,
+        });
+    }
+    let with = |sign: &str| {
+        if computed {
+            format!("{found} ({})", expected(sign))
+        } else {
+            found.clone()
+        }
+    };
+    let detail = if unknown < n {
+        format!(
+            "vertex {unknown}: {}: AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",
+            with("positive")
+        )
+    } else {
+        let k = unknown - n;
+        let index = problem.hard_constraints()[k];
+        let row = RowKind::of_row(problem.b().as_ref(), k);
+        if matches!(found_kind, FoundKind::LostDigits) {
             format!(
-                "hard constraint {} (row {k} of B, {}) depends on the constraints eliminated before it: for its multiplier, {rule}; redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
-                problem.hard_constraints()[k],
-                RowKind::of_row(problem.b().as_ref(), k),
+                "the pivots eliminated before hard constraint {index} (row {k} of B, {row}) lost their digits: for its multiplier, {found} (expected negative; a positive pivot this far from zero is not a dependence but AᵀA nearly singular on the vertices eliminated before it, as on meshes with slivers) — the static pivot order fails here (use nullspace-qr)"
+            )
+        } else {
+            format!(
+                "hard constraint {index} (row {k} of B, {row}) depends on the constraints eliminated before it: for its multiplier, {}; redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it",
+                with("negative")
             )
         }
-        // AᵀA is positive semidefinite, so a nonsingular K has exactly m
-        // negative eigenvalues: with no null pivot there is nothing the
-        // count of negative pivots could add (and MUMPS's count is not
-        // always m when it takes 2×2 pivots around an exactly zero one); a
-        // pivot too small to be flagged shows in the backward-error check
-        // of every solve.
-        None => return Ok(()),
     };
-    Err(NumericalError::Singular {
+    Ok(NumericalError::Singular {
         matrix: MATRIX.into(),
         detail,
-    }
-    .into())
+    })
 }
 
 /// The first hard row, in the order in which `order` eliminates the
@@ -601,87 +646,10 @@ fn first_dependent_row(problem: &LseProblem, order: &[usize]) -> Result<Option<u
     Ok(kept.iter().position(|&k| !k).map(|i| sequence[i]))
 }
 
-/// The pivot test of the module documentation, in elimination order; the
-/// first failing pivot becomes a [`NumericalError::Singular`] naming its
-/// constraint or vertex.
-fn check_pivots(
-    factor: &dyn LdltFactor,
-    k_lower: &SparseColMat<usize, f64>,
-    problem: &LseProblem,
-) -> Result<(), Error> {
-    let n = problem.n();
-    let pivots = factor.pivots(k_lower.as_ref());
-    let dim = pivots.len();
-    for (
-        i,
-        &Pivot {
-            unknown,
-            value: d,
-            magnitude,
-        },
-    ) in pivots.iter().enumerate()
-    {
-        let is_vertex = unknown < n;
-        let ratio = d.abs() / magnitude;
-        let right_sign = if is_vertex { d > 0.0 } else { d < 0.0 };
-        let ok = d.is_finite() && ratio.is_finite() && ratio > KKT_PIVOT_TOLERANCE && right_sign;
-        if ok {
-            continue;
-        }
-        if is_vertex && problem.is_general() {
-            return Err(NumericalError::FreeUnknown {
-                matrix: MATRIX.into(),
-                unknown,
-                detail: format!(
-                    "{}; expected positive and above {KKT_PIVOT_TOLERANCE:e} of that magnitude",
-                    describe_pivot(i, dim, d, magnitude)
-                ),
-            }
-            .into());
-        }
-        let detail = if is_vertex {
-            format!(
-                "vertex {unknown}: {} (expected positive and above {KKT_PIVOT_TOLERANCE:e} of that magnitude): AᵀA is singular on the unknowns eliminated so far and the hard constraints eliminated before it do not pin them — a mesh component is free to move, or its constraints defeat the static pivot order (use nullspace-qr)",
-                describe_pivot(i, dim, d, magnitude)
-            )
-        } else {
-            let k = unknown - n;
-            let index = problem.hard_constraints()[k];
-            let row = RowKind::of_row(problem.b().as_ref(), k);
-            let pivot = describe_pivot(i, dim, d, magnitude);
-            if d > 0.0 && ratio > KKT_PIVOT_TOLERANCE {
-                // Not a vanishing pivot: the vertex pivots before it passed
-                // the test with too few digits left, and their block is no
-                // longer definite in floating point.
-                format!(
-                    "the pivots eliminated before hard constraint {index} (row {k} of B, {row}) lost their digits: for its multiplier, {pivot} (expected negative; a positive pivot this far from zero is not a dependence but AᵀA nearly singular on the vertices eliminated before it, as on meshes with slivers) — the static pivot order fails here (use nullspace-qr)"
-                )
-            } else {
-                format!(
-                    "hard constraint {index} (row {k} of B, {row}) depends on the constraints eliminated before it: for its multiplier, {pivot} (expected negative and above {KKT_PIVOT_TOLERANCE:e} of that magnitude); redundant or conflicting hard constraints make the KKT matrix singular — remove it, make it soft, or use nullspace-qr, which skips it"
-                )
-            }
-        };
-        return Err(NumericalError::Singular {
-            matrix: MATRIX.into(),
-            detail,
-        }
-        .into());
-    }
-    if let Some(e) = factor.reported_failure() {
-        return Err(NumericalError::Singular {
-            matrix: MATRIX.into(),
-            detail: format!("faer's LDLᵀ reported {e}"),
-        }
-        .into());
-    }
-    Ok(())
-}
-
 /// A factored KKT system. Invariant: `factor` is the `LDLᵀ` factor of
 /// `k_lower` (scaled by `scale`), all pivots checked.
 struct PreparedKkt {
-    factor: Box<dyn LdltFactor>,
+    factor: Box<dyn crate::backend::ldlt::LdltFactor>,
     k_lower: SparseColMat<usize, f64>,
     norm: f64,
     scale: f64,
@@ -694,8 +662,8 @@ struct PreparedKkt {
 }
 
 impl PreparedKkt {
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
-        self.factor.solve_in_place(rhs);
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
+        self.factor.solve_in_place(rhs)
     }
 
     /// `max_c ‖b_c − K y_c‖∞ / (‖K‖∞ ‖y_c‖∞ + ‖b_c‖∞)` and the residual.
@@ -733,7 +701,7 @@ impl Prepared for PreparedKkt {
             }
         }
         let mut y = b.clone();
-        self.solve_in_place(y.as_mut());
+        self.solve_in_place(y.as_mut())?;
         let (eta, _) = self.backward_error(&y, &b);
         if eta.is_nan() || eta > KKT_BACKWARD_ERROR_TOLERANCE {
             return Err(NumericalError::InaccurateSolution {
@@ -782,7 +750,7 @@ impl Prepared for PreparedKkt {
                 y[(n + r, c)] = self.scale * bottom[(r, c)];
             }
         }
-        self.solve_in_place(y.as_mut());
+        self.solve_in_place(y.as_mut())?;
         self.pending_multipliers = Some(y.submatrix(n, 0, m, k).to_owned());
         Ok(Some(y.submatrix(0, 0, n, k).to_owned()))
     }
@@ -791,6 +759,10 @@ impl Prepared for PreparedKkt {
         if let Some(dm) = self.pending_multipliers.take() {
             self.multipliers += &dm;
         }
+    }
+
+    fn refactorizations(&self) -> usize {
+        self.factor.refactorizations()
     }
 
     fn skipped(&self) -> &[usize] {
@@ -802,7 +774,7 @@ impl Prepared for PreparedKkt {
         let dim = k_lower.ncols();
         let mut matrix = LowerSymmetricOperator::new(k_lower.as_ref());
         let mut inverse = InverseOperator::new(dim, |rhs| {
-            self.solve_in_place(rhs);
+            self.solve_in_place(rhs)?;
             Ok(())
         });
         condition::estimate(

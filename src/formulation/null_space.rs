@@ -82,10 +82,10 @@ impl Formulation for NullSpaceQr {
     ) -> Result<Precomputed, Error> {
         let mut record = PrecomputeRecord::new(
             self.method(),
-            FactorKind::Cholesky(self.spd.kind()),
+            FactorKind::Cholesky(self.spd.name()),
             MethodFacts::NullSpace,
         );
-        record.qr_backend = Some(self.qr.kind());
+        record.qr_backend = Some(self.qr.name());
 
         let t = Instant::now();
         let qr = self
@@ -297,7 +297,7 @@ impl Prepared for PreparedNullSpace {
             );
             // z ← (AQ2)ᵀ residual: one pass over AQ2.
             ws.project_residual(&self.aq2);
-            factor.solve_in_place(ws.z.as_mut());
+            factor.solve_in_place(ws.z.as_mut())?;
             clear_upper_vector_state();
         }
         qr.apply_q(ws.y.as_ref(), ws.z.as_ref(), x);
@@ -330,7 +330,7 @@ impl Prepared for PreparedNullSpace {
                 problem.c().as_ref(),
                 xp.as_ref(),
             );
-            factor.solve_in_place(z.as_mut());
+            factor.solve_in_place(z.as_mut())?;
             clear_upper_vector_state();
         }
         qr.apply_q(y.as_ref(), z.as_ref(), out);
@@ -387,7 +387,7 @@ impl Prepared for PreparedNullSpace {
             ws.residual_from(problem.c());
             subtract_product(&mut ws.residual, a.as_ref(), |j| j, moved);
             ws.project_residual(&self.aq2);
-            factor.solve_in_place(ws.z.as_mut());
+            factor.solve_in_place(ws.z.as_mut())?;
             clear_upper_vector_state();
             qr.apply_q(gy.as_ref(), ws.z.as_ref(), dx.as_mut());
         } else {
@@ -398,11 +398,15 @@ impl Prepared for PreparedNullSpace {
                 problem.c().as_ref(),
                 moved.as_ref(),
             );
-            factor.solve_in_place(gz.as_mut());
+            factor.solve_in_place(gz.as_mut())?;
             clear_upper_vector_state();
             qr.apply_q(gy.as_ref(), gz.as_ref(), dx.as_mut());
         }
         Ok(Some(dx))
+    }
+
+    fn refactorizations(&self) -> usize {
+        self.factor.as_ref().map_or(0, |f| f.refactorizations())
     }
 
     fn skipped(&self) -> &[usize] {
@@ -419,7 +423,7 @@ impl Prepared for PreparedNullSpace {
         let lower = reduced_normal(&self.aq2);
         let mut matrix = LowerSymmetricOperator::new(lower.as_ref());
         let mut inverse = InverseOperator::new(lower.ncols(), |rhs| {
-            factor.solve_in_place(rhs);
+            factor.solve_in_place(rhs)?;
             Ok(())
         });
         condition::estimate(&mut matrix, &mut inverse, "(AQ2)ᵀ(AQ2)")

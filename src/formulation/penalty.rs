@@ -121,7 +121,7 @@ impl Formulation for Penalty {
         let sweep = PenaltySweep::within(problem, self.spd.as_ref(), budget)?;
         let mut record = PrecomputeRecord::new(
             self.method(),
-            FactorKind::Cholesky(self.spd.kind()),
+            FactorKind::Cholesky(self.spd.name()),
             MethodFacts::Penalty {
                 weight: self.weight,
                 weight_unit: sweep.weight_unit,
@@ -137,7 +137,7 @@ impl Formulation for Penalty {
         record.timings.numeric = t.elapsed().as_secs_f64();
         record.sizes.factor = Some(prepared.factor.nnz());
         record.sizes.factor_bytes = Some(prepared.factor.bytes());
-        record.mumps = prepared.factor.mumps_facts();
+        record.backend_facts = prepared.factor.facts();
         if problem.b().nrows() > 0 {
             record.warnings.push(Warning::new(
                 WarningKind::PenaltyApproximate,
@@ -170,7 +170,7 @@ pub struct PenaltySweep {
     ata: Vec<f64>,
     btb: Vec<f64>,
     symbolic: Box<dyn SpdSymbolic>,
-    backend: &'static str,
+    backend: crate::backend::BackendName,
     /// Seconds spent building the pattern and the values of `AᵀA`, `BᵀB`.
     pub normal_matrix_s: f64,
     /// Seconds spent in the (single) symbolic analysis.
@@ -264,8 +264,8 @@ impl PenaltySweep {
     }
 
     /// The SPD back end's name.
-    pub fn backend(&self) -> &'static str {
-        self.backend
+    pub fn backend(&self) -> &str {
+        &self.backend
     }
 
     /// `tril(AᵀA + (ws)²BᵀB)` for the relative weight `w` (values summed on
@@ -325,7 +325,7 @@ impl PenaltySweep {
         let (mut x, rhs) = prepared.solve_with_rhs(problem)?;
         let solve_s = t.elapsed().as_secs_f64();
         let backward_error = backward_error(prepared.lower.as_ref(), &x, &rhs);
-        let forward_error_estimate = prepared.forward_error_estimate(&x, &rhs);
+        let forward_error_estimate = prepared.forward_error_estimate(&x, &rhs)?;
         let refinement = refine(&mut prepared, problem, &mut x, mode)?;
         if let Some(vertex) = first_non_finite(x.as_ref()) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
@@ -417,7 +417,7 @@ impl PreparedPenalty {
             rhs.as_mut(),
         );
         let mut x = rhs.clone();
-        self.factor.solve_in_place(x.as_mut());
+        self.factor.solve_in_place(x.as_mut())?;
         if let Some(vertex) = first_non_finite(x.as_ref()) {
             return Err(NumericalError::NonFiniteSolution { vertex }.into());
         }
@@ -427,7 +427,11 @@ impl PreparedPenalty {
 
 impl PreparedPenalty {
     /// See [`PenaltySolution::forward_error_estimate`].
-    fn forward_error_estimate(&mut self, x: &Mat<f64>, rhs: &Mat<f64>) -> f64 {
+    fn forward_error_estimate(
+        &mut self,
+        x: &Mat<f64>,
+        rhs: &Mat<f64>,
+    ) -> Result<f64, NumericalError> {
         let lower = self.lower.as_ref();
         let mut nx = Mat::<f64>::zeros(x.nrows(), x.ncols());
         lower_sym_mul(lower, x.as_ref(), nx.as_mut());
@@ -438,7 +442,7 @@ impl PreparedPenalty {
         let mut v = Mat::<f64>::from_fn(x.nrows(), x.ncols(), |i, c| {
             (rhs[(i, c)] - nx[(i, c)]).abs() + gamma * abs_nx[(i, c)]
         });
-        self.factor.solve_in_place(v.as_mut());
+        self.factor.solve_in_place(v.as_mut())?;
         let mut worst = 0.0f64;
         for c in 0..x.ncols() {
             let (mut e, mut xn) = (0.0f64, 0.0f64);
@@ -449,7 +453,7 @@ impl PreparedPenalty {
             let ratio = if xn > 0.0 { e / xn } else { e };
             worst = worst.max(if ratio.is_nan() { f64::INFINITY } else { ratio });
         }
-        worst
+        Ok(worst)
     }
 }
 
@@ -485,7 +489,7 @@ impl Prepared for PreparedPenalty {
         let mut rhs = at_residual(problem.a().as_ref(), problem.c().as_ref(), x.as_ref());
         let shifted_violation = hard_residual(b, next.as_ref(), x.as_ref());
         add_bt_times(b, shifted_violation.as_ref(), self.w2(), rhs.as_mut());
-        self.factor.solve_in_place(rhs.as_mut());
+        self.factor.solve_in_place(rhs.as_mut())?;
         self.pending_targets = Some(next);
         Ok(Some(rhs))
     }
@@ -494,6 +498,10 @@ impl Prepared for PreparedPenalty {
         if let Some(next) = self.pending_targets.take() {
             self.shifted_targets = Some(next);
         }
+    }
+
+    fn refactorizations(&self) -> usize {
+        self.factor.refactorizations()
     }
 
     fn skipped(&self) -> &[usize] {
@@ -509,7 +517,7 @@ impl Prepared for PreparedPenalty {
         let factor = &mut self.factor;
         let mut matrix = LowerSymmetricOperator::new(lower);
         let mut inverse = InverseOperator::new(lower.ncols(), |rhs| {
-            factor.solve_in_place(rhs);
+            factor.solve_in_place(rhs)?;
             Ok(())
         });
         condition::estimate(&mut matrix, &mut inverse, "AᵀA + w²BᵀB")

@@ -5,8 +5,7 @@
 //! [`crate::report::Report`].
 
 use super::{Method, Prepared};
-use crate::backend::FactorKind;
-use crate::backend::qr::QrKind;
+use crate::backend::{BackendFacts, BackendName, FactorKind};
 use crate::report::{MethodFacts, Warning};
 
 /// Entry counts of what a precompute built (the report's `nnz`, less the
@@ -49,8 +48,8 @@ pub struct PhaseTimings {
 pub struct PrecomputeRecord {
     /// The method.
     pub method: Method,
-    /// The QR back end (null-space method only).
-    pub qr_backend: Option<QrKind>,
+    /// The QR back end's name (null-space method only).
+    pub qr_backend: Option<BackendName>,
     /// The factorisation of the matrix factored (a Cholesky, or KKT's
     /// `LDLᵀ`).
     pub factor_backend: FactorKind,
@@ -66,9 +65,10 @@ pub struct PrecomputeRecord {
     pub warnings: Vec<Warning>,
     /// What only this method has.
     pub facts: MethodFacts,
-    /// What a MUMPS factorisation says of its ranks (`None` for the other
-    /// back ends).
-    pub mumps: Option<crate::backend::MumpsFacts>,
+    /// What the factor's back end reports beyond this record, as a section
+    /// of the report (MUMPS: its ranks under `mumps`); `None` for back
+    /// ends that report nothing more.
+    pub backend_facts: Option<BackendFacts>,
 }
 
 impl PrecomputeRecord {
@@ -83,7 +83,7 @@ impl PrecomputeRecord {
             timings: PhaseTimings::default(),
             warnings: Vec::new(),
             facts,
-            mumps: None,
+            backend_facts: None,
         }
     }
 }

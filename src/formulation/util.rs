@@ -148,7 +148,7 @@ pub(crate) fn factor_normal_matrix(
     record.timings.numeric = t.elapsed().as_secs_f64();
     record.sizes.factor = Some(factor.nnz());
     record.sizes.factor_bytes = Some(factor.bytes());
-    record.mumps = factor.mumps_facts();
+    record.backend_facts = factor.facts();
     Ok((normal, factor))
 }
 

@@ -1,15 +1,15 @@
 //! The report's serialised form: the keys and values scripts, the Python
 //! package and the editor read, in the order they have always had, with
-//! the keys added since (`factor_backend`, `warning_codes`, and `mumps`,
-//! present only when MUMPS factored). The typed
+//! the keys added since (`factor_backend`, `warning_codes`,
+//! `refactorizations`, and a back end's own section such as `mumps`,
+//! present only when that back end factored). The typed
 //! fields of [`Report`] map onto them here and nowhere else.
 
 use serde::{Serialize, Serializer};
 
 use super::{ArapReport, Conflict, Detected, EnergyOperator, Nnz, Report, SoftResidual, Timings};
 use super::{Warning, WarningKind};
-use crate::backend::qr::QrKind;
-use crate::backend::{FactorKind, MumpsFacts};
+use crate::backend::{BackendFacts, FactorKind};
 use crate::choice::Method;
 use crate::condition::ConditionEstimate;
 use crate::limits::MemoryBudget;
@@ -19,10 +19,10 @@ use crate::refinement_types::Refinement;
 #[derive(Serialize)]
 struct Wire<'a> {
     method: Method,
-    qr_backend: Option<QrKind>,
+    qr_backend: Option<&'a str>,
     /// Deprecated alias of `factor_backend`, kept for one release.
-    spd_backend: Option<FactorKind>,
-    factor_backend: Option<FactorKind>,
+    spd_backend: Option<&'a FactorKind>,
+    factor_backend: Option<&'a FactorKind>,
     laplacian: Option<EnergyOperator>,
     vertices: usize,
     constraints: usize,
@@ -52,17 +52,32 @@ struct Wire<'a> {
     kkt_multiplier_scale: Option<f64>,
     arap: Option<&'a ArapReport>,
     memory_budget: Option<MemoryBudget>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    mumps: Option<&'a MumpsFacts>,
+    refactorizations: usize,
+    /// The back end's own section, under its key (`mumps`), when it has
+    /// one.
+    #[serde(flatten)]
+    backend_facts: Option<Section<'a>>,
+}
+
+/// A back end's facts under the key of their section.
+struct Section<'a>(&'a BackendFacts);
+
+impl Serialize for Section<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = s.serialize_map(Some(1))?;
+        map.serialize_entry(&self.0.section, self.0)?;
+        map.end()
+    }
 }
 
 impl Serialize for Report {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         Wire {
             method: self.method,
-            qr_backend: self.qr_backend,
-            spd_backend: self.factor_backend,
-            factor_backend: self.factor_backend,
+            qr_backend: self.qr_backend.as_deref(),
+            spd_backend: self.factor_backend.as_ref(),
+            factor_backend: self.factor_backend.as_ref(),
             laplacian: self.energy,
             vertices: self.vertices,
             constraints: self.constraints,
@@ -92,7 +107,8 @@ impl Serialize for Report {
             kkt_multiplier_scale: self.kkt_multiplier_scale(),
             arap: self.arap.as_ref(),
             memory_budget: self.memory_budget,
-            mumps: self.mumps.as_ref(),
+            refactorizations: self.refactorizations,
+            backend_facts: self.backend_facts.as_ref().map(Section),
         }
         .serialize(s)
     }

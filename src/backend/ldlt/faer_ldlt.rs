@@ -15,7 +15,10 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
-use super::{LdltBackend, LdltFactor, LdltKind, LdltSymbolic, Pivot};
+use super::{
+    LdltBackend, LdltFactor, LdltKind, LdltSymbolic, Pivot, PivotFault, PivotRule, first_fault,
+};
+use crate::backend::BackendName;
 use crate::backend::spd::factor_size;
 use crate::error::NumericalError;
 use crate::sparse::lower_diag;
@@ -59,8 +62,8 @@ impl FaerLdlt {
 }
 
 impl LdltBackend for FaerLdlt {
-    fn kind(&self) -> LdltKind {
-        self.kind
+    fn name(&self) -> BackendName {
+        self.kind.name().into()
     }
 
     fn analyze(
@@ -116,7 +119,7 @@ impl LdltSymbolic for FaerLdltSymbolic {
             MemStack::new(&mut mem),
             Default::default(),
         );
-        let failure = result.err().map(|e| format!("{e:?}"));
+        let failure = result.err().map(|e| format!("faer's LDLᵀ reported {e:?}"));
         let workspace =
             MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(WORKSPACE_COLUMNS, Par::Seq))
                 .map_err(backend_error)?;
@@ -144,6 +147,35 @@ struct FaerLdltFactor {
 }
 
 impl FaerLdltFactor {
+    /// Every pivot in elimination order, with the magnitude it was computed
+    /// from; `lower` is the matrix factored (for `K_jj`).
+    fn pivots(&self, lower: SparseColMatRef<'_, usize, f64>) -> Vec<Pivot> {
+        let dim = self.dim();
+        let fwd: Vec<usize> = match self.symbolic.perm() {
+            Some(p) => p.arrays().0.to_vec(),
+            None => (0..dim).collect(),
+        };
+        let mut d = vec![0.0f64; dim];
+        self.for_each_entry(|i, k, v| {
+            if i == k {
+                d[k] = v;
+            }
+        });
+        let mut magnitude: Vec<f64> = (0..dim).map(|i| lower_diag(lower, fwd[i]).abs()).collect();
+        self.for_each_entry(|i, k, v| {
+            if i != k {
+                magnitude[i] += v * v * d[k].abs();
+            }
+        });
+        (0..dim)
+            .map(|i| Pivot {
+                unknown: fwd[i],
+                value: d[i],
+                magnitude: magnitude[i],
+            })
+            .collect()
+    }
+
     /// Visits every stored entry of the factor in permuted coordinates:
     /// `f(i, k, value)` with `i == k` for the pivot `d_k` and `i > k` for
     /// `L_ik`.
@@ -184,16 +216,18 @@ impl LdltFactor for FaerLdltFactor {
         self.symbolic.nrows()
     }
 
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
         let factor = LdltRef::new(&self.symbolic, &self.values);
         if rhs.ncols() > WORKSPACE_COLUMNS {
-            if let Ok(mut buf) = MemBuffer::try_new(
+            // A wider block needs a workspace of its own: refused typed
+            // when it cannot be allocated (never a silent no-op).
+            let mut buf = MemBuffer::try_new(
                 self.symbolic
                     .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
-            ) {
-                factor.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut buf));
-            }
-            return;
+            )
+            .map_err(backend_error)?;
+            factor.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut buf));
+            return Ok(());
         }
         factor.solve_in_place_with_conj(
             Conj::No,
@@ -201,6 +235,7 @@ impl LdltFactor for FaerLdltFactor {
             Par::Seq,
             MemStack::new(&mut self.workspace),
         );
+        Ok(())
     }
 
     fn nnz(&self) -> usize {
@@ -211,34 +246,11 @@ impl LdltFactor for FaerLdltFactor {
         factor_size(&self.symbolic).total_bytes()
     }
 
-    fn pivots(&self, lower: SparseColMatRef<'_, usize, f64>) -> Vec<Pivot> {
-        let dim = self.dim();
-        let fwd: Vec<usize> = match self.symbolic.perm() {
-            Some(p) => p.arrays().0.to_vec(),
-            None => (0..dim).collect(),
-        };
-        let mut d = vec![0.0f64; dim];
-        self.for_each_entry(|i, k, v| {
-            if i == k {
-                d[k] = v;
-            }
-        });
-        let mut magnitude: Vec<f64> = (0..dim).map(|i| lower_diag(lower, fwd[i]).abs()).collect();
-        self.for_each_entry(|i, k, v| {
-            if i != k {
-                magnitude[i] += v * v * d[k].abs();
-            }
-        });
-        (0..dim)
-            .map(|i| Pivot {
-                unknown: fwd[i],
-                value: d[i],
-                magnitude: magnitude[i],
-            })
-            .collect()
-    }
-
-    fn reported_failure(&self) -> Option<&str> {
-        self.failure.as_deref()
+    fn pivot_fault(
+        &self,
+        lower: SparseColMatRef<'_, usize, f64>,
+        rule: PivotRule,
+    ) -> Option<PivotFault> {
+        first_fault(&self.pivots(lower), rule, self.failure.as_deref())
     }
 }

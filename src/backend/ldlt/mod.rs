@@ -12,16 +12,24 @@
 //! triangle** in CSC form with sorted row indices, every diagonal entry
 //! stored (an explicit zero where the matrix has none).
 //!
-//! A back end does not judge the pivots: what a pivot should be (its sign,
-//! how small is singular) depends on the matrix, so the factor hands them
-//! out with the magnitude each was computed from ([`LdltFactor::pivots`])
-//! and the caller decides.
+//! **One pivot protocol.** What a pivot should be (its sign, how small is
+//! singular) depends on the matrix, so the caller states it as a
+//! [`PivotRule`] and the factor answers with the first pivot, in
+//! elimination order, that breaks it ([`LdltFactor::pivot_fault`]): a
+//! back end that computes its pivots hands out the pivot with the
+//! magnitude it was computed from ([`PivotFault::Computed`], through
+//! [`first_fault`]); one that only detects null pivots by its own test
+//! names the unknown and the test ([`PivotFault::Null`]); a failure the
+//! back end met but did not attribute to a pivot is
+//! [`PivotFault::Reported`]. The KKT formulation turns the answer into its
+//! error, whichever back end gave it.
 
 use faer::MatMut;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
-use crate::backend::FactorStorage;
+pub use crate::backend::catalogue::LdltKind;
 use crate::backend::spd::check_factor_size;
+use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 
@@ -29,104 +37,12 @@ mod faer_ldlt;
 
 pub use faer_ldlt::FaerLdlt;
 
-/// An `LDLᵀ` back end, as a typed choice ([`LdltKind::backend`] makes
-/// it); serialised in reports as its word.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
-pub enum LdltKind {
-    /// faer's choice between the two below, from the symbolic factor's
-    /// density.
-    #[default]
-    FaerAuto,
-    /// faer's simplicial (column by column) `LDLᵀ`.
-    FaerSimplicial,
-    /// faer's supernodal `LDLᵀ` (dense blocks of columns).
-    FaerSupernodal,
-    /// MUMPS's multifrontal `LDLᵀ` in the given order, on one rank or many
-    /// (cargo feature `mumps`).
-    Mumps,
-}
-
-impl LdltKind {
-    /// Every kind, in the order they are listed to users.
-    pub const ALL: [LdltKind; 4] = [
-        LdltKind::FaerAuto,
-        LdltKind::FaerSimplicial,
-        LdltKind::FaerSupernodal,
-        LdltKind::Mumps,
-    ];
-
-    /// The word in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            LdltKind::FaerAuto => "faer-ldlt-auto",
-            LdltKind::FaerSimplicial => "faer-ldlt-simplicial",
-            LdltKind::FaerSupernodal => "faer-ldlt-supernodal",
-            LdltKind::Mumps => "mumps-ldlt",
-        }
-    }
-
-    /// The `LDLᵀ` variant an SPD back-end choice selects (the CLI's and
-    /// Python's `spd` for the KKT method): faer's automatic, simplicial or
-    /// supernodal factorisation for the faer kinds; `None` for the others,
-    /// which have no `LDLᵀ`.
-    pub fn for_spd(spd: crate::backend::spd::SpdKind) -> Option<LdltKind> {
-        use crate::backend::spd::SpdKind;
-        match spd {
-            SpdKind::FaerAuto => Some(LdltKind::FaerAuto),
-            SpdKind::FaerSimplicial => Some(LdltKind::FaerSimplicial),
-            SpdKind::FaerSupernodal => Some(LdltKind::FaerSupernodal),
-            SpdKind::Mumps => Some(LdltKind::Mumps),
-            SpdKind::Nalgebra | SpdKind::Cholmod => None,
-        }
-    }
-
-    /// The back end, keeping its factor in core.
-    ///
-    /// Errors: [`ProblemError::InvalidArgument`] for `Mumps` in a build
-    /// without the feature `mumps`.
-    pub fn backend(self) -> Result<Box<dyn LdltBackend>, ProblemError> {
-        self.backend_with(&FactorStorage::InCore)
-    }
-
-    /// The back end keeping its factor in `storage` (out of core: `Mumps`
-    /// only).
-    pub fn backend_with(
-        self,
-        storage: &FactorStorage,
-    ) -> Result<Box<dyn LdltBackend>, ProblemError> {
-        match self {
-            #[cfg(feature = "mumps")]
-            LdltKind::Mumps => Ok(Box::new(crate::backend::mumps::MumpsLdlt::new(
-                storage.directory().map(std::path::Path::to_path_buf),
-            ))),
-            #[cfg(not(feature = "mumps"))]
-            LdltKind::Mumps => Err(ProblemError::InvalidArgument {
-                message: crate::backend::spd::MUMPS_MISSING.into(),
-            }),
-            _ => {
-                storage.refuse_out_of_core(self.name())?;
-                Ok(Box::new(FaerLdlt::new(self)))
-            }
-        }
-    }
-}
-
-impl crate::choice::Word for LdltKind {
-    const WHAT: &'static str = "LDLT back end";
-    fn all() -> &'static [Self] {
-        &LdltKind::ALL
-    }
-    fn name(self) -> &'static str {
-        LdltKind::name(self)
-    }
-}
-
-crate::choice::word_traits!(LdltKind);
-
-/// A sparse `LDLᵀ` family.
+/// A sparse `LDLᵀ` family: the crate's own ([`LdltKind`]'s catalogue) or
+/// one brought from outside (docs/backends.md,
+/// `lse_deform::testing::conformance::ldlt`).
 pub trait LdltBackend: Send + Sync {
-    /// Which back end this is.
-    fn kind(&self) -> LdltKind;
+    /// The back end's name in reports and `compare` rows.
+    fn name(&self) -> BackendName;
 
     /// Symbolic factorisation of the lower-triangle pattern `lower`
     /// (square, sorted rows, every diagonal entry stored) with the unknowns
@@ -143,9 +59,8 @@ pub trait LdltBackend: Send + Sync {
 pub trait LdltSymbolic: Send + Sync {
     /// Numeric factorisation of `lower` (same pattern as analysed), without
     /// pivoting. A pivot that the back end itself finds unusable (an exact
-    /// zero) does not fail the call: it is in
-    /// [`LdltFactor::reported_failure`], so that the caller can first run
-    /// its own, more telling, pivot test.
+    /// zero) does not fail the call: it is reported by
+    /// [`LdltFactor::pivot_fault`], so that the caller's rule names it.
     fn factorize(
         &self,
         lower: SparseColMatRef<'_, usize, f64>,
@@ -168,21 +83,6 @@ pub trait LdltSymbolic: Send + Sync {
     }
 }
 
-/// The pivots as a back end that judges them itself reports them
-/// (MUMPS's null-pivot detection): the unknowns whose pivots it found null
-/// (0-based, original order) and the number of negative pivots.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct DetectedPivots {
-    /// Unknowns with a null pivot.
-    pub null: Vec<usize>,
-    /// When `null` is not empty: the unknowns still null when the matrix is
-    /// factored again with a threshold at the level of rounding (a pivot in
-    /// `null` but not here was small but sound, as on sliver-heavy meshes).
-    pub null_at_rounding: Vec<usize>,
-    /// How many pivots were negative (the inertia's negative count).
-    pub negative: usize,
-}
-
 /// A pivot `d_i` of the factorisation, in elimination order, with the
 /// magnitude it was computed from: `d_i = K_jj − Σ_{k<i} L_ik² d_k` for the
 /// unknown `j` eliminated `i`-th, and
@@ -198,13 +98,97 @@ pub struct Pivot {
     pub magnitude: f64,
 }
 
+/// What the caller requires of the pivots `d_i` of a static-order
+/// `LDLᵀ`: the unknowns `j < positive` must have `d > 0`, the others
+/// `d < 0`, each with `|d| > tolerance · magnitude` (the magnitude it was
+/// computed from, [`Pivot::magnitude`]). For the KKT matrix
+/// `[AᵀA sBᵀ; sB 0]`, `positive = n` (the vertices) and the tolerance is
+/// [`crate::formulation::KKT_PIVOT_TOLERANCE`] (docs/formulations.md §5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PivotRule {
+    /// Unknowns below this index expect a positive pivot, the rest a
+    /// negative one.
+    pub positive: usize,
+    /// The least `|d| / magnitude` of a pivot that keeps its digits.
+    pub tolerance: f64,
+}
+
+impl PivotRule {
+    /// Whether `pivot` keeps the rule (a non-finite value or ratio never
+    /// does).
+    pub fn holds(&self, pivot: &Pivot) -> bool {
+        let ratio = pivot.value.abs() / pivot.magnitude;
+        let right_sign = if pivot.unknown < self.positive {
+            pivot.value > 0.0
+        } else {
+            pivot.value < 0.0
+        };
+        pivot.value.is_finite() && ratio.is_finite() && ratio > self.tolerance && right_sign
+    }
+}
+
+/// The first pivot, in elimination order, that breaks a [`PivotRule`], as
+/// the back end knows it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PivotFault {
+    /// A computed pivot: its position in the elimination order (of `dim`
+    /// pivots) and the pivot with its magnitude.
+    Computed {
+        /// 0-based position in the elimination order.
+        position: usize,
+        /// Number of pivots.
+        dim: usize,
+        /// The pivot.
+        pivot: Pivot,
+    },
+    /// A pivot the back end found null by its own test, without handing
+    /// out its value: the unknown (original order), and the test in words.
+    /// A back end whose elimination may merge unknowns (so that the one it
+    /// flags need not be the first of a dependent group in the given
+    /// order) says so by flagging; the caller may then name the group's
+    /// first member itself.
+    Null {
+        /// The unknown.
+        unknown: usize,
+        /// What the back end tested, for the message.
+        test: String,
+    },
+    /// A failure the back end met during the numeric factorisation but did
+    /// not attribute to a pivot that breaks the rule: its own words.
+    Reported {
+        /// The back end's message.
+        message: String,
+    },
+}
+
+/// The first of `pivots` (in elimination order) that breaks `rule`, as a
+/// [`PivotFault::Computed`]; else, when the back end reported a `failure`
+/// of its own, [`PivotFault::Reported`]. For back ends that compute their
+/// pivots.
+pub fn first_fault(pivots: &[Pivot], rule: PivotRule, failure: Option<&str>) -> Option<PivotFault> {
+    let dim = pivots.len();
+    match pivots.iter().position(|p| !rule.holds(p)) {
+        Some(position) => Some(PivotFault::Computed {
+            position,
+            dim,
+            pivot: pivots[position],
+        }),
+        None => failure.map(|message| PivotFault::Reported {
+            message: message.to_string(),
+        }),
+    }
+}
+
 /// A numeric factorisation `P K Pᵀ = L D Lᵀ`.
 pub trait LdltFactor: Send + Sync {
     /// Dimension of the factored matrix.
     fn dim(&self) -> usize;
 
     /// Solves `K X = B` in place for all columns of `rhs` together.
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>);
+    ///
+    /// Errors: a typed [`NumericalError`] naming what failed; `rhs` is
+    /// then unspecified. Never non-finite values as a signal.
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) -> Result<(), NumericalError>;
 
     /// Number of stored entries of `L` (lower triangle, diagonal included,
     /// the diagonal holding `D`).
@@ -213,23 +197,24 @@ pub trait LdltFactor: Send + Sync {
     /// Bytes of the factor's numerical values and indices.
     fn bytes(&self) -> usize;
 
-    /// Every pivot in elimination order; `lower` is the matrix factored
-    /// (for `K_jj`).
-    fn pivots(&self, lower: SparseColMatRef<'_, usize, f64>) -> Vec<Pivot>;
+    /// The first pivot that breaks `rule` ([`PivotFault`]), `None` when
+    /// every pivot keeps it; `lower` is the matrix factored (for `K_jj`).
+    fn pivot_fault(
+        &self,
+        lower: SparseColMatRef<'_, usize, f64>,
+        rule: PivotRule,
+    ) -> Option<PivotFault>;
 
-    /// The back end's own report of a failed pivot during the numeric
-    /// factorisation (its error, as text), if any.
-    fn reported_failure(&self) -> Option<&str>;
-
-    /// `Some` for a back end that judges the pivots itself instead of
-    /// handing them out ([`LdltFactor::pivots`] is then empty).
-    fn detected_pivots(&self) -> Option<DetectedPivots> {
+    /// What the back end reports of this factorisation beyond the generic
+    /// record, as a section of the report; `None` by default.
+    fn facts(&self) -> Option<BackendFacts> {
         None
     }
 
-    /// What a MUMPS factor reports of its ranks; `None` for the others.
-    fn mumps_facts(&self) -> Option<crate::backend::MumpsFacts> {
-        None
+    /// How many times a solve had to factor the matrix again; `0` by
+    /// default ([`crate::backend::spd::SpdFactor::refactorizations`]).
+    fn refactorizations(&self) -> usize {
+        0
     }
 }
 
@@ -278,19 +263,36 @@ mod tests {
         ];
         for kind in faer_kinds {
             let backend = kind.backend().unwrap();
-            assert_eq!(backend.kind(), kind);
+            assert_eq!(backend.name(), kind.name());
             let symbolic = backend.analyze(k.symbolic(), &[0, 1, 2]).unwrap();
             assert!(symbolic.factor_values() >= 6, "{kind}");
             let mut factor = symbolic.factorize(k.as_ref()).unwrap();
             assert_eq!(factor.dim(), 3);
             assert_eq!(factor.nnz(), 6, "{kind}");
-            assert!(factor.reported_failure().is_none(), "{kind}");
-            let pivots = factor.pivots(k.as_ref());
+            // The saddle point's signs hold; a rule expecting one sign more
+            // or fewer meets the pivot that breaks it, with its magnitude.
+            let rule = |positive| PivotRule {
+                positive,
+                tolerance: 1e-12,
+            };
+            assert_eq!(factor.pivot_fault(k.as_ref(), rule(2)), None, "{kind}");
             let expected = [(0, 2.0, 2.0), (1, 1.5, 2.5), (2, -2.0 / 3.0, 2.0 / 3.0)];
-            for (p, (unknown, value, magnitude)) in pivots.iter().zip(expected) {
-                assert_eq!(p.unknown, unknown, "{kind}");
-                assert!((p.value - value).abs() < 1e-15, "{kind}: {p:?}");
-                assert!((p.magnitude - magnitude).abs() < 1e-15, "{kind}: {p:?}");
+            for (positive, position) in [(0, 0), (3, 2)] {
+                let Some(PivotFault::Computed {
+                    position: at,
+                    dim,
+                    pivot,
+                }) = factor.pivot_fault(k.as_ref(), rule(positive))
+                else {
+                    panic!("{kind}: no computed fault for positive = {positive}");
+                };
+                let (unknown, value, magnitude) = expected[position];
+                assert_eq!((at, dim, pivot.unknown), (position, 3, unknown), "{kind}");
+                assert!((pivot.value - value).abs() < 1e-15, "{kind}: {pivot:?}");
+                assert!(
+                    (pivot.magnitude - magnitude).abs() < 1e-15,
+                    "{kind}: {pivot:?}"
+                );
             }
             // Three columns (the workspace) and five (a buffer of their own).
             for k_cols in [3, 5] {
@@ -298,7 +300,7 @@ mod tests {
                 let mut x = Mat::from_fn(3, k_cols, |i, c| {
                     (0..3).map(|j| full[i][j] * x_true[(j, c)]).sum::<f64>()
                 });
-                factor.solve_in_place(x.as_mut());
+                factor.solve_in_place(x.as_mut()).unwrap();
                 for c in 0..k_cols {
                     for i in 0..3 {
                         assert!((x[(i, c)] - x_true[(i, c)]).abs() < 1e-14, "{kind}");
@@ -318,9 +320,20 @@ mod tests {
             .analyze(k.symbolic(), &[2, 0, 1])
             .unwrap();
         let factor = symbolic.factorize(k.as_ref()).unwrap();
-        let first = factor.pivots(k.as_ref())[0];
-        assert_eq!((first.unknown, first.value, first.magnitude), (2, 0.0, 0.0));
-        assert!(factor.reported_failure().is_some());
+        let rule = PivotRule {
+            positive: 2,
+            tolerance: 1e-12,
+        };
+        let Some(PivotFault::Computed {
+            position, pivot, ..
+        }) = factor.pivot_fault(k.as_ref(), rule)
+        else {
+            panic!("the zero pivot is not reported");
+        };
+        assert_eq!(
+            (position, pivot.unknown, pivot.value, pivot.magnitude),
+            (0, 2, 0.0, 0.0)
+        );
     }
 
     #[test]
@@ -343,8 +356,20 @@ mod tests {
             .analyze(k.symbolic(), &[0, 1, 2])
             .unwrap();
         let factor = symbolic.factorize(k.as_ref()).unwrap();
-        let last = factor.pivots(k.as_ref())[2];
-        assert_eq!((last.unknown, last.value, last.magnitude), (2, 0.0, 2.0));
+        let rule = PivotRule {
+            positive: 1,
+            tolerance: 1e-12,
+        };
+        let Some(PivotFault::Computed {
+            position, pivot, ..
+        }) = factor.pivot_fault(k.as_ref(), rule)
+        else {
+            panic!("the dependent multiplier is not reported");
+        };
+        assert_eq!(
+            (position, pivot.unknown, pivot.value, pivot.magnitude),
+            (2, 2, 0.0, 2.0)
+        );
     }
 
     #[test]
@@ -360,5 +385,42 @@ mod tests {
             Ok(LdltKind::FaerSupernodal)
         );
         assert_eq!(LdltKind::default().to_string(), "faer-ldlt-auto");
+    }
+}
+
+#[cfg(test)]
+mod rule_tests {
+    use super::*;
+
+    /// The rule by hand: signs, the tolerance (strict), non-finite values.
+    #[test]
+    fn the_rule_checks_sign_size_and_finiteness() {
+        let rule = PivotRule {
+            positive: 1,
+            tolerance: 0.25,
+        };
+        let p = |unknown, value, magnitude| Pivot {
+            unknown,
+            value,
+            magnitude,
+        };
+        assert!(rule.holds(&p(0, 1.0, 2.0)));
+        assert!(!rule.holds(&p(0, -1.0, 2.0)));
+        assert!(rule.holds(&p(1, -1.0, 2.0)));
+        assert!(!rule.holds(&p(1, 1.0, 2.0)));
+        assert!(
+            !rule.holds(&p(0, 0.5, 2.0)),
+            "a ratio at the tolerance fails"
+        );
+        assert!(!rule.holds(&p(0, f64::NAN, 2.0)));
+        assert!(!rule.holds(&p(0, 1.0, 0.0)));
+        let pivots = [p(0, 1.0, 1.0), p(1, -1.0, 1.0)];
+        assert_eq!(first_fault(&pivots, rule, None), None);
+        assert_eq!(
+            first_fault(&pivots, rule, Some("zero pivot")),
+            Some(PivotFault::Reported {
+                message: "zero pivot".into()
+            })
+        );
     }
 }

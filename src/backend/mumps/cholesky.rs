@@ -27,10 +27,11 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::driver::Driver;
 use super::instance::Params;
+use super::session::DetectedPivots;
 use super::session::{Assembled, Factorisation, Session, Shared, lock};
-use super::{MumpsFacts, numerical, too_large};
-use crate::backend::ldlt::DetectedPivots;
+use super::{numerical, too_large};
 use crate::backend::spd::{SpdBackend, SpdFactor, SpdKind, SpdSymbolic};
+use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 
@@ -69,8 +70,8 @@ fn check_pivots(detected: &DetectedPivots) -> Result<(), NumericalError> {
 }
 
 impl SpdBackend for MumpsLlt {
-    fn kind(&self) -> SpdKind {
-        SpdKind::Mumps
+    fn name(&self) -> BackendName {
+        SpdKind::Mumps.name().into()
     }
 
     fn analyze(
@@ -156,8 +157,8 @@ impl SpdFactor for MumpsFactor {
         self.0.n
     }
 
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
-        self.0.solve_in_place(rhs);
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
+        self.0.solve_in_place(rhs)
     }
 
     fn nnz(&self) -> usize {
@@ -168,7 +169,11 @@ impl SpdFactor for MumpsFactor {
         self.0.entries as usize * std::mem::size_of::<f64>()
     }
 
-    fn mumps_facts(&self) -> Option<MumpsFacts> {
-        Some(self.0.facts.clone())
+    fn facts(&self) -> Option<BackendFacts> {
+        Some(self.0.facts.to_backend_facts())
+    }
+
+    fn refactorizations(&self) -> usize {
+        self.0.refactorizations
     }
 }

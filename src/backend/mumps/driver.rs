@@ -110,6 +110,11 @@ impl Driver {
     pub fn out_of_core(&self) -> bool {
         self.mumps().out_of_core()
     }
+
+    /// Rank 0's scratch directory of the out-of-core factor, if any.
+    pub fn scratch_directory(&self) -> Option<&std::path::Path> {
+        self.mumps().scratch_directory()
+    }
 }
 
 impl Drop for Driver {

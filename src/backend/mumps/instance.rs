@@ -148,6 +148,11 @@ pub(crate) struct Mumps {
 impl Mumps {
     /// Collective: `JOB = −1` with `PAR = 1` (rank 0 works too), output
     /// silenced, and, out of core, this rank's scratch directory.
+    /// This rank's scratch directory of the out-of-core factor, if any.
+    pub fn scratch_directory(&self) -> Option<&Path> {
+        self.scratch.as_ref().map(|s| s.0.as_path())
+    }
+
     pub fn create(world: &SimpleCommunicator, id: u64, setup: &Setup) -> Result<Mumps, Failure> {
         let rank = world.rank();
         let scratch = setup

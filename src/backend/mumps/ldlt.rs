@@ -17,9 +17,10 @@
 //! `CNTL(3)` is the KKT pivot
 //! tolerance `1000 ε` and `K` is already scaled so that its constraint
 //! block matches `AᵀA`. The flagged unknowns (`PIVNUL_LIST`) and the count
-//! of negative pivots (`INFOG(12)`) are what [`LdltFactor::detected_pivots`]
-//! returns; the KKT formulation maps them to the same errors as faer's
-//! pivots (docs/distributed.md §3).
+//! of negative pivots (`INFOG(12)`) become the seam's one pivot report
+//! ([`LdltFactor::pivot_fault`]): the flagged unknown first in the given
+//! order, as a [`PivotFault::Null`], which the KKT formulation turns into
+//! the same errors as faer's computed pivots (docs/distributed.md §3).
 
 use std::path::PathBuf;
 
@@ -28,11 +29,13 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::cholesky::MumpsSymbolic;
 use super::instance::Params;
+use super::numerical;
+use super::session::DetectedPivots;
 use super::session::{Factorisation, lock};
-use super::{MumpsFacts, numerical};
 use crate::backend::ldlt::{
-    DetectedPivots, LdltBackend, LdltFactor, LdltKind, LdltSymbolic, Pivot,
+    LdltBackend, LdltFactor, LdltKind, LdltSymbolic, PivotFault, PivotRule,
 };
+use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 
@@ -82,8 +85,8 @@ fn analysis_params() -> Params {
 }
 
 impl LdltBackend for MumpsLdlt {
-    fn kind(&self) -> LdltKind {
-        LdltKind::Mumps
+    fn name(&self) -> BackendName {
+        LdltKind::Mumps.name().into()
     }
 
     fn analyze(
@@ -96,6 +99,7 @@ impl LdltBackend for MumpsLdlt {
         for (position, &unknown) in order.iter().enumerate() {
             perm_in[unknown] = position as i32 + 1;
         }
+        let position = perm_in.iter().map(|&p| p as usize - 1).collect();
         let symbolic = MumpsSymbolic::analyse(
             lower,
             2,
@@ -103,18 +107,22 @@ impl LdltBackend for MumpsLdlt {
             &analysis_params(),
             self.out_of_core.as_deref(),
         )?;
-        Ok(Box::new(MumpsLdltSymbolic(symbolic)))
+        Ok(Box::new(MumpsLdltSymbolic { symbolic, position }))
     }
 }
 
-struct MumpsLdltSymbolic(MumpsSymbolic);
+struct MumpsLdltSymbolic {
+    symbolic: MumpsSymbolic,
+    /// `position[j]`: where unknown `j` stands in the given order.
+    position: Vec<usize>,
+}
 
 impl LdltSymbolic for MumpsLdltSymbolic {
     fn factorize(
         &self,
         lower: SparseColMatRef<'_, usize, f64>,
     ) -> Result<Box<dyn LdltFactor>, NumericalError> {
-        let shared = &self.0.shared;
+        let shared = &self.symbolic.shared;
         let mut factor = Factorisation::new(shared, lower).map_err(numerical)?;
         let mut detected = lock(shared).detected_pivots();
         if !detected.null.is_empty() {
@@ -128,11 +136,15 @@ impl LdltSymbolic for MumpsLdltSymbolic {
             factor = second.map_err(numerical)?;
             detected.null_at_rounding = session.detected_pivots().null;
         }
-        Ok(Box::new(MumpsLdltFactor { factor, detected }))
+        Ok(Box::new(MumpsLdltFactor {
+            factor,
+            detected,
+            position: self.position.clone(),
+        }))
     }
 
     fn factor_values(&self) -> usize {
-        self.0.estimate
+        self.symbolic.estimate
     }
 
     fn check_budget(
@@ -141,13 +153,14 @@ impl LdltSymbolic for MumpsLdltSymbolic {
         _dim: usize,
         matrix: &str,
     ) -> Result<(), ProblemError> {
-        self.0.check_every_rank(budget, matrix)
+        self.symbolic.check_every_rank(budget, matrix)
     }
 }
 
 struct MumpsLdltFactor {
     factor: Factorisation,
     detected: DetectedPivots,
+    position: Vec<usize>,
 }
 
 impl LdltFactor for MumpsLdltFactor {
@@ -155,8 +168,8 @@ impl LdltFactor for MumpsLdltFactor {
         self.factor.n
     }
 
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
-        self.factor.solve_in_place(rhs);
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
+        self.factor.solve_in_place(rhs)
     }
 
     fn nnz(&self) -> usize {
@@ -167,19 +180,43 @@ impl LdltFactor for MumpsLdltFactor {
         self.factor.entries as usize * std::mem::size_of::<f64>()
     }
 
-    fn pivots(&self, _lower: SparseColMatRef<'_, usize, f64>) -> Vec<Pivot> {
-        Vec::new()
+    /// The null pivot first in the given order. A flagged unknown of the
+    /// negative block (a multiplier of KKT) is a dependence; flagged
+    /// unknowns of the positive block alone may be small sound pivots of
+    /// a norm set by slivers: those still null at rounding level are null.
+    /// The count of negative pivots is not used: with no null pivot a
+    /// nonsingular `K` has exactly the expected inertia, and MUMPS's count
+    /// is not always it when it takes 2×2 pivots around an exact zero.
+    fn pivot_fault(
+        &self,
+        _lower: SparseColMatRef<'_, usize, f64>,
+        rule: PivotRule,
+    ) -> Option<PivotFault> {
+        let detected = &self.detected;
+        let negative_flagged = detected.null.iter().any(|&u| u >= rule.positive);
+        let suspects = if negative_flagged {
+            &detected.null
+        } else {
+            &detected.null_at_rounding
+        };
+        let unknown = suspects
+            .iter()
+            .copied()
+            .filter(|&u| u < self.position.len())
+            .min_by_key(|&u| self.position[u])?;
+        Some(PivotFault::Null {
+            unknown,
+            test: format!(
+                "MUMPS found its pivot null (the norm of its row below {NULL_PIVOT_THRESHOLD:e} of the scaled matrix's)"
+            ),
+        })
     }
 
-    fn reported_failure(&self) -> Option<&str> {
-        None
+    fn facts(&self) -> Option<BackendFacts> {
+        Some(self.factor.facts.to_backend_facts())
     }
 
-    fn detected_pivots(&self) -> Option<DetectedPivots> {
-        Some(self.detected.clone())
-    }
-
-    fn mumps_facts(&self) -> Option<MumpsFacts> {
-        Some(self.factor.facts.clone())
+    fn refactorizations(&self) -> usize {
+        self.factor.refactorizations
     }
 }

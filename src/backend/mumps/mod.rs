@@ -34,11 +34,46 @@ pub use ranks::launched_by_mpirun;
 
 use instance::Failure;
 
-use crate::backend::MumpsFacts;
+use crate::backend::BackendFacts;
 use crate::error::{NumericalError, ProblemError};
 
 /// The name in errors and reports.
 const NAME: &str = "mumps";
+
+/// What a MUMPS factorisation reports of its ranks (the report's `mumps`
+/// object; its keys are the field names).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct MumpsFacts {
+    /// The number of MPI ranks that factored.
+    pub ranks: usize,
+    /// Entries of each rank's share of the factor (`INFO(27)`), rank by
+    /// rank.
+    pub factor_entries_per_rank: Vec<u64>,
+    /// Bytes each rank's factorisation effectively used (`INFO(22)`, which
+    /// MUMPS counts in millions of bytes), rank by rank.
+    pub peak_bytes_per_rank: Vec<u64>,
+    /// The fill-reducing ordering MUMPS used (`INFOG(7)`): `given` when the
+    /// caller fixed the order (KKT).
+    pub ordering: String,
+    /// Whether the factor was kept out of core.
+    pub out_of_core: bool,
+}
+
+impl MumpsFacts {
+    /// The facts as the report's `mumps` section, keys in the order of the
+    /// fields.
+    pub fn to_backend_facts(&self) -> BackendFacts {
+        BackendFacts::new(NAME)
+            .with("ranks", self.ranks)
+            .with(
+                "factor_entries_per_rank",
+                self.factor_entries_per_rank.clone(),
+            )
+            .with("peak_bytes_per_rank", self.peak_bytes_per_rank.clone())
+            .with("ordering", self.ordering.clone())
+            .with("out_of_core", self.out_of_core)
+    }
+}
 
 /// What the binary calls before anything else. Launched by `mpirun`, it
 /// starts MPI; on rank 0 it returns `None` (go on with the command), on any
@@ -84,13 +119,18 @@ pub fn ranks() -> usize {
 
 /// A failure as the seams' error.
 pub(crate) fn numerical(failure: Failure) -> NumericalError {
-    let message = match failure {
-        Failure::Mumps { infog1, infog2 } => describe(infog1, infog2),
-        Failure::Memory(m) | Failure::Rank(m) => m,
-    };
     NumericalError::Backend {
         backend: NAME.to_string(),
-        message,
+        message: failure_message(failure),
+    }
+}
+
+/// A failure in words (MUMPS's code with its meaning, or the rank's
+/// message).
+pub(crate) fn failure_message(failure: Failure) -> String {
+    match failure {
+        Failure::Mumps { infog1, infog2 } => describe(infog1, infog2),
+        Failure::Memory(m) | Failure::Rank(m) => m,
     }
 }
 

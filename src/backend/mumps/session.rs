@@ -15,8 +15,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::driver::Driver;
 use super::instance::{Failure, Params};
-use super::{MumpsFacts, numerical};
-use crate::backend::ldlt::DetectedPivots;
+use super::{MumpsFacts, failure_message, numerical};
 use crate::error::NumericalError;
 
 /// The lower triangle of a symmetric matrix as MUMPS's centralised
@@ -63,6 +62,21 @@ impl Assembled {
     pub fn values(&self, lower: SparseColMatRef<'_, usize, f64>) -> Vec<f64> {
         self.positions.iter().map(|&q| lower.val()[q]).collect()
     }
+}
+
+/// The pivots as a back end that judges them itself reports them
+/// (MUMPS's null-pivot detection): the unknowns whose pivots it found null
+/// (0-based, original order) and the number of negative pivots.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(crate) struct DetectedPivots {
+    /// Unknowns with a null pivot.
+    pub null: Vec<usize>,
+    /// When `null` is not empty: the unknowns still null when the matrix is
+    /// factored again with a threshold at the level of rounding (a pivot in
+    /// `null` but not here was small but sound, as on sliver-heavy meshes).
+    pub null_at_rounding: Vec<usize>,
+    /// How many pivots were negative (the inertia's negative count).
+    pub negative: usize,
 }
 
 /// An analysed instance and the generation of its current numeric factor.
@@ -244,6 +258,8 @@ pub(crate) struct Factorisation {
     /// Entries of the factor over all ranks (`INFOG(29)`).
     pub entries: u64,
     pub facts: MumpsFacts,
+    /// Solves that had to factor the values again.
+    pub refactorizations: usize,
 }
 
 impl Factorisation {
@@ -262,12 +278,19 @@ impl Factorisation {
             entries: crate::backend::mumps::ffi::count(session.driver.struc().infog(29)),
             facts: session.facts(),
             values,
+            refactorizations: 0,
         })
     }
 
-    /// Solves in place for every column of `rhs`; on a MUMPS failure the
-    /// columns become NaN (the callers' checks of a solution then fail).
-    pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
+    /// Solves in place for every column of `rhs`, factoring this
+    /// factorisation's values again first when another factorisation of
+    /// the session replaced them ([`Factorisation::refactorizations`]
+    /// counts it).
+    ///
+    /// Errors: [`NumericalError::Backend`] with MUMPS's code, naming the
+    /// out-of-core directory when the factor is kept there (a file of the
+    /// factor that cannot be read).
+    pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
         let (n, k) = (rhs.nrows(), rhs.ncols());
         let mut dense: Vec<f64> = (0..k)
             .flat_map(|c| (0..n).map(move |i| (i, c)))
@@ -276,18 +299,37 @@ impl Factorisation {
         let mut session = lock(&self.shared);
         let mut outcome = Ok(());
         if session.generation != self.generation {
+            self.refactorizations += 1;
             outcome = session.factorise(&self.values).map(|g| self.generation = g);
         }
         if outcome.is_ok() && n > 0 && k > 0 {
             outcome = session.solve(&mut dense, k);
         }
-        if outcome.is_err() {
-            dense.fill(f64::NAN);
+        if let Err(failure) = outcome {
+            return Err(solve_error(failure, session.driver.scratch_directory()));
         }
         for c in 0..k {
             for i in 0..n {
                 rhs[(i, c)] = dense[c * n + i];
             }
         }
+        Ok(())
+    }
+}
+
+/// A failed solve as the seams' error: MUMPS's words and code, and the
+/// out-of-core directory it was reading from.
+fn solve_error(failure: Failure, scratch: Option<&std::path::Path>) -> NumericalError {
+    let message = failure_message(failure);
+    let message = match scratch {
+        Some(dir) => format!(
+            "solving with the out-of-core factor in {}: {message}",
+            dir.display()
+        ),
+        None => format!("solving with the factor: {message}"),
+    };
+    NumericalError::Backend {
+        backend: super::NAME.into(),
+        message,
     }
 }

@@ -5,7 +5,7 @@ use faer::Mat;
 use faer::sparse::{SparseColMat, Triplet};
 
 use super::{MumpsLdlt, MumpsLlt};
-use crate::backend::ldlt::LdltBackend;
+use crate::backend::ldlt::{LdltBackend, PivotFault, PivotRule};
 use crate::backend::spd::{SpdBackend, solve};
 use crate::limits::MemoryBudget;
 
@@ -28,13 +28,18 @@ fn cholesky_solves_a_two_by_two_system() {
     let x = solve(
         factor.as_mut(),
         Mat::from_fn(2, 1, |i, _| (i + 1) as f64).as_ref(),
-    );
+    )
+    .unwrap();
     assert!((x[(0, 0)] - 1.0 / 11.0).abs() < 1e-15);
     assert!((x[(1, 0)] - 7.0 / 11.0).abs() < 1e-15);
-    let facts = factor.mumps_facts().unwrap();
-    assert_eq!(facts.ranks, 1);
-    assert_eq!(facts.factor_entries_per_rank, vec![3]);
-    assert!(!facts.out_of_core);
+    let facts = factor.facts().unwrap();
+    assert_eq!(facts.section, "mumps");
+    assert_eq!(facts.get("ranks"), Some(&serde_json::json!(1)));
+    assert_eq!(
+        facts.get("factor_entries_per_rank"),
+        Some(&serde_json::json!([3]))
+    );
+    assert_eq!(facts.get("out_of_core"), Some(&serde_json::json!(false)));
 }
 
 /// Two factors of one analysis, solved in turn: each solves with its own
@@ -48,8 +53,8 @@ fn factors_of_one_analysis_keep_their_own_matrices() {
     let mut fb = symbolic.factorize(b.as_ref()).unwrap();
     let ones = Mat::from_fn(2, 3, |_, _| 1.0);
     for _ in 0..2 {
-        let xa = solve(fa.as_mut(), ones.as_ref());
-        let xb = solve(fb.as_mut(), ones.as_ref());
+        let xa = solve(fa.as_mut(), ones.as_ref()).unwrap();
+        let xb = solve(fb.as_mut(), ones.as_ref()).unwrap();
         for c in 0..3 {
             assert_eq!((xa[(0, c)], xa[(1, c)]), (0.5, 0.25));
             assert_eq!((xb[(0, c)], xb[(1, c)]), (0.125, 0.0625));
@@ -119,9 +124,11 @@ fn out_of_core_solves_and_leaves_the_directory_empty() {
         let x = solve(
             factor.as_mut(),
             Mat::from_fn(2, 1, |i, _| (i + 1) as f64).as_ref(),
-        );
+        )
+        .unwrap();
         assert!((x[(1, 0)] - 7.0 / 11.0).abs() < 1e-15);
-        assert!(factor.mumps_facts().unwrap().out_of_core);
+        let facts = factor.facts().unwrap();
+        assert_eq!(facts.get("out_of_core"), Some(&serde_json::json!(true)));
     }
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     let missing = dir.path().join("missing");
@@ -152,13 +159,18 @@ fn ldlt_flags_the_dependent_multiplier() {
         .analyze(k.symbolic(), &[0, 1, 2])
         .unwrap();
     let factor = symbolic.factorize(k.as_ref()).unwrap();
-    let detected = factor.detected_pivots().unwrap();
+    let rule = PivotRule {
+        positive: 1,
+        tolerance: crate::formulation::KKT_PIVOT_TOLERANCE,
+    };
     // Unknowns 1 and 2 have one pattern: MUMPS merges them into one node and
     // eliminates them in either order, so either copy's pivot is the null
     // one (the KKT formulation names the constraint itself).
-    assert_eq!(detected.null.len(), 1);
-    assert!([1, 2].contains(&detected.null[0]), "{detected:?}");
-    assert_eq!(detected.negative, 1);
+    let fault = factor.pivot_fault(k.as_ref(), rule);
+    assert!(
+        matches!(fault, Some(PivotFault::Null { unknown: 1 | 2, .. })),
+        "{fault:?}"
+    );
 }
 
 /// `K = [2 1 1; 1 2 0; 1 0 0]` is nonsingular in the order 0, 1, 2: no null
@@ -179,14 +191,52 @@ fn ldlt_solves_a_regular_kkt_matrix() {
         .analyze(k.symbolic(), &[0, 1, 2])
         .unwrap();
     let mut factor = symbolic.factorize(k.as_ref()).unwrap();
-    let detected = factor.detected_pivots().unwrap();
-    assert!(detected.null.is_empty());
-    assert_eq!(detected.negative, 1);
+    let rule = PivotRule {
+        positive: 2,
+        tolerance: crate::formulation::KKT_PIVOT_TOLERANCE,
+    };
+    assert_eq!(factor.pivot_fault(k.as_ref(), rule), None);
     // K [1; 1; 1] = [4; 3; 1].
     let mut x = Mat::from_fn(3, 1, |i, _| [4.0, 3.0, 1.0][i]);
-    factor.solve_in_place(x.as_mut());
+    factor.solve_in_place(x.as_mut()).unwrap();
     for i in 0..3 {
         assert!((x[(i, 0)] - 1.0).abs() < 1e-14, "{x:?}");
     }
-    assert_eq!(factor.mumps_facts().unwrap().ordering, "given");
+    let facts = factor.facts().unwrap();
+    assert_eq!(facts.get("ordering"), Some(&serde_json::json!("given")));
+}
+
+/// Out of core, the factor's files removed between the factorisation and
+/// the solve: the solve fails with a typed error naming the directory it
+/// reads from and MUMPS's code, not with a non-finite solution.
+#[test]
+fn a_missing_out_of_core_file_is_a_typed_solve_error_naming_the_directory() {
+    let a = tridiagonal(20_000);
+    let dir = tempfile::tempdir().unwrap();
+    let backend = MumpsLlt::new(Some(dir.path().to_path_buf()));
+    let symbolic = backend.analyze(a.symbolic()).unwrap();
+    let mut factor = symbolic.factorize(a.as_ref()).unwrap();
+    let scratch: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(scratch.len(), 1, "one scratch directory: {scratch:?}");
+    let mut removed = 0;
+    for file in std::fs::read_dir(&scratch[0]).unwrap() {
+        std::fs::remove_file(file.unwrap().path()).unwrap();
+        removed += 1;
+    }
+    assert!(removed > 0, "the factor was written to files");
+    let rhs = Mat::from_fn(20_000, 3, |i, c| (i + c) as f64);
+    let e = solve(factor.as_mut(), rhs.as_ref()).unwrap_err();
+    let message = e.to_string();
+    assert!(
+        matches!(e, crate::error::NumericalError::Backend { .. }),
+        "{e:?}"
+    );
+    assert!(
+        message.contains(&scratch[0].display().to_string()),
+        "the directory is named: {message}"
+    );
+    assert!(message.contains("INFOG(1) = -"), "MUMPS's code: {message}");
 }

@@ -38,8 +38,8 @@ use crate::limits::MemoryBudget;
 pub struct DenseHouseholder;
 
 impl QrBackend for DenseHouseholder {
-    fn kind(&self) -> super::QrKind {
-        super::QrKind::DenseHouseholder
+    fn name(&self) -> crate::backend::BackendName {
+        super::QrKind::DenseHouseholder.name().into()
     }
 
     fn factor_within(

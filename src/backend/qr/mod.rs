@@ -152,15 +152,13 @@ impl crate::choice::Word for QrKind {
 
 crate::choice::word_traits!(QrKind);
 
-/// A QR factorisation method for `Bᵀ`.
+/// A QR factorisation method for `Bᵀ`: the crate's own ([`QrKind`]'s
+/// catalogue) or one brought from outside (docs/backends.md,
+/// `lse_deform::testing::conformance::qr`).
 pub trait QrBackend: Send + Sync {
-    /// Which back end this is.
-    fn kind(&self) -> QrKind;
-
-    /// Name used on the command line and in reports.
-    fn name(&self) -> &'static str {
-        self.kind().name()
-    }
+    /// The back end's name in reports and `compare` rows (a built-in's
+    /// word; an outside back end chooses its own).
+    fn name(&self) -> crate::backend::BackendName;
 
     /// Factors `Bᵀ` for the hard-constraint matrix `b` (m × n, one row per
     /// constraint, in priority order), refusing with

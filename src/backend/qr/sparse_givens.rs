@@ -108,8 +108,8 @@ impl SparseGivens {
 }
 
 impl QrBackend for SparseGivens {
-    fn kind(&self) -> super::QrKind {
-        super::QrKind::SparseGivens
+    fn name(&self) -> crate::backend::BackendName {
+        super::QrKind::SparseGivens.name().into()
     }
 
     fn factor_within(

@@ -110,8 +110,8 @@ unsafe extern "C" {
 pub struct Spqr;
 
 impl QrBackend for Spqr {
-    fn kind(&self) -> super::QrKind {
-        super::QrKind::Spqr
+    fn name(&self) -> crate::backend::BackendName {
+        super::QrKind::Spqr.name().into()
     }
 
     fn factor_within(

@@ -200,8 +200,8 @@ fn configure(common: &mut Common) {
 }
 
 impl SpdBackend for Cholmod {
-    fn kind(&self) -> super::SpdKind {
-        super::SpdKind::Cholmod
+    fn name(&self) -> crate::backend::BackendName {
+        super::SpdKind::Cholmod.name().into()
     }
 
     fn analyze(
@@ -320,13 +320,12 @@ impl SpdFactor for CholmodFactor {
     }
 
     /// `cholmod_l_solve(CHOLMOD_A)` on all columns at once. CHOLMOD fails
-    /// here only when out of memory; then `rhs` is filled with NaN, which the
-    /// formulations' finiteness check turns into
-    /// [`NumericalError::NonFiniteSolution`].
-    fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
+    /// here only when out of memory: a [`NumericalError::Backend`] with
+    /// CHOLMOD's status.
+    fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
         let (n, k) = (rhs.nrows(), rhs.ncols());
         if n == 0 || k == 0 {
-            return;
+            return Ok(());
         }
         let mut data = vec![0.0f64; n * k];
         for c in 0..k {
@@ -350,12 +349,12 @@ impl SpdFactor for CholmodFactor {
         let mut x =
             unsafe { ss::cholmod_l_solve(ss::CHOLMOD_A as _, self.factor.l, &mut b, common) };
         if x.is_null() {
-            for c in 0..k {
-                for r in 0..n {
-                    rhs[(r, c)] = f64::NAN;
-                }
-            }
-            return;
+            // SAFETY: `common` is this factor's valid CHOLMOD workspace.
+            let status = unsafe { (*common).status };
+            return Err(NumericalError::Backend {
+                backend: "cholmod".into(),
+                message: format!("cholmod_l_solve failed (CHOLMOD status {status})"),
+            });
         }
         // SAFETY: `x` is an n × k real dense matrix with leading dimension d.
         unsafe {
@@ -369,6 +368,7 @@ impl SpdFactor for CholmodFactor {
             }
             ss::cholmod_l_free_dense(&mut x, common);
         }
+        Ok(())
     }
 
     fn nnz(&self) -> usize {

@@ -73,8 +73,8 @@ fn backend_error(name: &str, e: impl std::fmt::Debug) -> NumericalError {
 }
 
 impl SpdBackend for FaerLlt {
-    fn kind(&self) -> super::SpdKind {
-        self.kind
+    fn name(&self) -> crate::backend::BackendName {
+        self.kind.name().into()
     }
 
     fn analyze(
@@ -334,7 +334,7 @@ impl SpdFactor for FaerFactor {
         self.symbolic.nrows()
     }
 
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
         let k = rhs.ncols();
         let solver = GroupSolver {
             symbolic: &self.symbolic,
@@ -352,7 +352,7 @@ impl SpdFactor for FaerFactor {
                     .get_or_insert_with(|| (vec![[0.0; LANES]; n], Vec::new()));
                 let first = (&mut self.work[..], &mut self.scratch);
                 solver.solve_split(rhs, split, passes(), first, (&mut second.0, &mut second.1));
-                return;
+                return Ok(());
             }
             if k <= WIDE_LANES && wide_lanes_native() {
                 let b = self.split_wide.get_or_insert_with(|| LaneBuffers::new(n));
@@ -361,12 +361,12 @@ impl SpdFactor for FaerFactor {
                     (&mut b.w2[..], &mut b.scratch2),
                 );
                 solver.solve_split(rhs, split, wide_passes(), first, second);
-                return;
+                return Ok(());
             }
         }
         if k <= LANES {
             solver.solve_groups(rhs, &mut self.work, &mut self.scratch);
-            return;
+            return Ok(());
         }
         // Two or more groups: the first half of them on this thread, the
         // rest on another, each with its own lanes, reading the same factor
@@ -390,6 +390,7 @@ impl SpdFactor for FaerFactor {
             clear_upper_vector_state();
             solver.solve_groups(left, work, scratch);
         });
+        Ok(())
     }
 
     fn nnz(&self) -> usize {

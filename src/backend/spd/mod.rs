@@ -12,12 +12,11 @@
 //! positive, or a pivot that lost all its digits to cancellation
 //! ([`BREAKDOWN_RATIO`]).
 
-use std::sync::Arc;
-
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, MatRef};
 
-use crate::backend::FactorStorage;
+pub use crate::backend::catalogue::SpdKind;
+use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 
@@ -34,113 +33,6 @@ pub use cholmod::Cholmod;
 pub(crate) use factor_size::factor_size;
 pub use faer_llt::FaerLlt;
 pub use nalgebra::NalgebraCsc;
-
-/// An SPD back end, as a typed choice ([`SpdKind::backend`] makes it;
-/// `FromStr` reads the CLI's and Python's names, [`SpdKind::name`] gives
-/// them back).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SpdKind {
-    /// faer's supernodal Cholesky.
-    FaerSupernodal,
-    /// faer's simplicial (column by column) Cholesky.
-    FaerSimplicial,
-    /// faer's choice between the two, from the symbolic factor's density.
-    FaerAuto,
-    /// nalgebra-sparse's CSC Cholesky.
-    Nalgebra,
-    /// SuiteSparse CHOLMOD (cargo feature `suitesparse`).
-    Cholmod,
-    /// MUMPS's multifrontal Cholesky, on one rank or many (cargo feature
-    /// `mumps`).
-    Mumps,
-}
-
-impl SpdKind {
-    /// Every kind, in the order they are listed to users.
-    pub const ALL: [SpdKind; 6] = [
-        SpdKind::FaerSupernodal,
-        SpdKind::FaerSimplicial,
-        SpdKind::FaerAuto,
-        SpdKind::Nalgebra,
-        SpdKind::Cholmod,
-        SpdKind::Mumps,
-    ];
-
-    /// The name the CLI and Python use.
-    pub fn name(self) -> &'static str {
-        match self {
-            SpdKind::FaerSupernodal => "faer-supernodal",
-            SpdKind::FaerSimplicial => "faer-simplicial",
-            SpdKind::FaerAuto => "faer-auto",
-            SpdKind::Nalgebra => "nalgebra",
-            SpdKind::Cholmod => "cholmod",
-            SpdKind::Mumps => "mumps",
-        }
-    }
-
-    /// Whether this build has the back end (`Cholmod` needs the cargo
-    /// feature `suitesparse`, `Mumps` the feature `mumps`).
-    pub fn in_this_build(self) -> bool {
-        let missing = (self == SpdKind::Cholmod && !cfg!(feature = "suitesparse"))
-            || (self == SpdKind::Mumps && !cfg!(feature = "mumps"));
-        !missing
-    }
-
-    /// The kinds of this build, in [`SpdKind::ALL`]'s order.
-    pub fn available() -> Vec<SpdKind> {
-        SpdKind::ALL
-            .into_iter()
-            .filter(|k| k.in_this_build())
-            .collect()
-    }
-
-    /// The back end.
-    ///
-    /// Errors: [`ProblemError::InvalidArgument`] for `Cholmod` in a build
-    /// without the `suitesparse` feature (the message says how to enable
-    /// it).
-    pub fn backend(self) -> Result<Arc<dyn SpdBackend>, ProblemError> {
-        self.backend_with(&FactorStorage::InCore)
-    }
-
-    /// The back end keeping its factor in `storage`.
-    ///
-    /// Errors: as [`SpdKind::backend`], and
-    /// [`ProblemError::InvalidArgument`] for out-of-core storage with any
-    /// back end but `Mumps`.
-    pub fn backend_with(
-        self,
-        storage: &FactorStorage,
-    ) -> Result<Arc<dyn SpdBackend>, ProblemError> {
-        if self != SpdKind::Mumps {
-            storage.refuse_out_of_core(self.name())?;
-        }
-        match self {
-            SpdKind::FaerSupernodal => Ok(Arc::new(FaerLlt::supernodal())),
-            SpdKind::FaerSimplicial => Ok(Arc::new(FaerLlt::simplicial())),
-            SpdKind::FaerAuto => Ok(Arc::new(FaerLlt::auto())),
-            SpdKind::Nalgebra => Ok(Arc::new(NalgebraCsc)),
-            #[cfg(feature = "suitesparse")]
-            SpdKind::Cholmod => Ok(Arc::new(Cholmod)),
-            #[cfg(not(feature = "suitesparse"))]
-            SpdKind::Cholmod => Err(ProblemError::InvalidArgument {
-                message: "the SPD back end 'cholmod' (SuiteSparse CHOLMOD) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
-            }),
-            #[cfg(feature = "mumps")]
-            SpdKind::Mumps => Ok(Arc::new(crate::backend::mumps::MumpsLlt::new(
-                storage.directory().map(std::path::Path::to_path_buf),
-            ))),
-            #[cfg(not(feature = "mumps"))]
-            SpdKind::Mumps => Err(ProblemError::InvalidArgument {
-                message: MUMPS_MISSING.into(),
-            }),
-        }
-    }
-}
-
-/// Why `mumps` is refused by a build without it.
-#[cfg(not(feature = "mumps"))]
-pub(crate) const MUMPS_MISSING: &str = "the back end 'mumps' (MUMPS over MPI) is not in this build: rebuild with `--features mumps` (needs the system packages libmumps-ptscotch-dev, libmumps-headers-dev, libopenmpi-dev, openmpi-bin and libclang-dev)";
 
 /// Threshold on `L_kk² / A_kk` below which a completed Cholesky
 /// factorisation is declared broken down.
@@ -169,30 +61,13 @@ pub fn check_factor_size(
     .map_err(|detail| ProblemError::TooLarge { detail })
 }
 
-impl crate::choice::Word for SpdKind {
-    const WHAT: &'static str = "SPD back end";
-    fn all() -> &'static [Self] {
-        &SpdKind::ALL
-    }
-    fn name(self) -> &'static str {
-        SpdKind::name(self)
-    }
-    fn listed() -> Vec<Self> {
-        SpdKind::available()
-    }
-}
-
-crate::choice::word_traits!(SpdKind);
-
-/// A sparse SPD solver family.
+/// A sparse SPD solver family: the crate's own ([`SpdKind`]'s catalogue)
+/// or one brought from outside (docs/backends.md states the contract,
+/// `lse_deform::testing::conformance::spd` checks it).
 pub trait SpdBackend: Send + Sync {
-    /// Which back end this is.
-    fn kind(&self) -> SpdKind;
-
-    /// Name used on the command line and in reports.
-    fn name(&self) -> &'static str {
-        self.kind().name()
-    }
+    /// The back end's name in reports, `compare` rows, CSVs and plots
+    /// (a built-in's word; an outside back end chooses its own).
+    fn name(&self) -> BackendName;
 
     /// Symbolic analysis (ordering + symbolic factorisation) of the lower
     /// triangle pattern `lower` (square, sorted rows, diagonal present).
@@ -204,20 +79,23 @@ pub trait SpdBackend: Send + Sync {
 
 /// The result of a symbolic analysis: factors any matrix with its pattern.
 pub trait SpdSymbolic: Send + Sync {
-    /// Numeric factorisation of `lower` (same pattern as analysed).
+    /// Numeric factorisation of `lower` (same pattern as analysed). Several
+    /// factors of one analysis may live at once, each solving with its own
+    /// matrix.
     fn factorize(
         &self,
         lower: SparseColMatRef<'_, usize, f64>,
     ) -> Result<Box<dyn SpdFactor>, NumericalError>;
 
     /// Number of stored entries of the factor `L` (lower triangle, diagonal
-    /// included), known after analysis.
+    /// included), known after analysis; for a back end that stores no
+    /// factor (an iterative one), what it stores instead, in `f64` values.
     fn factor_nnz(&self) -> usize;
 
     /// Refuses a factorisation that would not fit in `budget`: by default
-    /// [`check_factor_size`] on [`SpdSymbolic::factor_nnz`]; MUMPS checks
-    /// its own estimate on every rank. `dim` and `matrix` are for the
-    /// message.
+    /// [`check_factor_size`] on [`SpdSymbolic::factor_nnz`]; a back end
+    /// that knows better (one that counts every rank) checks its own
+    /// estimate. `dim` and `matrix` are for the message.
     fn check_budget(
         &self,
         budget: MemoryBudget,
@@ -228,13 +106,18 @@ pub trait SpdSymbolic: Send + Sync {
     }
 }
 
-/// A numeric factorisation `P A Pᵀ = L Lᵀ`.
+/// A numeric factorisation `P A Pᵀ = L Lᵀ` (or whatever an outside back
+/// end keeps to solve with `A`).
 pub trait SpdFactor: Send + Sync {
     /// Dimension of the factored matrix.
     fn dim(&self) -> usize;
 
     /// Solves `A X = B` in place for all columns of `rhs` together.
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>);
+    ///
+    /// Errors: a typed [`NumericalError`] naming what failed (a file of an
+    /// out-of-core factor, the back end's own code); `rhs` is then
+    /// unspecified. A solve never signals failure by non-finite values.
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) -> Result<(), NumericalError>;
 
     /// Number of stored entries of `L`.
     fn nnz(&self) -> usize;
@@ -243,17 +126,31 @@ pub trait SpdFactor: Send + Sync {
     /// read twice: the bandwidth floor of a solve).
     fn bytes(&self) -> usize;
 
-    /// What a MUMPS factor reports of its ranks; `None` for the others.
-    fn mumps_facts(&self) -> Option<crate::backend::MumpsFacts> {
+    /// What the back end reports of this factorisation beyond the generic
+    /// record, as a section of the report (MUMPS: its ranks); `None` by
+    /// default.
+    fn facts(&self) -> Option<BackendFacts> {
         None
+    }
+
+    /// How many times a solve had to factor the matrix again (a back end
+    /// that keeps one numeric factorisation per analysis, when another
+    /// factor of the same analysis solved in between); `0` by default.
+    fn refactorizations(&self) -> usize {
+        0
     }
 }
 
 /// Solves with a factor, returning the solution (convenience).
-pub fn solve(factor: &mut dyn SpdFactor, rhs: MatRef<'_, f64>) -> faer::Mat<f64> {
+///
+/// Errors: the factor's ([`SpdFactor::solve_in_place`]).
+pub fn solve(
+    factor: &mut dyn SpdFactor,
+    rhs: MatRef<'_, f64>,
+) -> Result<faer::Mat<f64>, NumericalError> {
     let mut x = rhs.to_owned();
-    factor.solve_in_place(x.as_mut());
-    x
+    factor.solve_in_place(x.as_mut())?;
+    Ok(x)
 }
 
 /// The breakdown check shared by every back end: rejects a completed factor

@@ -62,8 +62,8 @@ fn backend_error(message: impl Into<String>) -> NumericalError {
 }
 
 impl SpdBackend for NalgebraCsc {
-    fn kind(&self) -> super::SpdKind {
-        super::SpdKind::Nalgebra
+    fn name(&self) -> crate::backend::BackendName {
+        super::SpdKind::Nalgebra.name().into()
     }
 
     fn analyze(
@@ -324,7 +324,7 @@ impl SpdFactor for NalgebraFactor {
         self.fwd.len()
     }
 
-    fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
+    fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
         let (n, k) = (rhs.nrows(), rhs.ncols());
         // P b, solve, Pᵀ x.
         let mut b = DMatrix::<f64>::zeros(n, k);
@@ -339,6 +339,7 @@ impl SpdFactor for NalgebraFactor {
                 rhs[(old, c)] = b[(new, c)];
             }
         }
+        Ok(())
     }
 
     fn nnz(&self) -> usize {
