@@ -586,7 +586,7 @@ pub(crate) fn csc_to_scipy<'py>(
     py: Python<'py>,
     m: &SparseColMat<usize, f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (mut ptr, mut idx, mut val) = (vec![0i64], Vec::new(), Vec::new());
+    let (mut ptr, mut idx, mut val) = (vec![0usize], Vec::new(), Vec::new());
     for j in 0..m.ncols() {
         let range = m.symbolic().col_range(j);
         let mut column: Vec<(usize, f64)> = m.symbolic().row_idx()[range.clone()]
@@ -596,18 +596,31 @@ pub(crate) fn csc_to_scipy<'py>(
             .collect();
         column.sort_by_key(|e| e.0);
         for (i, v) in column {
-            idx.push(i as i64);
+            idx.push(i);
             val.push(v);
         }
-        ptr.push(idx.len() as i64);
+        ptr.push(idx.len());
     }
+    csc_parts_to_scipy(py, (m.nrows(), m.ncols()), &ptr, &idx, val)
+}
+
+/// Compressed columns (`col_ptr`, `row_idx` as they are: the caller
+/// sorts) with `values` as a `scipy.sparse.csc_matrix` of `shape`.
+pub(crate) fn csc_parts_to_scipy<'py>(
+    py: Python<'py>,
+    shape: (usize, usize),
+    col_ptr: &[usize],
+    row_idx: &[usize],
+    values: Vec<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let as_i64 = |v: &[usize]| v.iter().map(|&i| i as i64).collect::<Vec<i64>>();
     let arrays = (
-        val.into_pyarray(py),
-        idx.into_pyarray(py),
-        ptr.into_pyarray(py),
+        values.into_pyarray(py),
+        as_i64(row_idx).into_pyarray(py),
+        as_i64(col_ptr).into_pyarray(py),
     );
     let kwargs = PyDict::new(py);
-    kwargs.set_item("shape", (m.nrows(), m.ncols()))?;
+    kwargs.set_item("shape", shape)?;
     py.import("scipy.sparse")?
         .call_method("csc_matrix", (arrays,), Some(&kwargs))
 }

@@ -19,20 +19,23 @@
 mod basis;
 mod convert;
 mod errors;
+mod own_backend;
 
 use std::ffi::CString;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use pyo3::exceptions::{PyRuntimeError, PyRuntimeWarning, PyUserWarning};
 use pyo3::prelude::*;
 
 use crate::arap::ArapDeformer;
 use crate::backend::FactorStorage;
+use crate::backend::qr::QrKind;
+use crate::backend::spd::SpdKind;
 use crate::choice::{ArapEnergy, ArapInit, Energy, Method};
-use crate::compare::{self, CompareOptions};
+use crate::compare::{self, CompareOptions, Configuration};
 use crate::constraints::ConstraintSet;
 use crate::error::{ProblemError, SolveOption};
-use crate::formulation::Refine;
+use crate::formulation::{Chosen, DEFAULT_SPD, FormulationChoice, Refine, SpdChoice};
 use crate::laplacian::{self, LaplacianKind};
 use crate::limits::{MemoryBudget, parse_bytes};
 use crate::mesh::Mesh;
@@ -45,6 +48,7 @@ use errors::{
     InputError, NumericalError, guarded, input, input_type_error_class, released, to_py,
     too_large_error_class, type_error,
 };
+use own_backend::{Objects, PyBackend};
 
 /// A library error about an option, with the option's keyword argument
 /// (`weight=`) in front.
@@ -73,7 +77,9 @@ fn with_keyword(e: ProblemError) -> ProblemError {
 struct Keywords<'a, 'py> {
     method: Option<&'a str>,
     qr: Option<&'a str>,
-    factor: Factor<Option<&'a str>>,
+    /// `factor=`: a word, or a back-end object ([`own_backend`]); `spd=`:
+    /// a word.
+    factor: Factor<Option<&'a Bound<'py, PyAny>>, Option<&'a str>>,
     weight: Option<f64>,
     refine: Option<&'a Bound<'py, PyAny>>,
     memory_limit: Option<&'a Bound<'py, PyAny>>,
@@ -83,9 +89,9 @@ struct Keywords<'a, 'py> {
 }
 
 /// The `factor=` keyword and `spd=`, its old name (kept for one release).
-struct Factor<T> {
+struct Factor<T, S = T> {
     factor: T,
-    spd: T,
+    spd: S,
 }
 
 impl<T: PartialEq + std::fmt::Debug> Factor<Option<T>> {
@@ -102,21 +108,61 @@ impl<T: PartialEq + std::fmt::Debug> Factor<Option<T>> {
     }
 }
 
+impl Factor<Option<&Bound<'_, PyAny>>, Option<&str>> {
+    /// The SPD back end named (`None`: the default's), an object's
+    /// back end added to `objects`.
+    ///
+    /// Errors: `InputError` for an unknown word, a malformed object
+    /// ([`PyBackend::from_object`]), or both keywords given differently.
+    fn choice(self, objects: &mut Objects) -> PyResult<Option<SpdChoice>> {
+        let Some(factor) = self.factor.filter(|f| !f.is_none()) else {
+            return self.spd.map(spd_word).transpose();
+        };
+        if let Ok(word) = factor.extract::<String>() {
+            let words = Factor {
+                factor: Some(word.as_str()),
+                spd: self.spd,
+            };
+            return words.given()?.map(spd_word).transpose();
+        }
+        if self.spd.is_some() {
+            return Err(input(
+                "factor= (an object) and spd= (its old name) were both given: give one",
+            ));
+        }
+        Ok(Some(own_choice(factor, "factor", objects)?))
+    }
+}
+
+/// A word of the SPD catalogue.
+fn spd_word(word: &str) -> PyResult<SpdChoice> {
+    Ok(option_word::<SpdKind>(word)?.into())
+}
+
+/// The back end of a back-end object given as `keyword`, added to
+/// `objects`.
+fn own_choice(obj: &Bound<'_, PyAny>, keyword: &str, objects: &mut Objects) -> PyResult<SpdChoice> {
+    let backend = PyBackend::from_object(obj, keyword)?;
+    objects.add(&backend);
+    Ok(Chosen::Own(Arc::new(backend)))
+}
+
 impl Keywords<'_, '_> {
     /// The options they name over [`DeformOptions::default`], the
     /// formulation checked ([`crate::FormulationChoice::build`]) before any
-    /// work.
-    fn options(self) -> PyResult<DeformOptions> {
+    /// work, with the back-end objects among them.
+    fn options(self) -> PyResult<(DeformOptions, Objects)> {
         let mut options = DeformOptions::default();
+        let mut objects = Objects::default();
         let f = &mut options.solve.formulation;
         if let Some(method) = self.method {
             f.method = option_word::<Method>(method)?;
         }
         if let Some(qr) = self.qr {
-            f.qr = option_word(qr)?;
+            f.qr = option_word::<QrKind>(qr)?.into();
         }
-        if let Some(spd) = self.factor.given()? {
-            f.spd = option_word(spd)?;
+        if let Some(spd) = self.factor.choice(&mut objects)? {
+            f.spd = spd;
         }
         f.weight = self.weight.or(f.weight);
         if let Some(dir) = self.out_of_core {
@@ -127,7 +173,7 @@ impl Keywords<'_, '_> {
             .map_err(|e| to_py(with_keyword(e).into()))?;
         options.solve.refine = parse_refine(self.refine)?.or(options.solve.refine);
         options.solve.memory_budget = parse_memory_limit(self.memory_limit)?;
-        Ok(options)
+        Ok((options, objects))
     }
 }
 
@@ -343,7 +389,7 @@ fn deform<'py>(
     laplacian: Option<&str>,
     method: Option<&str>,
     qr: Option<&str>,
-    factor: Option<&str>,
+    factor: Option<&Bound<'py, PyAny>>,
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
     energy: Option<&str>,
@@ -357,7 +403,7 @@ fn deform<'py>(
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
         let kind = laplacian_kind(laplacian)?;
-        let m = Keywords {
+        let (options, objects) = Keywords {
             method,
             qr,
             factor: Factor { factor, spd },
@@ -366,8 +412,8 @@ fn deform<'py>(
             memory_limit,
             out_of_core,
         }
-        .options()?
-        .solve;
+        .options()?;
+        let m = options.solve;
         let keywords = EnergyKeywords {
             energy,
             arap_energy,
@@ -378,17 +424,16 @@ fn deform<'py>(
         let arap = keywords.parse(py, laplacian)?;
         let mesh = mesh(py, V, F)?;
         let set = constraints_for(constraints, &mesh, m.memory_budget)?;
-        let (positions, report) = match arap {
-            Some(options) => deform_arap(py, mesh, set, m, options)?,
-            None => {
-                let solution = released(py, move || {
-                    let mut deformer = Deformer::new(mesh, kind, set)?;
-                    deformer.precompute_with(&m)?;
-                    deformer.solve()
-                })?;
-                (solution.positions, solution.report)
-            }
+        let outcome = match arap {
+            Some(options) => deform_arap(py, mesh, set, m, options),
+            None => released(py, move || {
+                let mut deformer = Deformer::new(mesh, kind, set)?;
+                deformer.precompute_with(&m)?;
+                let solution = deformer.solve()?;
+                Ok((solution.positions, solution.report))
+            }),
         };
+        let (positions, report) = objects.explain(py, outcome)?;
         Ok((
             convert::positions_to_numpy(py, &positions).into_any(),
             report_with_warnings(py, &report)?,
@@ -422,7 +467,7 @@ fn compare_rows<'py>(
     laplacian: Option<&str>,
     methods: Option<Vec<String>>,
     qr: Option<Vec<String>>,
-    factor: Option<Vec<String>>,
+    factor: Option<Vec<Bound<'py, PyAny>>>,
     weights: Option<Vec<f64>>,
     refine: Option<&Bound<'py, PyAny>>,
     repeat: Option<usize>,
@@ -432,25 +477,33 @@ fn compare_rows<'py>(
     guarded(|| {
         let kind = laplacian_kind(laplacian)?;
         let defaults = CompareOptions::default();
+        let mut objects = Objects::default();
+        let factors = factor_list(factor, spd, &mut objects)?;
         let options = CompareOptions {
             methods: words("methods", methods)?.unwrap_or(defaults.methods),
             qrs: words("qr", qr)?,
-            spds: words("factor", Factor { factor, spd }.given()?)?,
+            spds: factors
+                .as_ref()
+                .map(|f| f.iter().filter_map(|c| c.builtin()).collect()),
             weights: weights.unwrap_or(defaults.weights),
             refine: parse_refine(refine)?.or(defaults.refine),
             repeat: repeat.unwrap_or(defaults.repeat),
             condition: condition.unwrap_or(defaults.condition),
         };
         // Fail before any work when the filters leave nothing to run.
-        options
-            .configurations()
-            .map_err(|e| input(format!("methods=/qr=/factor=/weights=: {e}")))?;
+        let configs = match &factors {
+            Some(f) if !objects.is_empty() => configurations_with(&options, f),
+            _ => options.configurations(),
+        }
+        .map_err(|e| input(format!("methods=/qr=/factor=/weights=: {e}")))?;
+        let configs: Vec<Configuration> = configs.into_iter().map(Configuration::new).collect();
         let mesh = mesh(py, V, F)?;
         let set = constraints_for(constraints, &mesh, environment_budget()?)?;
-        let (reference, rows) = released(py, move || {
+        let outcome = released(py, move || {
             let mut deformer = Deformer::new(mesh, kind, set)?;
-            compare::compare(&mut deformer, &options, &mut |_| {})
-        })?;
+            compare::compare_configurations(&mut deformer, &configs, &options, &mut |_| {})
+        });
+        let (reference, rows) = objects.explain(py, outcome)?;
         if let Some(e) = reference.forward_error_estimate.filter(|&e| e > 1e-12) {
             warn::<PyRuntimeWarning>(
                 py,
@@ -461,6 +514,97 @@ fn compare_rows<'py>(
         }
         convert::json_value(py, &rows)
     })
+}
+
+/// `compare`'s `factor=` list (or `spd=`, its old name, words only):
+/// words of the catalogue and back-end objects ([`own_backend`]), the
+/// objects added to `objects`; `None` when neither is given.
+fn factor_list(
+    factor: Option<Vec<Bound<'_, PyAny>>>,
+    spd: Option<Vec<String>>,
+    objects: &mut Objects,
+) -> PyResult<Option<Vec<SpdChoice>>> {
+    let Some(factor) = factor else {
+        return Ok(
+            words::<SpdKind>("factor", spd)?.map(|k| k.into_iter().map(Into::into).collect())
+        );
+    };
+    let as_words: Option<Vec<String>> = factor.iter().map(|f| f.extract().ok()).collect();
+    if let Some(w) = as_words {
+        let given = Factor {
+            factor: Some(w),
+            spd,
+        }
+        .given()?;
+        return Ok(
+            words::<SpdKind>("factor", given)?.map(|k| k.into_iter().map(Into::into).collect())
+        );
+    }
+    if spd.is_some() {
+        return Err(input(
+            "factor= (with objects) and spd= (its old name) were both given: give one",
+        ));
+    }
+    let choice = |f: &Bound<'_, PyAny>| match f.extract::<String>() {
+        Ok(w) => word::<SpdKind>("factor", &w).map(Into::into),
+        Err(_) => own_choice(f, "factor", objects),
+    };
+    factor
+        .iter()
+        .map(choice)
+        .collect::<PyResult<Vec<_>>>()
+        .map(Some)
+}
+
+/// The configurations of `options` over the SPD back ends `factors`
+/// (words and objects) instead of `options.spds`: each back end's as
+/// [`CompareOptions::configurations`] makes them for it alone — an
+/// object's for every method but KKT (it needs an `LDLᵀ` back end, which
+/// a back-end object is not) — in the built-ins' table order: by method,
+/// then QR back end or weight, then the list's order.
+///
+/// Errors: [`ProblemError::InvalidArgument`] when nothing is left.
+fn configurations_with(
+    options: &CompareOptions,
+    factors: &[SpdChoice],
+) -> Result<Vec<FormulationChoice>, ProblemError> {
+    let mut all = Vec::new();
+    for factor in factors {
+        let alone = CompareOptions {
+            methods: options
+                .methods
+                .iter()
+                .copied()
+                .filter(|&m| factor.builtin().is_some() || m != Method::Kkt)
+                .collect(),
+            spds: Some(vec![factor.builtin().unwrap_or(DEFAULT_SPD)]),
+            ..options.clone()
+        };
+        let configs = alone.configurations().unwrap_or_default();
+        all.extend(configs.into_iter().map(|c| FormulationChoice {
+            spd: factor.clone(),
+            ..c
+        }));
+    }
+    let qrs = options.qrs.clone().unwrap_or_else(QrKind::available);
+    let position = |c: &FormulationChoice| {
+        let method = options.methods.iter().position(|&m| m == c.method);
+        let qr = qrs.iter().position(|q| c.qr == *q);
+        let weight = options.weights.iter().position(|&w| c.weight == Some(w));
+        (
+            method,
+            qr.filter(|_| c.method == Method::NullSpaceQr),
+            weight,
+        )
+    };
+    all.sort_by_key(position);
+    if all.is_empty() {
+        return Err(ProblemError::InvalidArgument {
+            message: "the methods, back ends and weights chosen leave no configuration to run"
+                .into(),
+        });
+    }
+    Ok(all)
 }
 
 /// The Laplacian of `(V, F)` as a `scipy.sparse.csc_matrix` (n × n; the
@@ -495,7 +639,7 @@ fn solve_lse<'py>(
     D: &Bound<'py, PyAny>,
     method: Option<&str>,
     qr: Option<&str>,
-    factor: Option<&str>,
+    factor: Option<&Bound<'py, PyAny>>,
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
     memory_limit: Option<&Bound<'py, PyAny>>,
@@ -503,7 +647,7 @@ fn solve_lse<'py>(
     spd: Option<&str>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
-        let m = Keywords {
+        let (options, objects) = Keywords {
             method,
             qr,
             factor: Factor { factor, spd },
@@ -512,19 +656,20 @@ fn solve_lse<'py>(
             memory_limit,
             out_of_core,
         }
-        .options()?
-        .solve;
+        .options()?;
+        let m = options.solve;
         let a = convert::sparse(A, "A")?;
         let b = convert::sparse(B, "B")?;
         let (c, one_d) = convert::dense(C, "C", None, true)?;
         let (d, _) = convert::dense(D, "D", None, true)?;
-        let (x, report) = released(py, move || {
+        let outcome = released(py, move || {
             let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref())?;
             let mut solver = LseSolver::new(problem);
             solver.precompute_with(&m)?;
             let x = solver.solve()?;
             Ok((x, solver.report().clone()))
-        })?;
+        });
+        let (x, report) = objects.explain(py, outcome)?;
         Ok((
             convert::matrix_to_numpy(py, x.as_ref(), one_d),
             report_with_warnings(py, &report)?,
@@ -546,6 +691,8 @@ struct DeformerState {
 #[pyclass(name = "Deformer", module = "lse_deform", subclass)]
 struct PyDeformer {
     state: Mutex<DeformerState>,
+    /// The back-end objects of `factor=`, to explain errors.
+    objects: Objects,
 }
 
 impl PyDeformer {
@@ -559,7 +706,8 @@ impl PyDeformer {
         let result = released(py, move || match state.lock() {
             Ok(mut guard) => f(&mut guard).map(Ok),
             Err(_) => Ok(Err(())),
-        })?;
+        });
+        let result = self.objects.explain(py, result)?;
         result.map_err(|()| {
             PyRuntimeError::new_err(
                 "this Deformer is unusable after an internal error in an earlier call",
@@ -583,7 +731,7 @@ impl PyDeformer {
         laplacian: Option<&str>,
         method: Option<&str>,
         qr: Option<&str>,
-        factor: Option<&str>,
+        factor: Option<&Bound<'_, PyAny>>,
         weight: Option<f64>,
         refine: Option<&Bound<'_, PyAny>>,
         memory_limit: Option<&Bound<'_, PyAny>>,
@@ -592,7 +740,7 @@ impl PyDeformer {
     ) -> PyResult<PyDeformer> {
         guarded(|| {
             let kind = laplacian_kind(laplacian)?;
-            let options = Keywords {
+            let (options, objects) = Keywords {
                 method,
                 qr,
                 factor: Factor { factor, spd },
@@ -601,8 +749,8 @@ impl PyDeformer {
                 memory_limit,
                 out_of_core,
             }
-            .options()?
-            .solve;
+            .options()?;
+            let options = options.solve;
             let mesh = mesh(py, V, F)?;
             let set = constraints_for(constraints, &mesh, options.memory_budget)?;
             let deformer = released(py, move || {
@@ -619,6 +767,7 @@ impl PyDeformer {
                     options,
                     changes: basis::Changes::default(),
                 }),
+                objects,
             })
         })
     }

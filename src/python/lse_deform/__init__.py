@@ -18,6 +18,10 @@ matrices from ``scipy.sparse``; C- and Fortran-ordered arrays alike.
   gives the positions for affine maps of the groups without a solve
 - ``laplacian(V, F, kind) -> scipy.sparse.csc_matrix``
 - ``solve_lse(A, C, B, D, ...) -> (X, report)``: min ||AX - C|| s.t. BX = D
+- ``factor=`` (and ``compare``'s ``factor=`` list) also takes your own
+  factorisation: an object with ``name``, ``analyze(lower)``,
+  ``factorize(lower)`` and ``solve(rhs)`` (docs/python.md §7); the report
+  and ``compare``'s rows name it by its ``name``
 
 Errors, each an ``Exception``, with the command-line tool's one-line
 messages: ``InputError`` (a ``ValueError``) for bad input, among them
@@ -25,7 +29,9 @@ messages: ``InputError`` (a ``ValueError``) for bad input, among them
 dtype that cannot be converted and ``TooLargeError`` (also a
 ``MemoryError``) for an array or system beyond the memory budget
 (``LSE_MEMORY_LIMIT``, or the available memory) or an allocation that
-failed; ``NumericalError`` (an ``ArithmeticError``) for numerical failure.
+failed; ``NumericalError`` (an ``ArithmeticError``) for numerical failure,
+among them an exception raised by your own ``factor=`` object (chained as
+``__cause__``).
 An argument of the wrong type (``method=1``) is an ``InputTypeError``,
 an integer out of range (``iterations=-1``) an ``InputError``, whichever
 keyword it is. Ctrl-C during a call raises ``KeyboardInterrupt`` at the

@@ -1,7 +1,7 @@
 """Type stubs of the native module (src/python/*.rs)."""
 
 import os
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Protocol, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -46,6 +46,43 @@ Refine = Union[None, str, int]
 """None (the method's default: 'auto' for exact methods, 'off' for
 penalty), 'auto', 'off' or a number of steps."""
 Matrix = Union[scipy.sparse.spmatrix, scipy.sparse.sparray, npt.ArrayLike]
+
+class FactorSolver(Protocol):
+    """What factorize may return: one factorisation that solves."""
+
+    def solve(self, rhs: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+
+class FactorBackend(Protocol):
+    """Your own SPD factorisation, for factor= (docs/python.md §7).
+
+    name: a non-empty str, no word of the catalogue; read once, when the
+    object is given; the report's factor_backend and compare's rows.
+    analyze(lower): the pattern of the lower triangle (csc_matrix n x n,
+    sorted indices, diagonal included, every value 1.0); fixed until the
+    next analyze. Its return value is ignored.
+    factorize(lower): the same pattern with the values to factor (a new
+    matrix each call). Returns None (the object holds this factorisation
+    and solve() solves with it: the library factors a matrix again, after
+    analyze again if needed, when another was factored in between, and
+    counts it in report['refactorizations']) or an object with
+    solve(rhs) that solves with this factorisation.
+    solve(rhs): rhs float64 (n, k), C order; returns A^-1 rhs as a float64
+    numpy.ndarray of shape (n, k) (it may overwrite and return rhs).
+
+    Calls into one object are serialised and hold the GIL. An exception
+    it raises is a NumericalError whose __cause__ is that exception (a
+    KeyboardInterrupt is raised as it is); a wrong return (type, dtype,
+    shape) an InputError; a non-finite solution a NumericalError. A
+    missing member is an InputError naming it, before any work."""
+
+    name: str
+
+    def analyze(self, lower: scipy.sparse.csc_matrix) -> Any: ...
+    def factorize(self, lower: scipy.sparse.csc_matrix) -> Optional[FactorSolver]: ...
+    def solve(self, rhs: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+
+Factor = Union[str, FactorBackend]
+"""A word of the catalogue ('faer-auto', ...) or your own FactorBackend."""
 MemoryLimit = Union[None, int, str]
 """The memory budget of the precompute: None (the default:
 LSE_MEMORY_LIMIT when set, else the available memory), a number of bytes
@@ -59,7 +96,7 @@ def deform(
     laplacian: Optional[str] = None,
     method: Optional[str] = None,
     qr: Optional[str] = None,
-    factor: Optional[str] = None,
+    factor: Optional[Factor] = None,
     weight: Optional[float] = None,
     refine: Refine = None,
     energy: Optional[str] = None,
@@ -82,8 +119,10 @@ def deform(
     factor: the matrix factorisation, the Cholesky back end ('faer-auto'
     (default), 'faer-supernodal', 'faer-simplicial', 'nalgebra', and
     'mumps' in a wheel built with the feature mumps) and for kkt the LDLT
-    variant (the faer ones or 'mumps'). spd: its old name, still accepted (both
-    given with different values is an InputError).
+    variant (the faer ones or 'mumps'); or your own object (FactorBackend:
+    not with kkt), whose name the report gives as factor_backend. spd: its
+    old name, words only, still accepted (both given with different values
+    is an InputError).
     energy: 'laplacian' (default) or 'arap' (as-rigid-as-possible, cotangent
     weights; report['arap'] says what the iterations did), with
     arap_energy 'spokes' or 'spokes-and-rims' (default), iterations (default
@@ -104,7 +143,7 @@ def compare(
     laplacian: Optional[str] = None,
     methods: Optional[Sequence[str]] = None,
     qr: Optional[Sequence[str]] = None,
-    factor: Optional[Sequence[str]] = None,
+    factor: Optional[Sequence[Factor]] = None,
     weights: Optional[Sequence[float]] = None,
     refine: Refine = None,
     repeat: Optional[int] = None,
@@ -113,12 +152,14 @@ def compare(
 ) -> List[Dict[str, Any]]:
     """`lse-deform compare`: every configuration against the refined
     null-space reference; one dict per configuration with the keys of
-    `compare --json` (method, qr, spd, weight, status, precompute_s,
+    `compare --json` (label, method, qr, spd, weight, status, precompute_s,
     solve_median_s, refine_s, max_constraint_residual, delta_x, delta_e,
     forward_error_estimate, condition, report).
 
     methods: default all four; qr, factor (spd: its old name): default
-    every back end of this build; weights: penalty weights (default 1e4,
+    every back end of this build; factor may hold FactorBackend objects
+    next to words, each with rows under its name (spd) for every method
+    but kkt; weights: penalty weights (default 1e4,
     1e8, 1e12); repeat: solves per configuration (default 5); condition:
     estimate condition numbers (default True). None: the default.
     """
@@ -135,7 +176,7 @@ def solve_lse(
     D: npt.ArrayLike,
     method: Optional[str] = None,
     qr: Optional[str] = None,
-    factor: Optional[str] = None,
+    factor: Optional[Factor] = None,
     weight: Optional[float] = None,
     refine: Refine = None,
     memory_limit: MemoryLimit = None,
@@ -159,7 +200,7 @@ class Deformer:
         laplacian: Optional[str] = None,
         method: Optional[str] = None,
         qr: Optional[str] = None,
-        factor: Optional[str] = None,
+        factor: Optional[Factor] = None,
         weight: Optional[float] = None,
         refine: Refine = None,
         memory_limit: MemoryLimit = None,
