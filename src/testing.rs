@@ -64,6 +64,10 @@ use crate::laplacian::LaplacianKind;
 use crate::mesh::{Mesh, generate};
 use crate::problem::LseProblem;
 
+/// The conformance kit: one call per seam runs, against any back end, the
+/// properties every built-in back end passes (docs/backends.md §8).
+pub mod conformance;
+
 /// Edge and barycentric parameters the generators draw from.
 pub const T_VALUES: [f64; 5] = [0.2, 0.35, 0.5, 0.65, 0.8];
 
