@@ -5,6 +5,7 @@
 //! symbolic and numeric phases kept apart; and [`FactorKind`], which of the
 //! two factorisations a formulation ran.
 
+pub(crate) mod faer_kernel;
 pub mod ldlt;
 #[cfg(feature = "mumps")]
 pub mod mumps;
