@@ -98,7 +98,7 @@ impl LdltKind {
             #[cfg(feature = "mumps")]
             LdltKind::Mumps => Ok(Box::new(crate::backend::mumps::MumpsLdlt::new(
                 storage.directory().map(std::path::Path::to_path_buf),
-            ))),
+            )?)),
             #[cfg(not(feature = "mumps"))]
             LdltKind::Mumps => Err(ProblemError::InvalidArgument {
                 message: crate::backend::spd::MUMPS_MISSING.into(),

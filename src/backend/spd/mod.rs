@@ -129,7 +129,7 @@ impl SpdKind {
             #[cfg(feature = "mumps")]
             SpdKind::Mumps => Ok(Arc::new(crate::backend::mumps::MumpsLlt::new(
                 storage.directory().map(std::path::Path::to_path_buf),
-            ))),
+            )?)),
             #[cfg(not(feature = "mumps"))]
             SpdKind::Mumps => Err(ProblemError::InvalidArgument {
                 message: MUMPS_MISSING.into(),
