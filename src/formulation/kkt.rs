@@ -532,14 +532,22 @@ fn check_detected_pivots(
     // one node), so it can flag another member than faer would: the one
     // named is the first row, in the static order's sequence of
     // multipliers, that depends on the rows before it.
-    if first.is_some_and(|u| u >= n)
-        && let Some(k) = first_dependent_row(problem, order)?
-    {
-        first = Some(n + k);
-    }
+    // When the QR finds every row independent, no constraint is blamed.
     let rule = format!(
         "MUMPS found its pivot null (the norm of its row below {KKT_PIVOT_TOLERANCE:e} of the scaled matrix's)"
     );
+    if first.is_some_and(|u| u >= n) {
+        match first_dependent_row(problem, order)? {
+            Some(k) => first = Some(n + k),
+            None => {
+                return Err(NumericalError::Backend {
+                    backend: "mumps".into(),
+                    message: format!("{MATRIX}: a multiplier pivot was flagged ({rule}), yet a rank-revealing QR of B keeps every hard row: the factorisation lost its digits, no constraint is dependent (use nullspace-qr)"),
+                }
+                .into());
+            }
+        }
+    }
     let detail = match first {
         Some(unknown) if unknown < n && problem.is_general() => {
             return Err(NumericalError::FreeUnknown {
