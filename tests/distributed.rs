@@ -541,18 +541,18 @@ fn entries(dir: &Path) -> Vec<std::ffi::OsString> {
     names
 }
 
-/// Whether some scratch directory under `ooc` holds a file (MUMPS is
-/// writing the factor).
+/// Whether some scratch directory under `ooc` holds a file of MUMPS's
+/// (`mumps_…`: it is writing the factor; the directory check before the
+/// analysis writes a file named `probe`).
 fn factor_on_disk(ooc: &Path) -> bool {
+    let mumps_file = |f: std::io::Result<std::fs::DirEntry>| {
+        f.is_ok_and(|f| f.file_name().to_string_lossy().starts_with("mumps"))
+    };
     std::fs::read_dir(ooc)
         .into_iter()
         .flatten()
         .flatten()
-        .any(|e| {
-            std::fs::read_dir(e.path())
-                .map(|mut d| d.next().is_some())
-                .unwrap_or(false)
-        })
+        .any(|e| std::fs::read_dir(e.path()).is_ok_and(|mut d| d.any(mumps_file)))
 }
 
 /// Issue 38: SIGINT to the binary alone and SIGTERM to `mpirun` on two

@@ -111,14 +111,18 @@ pub(crate) fn probe(parent: &Path, rank: i32) -> Result<(), String> {
 pub(crate) fn free_bytes(dir: &Path) -> std::io::Result<u64> {
     let mut c_path = dir.as_os_str().as_bytes().to_vec();
     c_path.push(0);
-    // SAFETY: `c_path` is a NUL-terminated path; `stat` is a plain struct
-    // that statvfs fills.
+    // SAFETY: statvfs is a plain C struct, for which zero is valid.
     let mut stat: libc::statvfs = unsafe { std::mem::zeroed() };
+    // SAFETY: `c_path` is a NUL-terminated path; `stat` is a valid place
+    // for the result.
     let rc = unsafe { libc::statvfs(c_path.as_ptr().cast(), &mut stat) };
     if rc != 0 {
         return Err(std::io::Error::last_os_error());
     }
-    Ok((stat.f_bavail as u64).saturating_mul(stat.f_frsize as u64))
+    // The field types differ between platforms (u64 or c_ulong).
+    #[allow(clippy::unnecessary_cast)]
+    let free = (stat.f_bavail as u64).saturating_mul(stat.f_frsize as u64);
+    Ok(free)
 }
 
 /// `Err` (the message names the directory and says "No space left on
