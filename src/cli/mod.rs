@@ -35,6 +35,8 @@ pub mod generate;
 pub mod info;
 pub mod render;
 pub mod scene;
+#[cfg(unix)]
+pub mod signals;
 pub mod solve;
 pub mod summary;
 
