@@ -35,6 +35,7 @@ pub mod generate;
 pub mod info;
 pub mod render;
 pub mod scene;
+pub mod signals;
 pub mod solve;
 pub mod summary;
 
@@ -245,12 +246,20 @@ pub fn staged<T>(write: impl FnOnce() -> Result<T, Error>) -> Result<T, Error> {
 /// output file are checked before the input is read or anything is solved.
 pub fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result<(), Error> {
     if let Some(path) = mesh_out {
-        mesh::check_mesh_output(path)?;
+        notes(mesh::check_mesh_output(path)?);
     }
     if let Some(path) = file_out {
-        mesh::check_writable(path)?;
+        notes(mesh::check_writable(path)?);
     }
     Ok(())
+}
+
+/// Prints the notes of an output check ([`mesh::check_writable`]: an
+/// interrupted earlier run's outputs put in order).
+pub fn notes(notes: Vec<String>) {
+    for note in notes {
+        eprintln!("note: {note}");
+    }
 }
 
 /// Reads a constraints file for `mesh` within the run's memory budget: a
