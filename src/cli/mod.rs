@@ -66,8 +66,8 @@ pub struct MethodArgs {
     /// refinement is the method of multipliers and makes it exact).
     #[arg(long)]
     pub refine: Option<Refine>,
-    /// Memory budget of the run (bytes, or with a K, M, G or T suffix,
-    /// powers of 1024): reading the inputs (decompressed and assembled)
+    /// Memory budget of the run (bytes, or with one unit: B, K or KiB, M or
+    /// MiB, G or GiB, T or TiB, powers of 1024): reading the inputs (decompressed and assembled)
     /// and the precompute; what is estimated beyond it is refused before
     /// it is allocated. Default: LSE_MEMORY_LIMIT when set, else the
     /// smallest of the available memory, the address-space limit and the
@@ -91,7 +91,10 @@ pub fn with_default(help: &str, default: impl std::fmt::Display) -> String {
 /// `--memory-limit`'s value: bytes as [`parse_bytes`] reads them.
 pub fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
     parse_bytes(word).map(MemoryBudget::bytes).ok_or_else(|| {
-        format!("'{word}' is not a size (a positive number of bytes, optionally with K, M, G or T)")
+        format!(
+            "'{word}' is not a size (a positive number of bytes, optionally followed by one unit: {})",
+            lse_deform::limits::SIZE_UNITS
+        )
     })
 }
 
