@@ -50,13 +50,11 @@ pub struct MethodArgs {
     pub method: Method,
     #[arg(long, help = with_default("QR back end of nullspace-qr: dense-householder, sparse-givens or spqr", DeformOptions::default().solve.formulation.qr))]
     pub qr: Option<QrKind>,
-    /// The matrix factorisation: the Cholesky back end of nullspace-qr,
-    /// penalty and eliminate (faer-auto, faer-supernodal, faer-simplicial,
-    /// nalgebra or cholmod), and for kkt the faer LDLT variant
-    /// (faer-auto, faer-supernodal, faer-simplicial). `--spd` is the old
-    /// name, still accepted.
-    #[arg(long, visible_alias = "spd", default_value_t = DeformOptions::default().solve.formulation.spd)]
+    #[arg(long, help = factor_help(), default_value_t = DeformOptions::default().solve.formulation.spd)]
     pub factor: SpdKind,
+    /// The old name of --factor, still accepted (not with --factor).
+    #[arg(long, conflicts_with = "factor")]
+    pub spd: Option<SpdKind>,
     /// Relative penalty weight of the hard rows (--method penalty only;
     /// required there).
     #[arg(long)]
@@ -80,6 +78,37 @@ pub struct MethodArgs {
     /// stays in memory.
     #[arg(long, value_name = "DIR")]
     pub out_of_core: Option<std::path::PathBuf>,
+}
+
+/// The help of `--factor`: the back ends of this build (and those it
+/// lacks), for the Cholesky methods and for kkt.
+fn factor_help() -> String {
+    let names = |kinds: Vec<SpdKind>| {
+        kinds
+            .into_iter()
+            .map(SpdKind::name)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let here = SpdKind::available();
+    let ldlt = here
+        .iter()
+        .copied()
+        .filter(|&k| lse_deform::backend::ldlt::LdltKind::for_spd(k).is_some())
+        .collect();
+    let missing: Vec<_> = SpdKind::ALL
+        .into_iter()
+        .filter(|k| !k.in_this_build())
+        .collect();
+    let mut help = format!(
+        "The matrix factorisation: the Cholesky back end of nullspace-qr, penalty and eliminate ({}), and the LDLT back end of kkt ({}).",
+        names(here),
+        names(ldlt)
+    );
+    if !missing.is_empty() {
+        help += &format!(" Not in this build: {}.", names(missing));
+    }
+    help + " --spd is its old name, still accepted"
 }
 
 /// A help line naming the default, for an option left `None` when not
@@ -121,7 +150,7 @@ impl MethodArgs {
         let solve = &mut options.solve;
         solve.formulation.method = self.method;
         solve.formulation.qr = self.qr.unwrap_or(solve.formulation.qr);
-        solve.formulation.spd = self.factor;
+        solve.formulation.spd = self.spd.unwrap_or(self.factor);
         solve.formulation.weight = self.weight;
         solve.refine = self.refine.or(solve.refine);
         solve.memory_budget = self.memory_limit.unwrap_or(solve.memory_budget);
@@ -332,7 +361,7 @@ mod tests {
     fn spd_is_an_alias_of_factor() {
         let old = parse(&["--method", "kkt", "--spd", "faer-simplicial"]);
         let new = parse(&["--method", "kkt", "--factor", "faer-simplicial"]);
-        assert_eq!(old, new);
+        assert_eq!(old.options().unwrap(), new.options().unwrap());
         let options = new.options().unwrap();
         assert_eq!(options.solve.formulation.spd, SpdKind::FaerSimplicial);
         assert_eq!(options.solve.formulation.method, Method::Kkt);
@@ -340,5 +369,36 @@ mod tests {
             DeformOptions::default().solve.formulation.spd,
             SpdKind::FaerSimplicial
         );
+    }
+
+    /// `--spd a --factor b` is refused naming both flags. (Before: `--spd`
+    /// was an alias, and the message named `--factor` twice.)
+    #[test]
+    fn spd_and_factor_together_are_refused_naming_both() {
+        let argv = ["test", "--spd", "faer-simplicial", "--factor", "nalgebra"];
+        let e = Flags::try_parse_from(argv).err().unwrap().to_string();
+        assert!(e.contains("--spd") && e.contains("--factor"), "{e}");
+    }
+
+    /// The help of `--factor` lists every back end of this build (`mumps`
+    /// in a build with it) and says which are missing. (Before: a fixed
+    /// list, without `mumps`.)
+    #[test]
+    fn the_factor_help_lists_this_builds_back_ends() {
+        use clap::CommandFactory;
+        let help = Flags::command().render_long_help().to_string();
+        for kind in SpdKind::ALL {
+            assert!(help.contains(kind.name()), "{kind}: {help}");
+        }
+        let missing = help.contains("Not in this build");
+        assert_eq!(
+            missing,
+            SpdKind::available().len() < SpdKind::ALL.len(),
+            "{help}"
+        );
+        if cfg!(feature = "mumps") {
+            let list = help.split("Not in this build").next().unwrap();
+            assert!(list.contains("mumps"), "{help}");
+        }
     }
 }
