@@ -1022,7 +1022,7 @@ fn factor_is_the_new_name_of_spd_and_defaults_are_the_documented_ones() {
         "[default: nullspace-qr]",
         "[default: sparse-givens]",
         "[default: faer-auto]",
-        "[alias: --spd]",
+        "--spd <SPD>",
         "[default: 10]",
         "[default: spokes-and-rims]",
         "[default: linear]",

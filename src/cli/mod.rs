@@ -60,7 +60,7 @@ pub struct MethodArgs {
     #[arg(long)]
     pub weight: Option<f64>,
     /// Iterative refinement with the same factor: off, auto or a number of
-    /// steps. Default: auto for the exact methods, off for penalty (where
+    /// steps (0 applies none, as off). Default: auto for the exact methods, off for penalty (where
     /// refinement is the method of multipliers and makes it exact).
     #[arg(long)]
     pub refine: Option<Refine>,
