@@ -111,12 +111,12 @@ fn budget_from_variable(
 }
 
 /// `LSE_MEMORY_LIMIT` is set to something that is not a size: a positive
-/// number of bytes with an optional `K`, `M`, `G` or `T` suffix
+/// number of bytes with an optional unit of [`SIZE_UNITS`]
 /// ([`parse_bytes`]). An empty value is such a value too: unset the
 /// variable for the default budget.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "LSE_MEMORY_LIMIT={value:?} is not a size (a positive number of bytes, optionally with K, M, G or T, powers of 1024); unset it for the default budget"
+    "LSE_MEMORY_LIMIT={value:?} is not a size (a positive number of bytes, optionally followed by one unit: B, K or KiB, M or MiB, G or GiB, T or TiB, powers of 1024); unset it for the default budget"
 )]
 pub struct MemoryLimitError {
     /// The variable's value (lossily decoded if it is not UTF-8).
@@ -508,20 +508,25 @@ fn cgroup_limit_under(root: &Path, membership: &str) -> Option<u64> {
     limits.into_iter().min()
 }
 
-/// `"8G"`, `"512M"`, `"1000000"` → bytes (powers of 1024); `None` if
-/// malformed or zero.
+/// The units [`parse_bytes`] accepts, for messages.
+pub const SIZE_UNITS: &str = "B, K or KiB, M or MiB, G or GiB, T or TiB (powers of 1024, any case)";
+
+/// `"8G"`, `"512 MiB"`, `"1000000"` → bytes: decimal digits, then optional
+/// spaces and at most one unit of [`SIZE_UNITS`] (powers of 1024); `None`
+/// if malformed (any other unit, a unit repeated, a sign, a fraction) or
+/// zero.
 pub fn parse_bytes(s: &str) -> Option<u64> {
     let s = s.trim();
     let (digits, unit) = match s.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
         Some((i, _)) => s.split_at(i),
         None => (s, ""),
     };
-    let shift = match unit.trim().to_ascii_uppercase().trim_end_matches("IB") {
+    let shift = match unit.trim_start().to_ascii_uppercase().as_str() {
         "" | "B" => 0,
-        "K" => 10,
-        "M" => 20,
-        "G" => 30,
-        "T" => 40,
+        "K" | "KIB" => 10,
+        "M" | "MIB" => 20,
+        "G" | "GIB" => 30,
+        "T" | "TIB" => 40,
         _ => return None,
     };
     let n: u64 = digits.parse().ok()?;
@@ -613,6 +618,20 @@ mod tests {
         assert_eq!(parse_bytes("-1"), None);
         assert_eq!(parse_bytes("12X"), None);
         assert_eq!(parse_bytes("99999999999T"), None);
+        assert_eq!(parse_bytes("3 KiB"), Some(3 << 10));
+        assert_eq!(parse_bytes("7b"), Some(7));
+    }
+
+    /// A unit outside the list, or two units, is refused. (Before: the
+    /// parser stripped any number of trailing `iB`s, so `5iB`, `5 ib`,
+    /// `5BIB` and `5KiBiB` were sizes.)
+    #[test]
+    fn units_outside_the_list_are_refused() {
+        for word in [
+            "5iB", "5 ib", "5BIB", "5KiBiB", "5KB", "5 K B", "5Ki", "1.5G", "+5", "5GiBs",
+        ] {
+            assert_eq!(parse_bytes(word), None, "{word}");
+        }
     }
 
     #[test]

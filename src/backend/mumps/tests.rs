@@ -212,7 +212,7 @@ fn ldlt_solves_a_regular_kkt_matrix() {
 fn a_missing_out_of_core_file_is_a_typed_solve_error_naming_the_directory() {
     let a = tridiagonal(20_000);
     let dir = tempfile::tempdir().unwrap();
-    let backend = MumpsLlt::new(Some(dir.path().to_path_buf()));
+    let backend = MumpsLlt::new(Some(dir.path().to_path_buf())).unwrap();
     let symbolic = backend.analyze(a.symbolic()).unwrap();
     let mut factor = symbolic.factorize(a.as_ref()).unwrap();
     let scratch: Vec<_> = std::fs::read_dir(dir.path())

@@ -650,8 +650,8 @@ fn check_declared_counts(
 /// Checks, before any work, that [`write_mesh`] will be able to write
 /// `path`: the extension names a format it writes and the file can be opened
 /// for writing (the directory exists, permissions allow it). See
-/// [`check_writable`].
-pub fn check_mesh_output(path: &Path) -> Result<(), Error> {
+/// [`check_writable`], whose notes it returns.
+pub fn check_mesh_output(path: &Path) -> Result<Vec<String>, Error> {
     MeshFormat::from_path(path)?;
     check_writable(path)
 }
@@ -660,8 +660,21 @@ pub fn check_mesh_output(path: &Path) -> Result<(), Error> {
 /// existing file is opened for writing and left as it is (no truncation), a
 /// missing one is created and removed again. Lets a command refuse a
 /// misspelt directory or a read-only location before a long computation
-/// instead of after it.
-pub fn check_writable(path: &Path) -> Result<(), Error> {
+/// instead of after it. A FIFO is checked and readied by
+/// [`crate::atomic::prepare`] (refused without a reader, kept open for the
+/// write with one), which also finishes an interrupted set of renames
+/// `path` belongs to: the notes returned say so.
+pub fn check_writable(path: &Path) -> Result<Vec<String>, Error> {
+    let notes = crate::atomic::prepare(path).map_err(|e| Error::io(path, e))?;
+    #[cfg(unix)]
+    {
+        // Opened by `prepare` already; another open and close here would
+        // end its reader's input.
+        use std::os::unix::fs::FileTypeExt;
+        if std::fs::metadata(path).is_ok_and(|m| m.file_type().is_fifo()) {
+            return Ok(notes);
+        }
+    }
     let existed = path.symlink_metadata().is_ok();
     std::fs::OpenOptions::new()
         .write(true)
@@ -672,7 +685,7 @@ pub fn check_writable(path: &Path) -> Result<(), Error> {
     if !existed {
         std::fs::remove_file(path).map_err(|e| Error::io(path, e))?;
     }
-    Ok(())
+    Ok(notes)
 }
 
 /// Writes a mesh, choosing the format from the extension: `.obj`, `.off`,
