@@ -330,6 +330,22 @@ impl Deformer {
     /// the group back. The next solve reuses the factorisation. On error
     /// (unknown group, non-finite `m` or result) nothing changes.
     pub fn transform_group(&mut self, name: &str, m: &Affine) -> Result<(), Error> {
+        for (index, target) in self.transformed_targets(name, m)? {
+            self.write_target(index, target)?;
+        }
+        Ok(())
+    }
+
+    /// Whether [`Deformer::transform_group`]`(name, m)` would succeed,
+    /// changing nothing: the same checks (a known group, a finite `m`,
+    /// targets finite and representable in the problem's unit), for
+    /// callers that apply `m` another way (a response basis).
+    pub fn check_transform(&self, name: &str, m: &Affine) -> Result<(), Error> {
+        self.transformed_targets(name, m).map(|_| ())
+    }
+
+    /// The targets `m` gives the members of group `name`, checked.
+    fn transformed_targets(&self, name: &str, m: &Affine) -> Result<Vec<(usize, [f64; 3])>, Error> {
         if m.iter().flatten().any(|v| !v.is_finite()) {
             return Err(ProblemError::BadUpdate {
                 message: format!("transform of group '{name}': the matrix has a non-finite entry"),
@@ -352,10 +368,7 @@ impl Deformer {
         for &(index, target) in &moved {
             self.check_update(index, target)?;
         }
-        for (index, target) in moved {
-            self.write_target(index, target)?;
-        }
-        Ok(())
+        Ok(moved)
     }
 
     /// The constraint indices of group `name` (increasing); an error naming

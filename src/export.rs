@@ -126,8 +126,9 @@ pub const META_FILE: &str = "meta.json";
 ///   `constraint_of_soft_row` and `soft_weight_of_row` (the constraint
 ///   index of each row of `B` and of each soft row of `A`, and the soft
 ///   weight as given);
-/// - `fingerprint`: [`matrices_fingerprint`] of the `A`, `C`, `B`, `D`
-///   written beside it.
+/// - `fingerprint`: [`system_fingerprint`] of the `A`, `C`, `B`, `D`
+///   written beside it and of the `laplacian_rows`, `length_scale` and
+///   `length_unit` above ([`MetaUnits`]): what `solve` uses of the file.
 ///
 /// `lse-deform solve` reads `laplacian_rows` and `length_scale` back
 /// ([`LseProblem::with_laplacian_rows`], [`LseProblem::with_length_scale`]),
@@ -187,12 +188,26 @@ pub fn export_meta(
         "soft_weight_scale": report.soft_weight_scale,
         "constraint_of_soft_row": problem.soft_constraints().iter().map(|s| s.index).collect::<Vec<_>>(),
         "soft_weight_of_row": problem.soft_constraints().iter().map(|s| s.weight).collect::<Vec<_>>(),
-        "fingerprint": problem_fingerprint(problem),
+        "fingerprint": problem_fingerprint(problem, &MetaUnits {
+            laplacian_rows: problem.n_laplacian_rows(),
+            length_scale: read_back(problem.length_scale()),
+            length_unit: read_back(report.length_unit),
+        }),
     });
     let path = dir.join(META_FILE);
     let text = serde_json::to_string_pretty(&meta).map_err(|e| Error::io(&path, e.into()))?;
     crate::atomic::write_bytes(&path, (text + "\n").as_bytes()).map_err(|e| Error::io(&path, e))?;
     Ok(path)
+}
+
+/// `x` as [`read_meta`] will read it from the JSON `export_meta` writes:
+/// serde_json's reader is not correctly rounded in every case, so the
+/// fingerprint is made of the value read back, bit for bit.
+fn read_back(x: f64) -> f64 {
+    serde_json::to_string(&x)
+        .ok()
+        .and_then(|text| serde_json::from_str(&text).ok())
+        .unwrap_or(x)
 }
 
 /// What `lse-deform solve` takes from a `meta.json`: the Laplacian rows and
@@ -216,17 +231,87 @@ pub struct ProblemMeta {
     /// The length of `constraint_of_soft_row` (the rows of `A` after the
     /// Laplacian).
     pub soft_rows: Option<usize>,
-    /// `fingerprint` ([`matrices_fingerprint`]).
+    /// `fingerprint` ([`system_fingerprint`]).
     pub fingerprint: Option<String>,
 }
 
-/// Reads the fields of [`ProblemMeta`] from a `meta.json`; a file that is
-/// not JSON, or a field of the wrong type, is an error naming the file.
+/// What `solve` takes from a `meta.json` besides checks, covered by its
+/// fingerprint ([`system_fingerprint`]) with the matrices.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MetaUnits {
+    /// `laplacian_rows`.
+    pub laplacian_rows: usize,
+    /// `length_scale`, the unit of the conflict tolerance.
+    pub length_scale: f64,
+    /// `length_unit`, the mesh length the problem's lengths are divided by.
+    pub length_unit: f64,
+}
+
+impl ProblemMeta {
+    /// The [`MetaUnits`] of this file, `None` when one is missing.
+    pub fn units(&self) -> Option<MetaUnits> {
+        Some(MetaUnits {
+            laplacian_rows: self.laplacian_rows?,
+            length_scale: self.length_scale?,
+            length_unit: self.length_unit?,
+        })
+    }
+}
+
+/// The prefix of a [`system_fingerprint`].
+const FINGERPRINT_PREFIX: &str = "fnv1a64-v2:";
+
+/// The top-level object of a JSON text, a key repeated in it refused (a
+/// reader that keeps the last value would use a value the file's
+/// fingerprint may not have been made with).
+struct UniqueKeys(serde_json::Map<String, serde_json::Value>);
+
+impl<'de> serde::Deserialize<'de> for UniqueKeys {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<UniqueKeys, D::Error> {
+        d.deserialize_any(UniqueKeysVisitor)
+    }
+}
+
+/// The visitor of [`UniqueKeys`].
+struct UniqueKeysVisitor;
+
+impl<'de> serde::de::Visitor<'de> for UniqueKeysVisitor {
+    type Value = UniqueKeys;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a JSON object, as export-system writes")
+    }
+
+    fn visit_map<M: serde::de::MapAccess<'de>>(self, mut map: M) -> Result<UniqueKeys, M::Error> {
+        let mut out = serde_json::Map::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if out.contains_key(&key) {
+                return Err(serde::de::Error::custom(format!(
+                    "the key '{key}' appears twice"
+                )));
+            }
+            let value = map.next_value()?;
+            out.insert(key, value);
+        }
+        Ok(UniqueKeys(out))
+    }
+}
+
+/// Reads the fields of [`ProblemMeta`] from a `meta.json`. An error naming
+/// the file: a file that is not JSON, not an object, with a key repeated,
+/// a field of the wrong type, or without a `fingerprint` of this version
+/// ([`system_fingerprint`]) or one of the [`MetaUnits`] it covers — such a
+/// file cannot be checked against the matrices, and the message says to
+/// export the system again.
 pub fn read_meta(path: &Path) -> Result<ProblemMeta, Error> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let bad = |message: String| -> Error { meta_error(path, message) };
-    let value: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
+    let UniqueKeys(value) = serde_json::from_str(&text).map_err(|e| {
+        bad(match e.classify() {
+            serde_json::error::Category::Data => e.to_string(),
+            _ => format!("not JSON: {e}"),
+        })
+    })?;
     let present = |key: &str| value.get(key).filter(|v| !v.is_null());
     let count = |key: &str| -> Result<Option<usize>, Error> {
         present(key)
@@ -255,14 +340,22 @@ pub fn read_meta(path: &Path) -> Result<ProblemMeta, Error> {
             })
             .transpose()
     };
-    let fingerprint = present("fingerprint")
-        .map(|v| {
-            v.as_str()
-                .map(str::to_string)
-                .ok_or_else(|| bad("'fingerprint' must be a string".into()))
-        })
-        .transpose()?;
-    Ok(ProblemMeta {
+    let again = "export the system again (lse-deform export-system) so that it can be checked";
+    let fingerprint = match present("fingerprint").map(serde_json::Value::as_str) {
+        None => {
+            return Err(bad(format!(
+                "has no 'fingerprint': nothing in it can be verified against the matrices; {again}"
+            )));
+        }
+        Some(None) => return Err(bad("'fingerprint' must be a string".into())),
+        Some(Some(f)) if !f.starts_with(FINGERPRINT_PREFIX) => {
+            return Err(bad(format!(
+                "its fingerprint '{f}' is not of this version ({FINGERPRINT_PREFIX}…, which also covers laplacian_rows, length_scale and length_unit); {again}"
+            )));
+        }
+        Some(Some(f)) => f.to_string(),
+    };
+    let meta = ProblemMeta {
         laplacian_rows: count("laplacian_rows")?,
         length_scale: positive("length_scale")?,
         length_unit: positive("length_unit")?,
@@ -270,8 +363,20 @@ pub fn read_meta(path: &Path) -> Result<ProblemMeta, Error> {
         rhs_columns: count("rhs_columns")?,
         hard_rows: length("constraint_of_b_row")?,
         soft_rows: length("constraint_of_soft_row")?,
-        fingerprint,
-    })
+        fingerprint: Some(fingerprint),
+    };
+    for (key, given) in [
+        ("laplacian_rows", meta.laplacian_rows.is_some()),
+        ("length_scale", meta.length_scale.is_some()),
+        ("length_unit", meta.length_unit.is_some()),
+    ] {
+        if !given {
+            return Err(bad(format!(
+                "has no '{key}', which its fingerprint covers; {again}"
+            )));
+        }
+    }
+    Ok(meta)
 }
 
 /// An error about the `meta.json` at `path`.
@@ -286,11 +391,12 @@ fn meta_error(path: &Path, message: String) -> Error {
 
 /// Checks a `meta.json` (read from `path`) against the matrices it is to
 /// describe, as read from their files: the counts it records (unknowns,
-/// right-hand sides, rows of `B`, Laplacian and soft rows of `A`) and, when
-/// it has one, its [`matrices_fingerprint`]. A meta.json left from another
-/// export would otherwise change the Laplacian rows and the length scale of
-/// the conflict test without a word; any difference is an error naming the
-/// file and what differs.
+/// right-hand sides, rows of `B`, Laplacian and soft rows of `A`) and its
+/// [`system_fingerprint`] of the matrices and its [`MetaUnits`]. A
+/// meta.json left from another export, or edited, would otherwise change
+/// the Laplacian rows, the length scale of the conflict test or the length
+/// unit of the report without a word; any difference, and a file without
+/// a fingerprint or units, is an error naming the file and what differs.
 pub fn check_meta(
     meta: &ProblemMeta,
     path: &Path,
@@ -344,16 +450,20 @@ pub fn check_meta(
             ),
         ));
     }
-    if let Some(recorded) = &meta.fingerprint {
-        let actual = matrices_fingerprint(a, c, b, d);
-        if *recorded != actual {
-            return Err(meta_error(
-                path,
-                format!(
-                    "written for other matrices: its fingerprint is {recorded}, the matrices read have {actual} (a meta.json left from another export, or matrices changed since)"
-                ),
-            ));
-        }
+    let (Some(recorded), Some(units)) = (&meta.fingerprint, meta.units()) else {
+        return Err(meta_error(
+            path,
+            "has no fingerprint, or not the units it covers: export the system again".into(),
+        ));
+    };
+    let actual = system_fingerprint(a, c, b, d, &units);
+    if *recorded != actual {
+        return Err(meta_error(
+            path,
+            format!(
+                "written for other matrices or units: its fingerprint is {recorded}, the matrices read with its laplacian_rows, length_scale and length_unit have {actual} (a meta.json left from another export, or the matrices or the file changed since)"
+            ),
+        ));
     }
     Ok(())
 }
@@ -398,17 +508,22 @@ pub fn apply_meta(
 }
 
 /// The fingerprint of `A`, `C`, `B` and `D` of `min ‖AX − C‖ s.t. BX = D`
-/// as written to (and read back from) Matrix Market files: 64-bit FNV-1a
-/// over each matrix's shape and its nonzero entries `(row, column, bits of
-/// the value)` in row-major order (stored zeros and the order of a file's
+/// as written to (and read back from) Matrix Market files, and of the
+/// [`MetaUnits`] `solve` reads beside them: 64-bit FNV-1a over each
+/// matrix's shape and its nonzero entries `(row, column, bits of the
+/// value)` in row-major order (stored zeros and the order of a file's
 /// entries do not count; the writers give every value in shortest
-/// round-trip form, so a value read back has the same bits).
-/// `"fnv1a64-v1:"` and 16 hexadecimal digits.
-pub fn matrices_fingerprint(
+/// round-trip form, so a value read back has the same bits), then the
+/// Laplacian rows and the bits of the length scale and of the length unit.
+/// `"fnv1a64-v2:"` and 16 hexadecimal digits. (`v1`, written before,
+/// covered the matrices only.) A check against mix-ups and edits, not a
+/// cryptographic signature.
+pub fn system_fingerprint(
     a: SparseColMatRef<'_, usize, f64>,
     c: MatRef<'_, f64>,
     b: SparseColMatRef<'_, usize, f64>,
     d: MatRef<'_, f64>,
+    units: &MetaUnits,
 ) -> String {
     let entries = |m: SparseColMatRef<'_, usize, f64>| -> Vec<(usize, usize, f64)> {
         m.triplet_iter().map(|t| (t.row, t.col, *t.val)).collect()
@@ -419,12 +534,13 @@ pub fn matrices_fingerprint(
             ((b.nrows(), b.ncols()), entries(b)),
         ],
         [c, d],
+        units,
     )
 }
 
-/// [`matrices_fingerprint`] of the matrices [`export_problem`] writes for
-/// `problem` (`B` is held by rows).
-fn problem_fingerprint(problem: &LseProblem) -> String {
+/// [`system_fingerprint`] of the matrices [`export_problem`] writes for
+/// `problem` (`B` is held by rows) and `units`.
+fn problem_fingerprint(problem: &LseProblem, units: &MetaUnits) -> String {
     let (a, b) = (problem.a().as_ref(), problem.b().as_ref());
     let b_entries = b.triplet_iter().map(|t| (t.row, t.col, *t.val)).collect();
     fingerprint(
@@ -436,17 +552,22 @@ fn problem_fingerprint(problem: &LseProblem) -> String {
             ((b.nrows(), b.ncols()), b_entries),
         ],
         [problem.c().as_ref(), problem.d().as_ref()],
+        units,
     )
 }
 
 /// A sparse matrix as its shape and its `(row, column, value)` entries.
 type SparseEntries = ((usize, usize), Vec<(usize, usize, f64)>);
 
-/// The hash of [`matrices_fingerprint`]: the sparse `A` and `B` as shapes
-/// and entries, then the dense `C` and `D`.
-fn fingerprint(sparse: [SparseEntries; 2], dense: [MatRef<'_, f64>; 2]) -> String {
+/// The hash of [`system_fingerprint`]: the sparse `A` and `B` as shapes
+/// and entries, then the dense `C` and `D`, then `units`.
+fn fingerprint(
+    sparse: [SparseEntries; 2],
+    dense: [MatRef<'_, f64>; 2],
+    units: &MetaUnits,
+) -> String {
     let mut h = crate::mesh::fingerprint::Fnv1a::new();
-    h.bytes(b"lse-deform system v1");
+    h.bytes(b"lse-deform system v2");
     for (shape, entries) in sparse {
         hash_entries(&mut h, shape, entries);
     }
@@ -456,7 +577,10 @@ fn fingerprint(sparse: [SparseEntries; 2], dense: [MatRef<'_, f64>; 2]) -> Strin
             .collect();
         hash_entries(&mut h, (m.nrows(), m.ncols()), entries);
     }
-    format!("fnv1a64-v1:{:016x}", h.0)
+    h.bytes(&(units.laplacian_rows as u64).to_le_bytes());
+    h.bytes(&units.length_scale.to_bits().to_le_bytes());
+    h.bytes(&units.length_unit.to_bits().to_le_bytes());
+    format!("{FINGERPRINT_PREFIX}{:016x}", h.0)
 }
 
 /// Feeds a matrix's shape and its nonzero entries, sorted by row and then

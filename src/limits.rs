@@ -23,10 +23,11 @@
 //! | a mesh file | [`MESH_BYTES_PER_FILE_BYTE`] × file size (× [`GZIP_EXPANSION`] when compressed) | [`crate::mesh::read_mesh_within`] |
 //! | the bytes of a mesh read from a stream or decompressed | at most budget / [`MESH_BYTES_PER_FILE_BYTE`] bytes are read; one more is a refusal, never a parse of the prefix | [`crate::mesh::read_mesh_within`], [`crate::mesh::read_mesh_bytes_within`] |
 //! | a mesh header's counts (OFF, PLY) | [`MESH_BYTES_PER_VERTEX`] × vertices + [`MESH_BYTES_PER_FACE`] × faces | the OFF and PLY readers |
-//! | a mesh as it is assembled | the same per vertex and per triangle read so far (a polygon's fan counts its triangles) | every mesh reader, at each vertex and polygon |
+//! | a mesh as it is assembled | the same per vertex and per triangle of the lists' capacity (a full list doubles; a polygon's fan counts its triangles), reserved fallibly | every mesh reader, at each vertex and polygon |
 //! | a constraints file | [`CONSTRAINT_BYTES_PER_FILE_BYTE`] × file size; a stream at most budget / that many bytes, one more is a refusal | [`crate::constraints::read_constraints_file_within`] |
 //! | a dense Householder block | its reflectors, `8 k min(k, m)` bytes, and its dense `(k − m)²` block of the normal matrix | [`crate::backend::qr::DenseHouseholder`] |
-//! | a Cholesky factor | [`FACTOR_BYTES_PER_ENTRY`] × the factor's nnz from the symbolic analysis | every formulation, between analysis and numeric factorisation |
+//! | a Cholesky factor | [`FACTOR_BYTES_PER_ENTRY`] × the factor's nnz from the symbolic analysis, on top of the resident set ([`MemoryBudget::check_on_top`]) | every formulation, between analysis and numeric factorisation |
+//! | a faer `LLᵀ` or `LDLᵀ` factorisation | on top of the resident set: 8 bytes per stored value, faer's scratch (`factorize_numeric_*_scratch`) and the back end's own arrays; with faer's matrix-multiply kernel's per-thread buffer, against the address-space limit ([`check_address_space`]) | `FaerLlt` and `FaerLdlt`, between analysis and numeric factorisation |
 //! | the `R` of a sparse QR of `Bᵀ` | 16 bytes × `nnz(R)` counted from the column elimination tree of `Bᵀ` (never forming `B Bᵀ`) | `sparse-givens` (each column order it tries) and `spqr`, before factoring |
 //! | a response basis of `G` groups | `8 k (3 (l + m) + 6 n)` bytes, `k = 3 + 4G` columns ([`crate::handle::HandleBasis::estimated_bytes`]) | [`crate::handle::HandleBasis::new`]; the editor before its precompute |
 //! | the four Matrix Market files of `solve` | from their headers together: 48 bytes per announced entry and 8 per column of `A` and `B`, and `C`, `D` dense | [`crate::mtx::read_system_within`], before any entry is read |
@@ -110,12 +111,12 @@ fn budget_from_variable(
 }
 
 /// `LSE_MEMORY_LIMIT` is set to something that is not a size: a positive
-/// number of bytes with an optional `K`, `M`, `G` or `T` suffix
+/// number of bytes with an optional unit of [`SIZE_UNITS`]
 /// ([`parse_bytes`]). An empty value is such a value too: unset the
 /// variable for the default budget.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "LSE_MEMORY_LIMIT={value:?} is not a size (a positive number of bytes, optionally with K, M, G or T, powers of 1024); unset it for the default budget"
+    "LSE_MEMORY_LIMIT={value:?} is not a size (a positive number of bytes, optionally followed by one unit: B, K or KiB, M or MiB, G or GiB, T or TiB, powers of 1024); unset it for the default budget"
 )]
 pub struct MemoryLimitError {
     /// The variable's value (lossily decoded if it is not UTF-8).
@@ -320,14 +321,56 @@ impl MemoryBudget {
         if estimate <= self.bytes {
             return Ok(());
         }
+        let (estimate, budget) = format_apart(estimate, self.bytes);
         Err(format!(
-            "{} about {}, more than the memory budget of {} ({})",
+            "{} about {estimate}, more than the memory budget of {budget} ({})",
             what(),
-            format_bytes(estimate),
-            format_bytes(self.bytes),
             self.source.describe(),
         ))
     }
+
+    /// [`MemoryBudget::check`] of `extra` bytes still to be allocated on
+    /// top of what the process holds now ([`resident_bytes`]): the budget
+    /// is of the whole process, so what it already holds (the mesh, the
+    /// problem, the matrices) counts too. `what` names `extra`.
+    pub fn check_on_top(self, extra: u64, what: impl FnOnce() -> String) -> Result<(), String> {
+        let resident = resident_bytes().unwrap_or(0);
+        self.check(extra.saturating_add(resident), || {
+            format!(
+                "{} {} on top of the {} this process holds; together",
+                what(),
+                format_bytes(extra),
+                format_bytes(resident)
+            )
+        })
+    }
+}
+
+/// `Err(detail)` when mapping `extra` more bytes of address space, on top
+/// of what the process has mapped ([`mapped_bytes`]), would exceed its
+/// address-space limit ([`address_space_limit`], read now; `Ok` when there
+/// is none). The kernel compares every new mapping with that limit, and
+/// past it an allocation fails; a library that cannot report the failure
+/// (faer's matrix-multiply kernel) aborts the process. Mapped is not
+/// resident: reserved but untouched pages count here, not in
+/// [`resident_bytes`]. `what` names `extra`.
+pub fn check_address_space(extra: u64, what: impl FnOnce() -> String) -> Result<(), String> {
+    let Some(limit) = address_space_limit() else {
+        return Ok(());
+    };
+    let mapped = mapped_bytes().unwrap_or(0);
+    let budget = MemoryBudget {
+        bytes: limit,
+        source: BudgetSource::AddressSpace,
+    };
+    budget.check(mapped.saturating_add(extra), || {
+        format!(
+            "{} {} of address space on top of the {} this process has mapped; together",
+            what(),
+            format_bytes(extra),
+            format_bytes(mapped)
+        )
+    })
 }
 
 /// Bytes of this process's resident memory (`VmRSS` of
@@ -335,8 +378,20 @@ impl MemoryBudget {
 /// still to be allocated adds to its estimate when the budget is of the
 /// whole process.
 pub fn resident_bytes() -> Option<u64> {
+    status_bytes("VmRSS:")
+}
+
+/// Bytes of address space this process has mapped (`VmSize` of
+/// `/proc/self/status`), what the kernel holds against `RLIMIT_AS`.
+pub fn mapped_bytes() -> Option<u64> {
+    status_bytes("VmSize:")
+}
+
+/// The field `name` (with its colon) of `/proc/self/status`, given there
+/// in kB (KiB), in bytes.
+fn status_bytes(name: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let line = status.lines().find(|l| l.starts_with(name))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     kib.checked_mul(1024)
 }
@@ -453,20 +508,25 @@ fn cgroup_limit_under(root: &Path, membership: &str) -> Option<u64> {
     limits.into_iter().min()
 }
 
-/// `"8G"`, `"512M"`, `"1000000"` → bytes (powers of 1024); `None` if
-/// malformed or zero.
+/// The units [`parse_bytes`] accepts, for messages.
+pub const SIZE_UNITS: &str = "B, K or KiB, M or MiB, G or GiB, T or TiB (powers of 1024, any case)";
+
+/// `"8G"`, `"512 MiB"`, `"1000000"` → bytes: decimal digits, then optional
+/// spaces and at most one unit of [`SIZE_UNITS`] (powers of 1024); `None`
+/// if malformed (any other unit, a unit repeated, a sign, a fraction) or
+/// zero.
 pub fn parse_bytes(s: &str) -> Option<u64> {
     let s = s.trim();
     let (digits, unit) = match s.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
         Some((i, _)) => s.split_at(i),
         None => (s, ""),
     };
-    let shift = match unit.trim().to_ascii_uppercase().trim_end_matches("IB") {
+    let shift = match unit.trim_start().to_ascii_uppercase().as_str() {
         "" | "B" => 0,
-        "K" => 10,
-        "M" => 20,
-        "G" => 30,
-        "T" => 40,
+        "K" | "KIB" => 10,
+        "M" | "MIB" => 20,
+        "G" | "GIB" => 30,
+        "T" | "TIB" => 40,
         _ => return None,
     };
     let n: u64 = digits.parse().ok()?;
@@ -475,6 +535,11 @@ pub fn parse_bytes(s: &str) -> Option<u64> {
 
 /// `1.5 GiB`, `300 MiB`, … for messages.
 pub fn format_bytes(bytes: u64) -> String {
+    format_bytes_to(bytes, 1)
+}
+
+/// [`format_bytes`] with `decimals` decimals.
+fn format_bytes_to(bytes: u64, decimals: usize) -> String {
     const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
     let mut value = bytes as f64;
     let mut unit = 0;
@@ -485,8 +550,21 @@ pub fn format_bytes(bytes: u64) -> String {
     if unit == 0 {
         format!("{bytes} B")
     } else {
-        format!("{value:.1} {}", UNITS[unit])
+        format!("{value:.decimals$} {}", UNITS[unit])
     }
+}
+
+/// `a` and `b` as [`format_bytes`] writes them, with as many decimals (up
+/// to three) as it takes to tell them apart, and in bytes when three do
+/// not: an estimate just over a budget never reads as equal to it.
+pub fn format_apart(a: u64, b: u64) -> (String, String) {
+    for decimals in 1..=3 {
+        let (x, y) = (format_bytes_to(a, decimals), format_bytes_to(b, decimals));
+        if x != y || a == b {
+            return (x, y);
+        }
+    }
+    (format!("{a} bytes"), format!("{b} bytes"))
 }
 
 /// `Err(detail)` when `estimate` exceeds the default budget
@@ -540,12 +618,49 @@ mod tests {
         assert_eq!(parse_bytes("-1"), None);
         assert_eq!(parse_bytes("12X"), None);
         assert_eq!(parse_bytes("99999999999T"), None);
+        assert_eq!(parse_bytes("3 KiB"), Some(3 << 10));
+        assert_eq!(parse_bytes("7b"), Some(7));
+    }
+
+    /// A unit outside the list, or two units, is refused. (Before: the
+    /// parser stripped any number of trailing `iB`s, so `5iB`, `5 ib`,
+    /// `5BIB` and `5KiBiB` were sizes.)
+    #[test]
+    fn units_outside_the_list_are_refused() {
+        for word in [
+            "5iB", "5 ib", "5BIB", "5KiBiB", "5KB", "5 K B", "5Ki", "1.5G", "+5", "5GiBs",
+        ] {
+            assert_eq!(parse_bytes(word), None, "{word}");
+        }
     }
 
     #[test]
     fn formats_sizes() {
         assert_eq!(format_bytes(512), "512 B");
         assert_eq!(format_bytes(3 << 29), "1.5 GiB");
+    }
+
+    /// Finding 5 of issue 38: at 1120M the refusal read "about 1.1 GiB,
+    /// more than … 1.1 GiB".
+    #[test]
+    fn a_refusal_tells_the_estimate_from_the_budget() {
+        let budget = 1120 << 20;
+        assert_eq!(
+            format_apart(1160 << 20, budget),
+            ("1.13 GiB".into(), "1.09 GiB".into())
+        );
+        assert_eq!(
+            format_apart(budget + 1, budget),
+            ("1174405121 bytes".into(), "1174405120 bytes".into())
+        );
+        assert_eq!(format_apart(3 << 30, 1 << 30).0, "3.0 GiB");
+        let e = MemoryBudget::bytes(budget)
+            .check(1160 << 20, || "the factor needs".into())
+            .unwrap_err();
+        assert!(
+            e.contains("about 1.13 GiB, more than the memory budget of 1.09 GiB"),
+            "{e}"
+        );
     }
 
     #[test]

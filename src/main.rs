@@ -54,6 +54,9 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // First, before any thread starts: an interrupted run removes its
+    // temporary files and out-of-core scratch directories.
+    cli::signals::install();
     // Under `mpirun`, every rank but 0 serves rank 0's MUMPS commands
     // until rank 0 ends the run, then exits with rank 0's code.
     #[cfg(feature = "mumps")]

@@ -26,7 +26,9 @@ pub enum Refine {
     #[default]
     Auto,
     /// Exactly this many steps unless a correction stops shrinking or
-    /// reaches the rounding floor (then fewer).
+    /// reaches the rounding floor (then fewer). `Steps(0)` applies none:
+    /// it is [`Refine::EstimateOnly`] (one correction computed for the
+    /// estimate, stop reason [`RefineStop::Off`]).
     Steps(usize),
     /// As [`Refine::Auto`], and stop after applying a correction of at
     /// most this size (relative to the length scale, as the estimate).
@@ -41,6 +43,13 @@ impl Refine {
     /// until it was named for what it does), kept for one release.
     #[allow(non_upper_case_globals)]
     pub const Off: Refine = Refine::EstimateOnly;
+
+    /// Whether no correction is applied: [`Refine::EstimateOnly`], and
+    /// [`Refine::Steps`]`(0)`, which is the same (zero steps; one
+    /// correction computed for the estimate).
+    pub fn is_estimate_only(self) -> bool {
+        self.max_steps() == 0
+    }
 
     /// The cap on steps.
     pub(crate) fn max_steps(self) -> usize {

@@ -674,7 +674,7 @@ pub fn refinement_warnings(r: &Refinement, method: Method) -> Vec<Warning> {
     if (e.is_nan() || e > FORWARD_ERROR_WARNING)
         && r.stop_reason != RefineStop::ConflictingConstraints
     {
-        let (kind, how) = if r.mode == Refine::EstimateOnly {
+        let (kind, how) = if r.mode.is_estimate_only() {
             (
                 WarningKind::LostAccuracyUnrefined,
                 "refinement is off; refinement `auto` would correct it",
@@ -712,7 +712,7 @@ pub fn lost_accuracy_advice(method: Method, r: Option<&Refinement>) -> String {
     let mut ways = Vec::new();
     match r {
         None => ways.push("refine it with refinement `auto`"),
-        Some(r) if r.mode == Refine::EstimateOnly => ways.push("refine it with refinement `auto`"),
+        Some(r) if r.mode.is_estimate_only() => ways.push("refine it with refinement `auto`"),
         Some(r) if r.stop_reason == RefineStop::StepLimit => {
             ways.push("allow more refinement steps")
         }

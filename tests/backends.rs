@@ -439,3 +439,39 @@ fn relative_chain_uses_fill_reducing_order() {
     let diff = relative_difference(&x, &reference);
     assert!(diff < 1e-9, "differs from DenseHouseholder by {diff:e}");
 }
+
+/// Finding 5 of issue 38: faer's factorisations checked only their
+/// factor's estimate (12 bytes an entry) against the budget, not what the
+/// process already holds nor their workspace: with a budget of exactly
+/// that estimate and a process holding more than it already, they went
+/// ahead. Now what the process holds (its resident set) is counted on
+/// top, and the refusal says so.
+#[test]
+fn faer_counts_what_the_process_holds_against_the_budget() {
+    use lse_deform::backend::ldlt::LdltKind;
+    use lse_deform::limits::{FACTOR_BYTES_PER_ENTRY, MemoryBudget};
+    let (n, full) = grid_spd(60, 0.1, 3);
+    let m = lower(n, &full);
+    let order: Vec<usize> = (0..n).collect();
+    for kind in [SpdKind::FaerSupernodal, SpdKind::FaerSimplicial] {
+        let symbolic = kind.backend().unwrap().analyze(m.symbolic()).unwrap();
+        let estimate = symbolic.factor_nnz() as u64 * FACTOR_BYTES_PER_ENTRY;
+        // Held and touched: the resident set is at least this.
+        let ballast = vec![1u8; 2 * estimate as usize];
+        let budget = MemoryBudget::bytes(estimate);
+        let e = symbolic.check_budget(budget, n, "A").unwrap_err();
+        assert!(e.to_string().contains("this process holds"), "{e}");
+        let roomy = MemoryBudget::bytes(1 << 40);
+        symbolic.check_budget(roomy, n, "A").unwrap();
+        drop(ballast);
+    }
+    let backend = LdltKind::FaerSupernodal.backend().unwrap();
+    let symbolic = backend.analyze(m.symbolic(), &order).unwrap();
+    let estimate = symbolic.factor_values() as u64 * FACTOR_BYTES_PER_ENTRY;
+    let ballast = vec![1u8; 2 * estimate as usize];
+    let e = symbolic
+        .check_budget(MemoryBudget::bytes(estimate), n, "K")
+        .unwrap_err();
+    assert!(e.to_string().contains("this process holds"), "{e}");
+    drop(ballast);
+}

@@ -1022,11 +1022,45 @@ fn factor_is_the_new_name_of_spd_and_defaults_are_the_documented_ones() {
         "[default: nullspace-qr]",
         "[default: sparse-givens]",
         "[default: faer-auto]",
-        "[alias: --spd]",
+        "--spd <SPD>",
         "[default: 10]",
         "[default: spokes-and-rims]",
         "[default: linear]",
     ] {
         assert!(help.contains(shown), "--help lacks {shown}:\n{help}");
     }
+}
+
+/// `--refine 0` applies no correction: the report says 0 steps and the
+/// mesh is the one `--refine off` writes; `--refine 1` applies one.
+/// (Before: `--refine 0` ran one step, its output byte-identical to
+/// `--refine 1` and its report `steps 1`.)
+#[test]
+fn refine_zero_means_zero_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mesh = path_in(d, "grid.obj");
+    let o = run(&["generate", "grid", "--vertices", "400", "-o", &mesh]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = path_in(d, "scene.json");
+    let o = run(&["scene", &mesh, "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let deform = |refine: &str| {
+        let (out, report) = (path_in(d, "out.ply"), path_in(d, "r.json"));
+        let args = [
+            "deform", &mesh, "-c", &scene, "-o", &out, "--report", &report,
+        ];
+        let o = run(&[&args[..], &["--refine", refine]].concat());
+        assert!(o.status.success(), "--refine {refine}: {}", stderr(&o));
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        (std::fs::read(&out).unwrap(), r["refinement"].clone())
+    };
+    let (zero, r0) = deform("0");
+    assert_eq!(r0["steps"], 0, "{r0}");
+    assert_eq!(r0["stop_reason"], "off", "{r0}");
+    let (off, _) = deform("off");
+    assert_eq!(zero, off);
+    let (_, r1) = deform("1");
+    assert_eq!(r1["steps"], 1, "{r1}");
 }

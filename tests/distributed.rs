@@ -230,6 +230,69 @@ fn named_constraint(err: &str) -> Option<String> {
     Some(err[start..=end].to_string())
 }
 
+/// KKT over MUMPS and over faer on `mesh_path` with `scene`: MUMPS alone
+/// and on two ranks must succeed and give faer's mesh to [`AGREEMENT`].
+fn assert_kkt_over_mumps_is_faers(dir: &Path, mesh_path: &str, scene: &str) {
+    let rest = mesh(mesh_path);
+    let faer = path_in(dir, "faer.ply");
+    let o = alone(&deform_args(
+        mesh_path,
+        scene,
+        &faer,
+        &["--method", "kkt", "--factor", "faer-auto"],
+    ));
+    assert!(o.status.success(), "{}", stderr(&o));
+    for ranks in [1, 2] {
+        let out = path_in(dir, &format!("mumps{ranks}.ply"));
+        let args = deform_args(
+            mesh_path,
+            scene,
+            &out,
+            &["--method", "kkt", "--factor", "mumps"],
+        );
+        let o = if ranks == 1 {
+            alone(&args)
+        } else {
+            on_ranks(2, &args)
+        };
+        assert!(
+            o.status.success(),
+            "{scene}, {ranks} rank(s): {}",
+            stderr(&o)
+        );
+        let d = difference(&out, &faer, &rest);
+        assert!(d <= AGREEMENT, "{scene}, {ranks} rank(s): {d:e} × diagonal");
+    }
+}
+
+/// Issue 38: hard relative rows forming a spanning tree of a patch (along
+/// mesh edges) beside hard positions. MUMPS met multipliers ahead of their
+/// vertices, took their rounding-level pivots (the threshold was the
+/// smallest double) and lost every digit (backward error 0.14 on the
+/// 900-vertex grid with 30 rows), or flagged a sound vertex pivot as null
+/// (2,500 vertices, 100 rows). Now alone and on two ranks it gives faer's
+/// mesh.
+#[test]
+fn kkt_over_mumps_solves_a_tree_of_hard_relative_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    for (vertices, rows) in [(900, "30"), (2_500, "100")] {
+        let sub = dir.path().join(format!("g{vertices}"));
+        std::fs::create_dir(&sub).unwrap();
+        let mesh_path = path_in(&sub, "grid.obj");
+        setup(&[
+            "generate",
+            "grid",
+            "--vertices",
+            &vertices.to_string(),
+            "-o",
+            &mesh_path,
+        ]);
+        let scene = path_in(&sub, "tree.json");
+        setup(&["scene", &mesh_path, "--relative", rows, "-o", &scene]);
+        assert_kkt_over_mumps_is_faers(&sub, &mesh_path, &scene);
+    }
+}
+
 /// KKT with MUMPS's `LDLᵀ`, alone and on two ranks, gives faer's mesh on a
 /// scene with every constraint kind (relative constraints among them).
 #[test]
@@ -450,4 +513,248 @@ fn out_of_core_on_two_ranks_matches_in_core_and_cleans_up() {
         "{:?}",
         std::fs::read_dir(&ooc).unwrap().collect::<Vec<_>>()
     );
+}
+
+/// The grid of `vertices` vertices and its default scene (fixed bottom,
+/// hard handle) in `dir`: `(mesh, scene)`.
+fn plain_grid_scene(dir: &Path, vertices: usize) -> (String, String) {
+    let (mesh_path, scene) = (path_in(dir, "grid.obj"), path_in(dir, "scene.json"));
+    setup(&[
+        "generate",
+        "grid",
+        "--vertices",
+        &vertices.to_string(),
+        "-o",
+        &mesh_path,
+    ]);
+    setup(&["scene", &mesh_path, "-o", &scene]);
+    (mesh_path, scene)
+}
+
+/// The entries of `dir`, sorted.
+fn entries(dir: &Path) -> Vec<std::ffi::OsString> {
+    let mut names: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Whether some scratch directory under `ooc` holds a file of MUMPS's
+/// (`mumps_…`: it is writing the factor; the directory check before the
+/// analysis writes a file named `probe`).
+fn factor_on_disk(ooc: &Path) -> bool {
+    let mumps_file = |f: std::io::Result<std::fs::DirEntry>| {
+        f.is_ok_and(|f| f.file_name().to_string_lossy().starts_with("mumps"))
+    };
+    std::fs::read_dir(ooc)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .any(|e| std::fs::read_dir(e.path()).is_ok_and(|mut d| d.any(mumps_file)))
+}
+
+/// Issue 38: SIGINT to the binary alone and SIGTERM to `mpirun` on two
+/// ranks, sent once MUMPS has written part of the out-of-core factor (a
+/// 200,000-vertex grid, whose factorisation takes seconds), end the run
+/// and leave the directory as it was (before: 115 MB alone, 460 + 364 MB
+/// on two ranks left behind). Not a timing test: the signal is sent when
+/// the files are seen, and a run that ends before is a failure that says
+/// so.
+#[test]
+fn a_signal_during_an_out_of_core_factorisation_leaves_the_directory_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh_path, scene) = plain_grid_scene(dir.path(), 200_000);
+    let ooc = dir.path().join("ooc");
+    std::fs::create_dir(&ooc).unwrap();
+    std::fs::write(ooc.join("someone-elses.txt"), b"kept").unwrap();
+    let before = entries(&ooc);
+    let out = path_in(dir.path(), "o.obj");
+    let ooc_s = ooc.to_string_lossy().into_owned();
+    let args = deform_args(
+        &mesh_path,
+        &scene,
+        &out,
+        &["--factor", "mumps", "--out-of-core", &ooc_s],
+    );
+    for (ranks, signal) in [(1, "-INT"), (2, "-TERM")] {
+        let mut c = if ranks == 1 {
+            Command::new(BIN)
+        } else {
+            let mut c = Command::new("mpirun");
+            c.args(MPIRUN_OPTIONS).args(["-np", "2", BIN]);
+            c
+        };
+        let mut child = c
+            .args(&args)
+            .env_remove("LSE_MEMORY_LIMIT")
+            .envs(MPI_ENV)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("the binary (or mpirun) starts");
+        let start = Instant::now();
+        while !factor_on_disk(&ooc) {
+            let ended = child.try_wait().unwrap();
+            assert!(
+                ended.is_none() && start.elapsed() < HANG_LIMIT,
+                "{ranks} rank(s): the run ended ({ended:?}) or hung before its factor reached the disk"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = Command::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status();
+        while child.try_wait().unwrap().is_none() {
+            assert!(start.elapsed() < HANG_LIMIT, "hang after the signal");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        assert_eq!(entries(&ooc), before, "{ranks} rank(s), kill {signal}");
+        assert!(!Path::new(&out).exists());
+    }
+}
+
+/// Issue 38: a scratch directory left behind by an interrupted run whose
+/// process id comes round again (here always: a new PID namespace makes the
+/// binary process 1) made every later run fail with "File exists", exit 3.
+/// Scratch names are now random and retried: the run succeeds and the
+/// leftovers stay as they were. Needs `unshare` (util-linux) and the
+/// permission to make a PID namespace; without them it says so and passes.
+#[test]
+fn a_leftover_scratch_directory_is_no_reason_to_fail() {
+    if !Command::new("unshare")
+        .args(["-p", "-f", "true"])
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        eprintln!("skipped: `unshare -p -f` is not available here");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh_path, scene) = plain_grid_scene(dir.path(), 900);
+    let ooc = dir.path().join("ooc");
+    std::fs::create_dir(&ooc).unwrap();
+    // The names the old scheme gave process 1's first instances.
+    for id in 0..4 {
+        std::fs::create_dir(ooc.join(format!("lse-deform-1-{id}-rank0"))).unwrap();
+    }
+    let before = entries(&ooc);
+    let out = path_in(dir.path(), "o.obj");
+    let ooc_s = ooc.to_string_lossy().into_owned();
+    let mut c = Command::new("unshare");
+    c.args(["-p", "-f", BIN]).args(deform_args(
+        &mesh_path,
+        &scene,
+        &out,
+        &["--factor", "mumps", "--out-of-core", &ooc_s],
+    ));
+    let o = finish(c, "unshare");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(entries(&ooc), before);
+}
+
+/// Runs `deform` over MUMPS out of core under `ooc` (alone and on two
+/// ranks) and asserts that it is refused as bad input (exit 2) by a message
+/// that names `shown` and holds `reason`.
+fn assert_directory_refused(dir: &Path, ooc: &std::ffi::OsStr, shown: &str, reason: &str) {
+    let (mesh_path, scene) = (path_in(dir, "grid.obj"), path_in(dir, "scene.json"));
+    let out = path_in(dir, "o.obj");
+    for ranks in [1, 2] {
+        let mut c = if ranks == 1 {
+            Command::new(BIN)
+        } else {
+            let mut c = Command::new("mpirun");
+            c.args(MPIRUN_OPTIONS).args(["-np", "2", BIN]);
+            c
+        };
+        c.args(deform_args(
+            &mesh_path,
+            &scene,
+            &out,
+            &["--factor", "mumps"],
+        ))
+        .arg("--out-of-core")
+        .arg(ooc);
+        let o = finish(c, "lse-deform");
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{ranks} rank(s): {err}");
+        assert!(err.contains(shown), "{ranks} rank(s), {shown}: {err}");
+        assert!(err.contains(reason), "{ranks} rank(s), {reason}: {err}");
+    }
+}
+
+/// Whether this process may mount (root in a container that allows it).
+fn mount_tmpfs(target: &Path, options: &str) -> bool {
+    Command::new("mount")
+        .args(["-t", "tmpfs", "-o", options, "tmpfs"])
+        .arg(target)
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Issue 38: problems with the out-of-core directory itself are bad input
+/// (exit 2, before: 3) naming the directory and the system's reason, on
+/// one rank and on two: a path longer than MUMPS's 255 bytes, a read-only
+/// file system, a full one (a 1 MiB tmpfs: "No space left on device",
+/// before: "(system error 0) [INFOG(1) = -90]"). The last two need mount
+/// (root); without it they say so.
+#[test]
+fn out_of_core_directory_problems_are_bad_input_naming_the_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    plain_grid_scene(dir.path(), 10_000);
+    let mut long = dir.path().to_path_buf();
+    while long.as_os_str().len() <= 255 {
+        long.push("d".repeat(60));
+    }
+    std::fs::create_dir_all(&long).unwrap();
+    let shown = long.display().to_string();
+    assert_directory_refused(dir.path(), long.as_os_str(), &shown, "255");
+
+    for (name, options, reason) in [
+        ("ro", "ro,size=1M", "Read-only file system"),
+        ("full", "size=1M", "No space left on device"),
+    ] {
+        let target = dir.path().join(name);
+        std::fs::create_dir(&target).unwrap();
+        if !mount_tmpfs(&target, options) {
+            eprintln!("skipped {name}: cannot mount a tmpfs here");
+            continue;
+        }
+        let shown = target.display().to_string();
+        let outcome = std::panic::catch_unwind(|| {
+            assert_directory_refused(dir.path(), target.as_os_str(), &shown, reason)
+        });
+        let _ = Command::new("umount").arg(&target).status();
+        if let Err(e) = outcome {
+            std::panic::resume_unwind(e);
+        }
+    }
+}
+
+/// Issue 38: an out-of-core directory whose name is not UTF-8 was mangled
+/// (`bad\u{fffd}`) into another path and the run failed; it is now used as
+/// given, and left empty.
+#[test]
+fn a_non_utf8_out_of_core_directory_is_used_as_given() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh_path, scene) = plain_grid_scene(dir.path(), 900);
+    let ooc = dir.path().join(std::ffi::OsStr::from_bytes(b"bad\xff-dir"));
+    std::fs::create_dir(&ooc).unwrap();
+    let out = path_in(dir.path(), "o.obj");
+    let mut c = Command::new(BIN);
+    c.args(deform_args(
+        &mesh_path,
+        &scene,
+        &out,
+        &["--factor", "mumps"],
+    ))
+    .arg("--out-of-core")
+    .arg(&ooc);
+    let o = finish(c, "lse-deform");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(is_empty(&ooc));
 }

@@ -376,3 +376,226 @@ fn a_failed_report_leaves_no_output() {
         assert_eq!(names(d), ["grid.obj", "scene.json", "sys"], "{args:?}");
     }
 }
+
+/// FIFOs as outputs, and interrupted runs (Unix).
+#[cfg(unix)]
+mod pipes {
+    use std::fs::{File, OpenOptions};
+    use std::io::Read;
+    use std::os::fd::AsRawFd;
+    use std::os::unix::ffi::OsStrExt;
+    use std::os::unix::fs::OpenOptionsExt;
+    use std::path::Path;
+    use std::process::{Child, Command, ExitStatus, Stdio};
+    use std::time::{Duration, Instant};
+
+    use super::{bin, grid_and_scene, names, p, run, stderr};
+
+    /// How long a test waits for the binary or a pipe before it fails: a
+    /// guard against a hang, not a measurement.
+    const GUARD: Duration = Duration::from_secs(60);
+
+    fn mkfifo(path: &str) {
+        let c = std::ffi::CString::new(Path::new(path).as_os_str().as_bytes()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    }
+
+    /// The read end of the FIFO `path`, opened without waiting for a
+    /// writer (it counts as a reader from now on).
+    fn reader(path: &str) -> File {
+        OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path)
+            .unwrap()
+    }
+
+    /// Everything written to `file` until its writer closes it: what a
+    /// reader that reads once gets. Panics after [`GUARD`] without data.
+    fn read_to_end(mut file: File) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut buf = vec![0u8; 1 << 16];
+        loop {
+            let mut fd = libc::pollfd {
+                fd: file.as_raw_fd(),
+                events: libc::POLLIN,
+                revents: 0,
+            };
+            // SAFETY: one valid pollfd.
+            let ready = unsafe { libc::poll(&mut fd, 1, GUARD.as_millis() as libc::c_int) };
+            assert!(ready > 0, "nothing came through the FIFO");
+            match file.read(&mut buf) {
+                Ok(0) => return out,
+                Ok(n) => out.extend_from_slice(&buf[..n]),
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(e) => panic!("{e}"),
+            }
+        }
+    }
+
+    /// Waits for `child` at most [`GUARD`]; kills it and fails after.
+    fn wait(mut child: Child) -> (ExitStatus, String) {
+        let start = Instant::now();
+        loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                let mut err = String::new();
+                child
+                    .stderr
+                    .take()
+                    .unwrap()
+                    .read_to_string(&mut err)
+                    .unwrap();
+                return (status, err);
+            }
+            if start.elapsed() > GUARD {
+                child.kill().unwrap();
+                panic!("the binary hung");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    fn spawn(args: &[&str]) -> Child {
+        Command::new(bin())
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    }
+
+    /// A FIFO as `-o` with a reader that reads once gets the whole mesh,
+    /// the same bytes as a file gets. (Before: the check before the work
+    /// opened and closed the FIFO, the reader got an empty input, and the
+    /// real write then waited for a reader forever.)
+    #[test]
+    fn a_fifo_with_a_reader_receives_the_whole_mesh() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let (mesh, scene) = grid_and_scene(d);
+        let file = p(d, "file.obj");
+        let o = run(&["deform", &mesh, "-c", &scene, "-o", &file]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let fifo = p(d, "fifo.obj");
+        mkfifo(&fifo);
+        let read = reader(&fifo);
+        let got = std::thread::spawn(move || read_to_end(read));
+        let report = p(d, "r.json");
+        let child = spawn(&[
+            "deform", &mesh, "-c", &scene, "-o", &fifo, "--report", &report,
+        ]);
+        let (status, err) = wait(child);
+        assert!(status.success(), "{err}");
+        assert_eq!(got.join().unwrap(), std::fs::read(&file).unwrap());
+        assert!(Path::new(&report).exists());
+    }
+
+    /// A FIFO as `-o` or `--report` that no process reads is refused
+    /// before any work (exit 2, before the missing mesh is even looked
+    /// at), naming the FIFO. (Before: the run waited for a reader forever.)
+    #[test]
+    fn a_fifo_without_a_reader_is_refused_before_any_work() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let fifo = p(d, "fifo.obj");
+        mkfifo(&fifo);
+        let (missing, scene, out) = (p(d, "missing.obj"), p(d, "c.json"), p(d, "out.obj"));
+        for outputs in [
+            ["-o", &fifo, "--report", "/dev/null"],
+            ["-o", &out, "--report", &fifo],
+        ] {
+            let mut args = vec!["deform", &missing, "-c", &scene];
+            args.extend(outputs);
+            let (status, err) = wait(spawn(&args));
+            assert_eq!(status.code(), Some(2), "{err}");
+            assert!(
+                err.contains("fifo.obj") && err.contains("no process is reading"),
+                "{err}"
+            );
+            assert_eq!(names(d), ["fifo.obj"]);
+        }
+    }
+
+    /// A FIFO `path` with a reader that does not read and a full buffer:
+    /// a write to it waits. Returns both ends (drop them to release it).
+    fn full_fifo(path: &str) -> (File, File) {
+        use std::io::Write;
+        let read = reader(path);
+        let mut write = OpenOptions::new()
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path)
+            .unwrap();
+        let filler = [b' '; 4096];
+        loop {
+            match write.write(&filler) {
+                Ok(_) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return (read, write),
+                Err(e) => panic!("{e}"),
+            }
+        }
+    }
+
+    /// SIGINT or SIGTERM while the report is being written to a FIFO
+    /// that does not take it (its buffer full, its reader not reading: the
+    /// run waits with its mesh staged) ends the run by the signal and
+    /// leaves no temporary file. (Before: the staged mesh
+    /// `.out.obj.PID.N.tmp` stayed.)
+    #[test]
+    fn an_interrupted_run_leaves_no_temporary_file() {
+        use std::os::unix::process::ExitStatusExt;
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let (mesh, scene) = grid_and_scene(d);
+        let fifo = p(d, "fifo.json");
+        mkfifo(&fifo);
+        let out = p(d, "out.obj");
+        for signal in [libc::SIGINT, libc::SIGTERM] {
+            let ends = full_fifo(&fifo);
+            let child = spawn(&["deform", &mesh, "-c", &scene, "-o", &out, "--report", &fifo]);
+            let start = Instant::now();
+            while !names(d).iter().any(|n| n.ends_with(".tmp")) {
+                assert!(start.elapsed() < GUARD, "no staged mesh appeared");
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            // SAFETY: a signal to our own child.
+            unsafe { libc::kill(child.id() as libc::pid_t, signal) };
+            let (status, err) = wait(child);
+            assert_eq!(status.signal(), Some(signal), "{err}");
+            assert_eq!(
+                names(d),
+                ["fifo.json", "grid.obj", "scene.json"],
+                "signal {signal}"
+            );
+            drop(ends);
+        }
+    }
+
+    /// An output name of 255 bytes (251 and `.obj`) is written. (Before:
+    /// it passed the check before the work and failed after it with "File
+    /// name too long", for the longer temporary name.)
+    #[test]
+    fn a_name_of_255_bytes_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let (mesh, scene) = grid_and_scene(d);
+        let long = format!("{}.obj", "x".repeat(251));
+        let out = p(d, &long);
+        let o = run(&[
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--report",
+            &p(d, "r.json"),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert_eq!(
+            names(d),
+            ["grid.obj", "r.json", "scene.json", long.as_str()]
+        );
+    }
+}

@@ -265,11 +265,39 @@ fn a_stale_meta_json_is_refused() {
     );
 }
 
+/// A meta.json for the system in `dir` with the given units and the
+/// fingerprint `export-system` would give it.
+fn meta_for(dir: &Path, laplacian_rows: usize, length_scale: f64, length_unit: f64) -> String {
+    use lse_deform::export::{MetaUnits, read_dense, read_sparse, system_fingerprint};
+    let (a, c) = (
+        read_sparse(&dir.join("A.mtx")).unwrap(),
+        read_dense(&dir.join("C.mtx")).unwrap(),
+    );
+    let (b, d) = (
+        read_sparse(&dir.join("B.mtx")).unwrap(),
+        read_dense(&dir.join("D.mtx")).unwrap(),
+    );
+    let units = MetaUnits {
+        laplacian_rows,
+        length_scale,
+        length_unit,
+    };
+    let f = system_fingerprint(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref(), &units);
+    serde_json::json!({
+        "laplacian_rows": laplacian_rows,
+        "length_scale": length_scale,
+        "length_unit": length_unit,
+        "fingerprint": f,
+    })
+    .to_string()
+}
+
 /// A meta.json whose length_scale makes the conflict test meaningless
 /// (1e300 for targets of size 0.6: the tolerance 1e-8 × 1e300 would call
 /// the conflict x₀ = 0.5, x₀ = 0.6 redundant) is refused, exit 2, naming
-/// the file and the key; one that fits is used. (Before: exit 0, "1
-/// redundant, 0 conflicting", forward error ~4e-316.)
+/// the file and the key, even with a fingerprint that matches; one that
+/// fits is used. (Before: exit 0, "1 redundant, 0 conflicting", forward
+/// error ~4e-316.)
 #[test]
 fn an_implausible_length_scale_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -277,7 +305,7 @@ fn an_implausible_length_scale_is_refused() {
     conflicting_system(d);
     let x = path_in(d, "x.mtx");
     let meta = path_in(d, "meta.json");
-    std::fs::write(&meta, r#"{"length_scale": 1e300}"#).unwrap();
+    std::fs::write(&meta, meta_for(d, 0, 1e300, 1.0)).unwrap();
     let dir_arg = d.to_str().unwrap();
     let o = run(&["solve", dir_arg, "-o", &x]);
     let err = stderr(&o);
@@ -287,12 +315,96 @@ fn an_implausible_length_scale_is_refused() {
         "{err}"
     );
     assert!(!err.contains("0 conflicting"), "{err}");
-    std::fs::write(&meta, r#"{"length_scale": 1e-30}"#).unwrap();
+    std::fs::write(&meta, meta_for(d, 0, 1e-30, 1.0)).unwrap();
     let o = run(&["solve", dir_arg, "-o", &x]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    std::fs::write(&meta, r#"{"length_scale": 2.0}"#).unwrap();
+    std::fs::write(&meta, meta_for(d, 0, 2.0, 1.0)).unwrap();
     let o = run(&["solve", dir_arg, "-o", &x]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("1 conflicting"), "{err}");
+}
+
+/// `solve DIR` trusts nothing in meta.json that its fingerprint does not
+/// cover: an edited length_scale (3.8e9, which would call a conflict
+/// redundant), length_unit (1e300) or laplacian_rows, a file that is not
+/// an object, a key given twice, a missing, null or old (`fnv1a64-v1`,
+/// matrices only) fingerprint are each refused, exit 2, naming the file
+/// and what is wrong; the export's own file is used. (Before: each was
+/// used, exit 0: "1 redundant, 0 conflicting", residuals of 5e300, `[1,2,3]`
+/// read as empty, the last of two keys kept.)
+#[test]
+fn meta_json_is_trusted_only_as_far_as_its_fingerprint_goes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mesh = path_in(d, "grid.obj");
+    assert!(
+        run(&["generate", "grid", "--vertices", "400", "-o", &mesh])
+            .status
+            .success()
+    );
+    let scene = path_in(d, "scene.json");
+    assert!(
+        run(&["scene", &mesh, "--conflict", "-o", &scene])
+            .status
+            .success()
+    );
+    let export = path_in(d, "export");
+    let o = run(&["export-system", &mesh, "-c", &scene, "-o", &export]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let x = path_in(d, "x.mtx");
+    let o = run(&["solve", &export, "-o", &x]);
+    assert!(o.status.success(), "the export's own meta: {}", stderr(&o));
+    assert!(stderr(&o).contains("1 conflicting"), "{}", stderr(&o));
+    let path = Path::new(&export).join("meta.json");
+    let original = std::fs::read_to_string(&path).unwrap();
+    let value: serde_json::Value = serde_json::from_str(&original).unwrap();
+    let edited = |key: &str, v: serde_json::Value| {
+        let mut m = value.clone();
+        m[key] = v;
+        m.to_string()
+    };
+    let without_fingerprint = {
+        let mut m = value.clone();
+        m.as_object_mut().unwrap().remove("fingerprint");
+        m.to_string()
+    };
+    let v1 = original.replace("fnv1a64-v2:", "fnv1a64-v1:");
+    let twice = original.replacen('{', "{\"length_scale\": 3.8e9,", 1);
+    let cases: [(String, &str); 9] = [
+        (
+            edited("length_scale", serde_json::json!(3.8e9)),
+            "fingerprint",
+        ),
+        (
+            edited("length_unit", serde_json::json!(1e300)),
+            "fingerprint",
+        ),
+        (
+            edited("laplacian_rows", serde_json::json!(3)),
+            "laplacian_rows",
+        ),
+        ("[1,2,3]".into(), "JSON object"),
+        (twice, "'length_scale' appears twice"),
+        (without_fingerprint, "no 'fingerprint'"),
+        (
+            edited("fingerprint", serde_json::Value::Null),
+            "no 'fingerprint'",
+        ),
+        (v1, "export the system again"),
+        (
+            edited("length_unit", serde_json::Value::Null),
+            "no 'length_unit'",
+        ),
+    ];
+    for (text, words) in cases {
+        std::fs::write(&path, &text).unwrap();
+        let o = run(&["solve", &export, "-o", &x]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{text}: {err}");
+        assert!(
+            err.contains("meta.json") && err.contains(words),
+            "{words}: {err}"
+        );
+    }
 }

@@ -79,7 +79,9 @@ fn reference_backend() -> Option<Arc<dyn SpdBackend>> {
 #[cfg(feature = "mumps")]
 fn mumps_backend() -> Option<Arc<dyn SpdBackend>> {
     crate::harness::timing::start_mpi();
-    Some(Arc::new(lse_deform::backend::mumps::MumpsLlt::new(None)))
+    Some(Arc::new(
+        lse_deform::backend::mumps::MumpsLlt::new(None).ok()?,
+    ))
 }
 
 #[cfg(not(feature = "mumps"))]

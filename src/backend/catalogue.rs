@@ -163,7 +163,7 @@ impl SpdKind {
             #[cfg(feature = "mumps")]
             SpdKind::Mumps => Ok(Arc::new(crate::backend::mumps::MumpsLlt::new(
                 storage.directory().map(std::path::Path::to_path_buf),
-            ))),
+            )?)),
             #[cfg(not(feature = "mumps"))]
             SpdKind::Mumps => Err(ProblemError::InvalidArgument {
                 message: MUMPS_MISSING.into(),
@@ -260,7 +260,7 @@ impl LdltKind {
             #[cfg(feature = "mumps")]
             LdltKind::Mumps => Ok(Arc::new(crate::backend::mumps::MumpsLdlt::new(
                 storage.directory().map(std::path::Path::to_path_buf),
-            ))),
+            )?)),
             #[cfg(not(feature = "mumps"))]
             LdltKind::Mumps => Err(ProblemError::InvalidArgument {
                 message: MUMPS_MISSING.into(),

@@ -9,6 +9,7 @@
 //! or one brought from outside, is docs/backends.md.
 
 pub mod catalogue;
+pub(crate) mod faer_kernel;
 pub mod ldlt;
 #[cfg(feature = "mumps")]
 pub mod mumps;

@@ -46,7 +46,7 @@ pub fn export_system(a: ExportArgs) -> Result<(), Error> {
     let outputs: Vec<_> = paths.iter().map(|p| ("-o", p.as_path())).collect();
     check_distinct(&mesh_and_constraints(&a.mesh, &a.constraints), &outputs)?;
     create_output_dir(&a.output)?;
-    mesh::check_writable(&paths[0])?;
+    super::notes(mesh::check_writable(&paths[0])?);
     let budget = a.method.budget();
     let mesh = load(&a.mesh, budget)?;
     let constraints = constraints_for(&a.constraints, &mesh, false, budget)?;

@@ -25,7 +25,7 @@ pub struct GenerateArgs {
 /// Runs `generate`: the mesh of the kind nearest the vertex count asked for.
 pub fn generate(a: GenerateArgs) -> Result<(), Error> {
     let kind = a.kind;
-    mesh::check_mesh_output(&a.output)?;
+    super::notes(mesh::check_mesh_output(&a.output)?);
     let size = generate::size_for_vertices(kind, a.vertices)?;
     let mesh = generate::generate(kind, size, a.seed)?;
     mesh::write_mesh(&mesh, &a.output)?;

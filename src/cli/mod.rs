@@ -35,6 +35,7 @@ pub mod generate;
 pub mod info;
 pub mod render;
 pub mod scene;
+pub mod signals;
 pub mod solve;
 pub mod summary;
 
@@ -49,24 +50,22 @@ pub struct MethodArgs {
     pub method: Method,
     #[arg(long, help = with_default("QR back end of nullspace-qr: dense-householder, sparse-givens or spqr", lse_deform::formulation::DEFAULT_QR))]
     pub qr: Option<QrKind>,
-    /// The matrix factorisation: the Cholesky back end of nullspace-qr,
-    /// penalty and eliminate (faer-auto, faer-supernodal, faer-simplicial,
-    /// nalgebra or cholmod), and for kkt the faer LDLT variant
-    /// (faer-auto, faer-supernodal, faer-simplicial). `--spd` is the old
-    /// name, still accepted.
-    #[arg(long, visible_alias = "spd", default_value_t = lse_deform::formulation::DEFAULT_SPD)]
+    #[arg(long, help = factor_help(), default_value_t = lse_deform::formulation::DEFAULT_SPD)]
     pub factor: SpdKind,
+    /// The old name of --factor, still accepted (not with --factor).
+    #[arg(long, conflicts_with = "factor")]
+    pub spd: Option<SpdKind>,
     /// Relative penalty weight of the hard rows (--method penalty only;
     /// required there).
     #[arg(long)]
     pub weight: Option<f64>,
     /// Iterative refinement with the same factor: off, auto or a number of
-    /// steps. Default: auto for the exact methods, off for penalty (where
+    /// steps (0 applies none, as off). Default: auto for the exact methods, off for penalty (where
     /// refinement is the method of multipliers and makes it exact).
     #[arg(long)]
     pub refine: Option<Refine>,
-    /// Memory budget of the run (bytes, or with a K, M, G or T suffix,
-    /// powers of 1024): reading the inputs (decompressed and assembled)
+    /// Memory budget of the run (bytes, or with one unit: B, K or KiB, M or
+    /// MiB, G or GiB, T or TiB, powers of 1024): reading the inputs (decompressed and assembled)
     /// and the precompute; what is estimated beyond it is refused before
     /// it is allocated. Default: LSE_MEMORY_LIMIT when set, else the
     /// smallest of the available memory, the address-space limit and the
@@ -81,6 +80,37 @@ pub struct MethodArgs {
     pub out_of_core: Option<std::path::PathBuf>,
 }
 
+/// The help of `--factor`: the back ends of this build (and those it
+/// lacks), for the Cholesky methods and for kkt.
+fn factor_help() -> String {
+    let names = |kinds: Vec<SpdKind>| {
+        kinds
+            .into_iter()
+            .map(SpdKind::name)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let here = SpdKind::available();
+    let ldlt = here
+        .iter()
+        .copied()
+        .filter(|&k| lse_deform::backend::ldlt::LdltKind::for_spd(k).is_some())
+        .collect();
+    let missing: Vec<_> = SpdKind::ALL
+        .into_iter()
+        .filter(|k| !k.in_this_build())
+        .collect();
+    let mut help = format!(
+        "The matrix factorisation: the Cholesky back end of nullspace-qr, penalty and eliminate ({}), and the LDLT back end of kkt ({}).",
+        names(here),
+        names(ldlt)
+    );
+    if !missing.is_empty() {
+        help += &format!(" Not in this build: {}.", names(missing));
+    }
+    help + " --spd is its old name, still accepted"
+}
+
 /// A help line naming the default, for an option left `None` when not
 /// given (so that the command can tell whether it was).
 pub fn with_default(help: &str, default: impl std::fmt::Display) -> String {
@@ -90,7 +120,10 @@ pub fn with_default(help: &str, default: impl std::fmt::Display) -> String {
 /// `--memory-limit`'s value: bytes as [`parse_bytes`] reads them.
 pub fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
     parse_bytes(word).map(MemoryBudget::bytes).ok_or_else(|| {
-        format!("'{word}' is not a size (a positive number of bytes, optionally with K, M, G or T)")
+        format!(
+            "'{word}' is not a size (a positive number of bytes, optionally followed by one unit: {})",
+            lse_deform::limits::SIZE_UNITS
+        )
     })
 }
 
@@ -119,7 +152,7 @@ impl MethodArgs {
         if let Some(qr) = self.qr {
             solve.formulation.qr = qr.into();
         }
-        solve.formulation.spd = self.factor.into();
+        solve.formulation.spd = self.spd.unwrap_or(self.factor).into();
         solve.formulation.weight = self.weight;
         solve.refine = self.refine.or(solve.refine);
         solve.memory_budget = self.memory_limit.unwrap_or(solve.memory_budget);
@@ -247,12 +280,20 @@ pub fn staged<T>(write: impl FnOnce() -> Result<T, Error>) -> Result<T, Error> {
 /// output file are checked before the input is read or anything is solved.
 pub fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result<(), Error> {
     if let Some(path) = mesh_out {
-        mesh::check_mesh_output(path)?;
+        notes(mesh::check_mesh_output(path)?);
     }
     if let Some(path) = file_out {
-        mesh::check_writable(path)?;
+        notes(mesh::check_writable(path)?);
     }
     Ok(())
+}
+
+/// Prints the notes of an output check ([`mesh::check_writable`]: an
+/// interrupted earlier run's outputs put in order).
+pub fn notes(notes: Vec<String>) {
+    for note in notes {
+        eprintln!("note: {note}");
+    }
 }
 
 /// Reads a constraints file for `mesh` within the run's memory budget: a
@@ -322,7 +363,7 @@ mod tests {
     fn spd_is_an_alias_of_factor() {
         let old = parse(&["--method", "kkt", "--spd", "faer-simplicial"]);
         let new = parse(&["--method", "kkt", "--factor", "faer-simplicial"]);
-        assert_eq!(old, new);
+        assert_eq!(old.options().unwrap(), new.options().unwrap());
         let options = new.options().unwrap();
         assert_eq!(options.solve.formulation.spd, SpdKind::FaerSimplicial);
         assert_eq!(options.solve.formulation.method, Method::Kkt);
@@ -330,5 +371,36 @@ mod tests {
             DeformOptions::default().solve.formulation.spd,
             SpdKind::FaerSimplicial
         );
+    }
+
+    /// `--spd a --factor b` is refused naming both flags. (Before: `--spd`
+    /// was an alias, and the message named `--factor` twice.)
+    #[test]
+    fn spd_and_factor_together_are_refused_naming_both() {
+        let argv = ["test", "--spd", "faer-simplicial", "--factor", "nalgebra"];
+        let e = Flags::try_parse_from(argv).err().unwrap().to_string();
+        assert!(e.contains("--spd") && e.contains("--factor"), "{e}");
+    }
+
+    /// The help of `--factor` lists every back end of this build (`mumps`
+    /// in a build with it) and says which are missing. (Before: a fixed
+    /// list, without `mumps`.)
+    #[test]
+    fn the_factor_help_lists_this_builds_back_ends() {
+        use clap::CommandFactory;
+        let help = Flags::command().render_long_help().to_string();
+        for kind in SpdKind::ALL {
+            assert!(help.contains(kind.name()), "{kind}: {help}");
+        }
+        let missing = help.contains("Not in this build");
+        assert_eq!(
+            missing,
+            SpdKind::available().len() < SpdKind::ALL.len(),
+            "{help}"
+        );
+        if cfg!(feature = "mumps") {
+            let list = help.split("Not in this build").next().unwrap();
+            assert!(list.contains("mumps"), "{help}");
+        }
     }
 }

@@ -148,7 +148,7 @@ fn run(a: &RenderArgs) -> Result<(), RenderCommandError> {
         .filter_map(|(what, p)| p.map(|p| (what, p.as_path())))
         .collect();
     super::files::check_distinct(&inputs, &[("-o", a.output.as_path())])?;
-    mesh::check_writable(&a.output)?;
+    super::notes(mesh::check_writable(&a.output)?);
     let original = super::load(&a.mesh, lse_deform::MemoryBudget::default())?;
     let deformed = a
         .deformed

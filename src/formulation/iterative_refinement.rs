@@ -206,7 +206,7 @@ impl Run {
         let rate = size / previous.unwrap_or(self.x_size);
         out.corrections.push(size);
         out.forward_error_estimate = size;
-        if out.mode == Refine::EstimateOnly {
+        if out.mode.is_estimate_only() {
             if self.track_constraints && size.is_finite() && size > 0.0 {
                 // The method of multipliers can contract slowly: measure
                 // its rate with a second correction from the first applied
@@ -317,7 +317,7 @@ impl Run {
                 RefineStop::Stagnated | RefineStop::StepLimit
             ) && r > crate::report::CONFLICT_RELATIVE_TOLERANCE
                 && r >= FLAT_RESIDUAL * first;
-            if out.mode != Refine::EstimateOnly && (conflict_shows(r, last) || flat) {
+            if !out.mode.is_estimate_only() && (conflict_shows(r, last) || flat) {
                 out.stop_reason = RefineStop::ConflictingConstraints;
             }
         }

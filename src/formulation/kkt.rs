@@ -564,9 +564,17 @@ fn pivot_error(
         PivotFault::Null { unknown, test } if unknown >= n => {
             // A back end that merges the members of a dependent group may
             // flag another member than the static order's first: name the
-            // first row that depends on the rows before it.
-            let unknown = first_dependent_row(problem, order)?.map_or(unknown, |k| n + k);
-            (unknown, test, FoundKind::Test)
+            // first row that depends on the rows before it; when the QR
+            // finds every row independent, no constraint is blamed.
+            let Some(k) = first_dependent_row(problem, order)? else {
+                return Ok(NumericalError::Singular {
+                    matrix: MATRIX.into(),
+                    detail: format!(
+                        "a multiplier pivot was flagged ({test}), yet a rank-revealing QR of B keeps every hard row: the factorisation lost its digits, no constraint is dependent (use nullspace-qr)"
+                    ),
+                });
+            };
+            (n + k, test, FoundKind::Test)
         }
         PivotFault::Null { unknown, test } => (unknown, test, FoundKind::Test),
     };

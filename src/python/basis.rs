@@ -29,7 +29,7 @@ use std::collections::HashMap;
 
 use numpy::{PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString};
+use pyo3::types::{PyDict, PyMapping, PyString};
 
 use super::errors::{guarded, input, released, to_py, type_error};
 use super::{DeformerState, PyDeformer, convert};
@@ -179,6 +179,12 @@ pub(super) fn build(
         .extract()
         .map_err(|_| type_error(format!("{expected}, got {}", type_name(groups))))?;
     let (basis, stamp) = deformer.borrow().with_state(py, move |s| {
+        if s.deformer.solver().prepared().is_none() {
+            return Err(ProblemError::InvalidArgument {
+                message: "basis() called before precompute(): call precompute() first".into(),
+            }
+            .into());
+        }
         let stamp = s.changes.stamp();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
         Ok((HandleBasis::new(&mut s.deformer, &names)?, stamp))
@@ -207,6 +213,7 @@ impl PyHandleBasis {
             let m = self.transforms(transforms)?;
             let out = output(py, out, self.basis.n_vertices())?;
             self.check_current(py)?;
+            self.check_maps(py, &m)?;
             let mut guard = out
                 .try_readwrite()
                 .map_err(|e| input(format!("out is not writable: {e}")))?;
@@ -267,14 +274,20 @@ impl PyHandleBasis {
     /// identity for a group it leaves out.
     fn transforms(&self, obj: &Bound<'_, PyAny>) -> PyResult<Vec<Affine>> {
         let groups = self.basis.groups();
-        let dict = obj.cast::<PyDict>().map_err(|_| {
+        let expected = || {
             type_error(format!(
-                "transforms must be a dict from group name to a 3 × 4 or 4 × 4 affine map, got {}",
+                "transforms must be a mapping (a dict) from group name to a 3 × 4 or 4 × 4 affine map, got {}",
                 type_name(obj)
             ))
-        })?;
+        };
+        // Any mapping (collections.abc.Mapping: a dict, a MappingProxyType).
+        let items = match obj.cast::<PyDict>() {
+            Ok(dict) => dict.items(),
+            Err(_) => obj.cast::<PyMapping>().map_err(|_| expected())?.items()?,
+        };
         let mut m = vec![IDENTITY; groups.len()];
-        for (key, value) in dict.iter() {
+        for item in items.iter() {
+            let (key, value): (Bound<'_, PyAny>, Bound<'_, PyAny>) = item.extract()?;
             let name: String = key.extract().map_err(|_| {
                 type_error(format!(
                     "transforms: the keys are group names (str), got {}",
@@ -290,6 +303,18 @@ impl PyHandleBasis {
             m[g] = affine(&value, &format!("transforms['{name}']"))?;
         }
         Ok(m)
+    }
+
+    /// The checks of `transform_group` on each map of `m` (a matrix whose
+    /// targets overflow is refused here as there), without moving anything.
+    fn check_maps(&self, py: Python<'_>, m: &[Affine]) -> PyResult<()> {
+        let groups = self.basis.groups();
+        self.deformer.bind(py).borrow().with_state(py, move |s| {
+            for (name, map) in groups.iter().zip(m) {
+                s.deformer.check_transform(name, map)?;
+            }
+            Ok(())
+        })
     }
 
     /// An `InputError` when the Deformer changed since the basis was built
@@ -343,7 +368,7 @@ fn output<'py>(
     Ok(out.cast::<PyArray2<f64>>()?.clone())
 }
 
-fn type_name(obj: &Bound<'_, PyAny>) -> String {
+pub(super) fn type_name(obj: &Bound<'_, PyAny>) -> String {
     obj.get_type()
         .name()
         .map(|n| n.to_string())

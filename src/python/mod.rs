@@ -84,8 +84,41 @@ struct Keywords<'a, 'py> {
     refine: Option<&'a Bound<'py, PyAny>>,
     memory_limit: Option<&'a Bound<'py, PyAny>>,
     /// `out_of_core=`: the directory of an out-of-core factor (`None`: in
-    /// core).
-    out_of_core: Option<std::path::PathBuf>,
+    /// core), as [`out_of_core_dir`] reads it.
+    out_of_core: Option<&'a Bound<'py, PyAny>>,
+}
+
+/// `out_of_core=`'s directory: a `str`, `bytes` or `os.PathLike` (what
+/// `os.fspath` takes), or `None`; anything else is a `TypeError` saying
+/// so.
+fn out_of_core_dir(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Option<std::path::PathBuf>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let expected = || {
+        type_error(format!(
+            "out_of_core must be a directory (str, bytes or os.PathLike) or None, got {}",
+            basis::type_name(obj)
+        ))
+    };
+    let path = obj
+        .py()
+        .import("os")?
+        .call_method1("fspath", (obj,))
+        .map_err(|_| expected())?;
+    if let Ok(bytes) = path.cast::<pyo3::types::PyBytes>() {
+        #[cfg(unix)]
+        {
+            use std::os::unix::ffi::OsStrExt;
+            let os = std::ffi::OsStr::from_bytes(bytes.as_bytes());
+            return Ok(Some(std::path::PathBuf::from(os)));
+        }
+        #[cfg(not(unix))]
+        return String::from_utf8(bytes.as_bytes().to_vec())
+            .map(|s| Some(s.into()))
+            .map_err(|_| expected());
+    }
+    path.extract().map(Some).map_err(|_| expected())
 }
 
 /// The `factor=` keyword and `spd=`, its old name (kept for one release).
@@ -165,7 +198,7 @@ impl Keywords<'_, '_> {
             f.spd = spd;
         }
         f.weight = self.weight.or(f.weight);
-        if let Some(dir) = self.out_of_core {
+        if let Some(dir) = out_of_core_dir(self.out_of_core)? {
             options.solve.factor_storage = FactorStorage::OutOfCore(dir);
         }
         let f = &options.solve.formulation;
@@ -398,7 +431,7 @@ fn deform<'py>(
     tolerance: Option<f64>,
     arap_init: Option<&str>,
     memory_limit: Option<&Bound<'py, PyAny>>,
-    out_of_core: Option<std::path::PathBuf>,
+    out_of_core: Option<&Bound<'py, PyAny>>,
     spd: Option<&str>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
@@ -643,7 +676,7 @@ fn solve_lse<'py>(
     weight: Option<f64>,
     refine: Option<&Bound<'py, PyAny>>,
     memory_limit: Option<&Bound<'py, PyAny>>,
-    out_of_core: Option<std::path::PathBuf>,
+    out_of_core: Option<&Bound<'py, PyAny>>,
     spd: Option<&str>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
@@ -735,7 +768,7 @@ impl PyDeformer {
         weight: Option<f64>,
         refine: Option<&Bound<'_, PyAny>>,
         memory_limit: Option<&Bound<'_, PyAny>>,
-        out_of_core: Option<std::path::PathBuf>,
+        out_of_core: Option<&Bound<'_, PyAny>>,
         spd: Option<&str>,
     ) -> PyResult<PyDeformer> {
         guarded(|| {

@@ -180,6 +180,42 @@ class SceneBuilder:
     def hards(self, k=3):
         return [g() for g in (self.edge, self.face, self.relative) for _ in range(k)]
 
+    def relative_tree(self, k):
+        """`k` hard relative rows forming a tree along a feature: a walk of
+        free vertices, each step to the free neighbour farthest along the
+        mesh's longest axis, every fourth vertex also sprouting a one-edge
+        branch; each row ties a vertex to its parent (target: their offset
+        plus a small move). A tree has no cycle, so the rows are
+        independent."""
+        n = len(self.V)
+        nbrs = [[] for _ in range(n)]
+        for a, b in self.edges:
+            nbrs[a].append(int(b))
+            nbrs[b].append(int(a))
+        ext = self.V.max(axis=0) - self.V.min(axis=0)
+        along = self.V[:, int(np.argmax(ext))]
+        free = np.flatnonzero(~self.used)
+        (v,) = [int(x) for x in free[np.argsort(along[free])[len(free) // 4 : len(free) // 4 + 1]]]
+        self.used[v] = True
+        rows, path = [], [v]
+        while len(rows) < k and path:
+            options = [u for u in nbrs[path[-1]] if not self.used[u]]
+            if not options:
+                path.pop()  # a dead end: go on from an earlier vertex
+                continue
+            v = path[-1]
+            u = max(options, key=lambda x: (along[x], x))
+            self.used[u] = True
+            rows.append(rel(u, v, self.V[u] - self.V[v] + self.disp(0.01)))
+            if len(rows) % 4 == 0 and len(rows) < k:
+                side = [w for w in nbrs[u] if not self.used[w]]
+                if side:
+                    w = side[0]
+                    self.used[w] = True
+                    rows.append(rel(w, u, self.V[w] - self.V[u] + self.disp(0.01)))
+            path.append(u)
+        return rows
+
     def shuffle(self, rows):
         perm = self.rng.permutation(len(rows))
         return [rows[i] for i in perm]
@@ -271,6 +307,13 @@ class SceneBuilder:
             # the Done-means scene: hard positions, edges, faces and
             # relatives, 20 soft positions and 5 soft faces
             return self.shuffle(fixed + handle + self.hards(4) + self.softs(20, 5))
+        if cls == "relative-tree":
+            # hard positions and a tree of hard relative rows (issue 38:
+            # MUMPS's KKT lost its digits on such scenes)
+            return self.shuffle(fixed + handle + self.relative_tree(int(variant)))
+        if cls == "edges-beside-positions":
+            # a handful of hard edge points beside the hard positions
+            return self.shuffle(fixed + handle + [self.edge() for _ in range(int(variant))])
         conflict = cls == "conflicting"
         before, after = self.dependent_rows(variant, conflict)
         extra = self.hards(2) if variant == "mixed" else []
@@ -623,6 +666,11 @@ def main():
     # the ill-conditioned generated sliver mesh with every Laplacian
     for li, lap in enumerate(LAPS):
         scenes.append((f"sliver/{lap}/all-kinds", generated["sliver"], lap, "all-kinds", "-", 2000 + li, True))
+    # hard relative rows in a tree along mesh edges beside hard positions
+    # (issue 38: MUMPS's KKT took rounding-level pivots and lost every
+    # digit on such scenes, with as few as 30 rows)
+    for li, (g, lap, k) in enumerate((("icosphere", "cotan", 30), ("grid", "uniform", 100))):
+        scenes.append((f"{g}/{lap}/relative-tree({k})", generated[g], lap, "relative-tree", str(k), 2100 + li, True))
     if real:
         # every Laplacian x class on a real mesh (rotating through eight),
         # then the Done-means scene and the ill-conditioned ones with every
@@ -647,6 +695,11 @@ def main():
                 var = real_variants.get(cls, ["-"] * 4)[li]
                 real_plan.append((rotation[(5 * li + ci) % len(rotation)], lap, cls, var, False))
         real_plan += [
+            # issue 38's scenes for KKT over MUMPS: a tree of hard relative
+            # rows, and a few hard edge points beside many hard positions
+            ("bunny-3k.obj", "cotan", "relative-tree", "100", False),
+            ("dragon-10k.obj", "cotan-symmetric", "relative-tree", "300", False),
+            ("bunny-3k.obj", "uniform", "edges-beside-positions", "8", False),
             # the Done-means scene: the 35k-vertex Stanford Bunny, cotangent
             ("bunny-35k-stanford.obj", "cotan", "done-means", "-", True),
             ("bunny-35k-stanford.obj", "intrinsic-delaunay", "done-means", "-", False),
@@ -677,7 +730,8 @@ def main():
         if mesh not in mesh_cache:
             mesh_cache[mesh] = R.read_obj(mesh)
         V, F = mesh_cache[mesh]
-        sb = SceneBuilder(V, F, seed)
+        # about 700 hard positions on the 3k Bunny beside the edge points
+        sb = SceneBuilder(V, F, seed, fixed=0.16 if cls == "edges-beside-positions" else 0.12)
         rows = sb.build(cls, var)
         tag = name.replace("/", "_").replace("(", "_").replace(")", "").replace("+", "_")
         cons_path = work / f"{tag}.json"

@@ -19,8 +19,10 @@ use super::{
     LdltBackend, LdltFactor, LdltKind, LdltSymbolic, Pivot, PivotFault, PivotRule, first_fault,
 };
 use crate::backend::BackendName;
+use crate::backend::faer_kernel;
 use crate::backend::spd::factor_size;
-use crate::error::NumericalError;
+use crate::error::{NumericalError, ProblemError};
+use crate::limits::MemoryBudget;
 use crate::sparse::lower_diag;
 
 /// The name in a [`NumericalError::Backend`] from this back end.
@@ -29,6 +31,12 @@ const BACKEND: &str = "faer-ldlt";
 /// Right-hand-side columns the factor's solve workspace is sized for (a
 /// mesh's x, y, z); wider right-hand sides get their own.
 const WORKSPACE_COLUMNS: usize = 3;
+
+/// The parallelism of the numeric factorisation: every thread of rayon's
+/// pool.
+fn numeric_parallelism() -> Par {
+    Par::rayon(0)
+}
 
 fn backend_error(e: impl std::fmt::Debug) -> NumericalError {
     NumericalError::Backend {
@@ -105,7 +113,7 @@ impl LdltSymbolic for FaerLdltSymbolic {
     ) -> Result<Box<dyn LdltFactor>, NumericalError> {
         let symbolic = Arc::clone(&self.symbolic);
         let mut values = vec![0.0f64; symbolic.len_val()];
-        let par = Par::rayon(0);
+        let par = numeric_parallelism();
         let mut mem = MemBuffer::try_new(
             symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
         )
@@ -133,6 +141,40 @@ impl LdltSymbolic for FaerLdltSymbolic {
 
     fn factor_values(&self) -> usize {
         self.symbolic.len_val()
+    }
+
+    /// Refuses a factorisation that would not fit: the factor's values,
+    /// faer's scratch of the factorisation (`factorize_numeric_ldlt_scratch`)
+    /// and of a solve of [`WORKSPACE_COLUMNS`] columns, and the pivots'
+    /// per-unknown arrays, on top of what the process holds, against
+    /// `budget` ([`MemoryBudget::check_on_top`]); and all that plus faer's
+    /// matrix-multiply kernel against the address-space limit, which it
+    /// then reserves ([`faer_kernel::reserve`]).
+    fn check_budget(
+        &self,
+        budget: MemoryBudget,
+        dim: usize,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        let symbolic = &*self.symbolic;
+        let scratch = symbolic
+            .factorize_numeric_ldlt_scratch::<f64>(numeric_parallelism(), Default::default())
+            .and(symbolic.solve_in_place_scratch::<f64>(WORKSPACE_COLUMNS, Par::Seq))
+            .size_bytes() as u64;
+        let total = (symbolic.len_val() as u64)
+            .saturating_add(4 * dim as u64)
+            .saturating_mul(8)
+            .saturating_add(scratch);
+        let what = || {
+            format!(
+                "the LDLᵀ factor of {matrix} ({dim} unknowns, {} entries after fill-in) and its workspace",
+                symbolic.len_val()
+            )
+        };
+        budget
+            .check_on_top(total, || format!("{} would need", what()))
+            .map_err(|detail| ProblemError::TooLarge { detail })?;
+        faer_kernel::reserve(numeric_parallelism(), total, &what())
     }
 }
 

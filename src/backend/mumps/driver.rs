@@ -2,6 +2,7 @@
 //! the other ranks, then makes the same collective call itself, all under
 //! the process-wide lock of [`super::ranks`].
 
+use std::os::unix::ffi::OsStrExt;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::ffi::{DMUMPS_STRUC_C, Struc};
@@ -34,8 +35,7 @@ impl Driver {
         let id = NEXT_ID.fetch_add(1, Ordering::Relaxed);
         let setup = Setup {
             sym,
-            out_of_core: out_of_core.map(|p| p.to_string_lossy().into_owned()),
-            pid: std::process::id(),
+            out_of_core: out_of_core.map(|p| p.as_os_str().as_bytes().to_vec()),
         };
         send(
             &world,
@@ -44,7 +44,7 @@ impl Driver {
                 setup: setup.clone(),
             },
         );
-        let mumps = Mumps::create(&world, id, &setup)?;
+        let mumps = Mumps::create(&world, &setup)?;
         Ok(Driver {
             id,
             mumps: Some(mumps),
@@ -115,6 +115,22 @@ impl Driver {
     pub fn scratch_directory(&self) -> Option<&std::path::Path> {
         self.mumps().scratch_directory()
     }
+}
+
+/// Every rank checks that it can keep an out-of-core factor under `dir`
+/// ([`super::instance::probe_directory`]).
+pub(crate) fn probe_out_of_core(dir: &std::path::Path) -> Result<(), Failure> {
+    let rt = runtime();
+    if rt.rank != 0 {
+        return Err(Failure::Rank(
+            "the MUMPS back end is driven from rank 0 only".into(),
+        ));
+    }
+    let _turn = rt.serial();
+    let world = rt.world();
+    let dir = dir.as_os_str().as_bytes().to_vec();
+    send(&world, &Command::ProbeDirectory { dir: dir.clone() });
+    super::instance::probe_directory(&world, &dir)
 }
 
 impl Drop for Driver {

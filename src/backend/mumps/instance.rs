@@ -8,7 +8,9 @@
 //! input, `ICNTL(18) = 0`, and a centralised dense solution).
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::ffi::OsStr;
+use std::os::unix::ffi::OsStrExt;
+use std::path::Path;
 
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -16,6 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::ffi::{self, Struc};
 use super::ranks::{self, agree, gather_to_root};
+use super::scratch::{self, ScratchDir};
 use crate::limits::MemoryBudget;
 
 /// What rank 0 tells the other ranks to do next.
@@ -28,6 +31,9 @@ pub(crate) enum Command {
     /// Check every rank's memory estimate against its budget (rank 0's,
     /// with its source; another rank uses the smaller of this and its own).
     CheckMemory { id: u64, budget: MemoryBudget },
+    /// Check on every rank that a scratch directory can be made and
+    /// written under this out-of-core directory (its path's bytes).
+    ProbeDirectory { dir: Vec<u8> },
     /// Free instance `id` (`JOB = −2`) and its scratch directory.
     Destroy { id: u64 },
     /// Finalise MPI and exit with this code.
@@ -40,10 +46,14 @@ pub(crate) struct Setup {
     /// `SYM`: 1 symmetric positive definite, 2 general symmetric.
     pub sym: i32,
     /// The directory under which each rank makes its own scratch directory
-    /// for the out-of-core factor (`ICNTL(22) = 1`); `None`: in core.
-    pub out_of_core: Option<String>,
-    /// Rank 0's process id (names the scratch directories).
-    pub pid: u32,
+    /// for the out-of-core factor (`ICNTL(22) = 1`), as the bytes of its
+    /// path (any name the system takes, UTF-8 or not); `None`: in core.
+    pub out_of_core: Option<Vec<u8>>,
+}
+
+/// A path from its bytes (Unix).
+pub(crate) fn path_of(bytes: &[u8]) -> &Path {
+    Path::new(OsStr::from_bytes(bytes))
 }
 
 /// `ICNTL` and `CNTL` entries (1-based) set before a job.
@@ -108,32 +118,9 @@ pub(crate) enum Failure {
     Memory(String),
     /// A step outside MUMPS failed on some rank (the message says where).
     Rank(String),
-}
-
-/// A rank's scratch directory for the out-of-core factor, removed with
-/// everything in it when dropped (also after an error).
-struct ScratchDir(PathBuf);
-
-impl ScratchDir {
-    fn create(parent: &Path, pid: u32, id: u64, rank: i32) -> Result<ScratchDir, String> {
-        let path = parent.join(format!("lse-deform-{pid}-{id}-rank{rank}"));
-        // MUMPS's ooc_tmpdir holds 255 bytes and its terminating zero.
-        let mut probe = [0; 256];
-        write_c_string(&mut probe, &path.to_string_lossy())?;
-        std::fs::create_dir(&path).map_err(|e| {
-            format!(
-                "cannot make the out-of-core directory {}: {e}",
-                path.display()
-            )
-        })?;
-        Ok(ScratchDir(path))
-    }
-}
-
-impl Drop for ScratchDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
+    /// The out-of-core directory cannot hold the factor on some rank (the
+    /// message names the directory, the rank and the system's reason).
+    Directory(String),
 }
 
 /// One MUMPS instance on this rank.
@@ -150,20 +137,20 @@ impl Mumps {
     /// silenced, and, out of core, this rank's scratch directory.
     /// This rank's scratch directory of the out-of-core factor, if any.
     pub fn scratch_directory(&self) -> Option<&Path> {
-        self.scratch.as_ref().map(|s| s.0.as_path())
+        self.scratch.as_ref().map(ScratchDir::path)
     }
 
-    pub fn create(world: &SimpleCommunicator, id: u64, setup: &Setup) -> Result<Mumps, Failure> {
+    pub fn create(world: &SimpleCommunicator, setup: &Setup) -> Result<Mumps, Failure> {
         let rank = world.rank();
         let scratch = setup
             .out_of_core
             .as_ref()
-            .map(|parent| ScratchDir::create(Path::new(parent), setup.pid, id, rank));
+            .map(|parent| ScratchDir::create(path_of(parent), rank));
         let local = match &scratch {
             Some(Err(e)) => Err(e.clone()),
             _ => Ok(()),
         };
-        agree(world, local).map_err(Failure::Rank)?;
+        agree(world, local).map_err(Failure::Directory)?;
         let scratch = scratch.and_then(Result::ok);
         let mut struc = Struc::zeroed();
         struc.0.comm_fortran = ffi::USE_COMM_WORLD;
@@ -178,7 +165,7 @@ impl Mumps {
         if let Some(dir) = &scratch {
             struc.set_icntl(22, 1);
             // Checked to fit by ScratchDir::create.
-            let _ = write_c_string(&mut struc.0.ooc_tmpdir, &dir.0.to_string_lossy());
+            let _ = write_c_string(&mut struc.0.ooc_tmpdir, dir.bytes());
         }
         Ok(Mumps {
             struc,
@@ -212,7 +199,9 @@ impl Mumps {
 
     /// Collective: each rank checks its own estimate of the factorisation's
     /// memory (out of core: what stays in memory) against its budget: rank
-    /// 0's `budget`, or a rank's own when that is smaller.
+    /// 0's `budget`, or a rank's own when that is smaller; out of core,
+    /// also its estimate of its share of the factor (`INFO(24)` entries)
+    /// against the space free in its scratch directory.
     pub fn check_memory(
         &self,
         world: &SimpleCommunicator,
@@ -241,7 +230,16 @@ impl Mumps {
                 crate::limits::format_bytes(resident)
             )
         });
-        agree(world, local).map_err(Failure::Memory)
+        agree(world, local).map_err(Failure::Memory)?;
+        match &self.scratch {
+            // Out of core, this rank's share of the factor goes to disk.
+            Some(dir) => {
+                let needed = ffi::count(self.struc.info(24)).saturating_mul(8);
+                let local = scratch::check_space(dir.path(), needed);
+                agree(world, local).map_err(Failure::Directory)
+            }
+            None => Ok(()),
+        }
     }
 
     /// Whether the factor is kept out of core.
@@ -266,14 +264,11 @@ fn check(struc: &Struc) -> Result<(), Failure> {
     }
 }
 
-/// Copies `text` into a C `char` array with its terminating zero.
-fn write_c_string(target: &mut [std::os::raw::c_char], text: &str) -> Result<(), String> {
-    let bytes = text.as_bytes();
+/// Copies `bytes` into a C `char` array with its terminating zero (`Err`
+/// when they do not fit or hold a zero).
+fn write_c_string(target: &mut [std::os::raw::c_char], bytes: &[u8]) -> Result<(), ()> {
     if bytes.len() >= target.len() || bytes.contains(&0) {
-        return Err(format!(
-            "the out-of-core directory {text} is longer than MUMPS's {} bytes",
-            target.len() - 1
-        ));
+        return Err(());
     }
     for (t, &b) in target.iter_mut().zip(bytes) {
         *t = b as std::os::raw::c_char;
@@ -300,7 +295,7 @@ pub(crate) fn serve(world: &SimpleCommunicator) -> u8 {
         };
         match command {
             Command::Create { id, setup } => {
-                if let Ok(m) = Mumps::create(world, id, &setup) {
+                if let Ok(m) = Mumps::create(world, &setup) {
                     instances.insert(id, m);
                 }
             }
@@ -314,6 +309,9 @@ pub(crate) fn serve(world: &SimpleCommunicator) -> u8 {
                     let _ = m.check_memory(world, budget);
                 }
             }
+            Command::ProbeDirectory { dir } => {
+                let _ = probe_directory(world, &dir);
+            }
             Command::Destroy { id } => {
                 if let Some(m) = instances.remove(&id) {
                     m.destroy();
@@ -322,6 +320,14 @@ pub(crate) fn serve(world: &SimpleCommunicator) -> u8 {
             Command::Exit { code } => return code,
         }
     }
+}
+
+/// Collective: every rank makes a scratch directory under `dir` and writes
+/// in it ([`scratch::probe`]); the first rank that cannot says why, on
+/// every rank.
+pub(crate) fn probe_directory(world: &SimpleCommunicator, dir: &[u8]) -> Result<(), Failure> {
+    let local = scratch::probe(path_of(dir), world.rank());
+    agree(world, local).map_err(Failure::Directory)
 }
 
 /// Rank 0: sends `command` to the other ranks (nothing to do alone).

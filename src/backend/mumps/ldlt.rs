@@ -1,26 +1,36 @@
 //! MUMPS's `LDLᵀ` (`SYM = 2`) behind the `LDLᵀ` seam
 //! ([`crate::backend::ldlt`]), for the KKT formulation.
 //!
-//! The seam's contract is a **static** order given by the caller. MUMPS
-//! gets it as `PERM_IN` (`ICNTL(7) = 1`) with numerical pivoting only for
-//! a pivot that is exactly zero (`CNTL(1)`, [`PIVOT_THRESHOLD`]), MUMPS's
-//! automatic symmetric scaling (`ICNTL(8) = 77`: a diagonal scaling, which
-//! changes no pivot's zero-ness and makes the null-pivot test below
-//! relative to rows of comparable size), the usual (not compressed) ordering
-//! (`ICNTL(12) = 1`) and the root node factored like any other
-//! (`ICNTL(13) = 1`). MUMPS still orders within its own tree: unknowns with
-//! one pattern (duplicate constraints) are merged into one node and may be
-//! eliminated in another order than the given one. MUMPS does not hand
-//! out the pivots: it judges them itself with its null-pivot detection
+//! The KKT formulation's static order goes in as `PERM_IN`
+//! (`ICNTL(7) = 1`), with no scaling (`ICNTL(8) = 0`: `K` is already
+//! balanced by the formulation's power-of-two multiplier scale, and the
+//! thresholds below are relative to `K` as the formulation scaled it), the
+//! usual (not compressed) ordering (`ICNTL(12) = 1`) and the root node
+//! factored like any other (`ICNTL(13) = 1`).
+//!
+//! **MUMPS does not keep the static order**, so it pivots. Within its
+//! fronts it meets some multipliers before their vertices, where their
+//! pivots are zero in exact arithmetic (docs/distributed.md §3 has the
+//! counts). With the pivoting threshold `CNTL(1)` at the smallest double,
+//! only exactly zero pivots were delayed; the ones rounding left at
+//! `1e-16`… of their column were taken, and every digit was lost on trees
+//! of hard relative rows (backward error 0.1–0.3, one negative pivot too
+//! many, or a sound constraint flagged null). `CNTL(1) =`
+//! [`PIVOT_THRESHOLD`] `= 0.01`, MUMPS's default for `SYM = 2`, is
+//! threshold pivoting proper: a pivot below 1 % of its column in the front
+//! is delayed or paired into a 2×2 block, which bounds the growth.
+//!
+//! **Null pivots.** MUMPS judges them itself with its null-pivot detection
 //! (`ICNTL(24) = 1`), which flags a pivot whose row in the frontal matrix
-//! has an infinity norm below `CNTL(3)` times the norm of the scaled `K`;
-//! `CNTL(3)` is the KKT pivot
-//! tolerance `1000 ε` and `K` is already scaled so that its constraint
-//! block matches `AᵀA`. The flagged unknowns (`PIVNUL_LIST`) and the count
-//! of negative pivots (`INFOG(12)`) become the seam's one pivot report
-//! ([`LdltFactor::pivot_fault`]): the flagged unknown first in the given
-//! order, as a [`PivotFault::Null`], which the KKT formulation turns into
-//! the same errors as faer's computed pivots (docs/distributed.md §3).
+//! has an infinity norm below `CNTL(3)` times the norm of `K`; `CNTL(3)` is
+//! the KKT pivot tolerance `1000 ε`. The flagged unknowns (`PIVNUL_LIST`)
+//! and the count of negative pivots (`INFOG(12)`) become the seam's one
+//! pivot report ([`LdltFactor::pivot_fault`]): the flagged unknown first
+//! in the given order, as a [`PivotFault::Null`]; since MUMPS's sequence
+//! is not the static one, the KKT formulation names the dependent
+//! constraint from the rows themselves (a rank-revealing QR of `B`), as
+//! faer's pivots name it, and blames none when the QR finds the rows
+//! independent (docs/distributed.md §3).
 
 use std::path::PathBuf;
 
@@ -55,25 +65,30 @@ const NULL_PIVOT_THRESHOLD: f64 = 1000.0 * f64::EPSILON;
 const ROUNDING_NULL_THRESHOLD: f64 = 1e-17;
 
 /// `CNTL(1)`, the relative threshold of numerical pivoting: MUMPS keeps a
-/// pivot in place unless it is below this fraction of the largest entry
-/// of its column in the front. Zero would turn pivoting off, but MUMPS's
-/// null-pivot detection lives in its pivot search and stops with it (a
-/// zero pivot is then error −10), so the threshold is the smallest normal
-/// double rather than zero: only an exactly zero pivot leaves its place.
-/// (With `1e-10`, small but sound pivots of sliver-heavy meshes were
-/// delayed out of the static order and met as null ones later.)
-const PIVOT_THRESHOLD: f64 = f64::MIN_POSITIVE;
+/// pivot in place unless it is below this fraction of the largest entry of
+/// its column in the front, and otherwise delays it or pairs it into a 2×2
+/// pivot. `0.01` is MUMPS's default for `SYM = 2` (user's guide, `CNTL(1)`):
+/// it bounds the growth of the entries by `1 + 1/0.01` per elimination
+/// step. Smaller thresholds let MUMPS take pivots that are rounding errors
+/// of zero where its sequence meets a multiplier before its vertices:
+/// the smallest normal double (the earlier value) and `1000 ε` lost every
+/// digit on trees of hard relative rows (Bunny 3k, 100 rows: backward
+/// error 0.25), `1e-10` on the 50k-vertex Dragon with 300 rows.
+const PIVOT_THRESHOLD: f64 = 0.01;
 
-/// MUMPS's `LDLᵀ` in a static order.
+/// MUMPS's `LDLᵀ`, given the static order.
 #[derive(Debug, Clone, Default)]
 pub struct MumpsLdlt {
     out_of_core: Option<PathBuf>,
 }
 
 impl MumpsLdlt {
-    /// In core (`None`) or with the factor in files under `out_of_core`.
-    pub fn new(out_of_core: Option<PathBuf>) -> MumpsLdlt {
-        MumpsLdlt { out_of_core }
+    /// In core (`None`) or with the factor in files under `out_of_core`,
+    /// which every rank checks it can use (bad input when one cannot:
+    /// [`super::check_out_of_core`]).
+    pub fn new(out_of_core: Option<PathBuf>) -> Result<MumpsLdlt, ProblemError> {
+        super::check_out_of_core(out_of_core.as_deref())?;
+        Ok(MumpsLdlt { out_of_core })
     }
 }
 

@@ -26,11 +26,13 @@ mod ffi;
 mod instance;
 mod ldlt;
 mod ranks;
+mod scratch;
 mod session;
 
 pub use cholesky::MumpsLlt;
 pub use ldlt::MumpsLdlt;
 pub use ranks::launched_by_mpirun;
+pub use scratch::remove_all as remove_scratch;
 
 use instance::Failure;
 
@@ -130,18 +132,35 @@ pub(crate) fn numerical(failure: Failure) -> NumericalError {
 pub(crate) fn failure_message(failure: Failure) -> String {
     match failure {
         Failure::Mumps { infog1, infog2 } => describe(infog1, infog2),
-        Failure::Memory(m) | Failure::Rank(m) => m,
+        Failure::Memory(m) | Failure::Rank(m) | Failure::Directory(m) => m,
     }
 }
 
-/// A refused memory check as the usual refusal.
+/// A refused memory check as the usual refusal; a directory that cannot
+/// hold the factor as bad input.
 pub(crate) fn too_large(failure: Failure, matrix: &str) -> ProblemError {
     let detail = match failure {
+        Failure::Directory(message) => return ProblemError::InvalidArgument { message },
         Failure::Memory(m) | Failure::Rank(m) => m,
         Failure::Mumps { infog1, infog2 } => describe(infog1, infog2),
     };
     ProblemError::TooLarge {
         detail: format!("factoring {matrix}: {detail}"),
+    }
+}
+
+/// Checks, on every rank, that an out-of-core factor can be kept under
+/// `dir`: bad input (naming the directory, the rank and the system's
+/// reason) when a rank cannot make and write its scratch directory there.
+pub(crate) fn check_out_of_core(dir: Option<&std::path::Path>) -> Result<(), ProblemError> {
+    match dir {
+        Some(dir) => driver::probe_out_of_core(dir).map_err(|f| ProblemError::InvalidArgument {
+            message: match f {
+                Failure::Mumps { infog1, infog2 } => describe(infog1, infog2),
+                Failure::Memory(m) | Failure::Rank(m) | Failure::Directory(m) => m,
+            },
+        }),
+        None => Ok(()),
     }
 }
 

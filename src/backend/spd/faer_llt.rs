@@ -22,7 +22,9 @@ use super::triangular::{
     wide_lanes_native, wide_passes,
 };
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
-use crate::error::NumericalError;
+use crate::backend::faer_kernel;
+use crate::error::{NumericalError, ProblemError};
+use crate::limits::MemoryBudget;
 
 /// faer's sparse Cholesky `LLᵀ` with AMD ordering.
 #[derive(Debug, Clone, Copy)]
@@ -171,6 +173,60 @@ impl SpdSymbolic for FaerSymbolic {
 
     fn factor_nnz(&self) -> usize {
         self.nnz
+    }
+
+    /// Refuses a factorisation that would not fit: the factor's values
+    /// and the factorisation's workspace ([`FaerSymbolic::workspace_bytes`])
+    /// on top of what the process holds, against `budget`
+    /// ([`MemoryBudget::check_on_top`]); and all that plus faer's
+    /// matrix-multiply kernel against the address-space limit, which it
+    /// then reserves ([`faer_kernel::reserve`]).
+    fn check_budget(
+        &self,
+        budget: MemoryBudget,
+        dim: usize,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        let par = numeric_parallelism(self.symbolic.len_val());
+        let values = (self.symbolic.len_val() as u64).saturating_mul(8);
+        let total = values.saturating_add(self.workspace_bytes(par));
+        let what = || {
+            format!(
+                "the Cholesky factor of {matrix} ({dim} unknowns, {} entries after fill-in) and its workspace",
+                self.nnz
+            )
+        };
+        budget
+            .check_on_top(total, || format!("{} would need", what()))
+            .map_err(|detail| ProblemError::TooLarge { detail })?;
+        faer_kernel::reserve(par, total, &what())
+    }
+}
+
+impl FaerSymbolic {
+    /// Bytes a numeric factorisation at `par` allocates besides the
+    /// factor's values, at its peak: faer's scratch
+    /// (`factorize_numeric_llt_scratch`), a copy of the largest supernode
+    /// (the transposition into the solves' layout), and per unknown the
+    /// permutation, the diagonal, its inverse and one group of solve lanes.
+    fn workspace_bytes(&self, par: Par) -> u64 {
+        let symbolic = &*self.symbolic;
+        let scratch = symbolic
+            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+            .size_bytes();
+        let largest = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(s) => s
+                .col_ptr_for_val()
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .max()
+                .unwrap_or(0),
+            SymbolicCholeskyRaw::Simplicial(_) => 0,
+        };
+        let per_unknown = 8 * (3 + LANES);
+        (scratch as u64)
+            .saturating_add(8 * largest as u64)
+            .saturating_add((symbolic.nrows() * per_unknown) as u64)
     }
 }
 

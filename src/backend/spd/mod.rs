@@ -46,8 +46,10 @@ pub use nalgebra::NalgebraCsc;
 pub const BREAKDOWN_RATIO: f64 = 1000.0 * f64::EPSILON;
 
 /// Refuses a factorisation whose factor, as the symbolic analysis sized it,
-/// would not fit in the solve's memory `budget` ([`crate::limits`]):
-/// `matrix` names the matrix for the message.
+/// would not fit in the solve's memory `budget` ([`crate::limits`]) on top
+/// of what the process holds ([`MemoryBudget::check_on_top`]): `matrix`
+/// names the matrix for the message. The back end's workspace is not
+/// counted (faer's back ends count theirs in their own check).
 pub fn check_factor_size(
     factor_nnz: usize,
     dim: usize,
@@ -55,7 +57,7 @@ pub fn check_factor_size(
     budget: MemoryBudget,
 ) -> Result<(), ProblemError> {
     let bytes = (factor_nnz as u64).saturating_mul(crate::limits::FACTOR_BYTES_PER_ENTRY);
-    budget.check(bytes, || {
+    budget.check_on_top(bytes, || {
         format!("the Cholesky factor of {matrix} ({dim} unknowns, {factor_nnz} entries after fill-in) would need")
     })
     .map_err(|detail| ProblemError::TooLarge { detail })

@@ -479,22 +479,49 @@ impl Builder {
         }
     }
 
-    /// Refuses growing to `vertices` vertices and `faces` triangles when
-    /// their estimate ([`limits::MESH_BYTES_PER_VERTEX`],
-    /// [`limits::MESH_BYTES_PER_FACE`]) exceeds the budget: a polygon of
-    /// short indices (`f 1 2 3 4 …`) is 2 bytes a triangle in the file
-    /// and 32 in memory, beyond what the cap on the bytes read bounds.
-    fn check_growth(&self, vertices: usize, faces: usize) -> Result<(), MeshError> {
-        let estimate = (vertices as u64)
+    /// Makes room for `vertices` more vertices and `faces` more triangles,
+    /// refusing it when the lists' estimate ([`limits::MESH_BYTES_PER_VERTEX`],
+    /// [`limits::MESH_BYTES_PER_FACE`]) at the capacity they then have
+    /// exceeds the budget, or when the allocator cannot give that capacity
+    /// (under an address-space limit): a list that is full doubles, as a
+    /// `Vec` would, so that it is the capacity, up to twice the length,
+    /// that the memory holds. A polygon of short indices (`f 1 2 3 4 …`)
+    /// is 2 bytes a triangle in the file and 32 in memory, beyond what the
+    /// cap on the bytes read bounds.
+    fn make_room(&mut self, vertices: usize, faces: usize) -> Result<(), MeshError> {
+        let v = self.positions.len() + vertices;
+        let f = self.faces.len() + faces;
+        let (v_cap, f_cap) = (grown(&self.positions, v), grown(&self.faces, f));
+        let estimate = (v_cap as u64)
             .saturating_mul(limits::MESH_BYTES_PER_VERTEX)
-            .saturating_add((faces as u64).saturating_mul(limits::MESH_BYTES_PER_FACE));
+            .saturating_add((f_cap as u64).saturating_mul(limits::MESH_BYTES_PER_FACE));
+        let what = || format!("the {v} vertices and {f} triangles read so far");
+        let too_large = |detail| MeshError::TooLarge {
+            what: "mesh",
+            detail,
+        };
         self.budget
             .check(estimate, || {
-                format!("the {vertices} vertices and {faces} triangles read so far would need")
+                format!("{} (room for {v_cap} and {f_cap}) would need", what())
             })
-            .map_err(|detail| MeshError::TooLarge {
-                what: "mesh",
-                detail,
+            .map_err(too_large)?;
+        let lines = |lines: &Vec<usize>, cap| if lines.is_empty() { 0 } else { cap };
+        let (v_lines, f_lines) = (
+            lines(&self.vertex_lines, v_cap),
+            lines(&self.face_lines, f_cap),
+        );
+        reserve_to(&mut self.positions, v_cap)
+            .and_then(|()| reserve_to(&mut self.vertex_lines, v_lines))
+            .and_then(|()| reserve_to(&mut self.faces, f_cap))
+            .and_then(|()| reserve_to(&mut self.face_lines, f_lines))
+            .map_err(|e| {
+                too_large(format!(
+                    "{} could not be given room for {v_cap} and {f_cap} ({}; about {} in all, within the memory budget of {} but not what the system allows)",
+                    what(),
+                    e,
+                    limits::format_bytes(estimate),
+                    limits::format_bytes(self.budget.limit()),
+                ))
             })
     }
 
@@ -507,7 +534,7 @@ impl Builder {
                 line,
             });
         }
-        self.check_growth(self.positions.len() + 1, self.faces.len())?;
+        self.make_room(1, 0)?;
         self.positions.push(p);
         if let Some(l) = line {
             self.vertex_lines.push(l);
@@ -536,7 +563,7 @@ impl Builder {
                 line,
             });
         }
-        self.check_growth(self.positions.len(), self.faces.len() + poly.len() - 2)?;
+        self.make_room(0, poly.len() - 2)?;
         if poly.len() > 3 {
             self.polygons_split += 1;
             self.triangles_from_polygons += poly.len() - 2;
@@ -581,6 +608,22 @@ impl Builder {
     }
 }
 
+/// The capacity `list` has once it holds `len` items: its own when that
+/// suffices, else twice it (at least `len`, at least 4), as `Vec` grows.
+fn grown<T>(list: &Vec<T>, len: usize) -> usize {
+    if len <= list.capacity() {
+        list.capacity()
+    } else {
+        len.max(list.capacity().saturating_mul(2)).max(4)
+    }
+}
+
+/// Reserves `list` up to a capacity of `cap` (no change when it has that),
+/// reporting an allocation failure instead of aborting.
+fn reserve_to<T>(list: &mut Vec<T>, cap: usize) -> Result<(), std::collections::TryReserveError> {
+    list.try_reserve_exact(cap.saturating_sub(list.len()))
+}
+
 /// Refuses a header whose counts would not fit in the memory budget
 /// ([`crate::limits`]), before anything is reserved.
 fn check_declared_counts(
@@ -607,8 +650,8 @@ fn check_declared_counts(
 /// Checks, before any work, that [`write_mesh`] will be able to write
 /// `path`: the extension names a format it writes and the file can be opened
 /// for writing (the directory exists, permissions allow it). See
-/// [`check_writable`].
-pub fn check_mesh_output(path: &Path) -> Result<(), Error> {
+/// [`check_writable`], whose notes it returns.
+pub fn check_mesh_output(path: &Path) -> Result<Vec<String>, Error> {
     MeshFormat::from_path(path)?;
     check_writable(path)
 }
@@ -617,8 +660,21 @@ pub fn check_mesh_output(path: &Path) -> Result<(), Error> {
 /// existing file is opened for writing and left as it is (no truncation), a
 /// missing one is created and removed again. Lets a command refuse a
 /// misspelt directory or a read-only location before a long computation
-/// instead of after it.
-pub fn check_writable(path: &Path) -> Result<(), Error> {
+/// instead of after it. A FIFO is checked and readied by
+/// [`crate::atomic::prepare`] (refused without a reader, kept open for the
+/// write with one), which also finishes an interrupted set of renames
+/// `path` belongs to: the notes returned say so.
+pub fn check_writable(path: &Path) -> Result<Vec<String>, Error> {
+    let notes = crate::atomic::prepare(path).map_err(|e| Error::io(path, e))?;
+    #[cfg(unix)]
+    {
+        // Opened by `prepare` already; another open and close here would
+        // end its reader's input.
+        use std::os::unix::fs::FileTypeExt;
+        if std::fs::metadata(path).is_ok_and(|m| m.file_type().is_fifo()) {
+            return Ok(notes);
+        }
+    }
     let existed = path.symlink_metadata().is_ok();
     std::fs::OpenOptions::new()
         .write(true)
@@ -629,7 +685,7 @@ pub fn check_writable(path: &Path) -> Result<(), Error> {
     if !existed {
         std::fs::remove_file(path).map_err(|e| Error::io(path, e))?;
     }
-    Ok(())
+    Ok(notes)
 }
 
 /// Writes a mesh, choosing the format from the extension: `.obj`, `.off`,

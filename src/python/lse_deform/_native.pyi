@@ -105,7 +105,7 @@ def deform(
     tolerance: Optional[float] = None,
     arap_init: Optional[str] = None,
     memory_limit: MemoryLimit = None,
-    out_of_core: Optional[str | os.PathLike[str]] = None,
+    out_of_core: Optional[str | bytes | os.PathLike[str] | os.PathLike[bytes]] = None,
     spd: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """Deforms (V, F) under the constraints; returns (U, report).
@@ -180,7 +180,7 @@ def solve_lse(
     weight: Optional[float] = None,
     refine: Refine = None,
     memory_limit: MemoryLimit = None,
-    out_of_core: Optional[str | os.PathLike[str]] = None,
+    out_of_core: Optional[str | bytes | os.PathLike[str] | os.PathLike[bytes]] = None,
     spd: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """min ||A X - C|| subject to B X = D; returns (X, report).
@@ -204,7 +204,7 @@ class Deformer:
         weight: Optional[float] = None,
         refine: Refine = None,
         memory_limit: MemoryLimit = None,
-        out_of_core: Optional[str | os.PathLike[str]] = None,
+        out_of_core: Optional[str | bytes | os.PathLike[str] | os.PathLike[bytes]] = None,
         spd: Optional[str] = None,
     ) -> None: ...
     def precompute(self) -> None:
