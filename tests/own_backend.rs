@@ -319,11 +319,18 @@ impl SpdFactor for PcgFactor {
 // ---------------------------------------------------------------------------
 // It passes the kit.
 
+/// 32 cases per property (`PROPTEST_CASES` overrides it), as
+/// tests/conformance.rs runs the built-ins.
 #[test]
 fn the_pcg_back_end_passes_the_kit() {
     let report = conformance::assert_conforms(conformance::spd(
         Arc::new(JacobiPcg::default()),
-        &KitConfig::default(),
+        &KitConfig::with_cases(
+            std::env::var("PROPTEST_CASES")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(32),
+        ),
     ));
     assert_eq!(report.backend, NAME);
 }

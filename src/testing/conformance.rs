@@ -1221,7 +1221,7 @@ fn spd_refusal(backend: &dyn SpdBackend, case: &RefusalCase) -> Result<(), Strin
     lower.val_mut()[at] *= case.factor;
     let symbolic = match backend.analyze(lower.symbolic()) {
         Ok(symbolic) => symbolic,
-        Err(_) => return Ok(()),
+        Err(e) => return ensure(!e.to_string().is_empty(), || "an empty message".into()),
     };
     let mut factor = match symbolic.factorize(lower.as_ref()) {
         Ok(factor) => factor,
