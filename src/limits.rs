@@ -640,7 +640,7 @@ mod tests {
         assert_eq!(format_bytes(3 << 29), "1.5 GiB");
     }
 
-    /// Finding 5 of issue 38: at 1120M the refusal read "about 1.1 GiB,
+    /// A finding of the latest round of faults: at 1120M the refusal read "about 1.1 GiB,
     /// more than … 1.1 GiB".
     #[test]
     fn a_refusal_tells_the_estimate_from_the_budget() {

@@ -440,7 +440,7 @@ fn relative_chain_uses_fill_reducing_order() {
     assert!(diff < 1e-9, "differs from DenseHouseholder by {diff:e}");
 }
 
-/// Finding 5 of issue 38: faer's factorisations checked only their
+/// A finding of the latest round of faults: faer's factorisations checked only their
 /// factor's estimate (12 bytes an entry) against the budget, not what the
 /// process already holds nor their workspace: with a budget of exactly
 /// that estimate and a process holding more than it already, they went

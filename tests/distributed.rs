@@ -265,7 +265,7 @@ fn assert_kkt_over_mumps_is_faers(dir: &Path, mesh_path: &str, scene: &str) {
     }
 }
 
-/// Issue 38: hard relative rows forming a spanning tree of a patch (along
+/// Found in the latest round of faults: hard relative rows forming a spanning tree of a patch (along
 /// mesh edges) beside hard positions. MUMPS met multipliers ahead of their
 /// vertices, took their rounding-level pivots (the threshold was the
 /// smallest double) and lost every digit (backward error 0.14 on the
@@ -555,7 +555,7 @@ fn factor_on_disk(ooc: &Path) -> bool {
         .any(|e| std::fs::read_dir(e.path()).is_ok_and(|mut d| d.any(mumps_file)))
 }
 
-/// Issue 38: SIGINT to the binary alone and SIGTERM to `mpirun` on two
+/// Found in the latest round of faults: SIGINT to the binary alone and SIGTERM to `mpirun` on two
 /// ranks, sent once MUMPS has written part of the out-of-core factor (a
 /// 200,000-vertex grid, whose factorisation takes seconds), end the run
 /// and leave the directory as it was (before: 115 MB alone, 460 + 364 MB
@@ -616,7 +616,7 @@ fn a_signal_during_an_out_of_core_factorisation_leaves_the_directory_as_it_was()
     }
 }
 
-/// Issue 38: a scratch directory left behind by an interrupted run whose
+/// Found in the latest round of faults: a scratch directory left behind by an interrupted run whose
 /// process id comes round again (here always: a new PID namespace makes the
 /// binary process 1) made every later run fail with "File exists", exit 3.
 /// Scratch names are now random and retried: the run succeeds and the
@@ -695,7 +695,7 @@ fn mount_tmpfs(target: &Path, options: &str) -> bool {
         .is_ok_and(|s| s.success())
 }
 
-/// Issue 38: problems with the out-of-core directory itself are bad input
+/// Found in the latest round of faults: problems with the out-of-core directory itself are bad input
 /// (exit 2, before: 3) naming the directory and the system's reason, on
 /// one rank and on two: a path longer than MUMPS's 255 bytes, a read-only
 /// file system, a full one (a 1 MiB tmpfs: "No space left on device",
@@ -734,7 +734,7 @@ fn out_of_core_directory_problems_are_bad_input_naming_the_directory() {
     }
 }
 
-/// Issue 38: an out-of-core directory whose name is not UTF-8 was mangled
+/// Found in the latest round of faults: an out-of-core directory whose name is not UTF-8 was mangled
 /// (`bad\u{fffd}`) into another path and the run failed; it is now used as
 /// given, and left empty.
 #[test]

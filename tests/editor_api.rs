@@ -1421,29 +1421,33 @@ fn the_basis_route_reproduces_the_positions_and_needs_the_token() {
     assert_eq!(assert_json_error(&a, 409, "arap"), "no-basis");
 }
 
-/// Under a memory budget too small for the response basis, the change is
-/// refused (413) and the basis route has nothing to send (409).
+/// Under a memory budget smaller than what the process already holds, the
+/// editor does not start: faer's budget check counts the resident set on
+/// top of the factor and its workspace (docs/memory.md; the "one
+/// budget that holds"), so a budget of 1 MiB, which the start's factor
+/// alone used to fit, now refuses the start with exit 2, naming the
+/// budget's source and what the process holds.
 #[test]
-fn the_basis_route_under_a_small_memory_budget() {
-    let server = start_with(1 << 20, &[], &[("LSE_MEMORY_LIMIT", "1M")]);
-    let c = &server.client;
-    // The start's scene fits; a handle of many groups does not.
-    let mut cs = server.constraints.clone();
-    let p = server.mesh.positions();
-    for (v, &target) in p.iter().enumerate().take(NX * (NX + 1)).skip(NX + 1) {
-        let mut k = Constraint::hard(ConstraintKind::Position { vertex: v, target });
-        k.group = Some(format!("g{v}"));
-        cs.push(k).unwrap();
-    }
-    let a = request_with(c, "PUT", "/api/constraints", &[], cs.to_json().as_bytes());
-    assert_eq!(assert_json_error(&a, 413, "many groups"), "too-large");
-    assert_eq!(
-        request(c, "GET", "/api/basis", b"").0,
-        200,
-        "the old basis stays"
-    );
-    let (status, _) = request(c, "PUT", "/api/constraints", br#"{"constraints": []}"#);
-    assert_eq!(status, 200);
-    let a = request_with(c, "GET", "/api/basis", &[], b"");
-    assert_eq!(assert_json_error(&a, 409, "no constraints"), "no-basis");
+fn a_budget_below_what_the_process_holds_refuses_the_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, cs) = scene();
+    let mesh_path = dir.path().join("grid.obj");
+    write_mesh(&mesh, &mesh_path).unwrap();
+    let c_path = dir.path().join("c.json");
+    std::fs::write(&c_path, cs.to_json()).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_lse-deform"))
+        .args([
+            "edit",
+            mesh_path.to_str().unwrap(),
+            "-c",
+            c_path.to_str().unwrap(),
+        ])
+        .env("LSE_MEMORY_LIMIT", "1M")
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("this process holds"), "{err}");
+    assert!(err.contains("LSE_MEMORY_LIMIT"), "{err}");
 }

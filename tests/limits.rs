@@ -515,7 +515,7 @@ fn a_constraints_stream_cut_by_the_cap_is_refused() {
 }
 
 // ---------------------------------------------------------------------------
-// Under an address-space limit (issue 38, findings 1 and 2)
+// Under an address-space limit (the latest round of faults)
 
 /// `lse-deform ARGS` in `dir` under an address-space limit of `bytes`
 /// (`ulimit -v`, `RLIMIT_AS`), without `LSE_MEMORY_LIMIT`: the budget is

@@ -103,7 +103,8 @@ pub struct Pivot {
 /// `d < 0`, each with `|d| > tolerance · magnitude` (the magnitude it was
 /// computed from, [`Pivot::magnitude`]). For the KKT matrix
 /// `[AᵀA sBᵀ; sB 0]`, `positive = n` (the vertices) and the tolerance is
-/// [`crate::formulation::KKT_PIVOT_TOLERANCE`] (docs/formulations.md §5).
+/// the KKT formulation's pivot tolerance `1000 ε` (docs/formulations.md
+/// §5).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PivotRule {
     /// Unknowns below this index expect a positive pivot, the rest a
