@@ -445,8 +445,11 @@ fn the_report_names_the_memory_budget_and_its_source() {
 }
 
 /// The default budget is the smallest of the system's limits: under
-/// `ulimit -v` (1 GiB of address space, less than the memory available
-/// where this runs) it is the address-space limit, named `rlimit`.
+/// `ulimit -v` (2 GiB of address space, less than the memory available
+/// where this runs) it is the address-space limit, named `rlimit`. (2 GiB,
+/// not 1: faer's matrix-multiply kernel maps 2 × L3 per thread, 600 MiB on
+/// this kind of machine, which is now counted against the address space
+/// before a factorisation, on top of what the process has mapped.)
 #[test]
 fn the_default_budget_is_bounded_by_the_address_space_limit() {
     let dir = tempfile::tempdir().unwrap();
@@ -454,7 +457,7 @@ fn the_default_budget_is_bounded_by_the_address_space_limit() {
     let report = p(dir.path(), "report.json");
     let o = Command::new("sh")
         .arg("-c")
-        .arg("ulimit -v 1048576 && exec \"$0\" \"$@\"")
+        .arg("ulimit -v 2097152 && exec \"$0\" \"$@\"")
         .arg(env!("CARGO_BIN_EXE_lse-deform"))
         .args([
             "deform",
@@ -473,7 +476,7 @@ fn the_default_budget_is_bounded_by_the_address_space_limit() {
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(
         json["memory_budget"],
-        serde_json::json!({"bytes": 1u64 << 30, "source": "rlimit"})
+        serde_json::json!({"bytes": 1u64 << 31, "source": "rlimit"})
     );
 }
 
@@ -594,6 +597,14 @@ fn a_gzip_bomb_under_an_address_space_limit_is_refused_while_reading() {
     ];
     for args in commands {
         let o = run_under_address_limit(dir.path(), 768 << 20, args);
-        assert_refused(&o, &["mesh", "RLIMIT_AS"]);
+        // Refused either by the budget the limit sets (named RLIMIT_AS) or,
+        // when what the process has mapped leaves less than the budget, by
+        // the system refusing the reservation: typed, exit 2, either way.
+        assert_refused(&o, &["mesh", "768.0 MiB"]);
+        let err = stderr(&o);
+        assert!(
+            err.contains("RLIMIT_AS") || err.contains("not what the system allows"),
+            "{err}"
+        );
     }
 }

@@ -308,7 +308,7 @@ class SceneBuilder:
             # relatives, 20 soft positions and 5 soft faces
             return self.shuffle(fixed + handle + self.hards(4) + self.softs(20, 5))
         if cls == "relative-tree":
-            # hard positions and a tree of hard relative rows (issue 38:
+            # hard positions and a tree of hard relative rows (found in the latest round of faults:
             # MUMPS's KKT lost its digits on such scenes)
             return self.shuffle(fixed + handle + self.relative_tree(int(variant)))
         if cls == "edges-beside-positions":
@@ -667,7 +667,7 @@ def main():
     for li, lap in enumerate(LAPS):
         scenes.append((f"sliver/{lap}/all-kinds", generated["sliver"], lap, "all-kinds", "-", 2000 + li, True))
     # hard relative rows in a tree along mesh edges beside hard positions
-    # (issue 38: MUMPS's KKT took rounding-level pivots and lost every
+    # (found in the latest round of faults: MUMPS's KKT took rounding-level pivots and lost every
     # digit on such scenes, with as few as 30 rows)
     for li, (g, lap, k) in enumerate((("icosphere", "cotan", 30), ("grid", "uniform", 100))):
         scenes.append((f"{g}/{lap}/relative-tree({k})", generated[g], lap, "relative-tree", str(k), 2100 + li, True))
@@ -695,7 +695,7 @@ def main():
                 var = real_variants.get(cls, ["-"] * 4)[li]
                 real_plan.append((rotation[(5 * li + ci) % len(rotation)], lap, cls, var, False))
         real_plan += [
-            # issue 38's scenes for KKT over MUMPS: a tree of hard relative
+            # the scenes for KKT over MUMPS: a tree of hard relative
             # rows, and a few hard edge points beside many hard positions
             ("bunny-3k.obj", "cotan", "relative-tree", "100", False),
             ("dragon-10k.obj", "cotan-symmetric", "relative-tree", "300", False),
