@@ -133,10 +133,11 @@ impl HandleBasis {
         k.saturating_mul(per_column).saturating_mul(8)
     }
 
-    /// [`HandleBasis::estimated_bytes`] against the memory `budget`
-    /// ([`crate::limits`]): [`ProblemError::TooLarge`] with the estimate
-    /// when it exceeds it (what [`HandleBasis::new`] checks first; a
-    /// caller can check before its precompute).
+    /// [`HandleBasis::estimated_bytes`] on top of what the process holds
+    /// against the memory `budget` ([`crate::limits`], as the
+    /// factorisations count it): [`ProblemError::TooLarge`] with the
+    /// estimate when it exceeds it (what [`HandleBasis::new`] checks
+    /// first; a caller can check before its precompute).
     pub fn check_memory(
         n: usize,
         l: usize,
@@ -145,7 +146,7 @@ impl HandleBasis {
         budget: MemoryBudget,
     ) -> Result<(), Error> {
         let k = 3 + 4 * groups as u64;
-        budget.check(HandleBasis::estimated_bytes(n, l, m, groups), || {
+        budget.check_on_top(HandleBasis::estimated_bytes(n, l, m, groups), || {
             format!(
                 "the response basis of {groups} group(s) on {n} vertices ({k} solved columns of {n} numbers, with the solve's workspace) would need"
             )
