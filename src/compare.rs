@@ -17,7 +17,7 @@ use crate::backend::spd::SpdKind;
 use crate::choice::Method;
 use crate::deform::Deformer;
 use crate::error::{Error, ProblemError};
-use crate::formulation::{FormulationChoice, Kkt, NullSpaceQr};
+use crate::formulation::{FormulationChoice, Kkt, NullSpaceQr, SpdChoice};
 use crate::refinement_types::Refine;
 
 /// What to compare.
@@ -27,9 +27,12 @@ pub struct CompareOptions {
     pub methods: Vec<Method>,
     /// QR back ends for the null-space method (`None`: all of this build).
     pub qrs: Option<Vec<QrKind>>,
-    /// SPD back ends (`None`: all of this build except `FaerAuto`, which
-    /// is one of the two explicit faer variants).
-    pub spds: Option<Vec<SpdKind>>,
+    /// SPD back ends, built-in or brought from outside (`None`: every
+    /// built-in of this build except `FaerAuto`, which is one of the two
+    /// explicit faer variants). An outside back end runs every method but
+    /// KKT, which needs an `LDLᵀ` back end (run KKT with an outside one
+    /// through [`compare_configurations`]).
+    pub spds: Option<Vec<SpdChoice>>,
     /// Penalty weights, one configuration each.
     pub weights: Vec<f64>,
     /// Refinement of every configuration (`None`: each formulation's own).
@@ -57,28 +60,29 @@ impl Default for CompareOptions {
 impl CompareOptions {
     /// Every configuration the options allow, in table order: the
     /// null-space method on every QR × SPD pair, the penalty method for
-    /// every weight × SPD, KKT on the SPD kinds that select an `LDLᵀ`
-    /// variant ([`Kkt::for_spd`]), elimination on every SPD kind.
+    /// every weight × SPD, KKT on the built-in SPD kinds that select an
+    /// `LDLᵀ` variant ([`Kkt::for_spd`]), elimination on every SPD back end.
     ///
     /// Errors: [`ProblemError::InvalidArgument`] when nothing is left.
     pub fn configurations(&self) -> Result<Vec<FormulationChoice>, ProblemError> {
         let qrs = self.qrs.clone().unwrap_or_else(QrKind::available);
-        let spds = self.spds.clone().unwrap_or_else(|| {
+        let spds: Vec<SpdChoice> = self.spds.clone().unwrap_or_else(|| {
             SpdKind::available()
                 .into_iter()
                 .filter(|&k| k != SpdKind::FaerAuto)
+                .map(SpdChoice::from)
                 .collect()
         });
         let mut configs = Vec::new();
         for &method in &self.methods {
-            let with = |spd: SpdKind| FormulationChoice {
-                spd: spd.into(),
+            let with = |spd: &SpdChoice| FormulationChoice {
+                spd: spd.clone(),
                 ..FormulationChoice::new(method)
             };
             match method {
                 Method::NullSpaceQr => {
                     for &qr in &qrs {
-                        configs.extend(spds.iter().map(|&s| FormulationChoice {
+                        configs.extend(spds.iter().map(|s| FormulationChoice {
                             qr: qr.into(),
                             ..with(s)
                         }));
@@ -86,7 +90,7 @@ impl CompareOptions {
                 }
                 Method::Penalty => {
                     for &w in &self.weights {
-                        configs.extend(spds.iter().map(|&s| FormulationChoice {
+                        configs.extend(spds.iter().map(|s| FormulationChoice {
                             weight: Some(w),
                             ..with(s)
                         }));
@@ -94,10 +98,10 @@ impl CompareOptions {
                 }
                 Method::Kkt => configs.extend(
                     spds.iter()
-                        .filter(|&&s| Kkt::for_spd(s).is_some())
-                        .map(|&s| with(s)),
+                        .filter(|s| s.builtin().and_then(Kkt::for_spd).is_some())
+                        .map(with),
                 ),
-                Method::Eliminate => configs.extend(spds.iter().map(|&s| with(s))),
+                Method::Eliminate => configs.extend(spds.iter().map(with)),
             }
         }
         if configs.is_empty() {
@@ -383,7 +387,10 @@ mod tests {
     fn kkt_runs_only_on_the_faer_variants_and_empty_choices_are_refused() {
         let options = CompareOptions {
             methods: vec![Method::Kkt],
-            spds: Some(vec![SpdKind::Nalgebra, SpdKind::FaerSimplicial]),
+            spds: Some(vec![
+                SpdKind::Nalgebra.into(),
+                SpdKind::FaerSimplicial.into(),
+            ]),
             ..CompareOptions::default()
         };
         let configs = options.configurations().unwrap();
@@ -391,7 +398,7 @@ mod tests {
         assert_eq!(configs[0].spd, SpdKind::FaerSimplicial);
         let none = CompareOptions {
             methods: vec![Method::Kkt],
-            spds: Some(vec![SpdKind::Nalgebra]),
+            spds: Some(vec![SpdKind::Nalgebra.into()]),
             ..CompareOptions::default()
         };
         assert!(none.configurations().is_err());

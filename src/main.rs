@@ -57,21 +57,29 @@ fn main() -> ExitCode {
     // First, before any thread starts: an interrupted run removes its
     // temporary files and out-of-core scratch directories.
     cli::signals::install();
-    // Under `mpirun`, every rank but 0 serves rank 0's MUMPS commands
-    // until rank 0 ends the run, then exits with rank 0's code.
+    // A malformed LSE_MEMORY_LIMIT is bad input, before anything is read
+    // (the default budget of every command comes from it); under `mpirun`
+    // every rank checks its own and all agree (a rank-1 mistake fails the
+    // run on every rank), then every rank but 0 serves rank 0's MUMPS
+    // commands until rank 0 ends the run, and exits with rank 0's code.
+    let start = lse_deform::MemoryBudget::from_environment()
+        .map(|_| ())
+        .map_err(|e| e.to_string());
     #[cfg(feature = "mumps")]
-    if let Some(code) = lse_deform::backend::mumps::serve_if_worker() {
-        return ExitCode::from(code);
-    }
-    let code = run();
+    let start = match lse_deform::backend::mumps::serve_if_worker(start) {
+        lse_deform::backend::mumps::RankRole::Served(code) => return ExitCode::from(code),
+        lse_deform::backend::mumps::RankRole::Lead(start) => start,
+    };
+    let code = run(start);
     // Every MUMPS object is dropped by now: the other ranks may go.
     #[cfg(feature = "mumps")]
     lse_deform::backend::mumps::end_ranks(code);
     ExitCode::from(code)
 }
 
-/// Parses the command line and runs the command; the exit code.
-fn run() -> u8 {
+/// Parses the command line and runs the command (`start`: the start-up
+/// check of the environment, every rank's under `mpirun`); the exit code.
+fn run(start: Result<(), String>) -> u8 {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
@@ -81,10 +89,8 @@ fn run() -> u8 {
             return e.exit_code() as u8;
         }
     };
-    // A malformed LSE_MEMORY_LIMIT is bad input, before anything is read
-    // (the default budget of every command comes from it).
-    if let Err(e) = lse_deform::MemoryBudget::from_environment() {
-        eprintln!("error: {e}");
+    if let Err(message) = start {
+        eprintln!("error: {message}");
         return 2;
     }
     let result = match cli.command {

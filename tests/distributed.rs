@@ -419,6 +419,32 @@ fn one_rank_refusing_its_budget_refuses_the_job() {
     assert!(!Path::new(&out).exists());
 }
 
+/// A malformed `LSE_MEMORY_LIMIT` on rank 1 alone is bad input for the
+/// whole job (on 75a9ac5 rank 1 never read it and the run exited 0): exit
+/// 2 before any work, the message naming rank 1 and the value, no output.
+#[test]
+fn a_malformed_budget_on_one_rank_refuses_the_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh_path, scene) = grid_scene(dir.path(), 2_000, "scene.json", &[]);
+    let out = path_in(dir.path(), "o.obj");
+    let args = deform_args(&mesh_path, &scene, &out, &["--factor", "mumps"]);
+    let mut c = Command::new("mpirun");
+    c.args(MPIRUN_OPTIONS)
+        .args(["-np", "1", BIN])
+        .args(&args)
+        .args([":", "-np", "1", "-x", "LSE_MEMORY_LIMIT=5iB", BIN])
+        .args(&args);
+    let o = finish(c, "mpirun");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("on rank 1 of 2"), "{err}");
+    assert!(
+        err.contains("LSE_MEMORY_LIMIT=\"5iB\" is not a size"),
+        "{err}"
+    );
+    assert!(!Path::new(&out).exists());
+}
+
 /// `--out-of-core` naming a directory that does not exist: bad input (exit
 /// 2) alone and on every rank, the message naming the directory.
 #[test]

@@ -217,6 +217,39 @@ fn hard_row(problem: &LseProblem, index: usize) -> usize {
     }
 }
 
+/// The redundant and conflicting sets the report must give for `x`. A
+/// skipped row consistent with the kept ones holds only to its own
+/// remainder, up to `η ‖b_j‖ ‖X‖` (`η = 1e-10`, the rank tolerance;
+/// `CONFLICT_RELATIVE_TOLERANCE` in src/report.rs). Where `‖X‖` is far
+/// above the length scale (a sliver mesh pulled apart by conflicting
+/// targets) that exceeds the conflict tolerance, `1e-8` of the scale, and
+/// the library calls the row conflicting, as its definition says (found by
+/// a random case: residual 1.3e-8 on a near-duplicate edge row, where
+/// `η ‖b_j‖ ‖X‖` was larger). Such a row, and only such a row, may move
+/// from redundant to conflicting; the generator cannot know `X`.
+fn classified_sets(
+    problem: &LseProblem,
+    expected: &Expected<'_>,
+    report: &Report,
+    x: &Mat<f64>,
+) -> (Vec<usize>, Vec<usize>) {
+    let reported: Vec<usize> = report.conflicting.iter().map(|c| c.index).collect();
+    let moved = |i: &usize| {
+        let (r, size) = row_residual(problem, hard_row(problem, *i), x);
+        reported.contains(i) && r <= 1e-10 * size
+    };
+    let redundant = expected
+        .redundant
+        .iter()
+        .copied()
+        .filter(|i| !moved(i))
+        .collect();
+    let mut conflicting: Vec<usize> = expected.conflicting.to_vec();
+    conflicting.extend(expected.redundant.iter().copied().filter(moved));
+    conflicting.sort_unstable();
+    (redundant, conflicting)
+}
+
 /// Where the method of multipliers cannot reach the constrained solution
 /// in its 30 steps, nor tell a conflict from slow convergence: a kept row
 /// within `1e-6` of dependence contracts by `1/(1 + w²μ)` with `μ` of the
@@ -408,6 +441,12 @@ fn check_method(
         if method != Method::Kkt {
             prop_assert_eq!(report.rank, Some(expected.kept.len()), "{}", label);
         }
+        let (redundant, conflicting) = classified_sets(problem, expected, &report, &x);
+        let expected = &Expected {
+            redundant: &redundant,
+            conflicting: &conflicting,
+            ..*expected
+        };
         prop_assert_eq!(&report.redundant, &expected.redundant.to_vec(), "{}", label);
         let conflicting: Vec<usize> = report.conflicting.iter().map(|c| c.index).collect();
         prop_assert_eq!(&conflicting, &expected.conflicting.to_vec(), "{}", label);

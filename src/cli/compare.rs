@@ -68,7 +68,8 @@ impl CompareArgs {
         CompareOptions {
             methods: self.methods.clone().unwrap_or(d.methods),
             qrs: (!self.qr.is_empty()).then(|| self.qr.clone()),
-            spds: (!self.factor.is_empty()).then(|| self.factor.clone()),
+            spds: (!self.factor.is_empty())
+                .then(|| self.factor.iter().map(|&k| k.into()).collect()),
             weights: self.weights.clone().unwrap_or(d.weights),
             refine: self.refine,
             repeat: self.repeat,

@@ -35,7 +35,7 @@ use crate::choice::{ArapEnergy, ArapInit, Energy, Method};
 use crate::compare::{self, CompareOptions, Configuration};
 use crate::constraints::ConstraintSet;
 use crate::error::{ProblemError, SolveOption};
-use crate::formulation::{Chosen, DEFAULT_SPD, FormulationChoice, Refine, SpdChoice};
+use crate::formulation::{Chosen, Refine, SpdChoice};
 use crate::laplacian::{self, LaplacianKind};
 use crate::limits::{MemoryBudget, parse_bytes};
 use crate::mesh::Mesh;
@@ -515,20 +515,16 @@ fn compare_rows<'py>(
         let options = CompareOptions {
             methods: words("methods", methods)?.unwrap_or(defaults.methods),
             qrs: words("qr", qr)?,
-            spds: factors
-                .as_ref()
-                .map(|f| f.iter().filter_map(|c| c.builtin()).collect()),
+            spds: factors,
             weights: weights.unwrap_or(defaults.weights),
             refine: parse_refine(refine)?.or(defaults.refine),
             repeat: repeat.unwrap_or(defaults.repeat),
             condition: condition.unwrap_or(defaults.condition),
         };
         // Fail before any work when the filters leave nothing to run.
-        let configs = match &factors {
-            Some(f) if !objects.is_empty() => configurations_with(&options, f),
-            _ => options.configurations(),
-        }
-        .map_err(|e| input(format!("methods=/qr=/factor=/weights=: {e}")))?;
+        let configs = options
+            .configurations()
+            .map_err(|e| input(format!("methods=/qr=/factor=/weights=: {e}")))?;
         let configs: Vec<Configuration> = configs.into_iter().map(Configuration::new).collect();
         let mesh = mesh(py, V, F)?;
         let set = constraints_for(constraints, &mesh, environment_budget()?)?;
@@ -587,57 +583,6 @@ fn factor_list(
         .map(choice)
         .collect::<PyResult<Vec<_>>>()
         .map(Some)
-}
-
-/// The configurations of `options` over the SPD back ends `factors`
-/// (words and objects) instead of `options.spds`: each back end's as
-/// [`CompareOptions::configurations`] makes them for it alone — an
-/// object's for every method but KKT (it needs an `LDLᵀ` back end, which
-/// a back-end object is not) — in the built-ins' table order: by method,
-/// then QR back end or weight, then the list's order.
-///
-/// Errors: [`ProblemError::InvalidArgument`] when nothing is left.
-fn configurations_with(
-    options: &CompareOptions,
-    factors: &[SpdChoice],
-) -> Result<Vec<FormulationChoice>, ProblemError> {
-    let mut all = Vec::new();
-    for factor in factors {
-        let alone = CompareOptions {
-            methods: options
-                .methods
-                .iter()
-                .copied()
-                .filter(|&m| factor.builtin().is_some() || m != Method::Kkt)
-                .collect(),
-            spds: Some(vec![factor.builtin().unwrap_or(DEFAULT_SPD)]),
-            ..options.clone()
-        };
-        let configs = alone.configurations().unwrap_or_default();
-        all.extend(configs.into_iter().map(|c| FormulationChoice {
-            spd: factor.clone(),
-            ..c
-        }));
-    }
-    let qrs = options.qrs.clone().unwrap_or_else(QrKind::available);
-    let position = |c: &FormulationChoice| {
-        let method = options.methods.iter().position(|&m| m == c.method);
-        let qr = qrs.iter().position(|q| c.qr == *q);
-        let weight = options.weights.iter().position(|&w| c.weight == Some(w));
-        (
-            method,
-            qr.filter(|_| c.method == Method::NullSpaceQr),
-            weight,
-        )
-    };
-    all.sort_by_key(position);
-    if all.is_empty() {
-        return Err(ProblemError::InvalidArgument {
-            message: "the methods, back ends and weights chosen leave no configuration to run"
-                .into(),
-        });
-    }
-    Ok(all)
 }
 
 /// The Laplacian of `(V, F)` as a `scipy.sparse.csc_matrix` (n × n; the

@@ -141,11 +141,6 @@ impl Objects {
         self.0.push(Arc::clone(&backend.shared));
     }
 
-    /// Whether no object was given.
-    pub(crate) fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-
     /// `result`, its error explained by the objects' last failures (which
     /// are cleared): the library's error for an exception the object
     /// raised gets that exception as `__cause__`; a `KeyboardInterrupt` or

@@ -580,7 +580,7 @@ pub fn qr(backend: Arc<dyn QrBackend>, config: &KitConfig) -> Result<KitReport, 
         (random_lses(), random_lses()),
         |(p, q)| qr_several(&*backend, &p, &q),
     );
-    kit.generated(Property::Budget, cases, coupled_lses(), |lse| {
+    kit.generated(Property::Budget, cases, random_lses(), |lse| {
         qr_budget(&*backend, &lse)
     });
     kit.generated(
@@ -1630,18 +1630,6 @@ fn qr_several(backend: &dyn QrBackend, p: &RandomLse, q: &RandomLse) -> Result<(
             .map_err(|e| format!("factor {} of two: {e}", i % 2))?;
     }
     Ok(())
-}
-
-/// [`random_lses`] in which two rows of `B` share an unknown, so that `R`
-/// is not diagonal. (Sparse Givens checks no budget when `R` is diagonal:
-/// it then stores no more than `B` itself.)
-fn coupled_lses() -> impl Strategy<Value = RandomLse> {
-    random_lses().prop_filter("two rows of B share an unknown", |lse| {
-        let b = lse.problem.b();
-        let mut uses = vec![0usize; b.ncols()];
-        b.symbolic().col_idx().iter().for_each(|&j| uses[j] += 1);
-        uses.iter().any(|&u| u > 1)
-    })
 }
 
 /// (f) QR: a factorisation within one byte is refused as too large, an

@@ -102,6 +102,43 @@ def test_an_allocation_the_system_refuses_is_a_memory_error():
     assert "could not be allocated" in out.stdout, out.stdout
 
 
+def test_an_address_space_limit_is_a_too_large_error_naming_it():
+    """Under `prlimit --as=700000000` the Bunny 3k deform is refused with a
+    TooLargeError naming RLIMIT_AS (on 75a9ac5 faer's matrix-multiply
+    kernel reserved about 600 MiB outside the budget and the interpreter
+    died with SIGABRT), in a child interpreter whose limit is set before
+    it starts."""
+    import resource
+
+    from conftest import shared_mesh
+
+    mesh = shared_mesh("bunny-3k.obj")
+    if mesh is None:
+        pytest.skip("../shared/meshes/bunny-3k.obj is not on this machine")
+    code = textwrap.dedent(
+        f"""
+        import sys
+        sys.path.insert(0, {str(__import__("os").path.dirname(__file__))!r})
+        import numpy as np, lse_deform
+        from conftest import read_obj, scene_items
+        V, F = read_obj({str(mesh)!r})
+        try:
+            lse_deform.deform(V, F, scene_items(V))
+            print("solved")
+        except Exception as e:
+            print(type(e).__name__, isinstance(e, MemoryError), e)
+        """
+    )
+    limit = lambda: resource.setrlimit(resource.RLIMIT_AS, (700_000_000, 700_000_000))
+    env = {"PATH": "/usr/bin:/bin", "OPENBLAS_NUM_THREADS": "1"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, preexec_fn=limit
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("TooLargeError True "), out.stdout + out.stderr
+    assert "RLIMIT_AS" in out.stdout, out.stdout
+
+
 # One call per kind of failure, across every entry point: each raises an
 # Exception of one of the three families.
 CATALOGUE = [

@@ -62,3 +62,54 @@ def test_mumps_equals_faer_and_cleans_up(method, tmp_path):
         assert facts["out_of_core"] == (out_of_core is not None)
         assert facts["factor_entries_per_rank"][0] > 0
         assert list(tmp_path.iterdir()) == []
+
+
+RANKS_SCRIPT = """
+import lse_deform
+from conftest import bumpy_grid, scene_items
+V, F = bumpy_grid(8)
+try:
+    lse_deform.deform(V, F, scene_items(V), factor="mumps")
+    print("solved")
+except (lse_deform.InputError, lse_deform.NumericalError) as e:
+    print(type(e).__name__, str(e))
+"""
+
+
+def test_python_on_two_ranks_is_a_usage_error_on_each(tmp_path):
+    """Python under `mpirun -np 2` serves no rank: every rank refuses
+    `factor="mumps"` with an InputError that says so, before any collective
+    call (on 75a9ac5 rank 1 raised NumericalError and rank 0 waited for an
+    answer that never came)."""
+    if not mumps_in_this_wheel():
+        pytest.skip("this wheel was built without the feature mumps")
+    import shutil
+    import subprocess
+    import sys
+
+    if shutil.which("mpirun") is None:
+        pytest.fail("mpirun is missing (MUMPS's wheel needs Open MPI)")
+    env = dict(os.environ)
+    env.update(
+        OMPI_ALLOW_RUN_AS_ROOT="1",
+        OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+        OMPI_MCA_pml="ob1",
+        OMPI_MCA_btl_vader_single_copy_mechanism="none",
+        OMPI_MCA_rmaps_base_oversubscribe="1",
+        OPENBLAS_NUM_THREADS="1",
+        PYTHONPATH=os.path.dirname(__file__),
+    )
+    script = tmp_path / "ranks.py"
+    script.write_text(RANKS_SCRIPT)
+    run = subprocess.run(
+        ["mpirun", "--mca", "btl", "self,tcp", "--mca", "btl_tcp_if_include", "lo",
+         "-np", "2", sys.executable, str(script)],
+        env=env, capture_output=True, text=True, timeout=120,
+    )
+    lines = [l for l in run.stdout.splitlines() if l.strip()]
+    assert len(lines) == 2, run.stdout + run.stderr
+    assert any("rank 1 of 2" in l for l in lines), lines
+    assert any("rank 0 of 2" in l for l in lines), lines
+    for line in lines:
+        assert line.startswith("InputError "), lines
+        assert "run this program on one rank" in line, lines

@@ -44,8 +44,10 @@ pub struct MumpsLlt {
 impl MumpsLlt {
     /// In core (`None`) or with the factor in files under `out_of_core`,
     /// which every rank checks it can use (bad input when one cannot:
-    /// [`super::check_out_of_core`]).
+    /// [`super::check_out_of_core`]). Refused as bad input where this
+    /// process cannot drive MUMPS ([`super::check_driving_rank`]).
     pub fn new(out_of_core: Option<PathBuf>) -> Result<MumpsLlt, ProblemError> {
+        super::check_driving_rank()?;
         super::check_out_of_core(out_of_core.as_deref())?;
         Ok(MumpsLlt { out_of_core })
     }

@@ -77,26 +77,71 @@ impl MumpsFacts {
     }
 }
 
-/// What the binary calls before anything else. Launched by `mpirun`, it
-/// starts MPI; on rank 0 it returns `None` (go on with the command), on any
-/// other rank it serves rank 0's MUMPS commands until rank 0 ends the run,
-/// then returns rank 0's exit code. Not launched by `mpirun`, it does
-/// nothing and returns `None` (MUMPS then starts MPI as one rank when first
-/// used).
-pub fn serve_if_worker() -> Option<u8> {
+/// What a process launched by `mpirun` is, once its ranks agreed on how
+/// the run starts ([`serve_if_worker`]).
+#[derive(Debug)]
+pub enum RankRole {
+    /// Rank 0, or a process not launched by `mpirun`: go on with the
+    /// command, unless some rank's start-up check failed (`Err`: the
+    /// message of the lowest failing rank, naming it); either way end with
+    /// [`end_ranks`].
+    Lead(Result<(), String>),
+    /// Any other rank, after serving rank 0's MUMPS commands until rank 0
+    /// ended the run: exit with this code (rank 0's).
+    Served(u8),
+}
+
+/// What the binary calls before anything else, with this process's own
+/// start-up check (`start`: the environment it reads before any work, such
+/// as a malformed memory budget). Launched by `mpirun`, it starts MPI and
+/// makes every rank agree on `start` (a check that fails on rank 1 alone
+/// fails the run on every rank, named by rank); on rank 0 it returns
+/// [`RankRole::Lead`], on any other rank it serves rank 0's MUMPS commands
+/// until rank 0 ends the run and returns [`RankRole::Served`] with rank 0's
+/// exit code. Not launched by `mpirun`, it returns `Lead(start)` (MUMPS
+/// then starts MPI as one rank when first used).
+pub fn serve_if_worker(start: Result<(), String>) -> RankRole {
     if !launched_by_mpirun() {
-        return None;
+        return RankRole::Lead(start);
     }
     let rt = ranks::runtime();
     if rt.size > 1 {
         ranks::abort_all_on_panic();
     }
+    let start = ranks::agree(&rt.world(), start);
     if rt.rank == 0 {
-        return None;
+        ranks::mark_served();
+        return RankRole::Lead(start);
     }
     let code = instance::serve(&rt.world());
     ranks::finalize();
-    Some(code)
+    RankRole::Served(code)
+}
+
+/// Checks that this process can drive MUMPS: not launched by `mpirun` (MUMPS
+/// then runs as one rank), or rank 0 of ranks that serve it (every other
+/// rank in [`serve_if_worker`]). Anything else is a usage error, refused
+/// before any collective call (which would wait for ranks that never
+/// answer): a rank other than 0, or rank 0 of several ranks that do not
+/// serve it (the Python module under `mpirun -np 2`, for instance).
+pub(crate) fn check_driving_rank() -> Result<(), ProblemError> {
+    if !launched_by_mpirun() {
+        return Ok(());
+    }
+    let rt = ranks::runtime();
+    let (rank, size) = (rt.rank, rt.size);
+    let message = if rank != 0 {
+        format!(
+            "the MUMPS back end is driven from rank 0 only, and this process is rank {rank} of {size} under mpirun: every other rank serves rank 0's commands (serve_if_worker, as the lse-deform binary does); run this program on one rank, or drive MUMPS from the lse-deform binary under mpirun"
+        )
+    } else if size > 1 && !ranks::served() {
+        format!(
+            "this process is rank 0 of {size} under mpirun, but the other ranks do not serve its MUMPS commands (only a program that calls serve_if_worker on every rank, such as the lse-deform binary, can): run this program on one rank"
+        )
+    } else {
+        return Ok(());
+    };
+    Err(ProblemError::InvalidArgument { message })
 }
 
 /// What rank 0 (or a lone process) calls last, once every MUMPS object is

@@ -16,6 +16,7 @@
 //! waiting in a collective call that another has abandoned. MUMPS's own
 //! errors need no such step: `INFOG(1)` is the same on every rank.
 
+use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
 use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::time::Duration;
 
@@ -59,6 +60,20 @@ pub(crate) struct Runtime {
 }
 
 static RUNTIME: OnceLock<Runtime> = OnceLock::new();
+
+/// Set on rank 0 once every other rank serves its commands
+/// ([`super::serve_if_worker`]).
+static SERVED: AtomicBool = AtomicBool::new(false);
+
+/// Rank 0 records that the other ranks serve it.
+pub(crate) fn mark_served() {
+    SERVED.store(true, AtomicOrdering::Relaxed);
+}
+
+/// Whether the other ranks serve this one (rank 0 of the binary).
+pub(crate) fn served() -> bool {
+    SERVED.load(AtomicOrdering::Relaxed)
+}
 
 /// The runtime, starting MPI on first use (with `MPI_THREAD_SERIALIZED`:
 /// any thread may call, one at a time, under [`Runtime::serial`]).

@@ -173,7 +173,7 @@ pub(super) fn check_r_fill(
     let bytes = nnz.saturating_mul(R_BYTES_PER_ENTRY);
     budget.check(bytes, || {
         format!(
-            "the QR factor R of the {} hard constraints ({what}) has {nnz} entries (the constraints share unknowns: R's pattern is that of the Cholesky factor of B Bᵀ) and would need",
+            "the QR factor R of the {} hard constraints ({what}) has {nnz} entries (R's pattern is that of the Cholesky factor of B Bᵀ) and would need",
             b.nrows()
         )
     })

@@ -205,10 +205,11 @@ impl GivensQr {
         order: GivensRowOrder,
         budget: MemoryBudget,
     ) -> Result<GivensQr, Error> {
-        let fill_order = fill_reducing_constraint_order(b)?;
-        if let Some(perm) = &fill_order {
-            check_r_fill(b, Some(perm), "sparse-givens, fill-reducing order", budget)?;
-            let permuted = permute_rows(b, perm)?;
+        // With no two constraints sharing an unknown there is no
+        // fill-reducing order to try: the priority order, checked as well.
+        if let Some(perm) = fill_reducing_constraint_order(b)? {
+            check_r_fill(b, Some(&perm), "sparse-givens, fill-reducing order", budget)?;
+            let permuted = permute_rows(b, &perm)?;
             let mut qr = GivensQr::in_column_order(permuted.as_ref(), tolerance, order)?;
             if qr.skipped.is_empty() {
                 for r in &mut qr.d_row {
@@ -218,8 +219,8 @@ impl GivensQr {
                 qr.kept = (0..b.nrows()).collect();
                 return Ok(qr);
             }
-            check_r_fill(b, None, "sparse-givens, priority order", budget)?;
         }
+        check_r_fill(b, None, "sparse-givens, priority order", budget)?;
         GivensQr::in_column_order(b, tolerance, order)
     }
 
