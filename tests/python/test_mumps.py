@@ -70,9 +70,9 @@ from conftest import bumpy_grid, scene_items
 V, F = bumpy_grid(8)
 try:
     lse_deform.deform(V, F, scene_items(V), factor="mumps")
-    print("solved")
+    print("solved", flush=True)
 except (lse_deform.InputError, lse_deform.NumericalError) as e:
-    print(type(e).__name__, str(e))
+    print(type(e).__name__, str(e), flush=True)
 """
 
 
