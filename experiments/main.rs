@@ -220,6 +220,7 @@ fn main() -> ExitCode {
         }
         let t = Instant::now();
         let (status, headline) = match run_fresh(&ctx, e) {
+            Ok(s) if s.skipped => ("skipped".to_string(), s.headline),
             Ok(s) => ("ok".to_string(), s.headline),
             Err(err) => {
                 failed = true;

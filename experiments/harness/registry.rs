@@ -12,8 +12,29 @@ use crate::harness::context::{AnyError, Context, Machine};
 
 /// What an experiment reports for the summary table.
 pub struct Summary {
-    /// One line: the main finding.
+    /// One line: the main finding, or why nothing was measured.
     pub headline: String,
+    /// Whether the section measured nothing (an input this build or
+    /// machine lacks): its status is then `skipped`, never `ok`.
+    pub skipped: bool,
+}
+
+impl Summary {
+    /// A section that measured: its main finding.
+    pub fn measured(headline: String) -> Summary {
+        Summary {
+            headline,
+            skipped: false,
+        }
+    }
+
+    /// A section that could not run here: `why` says what is missing.
+    pub fn skipped(why: String) -> Summary {
+        Summary {
+            headline: why,
+            skipped: true,
+        }
+    }
 }
 
 /// What an experiment reads besides the library.

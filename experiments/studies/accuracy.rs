@@ -812,11 +812,9 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         .filter(|r| r.refine == "auto" && r.formulation != "penalty")
         .filter_map(|r| r.error)
         .fold(0.0, f64::max);
-    Ok(Summary {
-        headline: format!(
-            "{} configurations; exact formulations refined: worst error {} of the diagonal",
-            rows.len() / 2,
-            sci(refined_worst)
-        ),
-    })
+    Ok(Summary::measured(format!(
+        "{} configurations; exact formulations refined: worst error {} of the diagonal",
+        rows.len() / 2,
+        sci(refined_worst)
+    )))
 }

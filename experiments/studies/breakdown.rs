@@ -501,5 +501,5 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
             ratios.len()
         )
     };
-    Ok(Summary { headline })
+    Ok(Summary::measured(headline))
 }

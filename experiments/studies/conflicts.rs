@@ -319,5 +319,5 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         ),
         None => "null-space QR failed".into(),
     };
-    Ok(Summary { headline })
+    Ok(Summary::measured(headline))
 }

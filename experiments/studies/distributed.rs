@@ -1069,9 +1069,7 @@ fn not_measured(ctx: &Context, why: &str) -> Result<Summary, AnyError> {
         ctx.regenerate(NAME)
     );
     ctx.write_section(NAME, &s)?;
-    Ok(Summary {
-        headline: format!("not measured: {why}"),
-    })
+    Ok(Summary::skipped(format!("not measured: {why}")))
 }
 
 /// The programs, or why the section cannot run.
@@ -1158,9 +1156,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     )?;
     let figures = figures(&dir, &tables.rows, &mut notes)?;
     ctx.write_section(NAME, &section(ctx, &tables, &figures, &notes))?;
-    Ok(Summary {
-        headline: headline(&tables.rows),
-    })
+    Ok(Summary::measured(headline(&tables.rows)))
 }
 
 #[cfg(test)]
@@ -1239,5 +1235,21 @@ mod tests {
         let bytes = 20.0 * x / 8.0 * 1.2;
         assert!((first.mumps_bytes_per_rank - bytes).abs() < 1e-6 * bytes);
         assert!((first.rank0_bytes.unwrap() - bytes - 100.0 * 20e6).abs() < 1e-6 * bytes);
+    }
+
+    /// Without MUMPS in the build the section measures nothing, says why,
+    /// and its status is `skipped`, not `ok` (the summary table used to
+    /// print "distributed: ok in 0.0 s — not measured: …").
+    #[cfg(not(feature = "mumps"))]
+    #[test]
+    fn without_mumps_the_section_is_skipped() {
+        let out = std::env::temp_dir().join(format!("lse-skipped-{}", std::process::id()));
+        let ctx = Context::new(out.clone(), Vec::new(), None, None, true, 1).unwrap();
+        let summary = run(&ctx).unwrap();
+        let section = std::fs::read_to_string(out.join(NAME).join("section.md")).unwrap();
+        let _ = std::fs::remove_dir_all(&out);
+        assert!(summary.skipped, "{}", summary.headline);
+        assert!(summary.headline.contains("MUMPS is not in this build"));
+        assert!(section.contains("**not measured**"), "{section}");
     }
 }

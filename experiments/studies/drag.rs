@@ -1125,7 +1125,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         ),
         _ => "the default configuration failed".into(),
     };
-    Ok(Summary { headline })
+    Ok(Summary::measured(headline))
 }
 
 #[cfg(test)]

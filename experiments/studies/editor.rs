@@ -280,17 +280,23 @@ fn measure(ctx: &Context, dir: &std::path::Path) -> Result<(Vec<Row>, Vec<ArapRo
 /// Runs the experiment.
 pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let dir = ctx.dir(NAME)?;
-    let (md, headline) = match measure(ctx, &dir) {
+    let (md, summary) = match measure(ctx, &dir) {
         Ok((rows, arap)) => {
             ctx.write_rows(&dir.join("frames"), &rows)?;
             ctx.write_rows(&dir.join("arap_frames"), &arap)?;
-            (section(ctx, &rows, &arap), headline(&rows))
+            (
+                section(ctx, &rows, &arap),
+                Summary::measured(headline(&rows)),
+            )
         }
-        Err(why) => not_measured(ctx, &why.to_string()),
+        Err(why) => {
+            let (md, why) = not_measured(ctx, &why.to_string());
+            (md, Summary::skipped(why))
+        }
     };
     ctx.write_section(NAME, &md)?;
     ctx.write_page(NAME, EXPERIMENT.title, &md)?;
-    Ok(Summary { headline })
+    Ok(summary)
 }
 
 fn num(x: f64) -> String {

@@ -1188,19 +1188,17 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         .filter(|t| t.met == Some(false))
         .map(|t| t.target.as_str())
         .collect();
-    Ok(Summary {
-        headline: format!(
-            "{} targets checked, {} missed{}; solve {} vs floor {} ({:.0} s)",
-            all.targets.iter().filter(|t| t.met.is_some()).count(),
-            missed.len(),
-            if missed.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", missed.join("; "))
-            },
-            ms(all.main.ours_solve_s),
-            ms(floor(&all, all.main.ours_factor_bytes)),
-            started.elapsed().as_secs_f64()
-        ),
-    })
+    Ok(Summary::measured(format!(
+        "{} targets checked, {} missed{}; solve {} vs floor {} ({:.0} s)",
+        all.targets.iter().filter(|t| t.met.is_some()).count(),
+        missed.len(),
+        if missed.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", missed.join("; "))
+        },
+        ms(all.main.ours_solve_s),
+        ms(floor(&all, all.main.ours_factor_bytes)),
+        started.elapsed().as_secs_f64()
+    )))
 }

@@ -178,17 +178,21 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let measured = environment::python_with_package()
         .map_err(AnyError::from)
         .and_then(|python| Ok((measure(&python, &case, rounds)?, python)));
-    let (md, headline) = match measured {
+    let (md, summary) = match measured {
         Ok(((agreement, rows), python)) => {
             ctx.write_rows(&dir.join("agreement"), std::slice::from_ref(&agreement))?;
             ctx.write_rows(&dir.join("rounds"), &rows)?;
-            measured_section(ctx, &case, &python, &agreement, &rows)
+            let (md, headline) = measured_section(ctx, &case, &python, &agreement, &rows);
+            (md, Summary::measured(headline))
         }
-        Err(why) => not_measured_section(ctx, &why.to_string()),
+        Err(why) => {
+            let (md, why) = not_measured_section(ctx, &why.to_string());
+            (md, Summary::skipped(why))
+        }
     };
     ctx.write_section(NAME, &md)?;
     ctx.write_page(NAME, EXPERIMENT.title, &md)?;
-    Ok(Summary { headline })
+    Ok(summary)
 }
 
 fn verdict(met: bool) -> &'static str {

@@ -701,13 +701,11 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     figures(&dir, &case, &methods, &rows, &mut notes)?;
     let (ratio_rows, headline) = ratio_table(&methods, &rows);
     ctx.write_section(NAME, &section(ctx, &case, &ratio_rows, &rows, &notes))?;
-    Ok(Summary {
-        headline: format!(
-            "precompute(k)/precompute(0) on {} — {}",
-            case.name,
-            headline.join("; ")
-        ),
-    })
+    Ok(Summary::measured(format!(
+        "precompute(k)/precompute(0) on {} — {}",
+        case.name,
+        headline.join("; ")
+    )))
 }
 
 /// A short method label for bar names and tables.

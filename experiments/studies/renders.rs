@@ -381,9 +381,11 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     bar.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
     write_section(ctx, &images, seconds)?;
-    Ok(Summary {
-        headline: format!("{} images in {}", images.len(), dir_display(&dir)),
-    })
+    Ok(Summary::measured(format!(
+        "{} images in {}",
+        images.len(),
+        dir_display(&dir)
+    )))
 }
 
 fn dir_display(dir: &Path) -> String {

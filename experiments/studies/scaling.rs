@@ -661,12 +661,10 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let figures = figures(&dir, &rows, &mut notes)?;
     ctx.write_section(NAME, &section(ctx, &rows, &figures, &notes))?;
     let largest = rows.iter().map(|r| r.vertices).max().unwrap_or(0);
-    Ok(Summary {
-        headline: format!(
-            "log–log slopes precompute/solve on generated meshes up to {largest} vertices: {}",
-            slopes(&rows).1.join(", ")
-        ),
-    })
+    Ok(Summary::measured(format!(
+        "log–log slopes precompute/solve on generated meshes up to {largest} vertices: {}",
+        slopes(&rows).1.join(", ")
+    )))
 }
 
 #[cfg(test)]

@@ -396,22 +396,20 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         .filter(|r| !r.success)
         .map(|r| format!("{}/{}/{}", r.mesh, r.laplacian, r.method.name()))
         .collect();
-    Ok(Summary {
-        headline: if failed.is_empty() {
-            format!(
-                "all {} configurations solved (penalty at w = {})",
-                rows.len(),
-                sci(TABLE_WEIGHT)
-            )
-        } else {
-            format!(
-                "{} of {} configurations failed: {}",
-                failed.len(),
-                rows.len(),
-                failed.join(", ")
-            )
-        },
-    })
+    Ok(Summary::measured(if failed.is_empty() {
+        format!(
+            "all {} configurations solved (penalty at w = {})",
+            rows.len(),
+            sci(TABLE_WEIGHT)
+        )
+    } else {
+        format!(
+            "{} of {} configurations failed: {}",
+            failed.len(),
+            rows.len(),
+            failed.join(", ")
+        )
+    }))
 }
 
 fn find<'a>(rows: &'a [Row], mesh: &str, lap: &str, method: Method) -> Option<&'a Row> {

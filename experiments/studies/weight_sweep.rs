@@ -674,9 +674,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         );
     }
     ctx.write_section(NAME, &format!("{}\n\n{s}\n", ctx.machine.one_line()))?;
-    Ok(Summary {
-        headline: findings_text(&findings),
-    })
+    Ok(Summary::measured(findings_text(&findings)))
 }
 
 #[cfg(test)]
