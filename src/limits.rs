@@ -686,10 +686,10 @@ mod tests {
         for value in ["abc", "-1", "0", "1.5G", "", " ", "12X"] {
             let e = budget_from_variable(Some(value.into())).unwrap_err();
             assert_eq!(e.value, value);
-            let message = e.to_string();
+            let shown = e.to_string();
             assert!(
-                message.starts_with(&format!("LSE_MEMORY_LIMIT={value:?} is not a size")),
-                "{message}"
+                shown.starts_with(&format!("LSE_MEMORY_LIMIT={value:?} is not a size")),
+                "{shown}"
             );
         }
         let b = budget_from_variable(Some("2G".into())).unwrap();

@@ -1087,9 +1087,9 @@ mod tests {
         ];
         for (text, line) in cases {
             let e = read(text).unwrap_err();
-            let message = e.to_string();
-            assert!(message.starts_with("m.mtx"), "{message}");
-            assert_eq!(line_of(e), *line, "{text:?}: {message}");
+            let shown = e.to_string();
+            assert!(shown.starts_with("m.mtx"), "{shown}");
+            assert_eq!(line_of(e), *line, "{text:?}: {shown}");
         }
         // Not UTF-8.
         let e = read_matrix_from(

@@ -14,7 +14,7 @@ mod warning;
 mod wire;
 pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources, conflict_warnings};
 pub use facts::MethodFacts;
-pub use warning::{Warning, WarningKind};
+pub use warning::{Warning, WarningKind, WarningSubject};
 
 /// A list that a method may or may not be able to produce — the redundant
 /// and conflicting hard constraints, which only the methods with rank

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use lse_deform::refinement::FORWARD_ERROR_WARNING;
-use lse_deform::report::{Warning, WarningKind};
+use lse_deform::report::{Warning, WarningKind, WarningSubject};
 use lse_deform::{Error, Report};
 
 use super::write_text;
@@ -65,15 +65,15 @@ pub fn check_strict_conflicts(report: &Report, strict: bool) -> Result<(), Error
     if !strict || count == 0 {
         return Ok(());
     }
+    let first_index = report.conflicting[0].index;
     let first = report
         .warnings
         .iter()
         .find(|w| {
-            w.kind == WarningKind::ConflictingConstraint
-                && w.message.starts_with(&format!(
-                    "constraint {} conflicts",
-                    report.conflicting[0].index
-                ))
+            matches!(
+                w.subject,
+                Some(WarningSubject::ConflictingConstraint { index, .. }) if index == first_index
+            )
         })
         .map(|w| w.message.clone())
         .unwrap_or_else(|| {

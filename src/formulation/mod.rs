@@ -294,6 +294,15 @@ impl<K: Word, B: ?Sized + NamedBackend> std::fmt::Display for Chosen<K, B> {
 /// `qr` is used by `NullSpaceQr` only; `weight` by `Penalty` only; `ldlt`
 /// by `Kkt` only. Each back end is a catalogue word or an outside back
 /// end ([`Chosen`]).
+///
+/// The catalogue (every word, with the build that has it):
+/// - SPD (`spd`): `faer-auto` (the default), `faer-supernodal`,
+///   `faer-simplicial`, `nalgebra`, `cholmod` (feature `suitesparse`),
+///   `mumps` (feature `mumps`); [`SpdKind::available`] lists this build's;
+/// - QR (`qr`): `sparse-givens` (the default), `dense-householder`, `spqr`
+///   (feature `suitesparse`); [`QrKind::available`];
+/// - `LDLᵀ` (`ldlt`): `faer-ldlt-auto`, `faer-ldlt-supernodal`,
+///   `faer-ldlt-simplicial`, `mumps-ldlt` (feature `mumps`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FormulationChoice {
     /// The formulation.

@@ -18,7 +18,7 @@ use std::collections::HashMap;
 use faer::Mat;
 use faer::linalg::solvers::SolveLstsq;
 
-use super::{Report, Warning, WarningKind};
+use super::{Report, Warning, WarningKind, WarningSubject};
 use crate::problem::{LseProblem, RowPlace};
 
 /// How many conflicting constraints the warnings name one by one; the rest
@@ -100,18 +100,8 @@ pub fn conflict_warnings(
 ) -> Vec<Warning> {
     let mut out = Vec::new();
     for c in report.conflicting.iter().take(CONFLICT_WARNINGS_SHOWN) {
-        let with = match sources.of(problem, c.index) {
-            Some([one]) => format!("constraint {one}"),
-            Some(list) if !list.is_empty() => format!("constraints {}", name_list(list)),
-            _ => "earlier constraints".to_string(),
-        };
-        out.push(Warning::new(
-            WarningKind::ConflictingConstraint,
-            format!(
-                "constraint {} conflicts with {with} and was dropped (residual {:.3e})",
-                c.index, c.residual
-            ),
-        ));
+        let with = sources.of(problem, c.index).unwrap_or_default().to_vec();
+        out.push(conflict_warning(c.index, with, c.residual));
     }
     let more = report
         .conflicting
@@ -127,6 +117,28 @@ pub fn conflict_warnings(
         ));
     }
     out
+}
+
+/// The warning of conflicting constraint `index`, its sentence made from
+/// its data: "constraint I conflicts with constraint(s) … and was dropped
+/// (residual R)", "earlier constraints" when `with` is empty.
+pub fn conflict_warning(index: usize, with: Vec<usize>, residual: f64) -> Warning {
+    let named = match with.as_slice() {
+        [] => "earlier constraints".to_string(),
+        [one] => format!("constraint {one}"),
+        list => format!("constraints {}", name_list(list)),
+    };
+    Warning::new(
+        WarningKind::ConflictingConstraint,
+        format!(
+            "constraint {index} conflicts with {named} and was dropped (residual {residual:.3e})"
+        ),
+    )
+    .about(WarningSubject::ConflictingConstraint {
+        index,
+        with,
+        residual,
+    })
 }
 
 /// `a, b, c` for up to eight indices, then `… (N in all)`.
@@ -313,4 +325,35 @@ fn explain<'a>(
         }
     }
     Some(keep)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sentence is made from the data the warning carries, so code
+    /// that acts on the warning reads the data, never the sentence.
+    #[test]
+    fn a_conflict_warning_carries_what_its_sentence_says() {
+        let w = conflict_warning(7, vec![0, 4], 1.5e-3);
+        assert_eq!(w.kind, WarningKind::ConflictingConstraint);
+        assert_eq!(
+            w.message,
+            "constraint 7 conflicts with constraints 0, 4 and was dropped (residual 1.500e-3)"
+        );
+        assert_eq!(
+            w.subject,
+            Some(WarningSubject::ConflictingConstraint {
+                index: 7,
+                with: vec![0, 4],
+                residual: 1.5e-3
+            })
+        );
+        let alone = conflict_warning(3, Vec::new(), 2.0);
+        assert!(alone.message.contains("conflicts with earlier constraints"));
+        assert_eq!(
+            conflict_warning(3, vec![1], 2.0).message,
+            "constraint 3 conflicts with constraint 1 and was dropped (residual 2.000e0)"
+        );
+    }
 }

@@ -112,6 +112,26 @@ pub struct Warning {
     pub kind: WarningKind,
     /// The sentence shown to the user.
     pub message: String,
+    /// The data the sentence was made from, where code acts on it (a
+    /// conflicting constraint's index); `None` for a warning that only
+    /// informs.
+    pub subject: Option<WarningSubject>,
+}
+
+/// What a warning is about, typed: code that acts on a warning reads this,
+/// never the sentence.
+#[derive(Debug, Clone, PartialEq)]
+pub enum WarningSubject {
+    /// A hard constraint dropped because it contradicts kept ones.
+    ConflictingConstraint {
+        /// Its index in the constraints file.
+        index: usize,
+        /// The earlier constraints it contradicts, where they were found
+        /// (empty: not determined).
+        with: Vec<usize>,
+        /// `‖b·X − d‖₂` in the report's units.
+        residual: f64,
+    },
 }
 
 impl Warning {
@@ -120,6 +140,15 @@ impl Warning {
         Warning {
             kind,
             message: message.into(),
+            subject: None,
+        }
+    }
+
+    /// The same warning, carrying the data it was made from.
+    pub fn about(self, subject: WarningSubject) -> Warning {
+        Warning {
+            subject: Some(subject),
+            ..self
         }
     }
 
