@@ -427,9 +427,13 @@ impl std::fmt::Display for ArapStop {
 /// A skipped constraint that is consistent with the kept ones is satisfied
 /// up to its own numerical remainder (`≤ η ‖b_j‖ ‖X‖`, with `η = 1e-10` the
 /// rank tolerance) plus rounding of the kept rows (`~1e-15` relative): two
-/// orders of magnitude below this bound. A conflict smaller than `1e-8` of the
-/// model's size is invisible in any rendering and below the precision of
-/// scanned data.
+/// orders of magnitude below this bound while `‖X‖` is of the order of the
+/// length scale. Where `‖X‖` is a hundred times the length scale or more (a
+/// sliver mesh pulled apart by conflicting targets), a nearly dependent row
+/// consistent with the kept ones can miss by more than this bound and is
+/// then called conflicting (tests/rank_properties.rs, `classified_sets`).
+/// A conflict smaller than `1e-8` of the model's size is invisible in any
+/// rendering and below the precision of scanned data.
 pub const CONFLICT_RELATIVE_TOLERANCE: f64 = 1e-8;
 
 /// Fills the solution diagnostics of `report` for the solution `x` of
