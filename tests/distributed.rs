@@ -378,6 +378,25 @@ fn a_missing_mesh_on_two_ranks_is_one_error() {
     assert!(err.contains("no-such-mesh.obj"), "{err}");
 }
 
+/// `mpirun` with `lse-deform ARGS` on two ranks, rank 1 alone under
+/// `LSE_MEMORY_LIMIT=budget`.
+fn rank_one_under_budget(budget: &str, args: &[&str]) -> Output {
+    let mut c = Command::new("mpirun");
+    c.args(MPIRUN_OPTIONS)
+        .args(["-np", "1", BIN])
+        .args(args)
+        .args([
+            ":",
+            "-np",
+            "1",
+            "-x",
+            &format!("LSE_MEMORY_LIMIT={budget}"),
+            BIN,
+        ])
+        .args(args);
+    finish(c, "mpirun")
+}
+
 /// Rank 1 alone refuses its memory budget (its own LSE_MEMORY_LIMIT, far
 /// below MUMPS's estimate of its share): the whole job exits 2 with the
 /// refusal naming rank 1 and the budget's source; the same when every rank
@@ -388,13 +407,7 @@ fn one_rank_refusing_its_budget_refuses_the_job() {
     let (mesh_path, scene) = grid_scene(dir.path(), 10_000, "scene.json", &[]);
     let out = path_in(dir.path(), "o.obj");
     let args = deform_args(&mesh_path, &scene, &out, &["--factor", "mumps"]);
-    let mut c = Command::new("mpirun");
-    c.args(MPIRUN_OPTIONS)
-        .args(["-np", "1", BIN])
-        .args(&args)
-        .args([":", "-np", "1", "-x", "LSE_MEMORY_LIMIT=1M", BIN])
-        .args(&args);
-    let o = finish(c, "mpirun");
+    let o = rank_one_under_budget("1M", &args);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("system too large"), "{err}");
@@ -428,13 +441,7 @@ fn a_malformed_budget_on_one_rank_refuses_the_job() {
     let (mesh_path, scene) = grid_scene(dir.path(), 2_000, "scene.json", &[]);
     let out = path_in(dir.path(), "o.obj");
     let args = deform_args(&mesh_path, &scene, &out, &["--factor", "mumps"]);
-    let mut c = Command::new("mpirun");
-    c.args(MPIRUN_OPTIONS)
-        .args(["-np", "1", BIN])
-        .args(&args)
-        .args([":", "-np", "1", "-x", "LSE_MEMORY_LIMIT=5iB", BIN])
-        .args(&args);
-    let o = finish(c, "mpirun");
+    let o = rank_one_under_budget("5iB", &args);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("on rank 1 of 2"), "{err}");

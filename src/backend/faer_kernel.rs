@@ -162,6 +162,13 @@ fn make_here() {
     }
     let a = Mat::<f64>::zeros(17, 17);
     let mut c = Mat::<f64>::zeros(17, 17);
+    first_product(&a, &mut c);
+    RESERVED.set(true);
+}
+
+/// `c = a a` for the 17 × 17 operands of [`make_here`], on this thread:
+/// the product whose first run on a thread makes its kernel workspace.
+fn first_product(a: &Mat<f64>, c: &mut Mat<f64>) {
     faer::linalg::matmul::matmul(
         c.as_mut(),
         Accum::Replace,
@@ -170,7 +177,6 @@ fn make_here() {
         1.0,
         Par::Seq,
     );
-    RESERVED.set(true);
 }
 
 #[cfg(test)]
@@ -186,14 +192,7 @@ mod tests {
             let a = Mat::<f64>::zeros(17, 17);
             let mut c = Mat::<f64>::zeros(17, 17);
             let before = crate::limits::mapped_bytes().unwrap();
-            faer::linalg::matmul::matmul(
-                c.as_mut(),
-                Accum::Replace,
-                a.as_ref(),
-                a.as_ref(),
-                1.0,
-                Par::Seq,
-            );
+            first_product(&a, &mut c);
             crate::limits::mapped_bytes().unwrap() as i64 - before as i64
         })
         .join()
