@@ -64,15 +64,21 @@ def test_mumps_equals_faer_and_cleans_up(method, tmp_path):
         assert list(tmp_path.iterdir()) == []
 
 
+# Each rank writes its outcome to a file of its own: two ranks printing to
+# one forwarded stdout may interleave within a line.
 RANKS_SCRIPT = """
+import os, sys
 import lse_deform
 from conftest import bumpy_grid, scene_items
+out = os.path.join(sys.argv[1], "rank" + os.environ["OMPI_COMM_WORLD_RANK"])
 V, F = bumpy_grid(8)
 try:
     lse_deform.deform(V, F, scene_items(V), factor="mumps")
-    print("solved", flush=True)
+    line = "solved"
 except (lse_deform.InputError, lse_deform.NumericalError) as e:
-    print(type(e).__name__, str(e), flush=True)
+    line = type(e).__name__ + " " + str(e)
+with open(out, "w") as f:
+    f.write(line)
 """
 
 
@@ -101,13 +107,16 @@ def test_python_on_two_ranks_is_a_usage_error_on_each(tmp_path):
     )
     script = tmp_path / "ranks.py"
     script.write_text(RANKS_SCRIPT)
+    outcomes = tmp_path / "outcomes"
+    outcomes.mkdir()
     run = subprocess.run(
         ["mpirun", "--mca", "btl", "self,tcp", "--mca", "btl_tcp_if_include", "lo",
-         "-np", "2", sys.executable, str(script)],
+         "-np", "2", sys.executable, str(script), str(outcomes)],
         env=env, capture_output=True, text=True, timeout=120,
     )
-    lines = [l for l in run.stdout.splitlines() if l.strip()]
-    assert len(lines) == 2, run.stdout + run.stderr
+    found = sorted(p.name for p in outcomes.iterdir())
+    assert found == ["rank0", "rank1"], run.stdout + run.stderr
+    lines = [(outcomes / name).read_text() for name in found]
     assert any("rank 1 of 2" in l for l in lines), lines
     assert any("rank 0 of 2" in l for l in lines), lines
     for line in lines:
