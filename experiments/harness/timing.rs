@@ -2,6 +2,7 @@
 //! constraints, scaling, drag): the phases of the paper's Fig. 8, the back
 //! ends of this build, the penalty weight, and table and link cells.
 
+use lse_deform::resources::{FillOrdering, Resources, Threads};
 use std::sync::Arc;
 
 use lse_deform::backend::qr::QrKind;
@@ -16,11 +17,12 @@ use crate::harness::plot::Drawn;
 /// The phases of the paper's Fig. 8 (plus set-up), bottom of a stack first.
 /// Every stacked-bar figure of the timing experiments passes this list, so a
 /// phase keeps its colour across figures.
-pub const PHASES: [&str; 6] = [
+pub const PHASES: [&str; 7] = [
     "set-up",
     "QR",
     "preparation",
     "normal matrix",
+    "ordering",
     "symbolic",
     "numeric",
 ];
@@ -32,25 +34,28 @@ pub fn phase_values(t: &Timings) -> Vec<f64> {
         t.qr,
         t.preparation,
         t.normal_matrix,
+        t.ordering,
         t.symbolic,
         t.numeric,
     ]
 }
 
 /// The CSV columns of [`phase_cells`].
-pub const PHASE_COLUMNS: [&str; 5] = [
+pub const PHASE_COLUMNS: [&str; 6] = [
     "qr_s",
     "preparation_s",
     "normal_matrix_s",
+    "ordering_s",
     "symbolic_s",
     "numeric_s",
 ];
 
 /// CSV cells (`{:.6e}`, empty without timings) of the phases after the
-/// set-up: QR, preparation, normal matrix, symbolic, numeric.
-pub fn phase_cells(t: Option<&Timings>) -> [String; 5] {
+/// set-up: QR, preparation, normal matrix, ordering (one held equal,
+/// computed apart), symbolic, numeric.
+pub fn phase_cells(t: Option<&Timings>) -> [String; 6] {
     let v = t.map(phase_values);
-    [1, 2, 3, 4, 5].map(|i| {
+    [1, 2, 3, 4, 5, 6].map(|i| {
         v.as_ref()
             .map(|v| format!("{:.6e}", v[i]))
             .unwrap_or_default()
@@ -119,16 +124,56 @@ pub fn median_index(totals: &[f64]) -> usize {
     order[(order.len().saturating_sub(1)) / 2]
 }
 
-/// Set-up (a fresh [`Deformer`]) and precompute of `formulation`; the
-/// report carries both times.
+/// Set-up (a fresh [`Deformer`]) and precompute of `formulation` under
+/// `resources` (threads and ordering held, or each back end's own); the
+/// report carries both times and the ordering and threads used.
 pub fn setup_and_precompute(
     mesh: &Mesh,
     constraints: &ConstraintSet,
     formulation: &dyn Formulation,
+    resources: &Resources,
 ) -> Result<Deformer, AnyError> {
     let mut deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone())?;
-    deformer.precompute(formulation)?;
+    deformer.precompute_using(formulation, resources)?;
     Ok(deformer)
+}
+
+/// What a timing row held equal across back ends: nothing (each back
+/// end's own ordering and threads), or one AMD permutation and one thread.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum Terms {
+    /// Each back end's own ordering and threads.
+    #[serde(rename = "own")]
+    Own,
+    /// One AMD permutation of the matrix factored, given to every back
+    /// end, and one thread.
+    #[serde(rename = "amd, 1 thread")]
+    AmdOneThread,
+}
+
+impl Terms {
+    /// Both, own first.
+    pub const ALL: [Terms; 2] = [Terms::Own, Terms::AmdOneThread];
+
+    /// The column word.
+    pub fn word(self) -> &'static str {
+        match self {
+            Terms::Own => "own",
+            Terms::AmdOneThread => "amd, 1 thread",
+        }
+    }
+
+    /// The resources of these terms (default budget).
+    pub fn resources(self) -> Resources {
+        match self {
+            Terms::Own => Resources::default(),
+            Terms::AmdOneThread => Resources {
+                ordering: FillOrdering::Amd,
+                threads: Threads::count(1).unwrap_or_default(),
+                ..Resources::default()
+            },
+        }
+    }
 }
 
 /// Prints the notes of a drawn figure (skipped points) on stderr.
@@ -184,6 +229,7 @@ mod tests {
             qr: 2.0,
             preparation: 3.0,
             normal_matrix: 4.0,
+            ordering: 0.25,
             symbolic: 5.0,
             numeric: 6.0,
             solve: 7.0,

@@ -29,8 +29,8 @@ use crate::harness::plot::{self, Category, LegendPosition, Output, StackedBars};
 use crate::harness::registry::{Experiment, Input, Summary};
 use crate::harness::rows::{cell_f, cell_u, fmt_time, markdown_table, median};
 use crate::harness::timing::{
-    PENALTY_RELATIVE_WEIGHT, PHASE_COLUMNS, PHASES, link, median_index, note_drawn, phase_cells,
-    phase_values, setup_and_precompute, short_error, spd_backends,
+    PENALTY_RELATIVE_WEIGHT, PHASE_COLUMNS, PHASES, Terms, link, median_index, note_drawn,
+    phase_cells, phase_values, setup_and_precompute, short_error, spd_backends,
 };
 
 // ---------------------------------------------------------------------------
@@ -56,6 +56,12 @@ struct Row {
     qr_backend: String,
     spd_backend: String,
     penalty_weight: Option<f64>,
+    /// What was held equal across back ends.
+    terms: Terms,
+    /// The ordering the median run's factorisation used (its report's).
+    ordering: Option<String>,
+    /// The threads it ran on (its report's).
+    threads: Option<usize>,
     repetitions: usize,
     /// The median run's phases.
     timings: Option<Timings>,
@@ -113,7 +119,9 @@ fn measure_pair(
     constraints: &ConstraintSet,
     formulations: &[Box<dyn Formulation>; 2],
     reps_wanted: usize,
+    terms: Terms,
 ) -> [Runs; 2] {
+    let resources = terms.resources();
     let mut runs = [Runs::default(), Runs::default()];
     let mut reps = reps_wanted;
     let mut rep = 0;
@@ -123,7 +131,7 @@ fn measure_pair(
                 continue;
             }
             let t = Instant::now();
-            match setup_and_precompute(mesh, constraints, f.as_ref()) {
+            match setup_and_precompute(mesh, constraints, f.as_ref(), &resources) {
                 Ok(mut d) => {
                     r.reports.push(d.report().clone());
                     // One solve: the constraints really hold (or, for
@@ -149,7 +157,7 @@ fn measure_pair(
 /// The row of one formulation's runs (the median total's phases).
 fn row_of(
     case: &MeshCase,
-    spd_name: &str,
+    (spd_name, terms): (&str, Terms),
     choice: &FormulationChoice,
     f: &dyn Formulation,
     runs: &Runs,
@@ -169,7 +177,11 @@ fn row_of(
     let method = label(choice.method);
     let status = match &runs.error {
         Some(e) => {
-            notes.push(format!("{} / {method} / {spd_name}: {e}", case.name));
+            notes.push(format!(
+                "{} / {method} / {spd_name} / {}: {e}",
+                case.name,
+                terms.word()
+            ));
             format!("failed: {}", short_error(e))
         }
         None => "ok".into(),
@@ -185,6 +197,9 @@ fn row_of(
         },
         spd_backend: spd_name.into(),
         penalty_weight: choice.weight,
+        terms,
+        ordering: chosen.and_then(|r| r.ordering.clone()),
+        threads: chosen.and_then(|r| r.threads),
         repetitions: runs.reports.len(),
         timings: chosen.map(|r| r.timings_s.clone()),
         total_median_s: (!totals.is_empty()).then(|| median(&totals)),
@@ -216,13 +231,15 @@ fn measure_case(
             case.name
         ));
     }
-    for spd_name in spd_backends().into_iter().filter(|s| !(large && slow(s))) {
-        let choices = choices(spd_name)?;
-        let formulations = [choices[0].build()?, choices[1].build()?];
-        let reps = if ctx.quick { 1 } else { 5 };
-        let runs = measure_pair(&case.mesh, &constraints, &formulations, reps);
-        for ((c, f), r) in choices.iter().zip(&formulations).zip(&runs) {
-            rows.push(row_of(case, spd_name, c, f.as_ref(), r, notes));
+    for terms in Terms::ALL {
+        for spd_name in spd_backends().into_iter().filter(|s| !(large && slow(s))) {
+            let choices = choices(spd_name)?;
+            let formulations = [choices[0].build()?, choices[1].build()?];
+            let reps = if ctx.quick { 1 } else { 5 };
+            let runs = measure_pair(&case.mesh, &constraints, &formulations, reps, terms);
+            for ((c, f), r) in choices.iter().zip(&formulations).zip(&runs) {
+                rows.push(row_of(case, (spd_name, terms), c, f.as_ref(), r, notes));
+            }
         }
     }
     Ok(())
@@ -239,6 +256,9 @@ fn write_data(ctx: &Context, dir: &Path, rows: &[Row]) -> Result<(), AnyError> {
             "qr_backend",
             "spd_backend",
             "penalty_weight",
+            "terms",
+            "ordering",
+            "threads",
             "repetitions",
             "setup_s",
         ][..],
@@ -267,6 +287,9 @@ fn write_data(ctx: &Context, dir: &Path, rows: &[Row]) -> Result<(), AnyError> {
                 r.qr_backend.clone(),
                 r.spd_backend.clone(),
                 cell_f(r.penalty_weight),
+                r.terms.word().into(),
+                r.ordering.clone().unwrap_or_default(),
+                cell_u(r.threads),
                 r.repetitions.to_string(),
                 f(|t| t.setup),
             ];
@@ -297,7 +320,7 @@ fn figures(
     for spd_name in spd_backends() {
         let categories: Vec<Category> = rows
             .iter()
-            .filter(|r| r.spd_backend == spd_name)
+            .filter(|r| r.spd_backend == spd_name && r.terms == Terms::Own)
             .filter_map(|r| {
                 r.timings.as_ref().map(|t| Category {
                     name: format!("{} / {}", r.mesh, r.method),
@@ -371,6 +394,7 @@ fn ratio_row(
     let cells = vec![
         case_label,
         spd_name.to_string(),
+        held_cell(h),
         pre(h),
         total_cell(h),
         pre(s),
@@ -382,11 +406,82 @@ fn ratio_row(
     (cells, ratio)
 }
 
+/// The ordering and threads of a row (`own (amd), 1 thread`).
+fn held_cell(r: Option<&Row>) -> String {
+    match r {
+        Some(r) => format!(
+            "{}, {} thread{}",
+            r.ordering.as_deref().unwrap_or("—"),
+            r.threads.map_or("—".into(), |t| t.to_string()),
+            if r.threads == Some(1) { "" } else { "s" }
+        ),
+        None => "—".into(),
+    }
+}
+
+/// Seconds of one phase of a row's median run.
+fn phase_cell(r: Option<&Row>, phase: fn(&Timings) -> f64) -> String {
+    r.and_then(|r| r.timings.as_ref())
+        .map_or_else(|| "—".into(), |t| fmt_time(phase(t)))
+}
+
+/// The equal-terms table: per mesh and back end, the hard + soft
+/// precompute on the back end's own ordering and threads next to one AMD
+/// permutation and one thread.
+fn equal_terms_table(meshes: &[MeshCase], rows: &[Row]) -> Vec<Vec<String>> {
+    let find = |mesh: &str, spd_name: &str, terms: Terms| {
+        rows.iter().find(|r| {
+            r.mesh == mesh
+                && r.spd_backend == spd_name
+                && r.method == label(Method::NullSpaceQr)
+                && r.terms == terms
+        })
+    };
+    let nnz = |r: Option<&Row>| {
+        r.and_then(|r| r.nnz_factor)
+            .map_or_else(|| "—".into(), |v| format!("{:.2}M", v as f64 / 1e6))
+    };
+    let pre = |r: Option<&Row>| {
+        r.and_then(|r| r.precompute_median_s)
+            .map_or_else(|| "—".into(), fmt_time)
+    };
+    let mut table = Vec::new();
+    for case in meshes {
+        for spd_name in spd_backends() {
+            let own = find(&case.name, spd_name, Terms::Own);
+            let held = find(&case.name, spd_name, Terms::AmdOneThread);
+            if own.is_none() && held.is_none() {
+                continue;
+            }
+            table.push(vec![
+                format!("{} ({})", case.name, case.mesh.n_vertices()),
+                spd_name.to_string(),
+                held_cell(own),
+                nnz(own),
+                phase_cell(own, |t| t.symbolic),
+                phase_cell(own, |t| t.numeric),
+                pre(own),
+                held_cell(held),
+                nnz(held),
+                phase_cell(held, |t| t.ordering),
+                phase_cell(held, |t| t.symbolic),
+                phase_cell(held, |t| t.numeric),
+                pre(held),
+            ]);
+        }
+    }
+    table
+}
+
 /// Hard + soft over soft only, per mesh and back end: table rows, ratios.
 fn ratio_table(meshes: &[MeshCase], rows: &[Row]) -> (Vec<Vec<String>>, Vec<f64>) {
     let find = |mesh: &str, spd_name: &str, m: Method| {
-        rows.iter()
-            .find(|r| r.mesh == mesh && r.spd_backend == spd_name && r.method == label(m))
+        rows.iter().find(|r| {
+            r.mesh == mesh
+                && r.spd_backend == spd_name
+                && r.method == label(m)
+                && r.terms == Terms::Own
+        })
     };
     let mut table = Vec::new();
     let mut ratios = Vec::new();
@@ -417,7 +512,7 @@ fn ratio_range(ratios: &[f64]) -> (f64, f64, f64) {
 /// The section, from the tables, figures and notes.
 fn section(
     ctx: &Context,
-    table: &[Vec<String>],
+    (table, equal): (&[Vec<String>], &[Vec<String>]),
     ratios: &[f64],
     figures: &[(&str, String)],
     notes: &[String],
@@ -444,6 +539,7 @@ fn section(
     let header = [
         "mesh (vertices)",
         "SPD back end",
+        "ordering, threads",
         "hard + soft precompute",
         "hard + soft total",
         "soft only precompute",
@@ -460,6 +556,29 @@ fn section(
             "\nOver all meshes and back ends the ratio hard + soft / soft only ranges from {lo:.2} to {hi:.2} (median {med:.2})."
         );
     }
+    let _ = writeln!(
+        s,
+        "\n**Table (equal terms).** Hard + soft on each back end's own ordering and threads, next to one AMD permutation of the matrix factored \
+         (faer's AMD, computed once per precompute and given to the back end: faer's custom ordering, CHOLMOD's `cholmod_l_analyze_p`, MUMPS's `PERM_IN`, nalgebra's permuted matrix) and one thread \
+         (docs/equal-terms.md). `ordering` is the time computing the held permutation, apart from the back end's symbolic phase; with the back end's own ordering it is inside `symbolic`. \
+         nnz(L) counts the entries each back end stores (faer-supernodal and MUMPS include supernodal padding; faer-simplicial, nalgebra and CHOLMOD count the exact fill, equal under one permutation).\n"
+    );
+    let equal_header = [
+        "mesh (vertices)",
+        "SPD back end",
+        "own: ordering, threads",
+        "nnz(L)",
+        "symbolic",
+        "numeric",
+        "precompute",
+        "held: ordering, threads",
+        "nnz(L)",
+        "ordering",
+        "symbolic",
+        "numeric",
+        "precompute",
+    ];
+    s.push_str(&markdown_table(&equal_header, equal));
     for (spd_name, stem) in figures {
         let _ = writeln!(
             s,
@@ -491,7 +610,11 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     write_data(ctx, &dir, &rows)?;
     let figures = figures(&dir, &rows, &mut notes)?;
     let (table, ratios) = ratio_table(&meshes, &rows);
-    ctx.write_section(NAME, &section(ctx, &table, &ratios, &figures, &notes))?;
+    let equal = equal_terms_table(&meshes, &rows);
+    ctx.write_section(
+        NAME,
+        &section(ctx, (&table, &equal), &ratios, &figures, &notes),
+    )?;
     let headline = if ratios.is_empty() {
         "no ratio could be measured".to_string()
     } else {

@@ -10,6 +10,7 @@ pub mod conflicts;
 pub mod distributed;
 pub mod drag;
 pub mod editor;
+pub mod mpi_in_process;
 pub mod performance;
 pub mod python;
 pub mod relative;

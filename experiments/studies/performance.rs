@@ -48,6 +48,8 @@ use serde::Serialize;
 
 use crate::harness::context::AnyError;
 use crate::harness::context::Context;
+
+mod equal_terms;
 use crate::harness::plot::{self, LegendPosition, Output, ScatterFits, Series};
 use crate::harness::registry::{Experiment, Input, Summary};
 use crate::harness::rows::{fmt_time, markdown_table, median};
@@ -500,6 +502,9 @@ struct Everything {
     scaling: Vec<ScalingPoint>,
     slopes: Vec<(String, f64, f64)>,
     refine: Vec<RefineTimes>,
+    /// The main and the large case's reduced normal matrix on each back
+    /// end's own terms and on one AMD permutation and one thread.
+    equal_terms: Vec<equal_terms::EqualRow>,
     targets: Vec<TargetRow>,
 }
 
@@ -1107,6 +1112,7 @@ fn section(ctx: &Context, all: &Everything, reps: usize, solves: usize) -> Strin
             );
         }
     }
+    md.push_str(&equal_terms_section(all));
     let _ = writeln!(
         md,
         "![scaling](performance/scaling.png)\n\nPrecompute, solve and set-up against vertex count on generated bumpy spheres (log–log, least-squares power fits; slopes in the table, data in `performance/scaling.csv`). A solve slope of 1 against factor nnz means the solve stays linear in the factor.\n"
@@ -1116,6 +1122,35 @@ fn section(ctx: &Context, all: &Everything, reps: usize, solves: usize) -> Strin
         "Regenerate: `cargo run --release --features suitesparse,mumps --bin experiments -- {NAME}{} --out results` (without `--mesh-dir` the main case is a generated 35k-vertex bumpy sphere and the large case a generated 250k one; without `--features suitesparse` the CHOLMOD rows are missing, without `--features mumps` the MUMPS rows).",
         ctx.mesh_args()
     );
+    md
+}
+
+/// The equal-terms rows of one case's reduced normal matrix.
+fn equal_terms_of(
+    case: &str,
+    mesh: &Mesh,
+    cs: &ConstraintSet,
+    reps: usize,
+) -> Result<Vec<equal_terms::EqualRow>, AnyError> {
+    let d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone())?;
+    let normal = reduced_normal(&d)?;
+    drop(d);
+    equal_terms::measure(case, &normal, reps)
+}
+
+/// The equal-terms paragraph and table.
+fn equal_terms_section(all: &Everything) -> String {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "\n**Equal terms.** The same reduced normal matrices, analysed and factored by each back end on its own ordering and threads, and with one AMD permutation \
+         (faer's, computed once per repetition and given to every back end: faer's custom ordering, CHOLMOD's `cholmod_l_analyze_p`, MUMPS's `PERM_IN`) and one thread \
+         (faer's `Par::Seq`, OpenBLAS set to one thread for CHOLMOD and MUMPS); medians, interleaved repetition by repetition (docs/equal-terms.md). \
+         `ordering` is the time computing the held permutation, outside the analysis; with a back end's own ordering it is part of the analysis. \
+         nnz(L) is what each back end stores (faer supernodal and MUMPS with their supernodal padding, CHOLMOD the exact fill).\n"
+    );
+    let rows: Vec<Vec<String>> = all.equal_terms.iter().map(equal_terms::cells).collect();
+    md.push_str(&markdown_table(&equal_terms::HEADER, &rows));
     md
 }
 
@@ -1143,6 +1178,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     let base = FixedAndHandle::paper_default(&main_mesh);
     let cs = base.constraints(&main_mesh)?;
     let main = side_by_side(&main_name, &main_mesh, &cs, reps, solves)?;
+    let mut equal = equal_terms_of(&main_name, &main_mesh, &cs, reps)?;
     let relative = relative_medians(&main_mesh, &base, reps)?;
     let sweep = weight_sweep(&main_mesh, &cs, if quick { 1 } else { 3 })?;
     let (large_name, large_mesh, large_setup_s, large_path) = large_case(ctx)?;
@@ -1155,6 +1191,12 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         large_reps,
         large_solves,
     )?;
+    equal.extend(equal_terms_of(
+        &large_name,
+        &large_mesh,
+        &large_cs,
+        large_reps,
+    )?);
     drop(large_mesh);
     let large_memory = large_path.as_deref().map(run_probe).transpose()?;
     let scaling = scaling_points(ctx)?;
@@ -1171,6 +1213,7 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
         slopes: slopes(&scaling),
         scaling,
         refine,
+        equal_terms: equal,
         targets: Vec::new(),
     };
     all.targets = [
