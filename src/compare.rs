@@ -18,7 +18,9 @@ use crate::choice::Method;
 use crate::deform::Deformer;
 use crate::error::{Error, ProblemError};
 use crate::formulation::{FormulationChoice, Kkt, NullSpaceQr, SpdChoice};
+use crate::limits::MemoryBudget;
 use crate::refinement_types::Refine;
+use crate::resources::Resources;
 
 /// What to compare.
 #[derive(Debug, Clone, PartialEq)]
@@ -41,6 +43,10 @@ pub struct CompareOptions {
     pub repeat: usize,
     /// Estimate the condition number of every factored matrix.
     pub condition: bool,
+    /// The memory budget, threads and ordering of every configuration
+    /// (held equal across them; the reference is computed within the same
+    /// budget, on its back ends' own threads and ordering).
+    pub resources: Resources,
 }
 
 impl Default for CompareOptions {
@@ -53,6 +59,7 @@ impl Default for CompareOptions {
             refine: None,
             repeat: 5,
             condition: true,
+            resources: Resources::default(),
         }
     }
 }
@@ -127,10 +134,10 @@ pub struct Reference {
 }
 
 /// Solves the reference with `deformer`: the null-space method with its
-/// default back ends, refined until it converges.
-pub fn reference(deformer: &mut Deformer) -> Result<Reference, Error> {
+/// default back ends, refined until it converges, within `budget`.
+pub fn reference(deformer: &mut Deformer, budget: MemoryBudget) -> Result<Reference, Error> {
     deformer.solver_mut().set_refine(Some(Refine::Auto));
-    deformer.precompute(&NullSpaceQr::default())?;
+    deformer.precompute_using(&NullSpaceQr::default(), &Resources::with_budget(budget))?;
     let x = deformer.solve_matrix()?;
     let r = deformer.report();
     Ok(Reference {
@@ -206,6 +213,14 @@ pub struct CompareRow {
     pub spd: BackendName,
     /// The penalty weight.
     pub weight: Option<f64>,
+    /// The fill-reducing ordering the factorisation used (the report's
+    /// `ordering`).
+    pub ordering: Option<String>,
+    /// The threads it ran on (the report's `threads`).
+    pub threads: Option<usize>,
+    /// MPI ranks, for a back end that runs on several (MUMPS: its report
+    /// section's `ranks`).
+    pub ranks: Option<usize>,
     /// `ok`, `ok, warning: …` or `error (input|numerical): …`.
     pub status: String,
     /// Seconds of precompute.
@@ -242,6 +257,9 @@ impl CompareRow {
             qr: (choice.method == Method::NullSpaceQr).then(|| choice.qr.name()),
             spd,
             weight: choice.weight,
+            ordering: None,
+            threads: None,
+            ranks: None,
             status: "ok".into(),
             precompute_s: None,
             solve_median_s: None,
@@ -303,7 +321,7 @@ fn measure(
 ) -> Result<(), Error> {
     let f = config.choice.build()?;
     deformer.solver_mut().set_refine(options.refine);
-    deformer.precompute(f.as_ref())?;
+    deformer.precompute_using(f.as_ref(), &options.resources)?;
     let mut times = Vec::new();
     let mut x = Mat::<f64>::zeros(0, 0);
     for _ in 0..options.repeat.max(1) {
@@ -324,6 +342,14 @@ fn measure(
     row.refine_s = Some(r.timings_s.refine);
     row.max_constraint_residual = Some(r.max_constraint_residual);
     row.forward_error_estimate = r.forward_error_estimate;
+    row.ordering = r.ordering.clone();
+    row.threads = r.threads;
+    row.ranks = r
+        .backend_facts
+        .as_ref()
+        .and_then(|f| f.get("ranks"))
+        .and_then(|v| v.as_u64())
+        .map(|v| v as usize);
     row.report = Some(r);
     Ok(())
 }
@@ -365,7 +391,7 @@ pub fn compare_configurations(
         }
         .into());
     }
-    let reference = reference(deformer)?;
+    let reference = reference(deformer, options.resources.budget)?;
     let mut rows = Vec::with_capacity(configs.len());
     for config in configs {
         // An interruption is no configuration's failure: it ends the

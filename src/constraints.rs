@@ -43,6 +43,7 @@
 //! ([`MeshSignature`], written by [`crate::scene`]);
 //! [`ConstraintSet::mesh_mismatch`] compares it with the mesh at hand.
 
+use crate::resources::Resources;
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -589,12 +590,21 @@ pub fn read_constraints(path: &Path, n_vertices: usize) -> Result<ConstraintSet,
 /// Reads a constraints file without checking vertex ranges (so that a
 /// caller can first compare the file's `"mesh"` with the mesh at hand; see
 /// [`ConstraintSet::mesh_mismatch`], then [`ConstraintSet::check_vertices`]),
-/// within the default memory budget ([`read_constraints_file_within`]).
+/// within the default memory budget ([`read_constraints_file_with`]).
 pub fn read_constraints_file(path: &Path) -> Result<ConstraintSet, Error> {
-    read_constraints_file_within(path, crate::limits::MemoryBudget::default())
+    read_constraints_file_with(path, &Resources::default())
 }
 
-/// [`read_constraints_file`] within `budget`.
+/// [`read_constraints_file_with`] a memory `budget`.
+#[deprecated(note = "use read_constraints_file_with(path, &Resources::with_budget(budget))")]
+pub fn read_constraints_file_within(
+    path: &Path,
+    budget: crate::limits::MemoryBudget,
+) -> Result<ConstraintSet, Error> {
+    read_constraints_file_with(path, &Resources::with_budget(budget))
+}
+
+/// [`read_constraints_file`] within the budget of `resources`.
 ///
 /// The file is parsed as it is read, never held whole: a regular file's
 /// size is checked against the budget first
@@ -602,10 +612,11 @@ pub fn read_constraints_file(path: &Path) -> Result<ConstraintSet, Error> {
 /// stream (a pipe, a device) is read up to the size that estimate allows;
 /// one that reaches it is refused ([`ConstraintError::TooLarge`], naming
 /// the budget and the bytes read), whatever its first part parses as.
-pub fn read_constraints_file_within(
+pub fn read_constraints_file_with(
     path: &Path,
-    budget: crate::limits::MemoryBudget,
+    resources: &Resources,
 ) -> Result<ConstraintSet, Error> {
+    let budget = resources.budget;
     use std::io::{BufRead, BufReader, Read};
     let io = |e| Error::io(path, e);
     let file = std::fs::File::open(path).map_err(io)?;

@@ -210,15 +210,14 @@ impl Deformer {
 
     /// The solver of the assembled problem (in its units: lengths divided
     /// by [`Deformer::length_unit`]): its refinement
-    /// ([`LseSolver::refine_mode`]), memory budget, prepared system,
+    /// ([`LseSolver::refine_mode`]), prepared system,
     /// condition estimate, diagnostics and its solves in the problem's
     /// units. The mesh-level phases below go through it.
     pub fn solver(&self) -> &LseSolver {
         &self.solver
     }
 
-    /// The solver, to change its settings ([`LseSolver::set_refine`],
-    /// [`LseSolver::set_memory_budget`]), solve in the problem's units
+    /// The solver, to change its settings ([`LseSolver::set_refine`]), solve in the problem's units
     /// ([`LseSolver::solve_into`], [`LseSolver::solve_columns`]), diagnose
     /// or estimate the condition. Targets are moved through the deformer
     /// ([`Deformer::set_target`] and the like), which keeps them in the
@@ -228,14 +227,24 @@ impl Deformer {
         &mut self.solver
     }
 
-    /// Precompute phase: factors the system with `formulation` within the
-    /// solver's memory budget ([`LseSolver::set_memory_budget`]).
+    /// Precompute phase: factors the system with `formulation` under the
+    /// default resources ([`LseSolver::precompute`]).
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
         self.solver.precompute(formulation)
     }
 
+    /// Precompute phase under `resources` (budget, threads, ordering:
+    /// [`LseSolver::precompute_using`]).
+    pub fn precompute_using(
+        &mut self,
+        formulation: &dyn Formulation,
+        resources: &crate::resources::Resources,
+    ) -> Result<(), Error> {
+        self.solver.precompute_using(formulation, resources)
+    }
+
     /// Precompute phase with `options`: its formulation, refinement and
-    /// memory budget ([`LseSolver::precompute_with`]).
+    /// resources ([`LseSolver::precompute_with`]).
     pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
         self.solver.precompute_with(options)
     }

@@ -46,6 +46,7 @@ use crate::error::{Error, ProblemError};
 use crate::formulation::Refine;
 use crate::limits::MemoryBudget;
 use crate::problem::RowPlace;
+use crate::resources::Resources;
 
 /// Vertices per parallel task of [`HandleBasis::evaluate`] (a few hundred
 /// KiB of basis each: large enough that scheduling is negligible).
@@ -81,10 +82,22 @@ impl HandleBasis {
     ///
     /// The memory it needs ([`HandleBasis::estimated_bytes`]: `3 + 4G`
     /// columns of the problem's height, several times over while they are
-    /// solved and refined) is checked against the deformer's memory budget
-    /// ([`crate::LseSolver::memory_budget`]) before anything is allocated: beyond it, a
-    /// [`ProblemError::TooLarge`] with the estimate.
+    /// solved and refined) is checked against the memory budget of the
+    /// precompute it is built on (the report's `memory_budget`) before
+    /// anything is allocated: beyond it, a [`ProblemError::TooLarge`] with
+    /// the estimate.
     pub fn new(deformer: &mut Deformer, names: &[&str]) -> Result<HandleBasis, Error> {
+        let budget = deformer.report().memory_budget.unwrap_or_default();
+        HandleBasis::with_resources(deformer, names, &Resources::with_budget(budget))
+    }
+
+    /// [`HandleBasis::new`] within the budget of `resources` instead of
+    /// the precompute's.
+    pub fn with_resources(
+        deformer: &mut Deformer,
+        names: &[&str],
+        resources: &Resources,
+    ) -> Result<HandleBasis, Error> {
         let t = Instant::now();
         let mut seen = HashSet::with_capacity(names.len());
         for name in names {
@@ -97,7 +110,7 @@ impl HandleBasis {
         }
         let problem = deformer.problem();
         let (n, l, m) = (problem.n(), problem.c().nrows(), problem.d().nrows());
-        HandleBasis::check_memory(n, l, m, names.len(), deformer.solver().memory_budget())?;
+        HandleBasis::check_memory(n, l, m, names.len(), resources.budget)?;
         let mut members = Vec::with_capacity(names.len());
         for name in names {
             members.push(deformer.group_members(name)?);

@@ -47,6 +47,7 @@ use faer::{Mat, MatRef};
 use crate::error::{Error, MatrixFileError, ProblemError};
 use crate::interop::faer_to_sprs;
 use crate::limits::MemoryBudget;
+use crate::resources::Resources;
 
 /// A matrix read from a Matrix Market file, in the form the file has.
 #[derive(Debug, Clone)]
@@ -97,11 +98,11 @@ impl MatrixFile {
     /// The matrix as a dense one; a sparse file is expanded after a check of
     /// `rows × cols × 8` bytes against the memory budget.
     pub fn into_dense(self, path: &Path) -> Result<Mat<f64>, Error> {
-        self.into_dense_within(path, MemoryBudget::default())
+        self.into_dense_budgeted(path, MemoryBudget::default())
     }
 
     /// [`MatrixFile::into_dense`] within `budget`.
-    fn into_dense_within(self, path: &Path, budget: MemoryBudget) -> Result<Mat<f64>, Error> {
+    fn into_dense_budgeted(self, path: &Path, budget: MemoryBudget) -> Result<Mat<f64>, Error> {
         match self {
             MatrixFile::Dense(m) => Ok(m),
             MatrixFile::Sparse(m) => {
@@ -397,12 +398,13 @@ pub type SystemMatrices = (
 /// reading all four (with the dense expansions) must fit the memory
 /// budget ([`ProblemError::TooLarge`]). So a few bytes of header cannot
 /// make the reader allocate for a matrix that would be refused anyway.
-/// Within the default memory budget; see [`read_system_within`].
+/// Within the default memory budget; see [`read_system_with`].
 pub fn read_system(a: &Path, c: &Path, b: &Path, d: &Path) -> Result<SystemMatrices, Error> {
-    read_system_within(a, c, b, d, MemoryBudget::default())
+    read_system_with(a, c, b, d, &Resources::default())
 }
 
-/// [`read_system`] within `budget`.
+/// [`read_system_with`] a memory `budget`.
+#[deprecated(note = "use read_system_with(a, c, b, d, &Resources::with_budget(budget))")]
 pub fn read_system_within(
     a: &Path,
     c: &Path,
@@ -410,6 +412,18 @@ pub fn read_system_within(
     d: &Path,
     budget: MemoryBudget,
 ) -> Result<SystemMatrices, Error> {
+    read_system_with(a, c, b, d, &Resources::with_budget(budget))
+}
+
+/// [`read_system`] within the budget of `resources`.
+pub fn read_system_with(
+    a: &Path,
+    c: &Path,
+    b: &Path,
+    d: &Path,
+    resources: &Resources,
+) -> Result<SystemMatrices, Error> {
+    let budget = resources.budget;
     fn open_file(path: &Path) -> Result<Opened<'_, BufReader<File>>, Error> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
         open(BufReader::new(file), path)
@@ -471,9 +485,9 @@ pub fn read_system_within(
         })
         .map_err(|detail| Error::from(ProblemError::TooLarge { detail }))?;
     let ma = fa.read_entries(budget)?.into_sparse();
-    let mc = fc.read_entries(budget)?.into_dense_within(c, budget)?;
+    let mc = fc.read_entries(budget)?.into_dense_budgeted(c, budget)?;
     let mb = fb.read_entries(budget)?.into_sparse();
-    let md = fd.read_entries(budget)?.into_dense_within(d, budget)?;
+    let md = fd.read_entries(budget)?.into_dense_budgeted(d, budget)?;
     Ok((ma, mc, mb, md))
 }
 

@@ -113,7 +113,6 @@ mod tests {
     use super::*;
     use crate::backend::{qr::QrKind, spd::SpdKind};
     use crate::choice::Method;
-    use crate::limits::MemoryBudget;
 
     /// The documented defaults, value by value (the CLI's `--help`, the
     /// Python stub `_native.pyi`).
@@ -127,7 +126,7 @@ mod tests {
         assert_eq!(d.solve.formulation.spd, SpdKind::FaerAuto);
         assert_eq!(d.solve.formulation.weight, None);
         assert_eq!(d.solve.refine, None);
-        assert_eq!(d.solve.memory_budget, MemoryBudget::default());
+        assert_eq!(d.solve.resources, crate::resources::Resources::default());
         assert!(!d.strict);
         let a = ArapOptions::default();
         assert_eq!(a.energy, ArapEnergy::SpokesAndRims);

@@ -140,6 +140,10 @@ pub struct Timings {
     pub symbolic: f64,
     /// Numeric factorisation.
     pub numeric: f64,
+    /// Computing a fill-reducing ordering held equal across back ends and
+    /// given to the back end (0 when it ordered by itself, inside
+    /// `symbolic`).
+    pub ordering: f64,
     /// The last solve: `R1ᵀy = D`, right-hand side, two triangular solves,
     /// `X = Q[y; z]`.
     pub solve: f64,
@@ -155,9 +159,14 @@ pub struct Timings {
 }
 
 impl Timings {
-    /// QR + preparation + normal matrix + symbolic + numeric.
+    /// QR + preparation + normal matrix + ordering + symbolic + numeric.
     pub fn precompute(&self) -> f64 {
-        self.qr + self.preparation + self.normal_matrix + self.symbolic + self.numeric
+        self.qr
+            + self.preparation
+            + self.normal_matrix
+            + self.ordering
+            + self.symbolic
+            + self.numeric
     }
 }
 
@@ -290,6 +299,18 @@ pub struct Report {
     /// `rlimit`, `cgroup`, `unlimited`: [`crate::limits::BudgetSource`]);
     /// `None` before a precompute.
     pub memory_budget: Option<crate::limits::MemoryBudget>,
+    /// The fill-reducing ordering the factorisation used (key `ordering`):
+    /// `own (amd)`, `own (scotch)`, … when the back end chose (its method in
+    /// brackets), `amd`, `metis`, `natural` or `given` when it was held
+    /// equal, `… (kkt)` for KKT (vertices in that order, each multiplier
+    /// after its last vertex), `… (applied to the matrix)` for a back end
+    /// from outside that took no permutation; `None` before a precompute
+    /// and when nothing was factored (docs/equal-terms.md).
+    pub ordering: Option<String>,
+    /// The threads the factorisation ran on (key `threads`; for MUMPS on
+    /// the driving rank, its ranks under `mumps`); `None` when nothing was
+    /// factored or a back end from outside does not say.
+    pub threads: Option<usize>,
     /// What the factor's back end reports of its factorisation beyond the
     /// generic keys, serialised under the key its section names, present
     /// only when the back end reports something: for MUMPS the key `mumps`,

@@ -54,25 +54,26 @@ use crate::formulation::{
     PrecomputeRecord, Precomputed, Prepared, Refine, RefineStop, Refinement, refine,
     refine_with_rounding,
 };
-use crate::limits::MemoryBudget;
 use crate::problem::{LseProblem, RHS_BLOCK};
 use crate::report::{
     ConflictSources, Report, Warning, WarningKind, conflict_warnings, fill_solution_diagnostics,
     first_non_finite,
 };
+use crate::resources::Resources;
 
 /// How to solve: the formulation with its back ends, the refinement and the
-/// memory budget. What the CLI's flags, Python's keywords and the editor's
-/// settings translate into; [`LseSolver::precompute_with`] (and the
-/// `precompute_with` of [`crate::Deformer`] and
-/// [`crate::arap::ArapDeformer`]) applies all three.
+/// resources (memory budget, threads, ordering). What the CLI's flags,
+/// Python's keywords and the editor's settings translate into;
+/// [`LseSolver::precompute_with`] (and the `precompute_with` of
+/// [`crate::Deformer`] and [`crate::arap::ArapDeformer`]) applies them all.
 ///
 /// The default is the paper's method on the default back ends
 /// ([`FormulationChoice::new`] of [`Method::NullSpaceQr`]), the
-/// formulation's default refinement (`refine: None`) and the process's
-/// memory budget ([`MemoryBudget::default`]: `LSE_MEMORY_LIMIT` when set,
-/// otherwise the smallest of the available memory, the address-space limit
-/// and the cgroup's memory limit), which is what a solve without options
+/// formulation's default refinement (`refine: None`) and the default
+/// resources ([`Resources::default`]: the process's memory budget,
+/// `LSE_MEMORY_LIMIT` when set, otherwise the smallest of the available
+/// memory, the address-space limit and the cgroup's memory limit; each back
+/// end's own threads and ordering), which is what a solve without options
 /// does.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolveOptions {
@@ -82,8 +83,9 @@ pub struct SolveOptions {
     /// ([`Refine::Auto`] for the exact formulations, [`Refine::EstimateOnly`] for
     /// penalty).
     pub refine: Option<Refine>,
-    /// The memory the precompute may use ([`crate::limits`]).
-    pub memory_budget: MemoryBudget,
+    /// The memory budget, threads and ordering of the precompute
+    /// ([`crate::resources`]).
+    pub resources: Resources,
     /// Where the factor is kept: in core, or out of core under a directory
     /// (the `mumps` back end only).
     pub factor_storage: FactorStorage,
@@ -101,7 +103,7 @@ impl SolveOptions {
         SolveOptions {
             formulation,
             refine: None,
-            memory_budget: MemoryBudget::default(),
+            resources: Resources::default(),
             factor_storage: FactorStorage::InCore,
         }
     }
@@ -130,8 +132,6 @@ pub struct LseSolver {
     /// rounding floor), so that later solves can stop refining on a
     /// prediction; reset at every precompute.
     rounding: FactorRounding,
-    /// The budget of every following precompute.
-    memory_budget: MemoryBudget,
 }
 
 impl LseSolver {
@@ -156,32 +156,18 @@ impl LseSolver {
             last_refinement: None,
             conflict_sources: ConflictSources::default(),
             rounding: FactorRounding::default(),
-            memory_budget: MemoryBudget::default(),
         }
     }
 
-    /// Sets the memory budget of every following precompute (and of a
-    /// response basis built on this solver); the default is
-    /// [`MemoryBudget::default`].
-    pub fn set_memory_budget(&mut self, budget: MemoryBudget) {
-        self.memory_budget = budget;
-    }
-
-    /// The memory budget the next precompute uses.
-    pub fn memory_budget(&self) -> MemoryBudget {
-        self.memory_budget
-    }
-
-    /// Applies `options`: builds its formulation, sets its refinement and
-    /// memory budget, and precomputes.
+    /// Applies `options`: builds its formulation, sets its refinement, and
+    /// precomputes under its resources.
     ///
     /// Errors: those of [`FormulationChoice::build`] (the previous system is
-    /// kept then) and of [`LseSolver::precompute`].
+    /// kept then) and of [`LseSolver::precompute_using`].
     pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
         let formulation = options.formulation.build_with(&options.factor_storage)?;
         self.set_refine(options.refine);
-        self.set_memory_budget(options.memory_budget);
-        self.precompute(formulation.as_ref())
+        self.precompute_using(formulation.as_ref(), &options.resources)
     }
 
     /// Sets the refinement of every following solve (see
@@ -216,19 +202,29 @@ impl LseSolver {
         }
     }
 
-    /// Precompute phase: factors the system with `formulation` within the
-    /// solver's memory budget ([`LseSolver::set_memory_budget`]). On error
-    /// the previous system is gone (solve then fails until a precompute
-    /// succeeds).
+    /// Precompute phase: factors the system with `formulation` under the
+    /// default resources ([`Resources::default`]). On error the previous
+    /// system is gone (solve then fails until a precompute succeeds).
     pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
+        self.precompute_using(formulation, &Resources::default())
+    }
+
+    /// Precompute phase under `resources` (the budget, and the threads and
+    /// ordering of the factorisation, which the report states). On error the
+    /// previous system is gone.
+    pub fn precompute_using(
+        &mut self,
+        formulation: &dyn Formulation,
+        resources: &Resources,
+    ) -> Result<(), Error> {
         self.system = None;
         crate::interrupt::check()?;
         self.rounding = FactorRounding::default();
         let Precomputed { system, record } = formulation
-            .precompute_within(&self.problem, self.memory_budget)
+            .precompute_with(&self.problem, resources)
             .map_err(|e| name_free_unknown(e, &self.problem))?;
         let mut report = self.base.clone();
-        report.memory_budget = Some(self.memory_budget);
+        report.memory_budget = Some(resources.budget);
         apply_record(&mut report, record);
         self.conflict_sources = ConflictSources::new(system.skipped());
         self.system = Some(system);
@@ -529,8 +525,12 @@ fn apply_record(report: &mut Report, record: PrecomputeRecord) {
         warnings,
         facts,
         backend_facts,
+        ordering,
+        threads,
     } = record;
     report.backend_facts = backend_facts;
+    report.ordering = ordering.map(|o| o.into_owned());
+    report.threads = threads;
     report.refactorizations = 0;
     report.method = method;
     report.qr_backend = qr_backend;
@@ -547,6 +547,7 @@ fn apply_record(report: &mut Report, record: PrecomputeRecord) {
     report.timings_s.normal_matrix = timings.normal_matrix;
     report.timings_s.symbolic = timings.symbolic;
     report.timings_s.numeric = timings.numeric;
+    report.timings_s.ordering = timings.ordering;
     report.warnings.extend(warnings);
 }
 

@@ -1064,3 +1064,48 @@ fn refine_zero_means_zero_steps() {
     let (_, r1) = deform("1");
     assert_eq!(r1["steps"], 1, "{r1}");
 }
+
+/// `--ordering` and `--threads` reach the back end and the report says
+/// what was used; with one AMD permutation the exact-fill back ends agree
+/// on the factor's size; a bad value is a usage error naming the flag.
+#[test]
+fn ordering_and_threads_are_held_and_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = path_in(dir.path(), "grid.obj");
+    let o = run(&["generate", "grid", "--vertices", "900", "-o", &mesh]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = path_in(dir.path(), "scene.json");
+    let o = run(&["scene", &mesh, "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report_of = |factor: &str, held: &[&str]| {
+        let out = path_in(dir.path(), &format!("out-{factor}.obj"));
+        let report = path_in(dir.path(), &format!("report-{factor}.json"));
+        let mut args = vec![
+            "deform", &mesh, "-c", &scene, "-o", &out, "--report", &report, "--factor", factor,
+        ];
+        args.extend_from_slice(held);
+        let o = run(&args);
+        assert!(o.status.success(), "{factor}: {}", stderr(&o));
+        let text = std::fs::read_to_string(&report).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()
+    };
+    let own = report_of("faer-auto", &[]);
+    assert_eq!(own["ordering"], "own (amd)");
+    assert_eq!(own["threads"], 1);
+    assert_eq!(own["timings_s"]["ordering"], 0.0);
+    let held = ["--ordering", "amd", "--threads", "1"];
+    let simplicial = report_of("faer-simplicial", &held);
+    let nalgebra = report_of("nalgebra", &held);
+    for r in [&simplicial, &nalgebra] {
+        assert_eq!(r["ordering"], "amd");
+        assert_eq!(r["threads"], 1);
+        assert!(r["timings_s"]["ordering"].as_f64().unwrap() > 0.0);
+    }
+    assert_eq!(simplicial["nnz"]["factor"], nalgebra["nnz"]["factor"]);
+    for (flag, value) in [("--ordering", "colamd"), ("--threads", "0")] {
+        let out = path_in(dir.path(), "bad.obj");
+        let o = run(&["deform", &mesh, "-c", &scene, "-o", &out, flag, value]);
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}");
+        assert!(stderr(&o).contains(flag), "{}", stderr(&o));
+    }
+}

@@ -10,6 +10,7 @@ use lse_deform::constraints::{Constraint, ConstraintSet};
 use lse_deform::error::{Error, ProblemError};
 use lse_deform::handle::HandleBasis;
 use lse_deform::mesh::{Mesh, generate};
+use lse_deform::resources::Resources;
 use lse_deform::{
     Deformer, FormulationChoice, LaplacianKind, MemoryBudget, Method, QrKind, SolveOptions,
 };
@@ -42,7 +43,7 @@ fn positions_scene() -> (Mesh, ConstraintSet) {
 /// 64 bytes: less than any factor of the scene needs.
 fn tiny(formulation: FormulationChoice) -> SolveOptions {
     SolveOptions {
-        memory_budget: MemoryBudget::bytes(64),
+        resources: Resources::with_budget(MemoryBudget::bytes(64)),
         ..SolveOptions::new(formulation)
     }
 }
@@ -114,7 +115,7 @@ fn a_tiny_budget_is_refused_per_solve_and_the_default_succeeds_in_the_same_proce
         // The refused deformer takes a budget that fits and then succeeds.
         small
             .precompute_with(&SolveOptions {
-                memory_budget: MemoryBudget::unlimited(),
+                resources: Resources::with_budget(MemoryBudget::unlimited()),
                 ..SolveOptions::new(formulation)
             })
             .unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -138,14 +139,14 @@ fn the_qr_factor_is_checked_against_the_solve_budget_before_the_cholesky_factor(
 }
 
 #[test]
-fn the_response_basis_uses_the_deformers_budget() {
+fn the_response_basis_uses_the_precomputes_budget_or_the_one_given() {
     let (mesh, set) = scene();
     let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
     d.precompute_with(&SolveOptions::default()).unwrap();
     HandleBasis::new(&mut d, &["top"]).unwrap();
-    // Enough for the factor, not for 7 columns of 121 vertices.
-    d.solver_mut().set_memory_budget(MemoryBudget::bytes(4096));
-    let e = HandleBasis::new(&mut d, &["top"]).unwrap_err();
+    // Less than 7 columns of 121 vertices.
+    let tiny = Resources::with_budget(MemoryBudget::bytes(4096));
+    let e = HandleBasis::with_resources(&mut d, &["top"], &tiny).unwrap_err();
     let detail = too_large(Err(e));
     assert!(
         detail.contains("the response basis of 1 group(s)"),
@@ -170,16 +171,16 @@ fn an_invalid_formulation_is_refused_before_the_solver_changes() {
     let (mesh, set) = scene();
     let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
     d.precompute_with(&SolveOptions::default()).unwrap();
-    let before = d.solver().memory_budget();
+    let before = d.report().clone();
     let no_weight = SolveOptions {
-        memory_budget: MemoryBudget::bytes(64),
+        resources: Resources::with_budget(MemoryBudget::bytes(64)),
         ..SolveOptions::new(FormulationChoice::new(Method::Penalty))
     };
     match d.precompute_with(&no_weight) {
         Err(Error::Problem(ProblemError::InvalidOption { .. })) => {}
         other => panic!("expected InvalidOption, got {other:?}"),
     }
-    assert_eq!(d.solver().memory_budget(), before);
+    assert_eq!(d.report(), &before);
     // The earlier factor still solves.
     d.solve().unwrap();
 }
@@ -187,7 +188,7 @@ fn an_invalid_formulation_is_refused_before_the_solver_changes() {
 #[test]
 fn the_default_budget_is_the_process_default() {
     assert_eq!(
-        SolveOptions::default().memory_budget.limit(),
+        SolveOptions::default().resources.budget.limit(),
         lse_deform::limits::memory_budget()
     );
     assert_eq!(MemoryBudget::bytes(5).limit(), 5);

@@ -13,6 +13,9 @@ pub(crate) mod faer_kernel;
 pub mod ldlt;
 #[cfg(feature = "mumps")]
 pub mod mumps;
+#[cfg(any(feature = "suitesparse", feature = "mumps"))]
+pub(crate) mod openblas;
+pub mod ordering;
 pub mod qr;
 pub mod spd;
 #[cfg(feature = "suitesparse")]

@@ -59,6 +59,8 @@ pub struct CompareArgs {
     /// else the smallest of the system's limits).
     #[arg(long, value_parser = super::memory_budget)]
     memory_limit: Option<lse_deform::MemoryBudget>,
+    #[command(flatten)]
+    held: super::HeldArgs,
 }
 
 impl CompareArgs {
@@ -74,6 +76,7 @@ impl CompareArgs {
             refine: self.refine,
             repeat: self.repeat,
             condition: !self.no_condition,
+            resources: self.held.resources(self.memory_limit.unwrap_or_default()),
         }
     }
 }
@@ -103,11 +106,10 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
         .map_err(|e| ProblemError::InvalidArgument {
             message: format!("--methods/--qr/--factor/--weights: {e}"),
         })?;
-    let budget = a.memory_limit.unwrap_or_default();
+    let budget = options.resources.budget;
     let mesh = load(&a.mesh, budget)?;
     let (constraints, warnings) = constraints_with_warnings(&a.constraints, &mesh, false, budget)?;
     let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    deformer.solver_mut().set_memory_budget(budget);
     let bar =
         ProgressBar::with_draw_target(Some(configs.len() as u64 + 1), ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {
@@ -115,7 +117,7 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     }
     show_after_a_second(&bar);
     bar.set_message("reference (nullspace-qr, refined)");
-    let reference = compare::reference(&mut deformer)?;
+    let reference = compare::reference(&mut deformer, budget)?;
     if let Some(e) = reference.forward_error_estimate.filter(|&e| e > 1e-12) {
         eprintln!(
             "warning: the reference solution (nullspace-qr, refined) has an estimated forward error of {e:.1e}: differences below it are not resolved"
@@ -150,20 +152,32 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     Ok(())
 }
 
+/// The threads of a row, with the ranks of a back end on several
+/// (`1 × 2 ranks`).
+fn threads_cell(r: &CompareRow) -> String {
+    let threads = r.threads.map_or("—".to_string(), |t| t.to_string());
+    match r.ranks {
+        Some(ranks) if ranks > 1 => format!("{threads} × {ranks} ranks"),
+        _ => threads,
+    }
+}
+
 /// The Markdown table of `compare` on stdout (status text in full).
 fn print_compare_table(rows: &[CompareRow]) {
     out!(
-        "| method | QR | SPD | weight | precompute (s) | solve, median (ms) | refine (ms) | max ‖BX − D‖ (mesh units) | ΔX (× diagonal) | ΔE (relative) | forward error est. (× diagonal) | κ₂ est. of the factored matrix | status |"
+        "| method | QR | SPD | weight | ordering | threads | precompute (s) | solve, median (ms) | refine (ms) | max ‖BX − D‖ (mesh units) | ΔX (× diagonal) | ΔE (relative) | forward error est. (× diagonal) | κ₂ est. of the factored matrix | status |"
     );
-    out!("|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|");
+    out!("|---|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
     let opt = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map(f).unwrap_or_else(|| "—".into());
     for r in rows {
         out!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.method,
             r.qr.as_deref().unwrap_or("—"),
             r.spd,
             opt(r.weight, &|w| format!("{w:.0e}")),
+            r.ordering.as_deref().unwrap_or("—"),
+            threads_cell(r),
             opt(r.precompute_s, &|t| format!("{t:.3}")),
             opt(r.solve_median_s, &|t| format!("{:.2}", t * 1e3)),
             opt(r.refine_s, &|t| format!("{:.2}", t * 1e3)),

@@ -9,12 +9,13 @@ use std::time::Duration;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lse_deform::backend::FactorStorage;
-use lse_deform::constraints::{ConstraintSet, read_constraints_file_within};
+use lse_deform::constraints::{ConstraintSet, read_constraints_file_with};
 use lse_deform::error::{ProblemError, SolveOption};
 use lse_deform::formulation::Refine;
 use lse_deform::limits::{MemoryBudget, parse_bytes};
 use lse_deform::mesh;
 use lse_deform::options::DeformOptions;
+use lse_deform::resources::{FillOrdering, OrderingWord, Resources, Threads};
 use lse_deform::{Error, Method, QrKind, SpdKind};
 
 /// `println!` that treats a closed pipe (`lse-deform info m.obj | head`) as
@@ -72,12 +73,43 @@ pub struct MethodArgs {
     /// cgroup's memory limit.
     #[arg(long, value_parser = memory_budget)]
     pub memory_limit: Option<MemoryBudget>,
+    #[command(flatten)]
+    pub held: HeldArgs,
     /// Keep the factor in files under this directory (it must exist; each
     /// MPI rank makes its own subdirectory there and removes it, also on
     /// error): --factor mumps only. The memory budget then counts what
     /// stays in memory.
     #[arg(long, value_name = "DIR")]
     pub out_of_core: Option<std::path::PathBuf>,
+}
+
+/// The threads and the fill-reducing ordering of the factorisation, held
+/// equal across back ends when given (docs/equal-terms.md).
+#[derive(Args, Clone, Debug, PartialEq, Default)]
+pub struct HeldArgs {
+    /// Threads of the factorisation: a count for every back end (faer's
+    /// parallelism, OpenBLAS's threads for cholmod and mumps; nalgebra is
+    /// sequential), or own: each back end's own choice. The report's
+    /// "threads" says what was used. [default: own]
+    #[arg(long)]
+    pub threads: Option<Threads>,
+    /// Fill-reducing ordering: own (each back end's), amd or natural, or
+    /// metis (builds with SuiteSparse); amd and metis are computed once on
+    /// the matrix factored and given to the back end. The report's
+    /// "ordering" says what was used. [default: own]
+    #[arg(long)]
+    pub ordering: Option<OrderingWord>,
+}
+
+impl HeldArgs {
+    /// `budget` with these threads and ordering.
+    pub fn resources(&self, budget: MemoryBudget) -> Resources {
+        Resources {
+            budget,
+            threads: self.threads.unwrap_or_default(),
+            ordering: self.ordering.map(FillOrdering::from).unwrap_or_default(),
+        }
+    }
 }
 
 /// The help of `--factor`: the back ends of this build (and those it
@@ -155,7 +187,9 @@ impl MethodArgs {
         solve.formulation.spd = self.spd.unwrap_or(self.factor).into();
         solve.formulation.weight = self.weight;
         solve.refine = self.refine.or(solve.refine);
-        solve.memory_budget = self.memory_limit.unwrap_or(solve.memory_budget);
+        solve.resources = self
+            .held
+            .resources(self.memory_limit.unwrap_or(solve.resources.budget));
         if let Some(dir) = &self.out_of_core {
             solve.factor_storage = FactorStorage::OutOfCore(dir.clone());
         }
@@ -252,7 +286,7 @@ pub fn show_after_a_second(bar: &ProgressBar) {
 /// its notes and warnings.
 pub fn load(path: &Path, budget: MemoryBudget) -> Result<mesh::Mesh, Error> {
     let bar = phase(&format!("reading {}", path.display()));
-    let loaded = mesh::read_mesh_within(path, budget)?;
+    let loaded = mesh::read_mesh_with(path, &Resources::with_budget(budget))?;
     bar.finish_and_clear();
     for note in &loaded.notes {
         eprintln!("note: {note}");
@@ -317,7 +351,7 @@ pub fn constraints_with_warnings(
     budget: MemoryBudget,
 ) -> Result<(ConstraintSet, Vec<String>), Error> {
     let bar = phase(&format!("reading {}", path.display()));
-    let set = read_constraints_file_within(path, budget)?;
+    let set = read_constraints_file_with(path, &Resources::with_budget(budget))?;
     bar.finish_and_clear();
     let mut warnings = Vec::new();
     if let Some(detail) = set.mesh_mismatch(mesh) {

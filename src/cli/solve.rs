@@ -104,7 +104,7 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
         .transpose()?;
     let bar = phase("reading the matrices");
     let t = std::time::Instant::now();
-    let (ma, mc, mb, md) = mtx::read_system_within(&pa, &pc, &pb, &pd, options.memory_budget)?;
+    let (ma, mc, mb, md) = mtx::read_system_with(&pa, &pc, &pb, &pd, &options.resources)?;
     if let Some((meta, path)) = &meta {
         check_meta(
             meta,

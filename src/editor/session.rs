@@ -232,9 +232,6 @@ fn build_linear(
     (t0, setup_s): (Instant, f64),
     stage: &dyn Fn(&str),
 ) -> Result<Built, Error> {
-    deformer
-        .solver_mut()
-        .set_memory_budget(options.solve.memory_budget);
     let groups = deformer.constraints().group_names();
     let movable: Vec<String> = groups
         .into_iter()
@@ -242,7 +239,7 @@ fn build_linear(
         .map(str::to_string)
         .collect();
     let movable: Vec<&str> = movable.iter().map(String::as_str).collect();
-    check_basis_size(&deformer, movable.len())?;
+    check_basis_size(&deformer, movable.len(), options.solve.resources.budget)?;
     stage("precompute (factorisation)");
     let t = Instant::now();
     deformer.precompute_with(&options.solve)?;
@@ -303,7 +300,11 @@ fn first_positions(
 
 /// Refuses a response basis of more than [`MAX_BASIS_GROUPS`] groups, or
 /// one beyond the memory budget, before the precompute.
-fn check_basis_size(deformer: &Deformer, groups: usize) -> Result<(), Error> {
+fn check_basis_size(
+    deformer: &Deformer,
+    groups: usize,
+    budget: crate::limits::MemoryBudget,
+) -> Result<(), Error> {
     let problem = deformer.problem();
     let (n, l, m) = (problem.n(), problem.c().nrows(), problem.d().nrows());
     if groups > MAX_BASIS_GROUPS {
@@ -316,7 +317,7 @@ fn check_basis_size(deformer: &Deformer, groups: usize) -> Result<(), Error> {
         }
         .into());
     }
-    HandleBasis::check_memory(n, l, m, groups, deformer.solver().memory_budget())
+    HandleBasis::check_memory(n, l, m, groups, budget)
 }
 
 /// How a frame was computed.

@@ -29,9 +29,9 @@ use crate::backend::FactorKind;
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, ProblemError};
-use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::report::MethodFacts;
+use crate::resources::Resources;
 use crate::sparse::{at_residual, at_times, gather_columns, lower_to_full, row_entries};
 
 /// Elimination of position-constrained vertices over an SPD back end.
@@ -69,10 +69,10 @@ impl Formulation for Elimination {
         super::Method::Eliminate
     }
 
-    fn precompute_within(
+    fn precompute_with(
         &self,
         problem: &LseProblem,
-        budget: MemoryBudget,
+        resources: &Resources,
     ) -> Result<Precomputed, Error> {
         let mut record = PrecomputeRecord::new(
             self.method(),
@@ -127,7 +127,8 @@ impl Formulation for Elimination {
                 "the eliminated normal matrix A_UᵀA_U",
                 |k| unknown.get(k).copied(),
                 &mut record,
-                budget,
+                resources,
+                problem.n(),
             )?;
             (Some(lower), Some(factor))
         };

@@ -70,14 +70,15 @@ use super::util::{RowKind, split_normal};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
 use crate::backend::ldlt::{FaerLdlt, LdltBackend, LdltKind, PivotFault, PivotRule};
+use crate::backend::ordering::FactorPlan;
 use crate::backend::qr::{QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::SpdKind;
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError};
-use crate::limits::MemoryBudget;
 use crate::mesh::topology::UnionFind;
 use crate::problem::{LseProblem, pivot_columns};
 use crate::report::{MethodFacts, first_non_finite};
+use crate::resources::{FillOrdering, Resources, Threads};
 use crate::sparse::{
     add_bt_times, at_residual, at_times, hard_residual_compensated, lower_diag, lower_sym_mul,
     lower_sym_norm_inf, lower_to_full, row_entries,
@@ -203,30 +204,25 @@ fn backend_error(e: impl std::fmt::Debug) -> Error {
 /// shows up as a failing *vertex* pivot, reported as such.
 pub fn kkt_ordering(problem: &LseProblem) -> Result<Vec<usize>, Error> {
     let (pattern, _, _) = split_normal(problem);
-    ordering_from_pattern(problem, &pattern)
+    ordering_from_pattern(problem, &pattern, None)
 }
 
+/// The static elimination order ([`kkt_ordering`]) with the vertices in
+/// `vertex_order` (a permutation of `0..n`) instead of AMD's when given.
 fn ordering_from_pattern(
     problem: &LseProblem,
     pattern: &SymbolicSparseColMat<usize>,
+    vertex_order: Option<&[usize]>,
 ) -> Result<Vec<usize>, Error> {
     let n = problem.n();
     let b = problem.b().as_ref();
     let m = b.nrows();
 
-    // 1. AMD on the vertex graph.
-    let mut amd_fwd = vec![0usize; n];
-    let mut amd_inv = vec![0usize; n];
-    let nnz = pattern.row_idx().len();
-    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(n, nnz)).map_err(backend_error)?;
-    amd::order(
-        &mut amd_fwd,
-        &mut amd_inv,
-        pattern.as_ref(),
-        amd::Control::default(),
-        MemStack::new(&mut mem),
-    )
-    .map_err(backend_error)?;
+    // 1. AMD on the vertex graph (or the order given).
+    let amd_fwd = match vertex_order {
+        Some(order) => order.to_vec(),
+        None => vertex_amd(pattern)?,
+    };
 
     // 3. Components free under the soft rows, and their deferred vertices.
     let mut in_hard = vec![false; n];
@@ -375,15 +371,58 @@ fn soft_free_components(
     free
 }
 
+/// faer's AMD on the vertex graph `pattern` (`fwd[i]` eliminated `i`-th).
+fn vertex_amd(pattern: &SymbolicSparseColMat<usize>) -> Result<Vec<usize>, Error> {
+    let n = pattern.ncols();
+    let mut amd_fwd = vec![0usize; n];
+    let mut amd_inv = vec![0usize; n];
+    let nnz = pattern.row_idx().len();
+    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(n, nnz)).map_err(backend_error)?;
+    amd::order(
+        &mut amd_fwd,
+        &mut amd_inv,
+        pattern.as_ref(),
+        amd::Control::default(),
+        MemStack::new(&mut mem),
+    )
+    .map_err(backend_error)?;
+    Ok(amd_fwd)
+}
+
+/// The KKT order under `resources`: the vertices in AMD's order (own) or
+/// in the one the resources hold, each multiplier after its last vertex;
+/// with the report's word for it and the seconds computing a held one.
+fn held_kkt_ordering(
+    problem: &LseProblem,
+    pattern: &SymbolicSparseColMat<usize>,
+    resources: &Resources,
+) -> Result<(Vec<usize>, String, f64), Error> {
+    if resources.ordering == FillOrdering::Own {
+        let order = ordering_from_pattern(problem, pattern, None)?;
+        return Ok((order, "own (kkt)".into(), 0.0));
+    }
+    let t = Instant::now();
+    let plan = FactorPlan::new(
+        &resources.ordering,
+        resources.threads,
+        pattern.as_ref(),
+        &|k| k,
+        problem.n(),
+    )?;
+    let ordering_s = t.elapsed().as_secs_f64();
+    let order = ordering_from_pattern(problem, pattern, plan.permutation.as_deref())?;
+    Ok((order, format!("{} (kkt)", plan.ordering), ordering_s))
+}
+
 impl Formulation for Kkt {
     fn method(&self) -> super::Method {
         super::Method::Kkt
     }
 
-    fn precompute_within(
+    fn precompute_with(
         &self,
         problem: &LseProblem,
-        budget: MemoryBudget,
+        resources: &Resources,
     ) -> Result<Precomputed, Error> {
         let n = problem.n();
         let m = problem.b().nrows();
@@ -414,14 +453,22 @@ impl Formulation for Kkt {
 
         crate::interrupt::check()?;
         let t = Instant::now();
-        let order = ordering_from_pattern(problem, &pattern)?;
-        record.timings.preparation = t.elapsed().as_secs_f64();
+        let (order, ordering, ordering_s) = held_kkt_ordering(problem, &pattern, resources)?;
+        record.timings.preparation = t.elapsed().as_secs_f64() - ordering_s;
+        record.timings.ordering = ordering_s;
+        record.ordering = Some(ordering.into());
 
         crate::interrupt::check()?;
         let t = Instant::now();
-        let symbolic = self.ldlt.analyze(k_lower.symbolic(), &order)?;
+        let symbolic = match resources.threads {
+            Threads::Own => self.ldlt.analyze(k_lower.symbolic(), &order)?,
+            threads => self
+                .ldlt
+                .analyze_on_threads(k_lower.symbolic(), &order, threads)?,
+        };
         record.timings.symbolic = t.elapsed().as_secs_f64();
-        symbolic.check_budget(budget, n + m, "the KKT matrix [AᵀA Bᵀ; B 0]")?;
+        record.threads = symbolic.threads_used();
+        symbolic.check_budget(resources.budget, n + m, "the KKT matrix [AᵀA Bᵀ; B 0]")?;
 
         crate::interrupt::check()?;
         let t = Instant::now();

@@ -25,6 +25,7 @@ use crate::condition::ConditionEstimate;
 use crate::error::{Error, ProblemError, SolveOption};
 use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
+use crate::resources::Resources;
 
 mod elimination;
 mod iterative_refinement;
@@ -58,21 +59,35 @@ pub trait Formulation: Send + Sync {
         self.method().name().into()
     }
 
-    /// The precompute phase: factor everything that depends on the matrices
-    /// only, refusing with [`ProblemError::TooLarge`] a factor whose
-    /// estimated size exceeds `budget` (checked before it is allocated).
-    /// Returns the system with the record of what was computed (sizes,
-    /// timings, rank, warnings, the method's own facts).
+    /// The precompute phase under `resources`: factor everything that
+    /// depends on the matrices only, with the resources' ordering and
+    /// threads ([`crate::resources`]), refusing with
+    /// [`ProblemError::TooLarge`] a factor whose estimated size exceeds the
+    /// budget (checked before it is allocated). Returns the system with the
+    /// record of what was computed (sizes, timings, rank, warnings, the
+    /// ordering and threads used, the method's own facts).
+    fn precompute_with(
+        &self,
+        problem: &LseProblem,
+        resources: &Resources,
+    ) -> Result<Precomputed, Error>;
+
+    /// [`Formulation::precompute_with`] the default resources
+    /// ([`Resources::default`]: the process's budget, each back end's own
+    /// threads and ordering).
+    fn precompute(&self, problem: &LseProblem) -> Result<Precomputed, Error> {
+        self.precompute_with(problem, &Resources::default())
+    }
+
+    /// [`Formulation::precompute_with`] a memory `budget` and each back
+    /// end's own threads and ordering.
+    #[deprecated(note = "use precompute_with(problem, &Resources::with_budget(budget))")]
     fn precompute_within(
         &self,
         problem: &LseProblem,
         budget: MemoryBudget,
-    ) -> Result<Precomputed, Error>;
-
-    /// [`Formulation::precompute_within`] the default memory budget
-    /// ([`MemoryBudget::default`]).
-    fn precompute(&self, problem: &LseProblem) -> Result<Precomputed, Error> {
-        self.precompute_within(problem, MemoryBudget::default())
+    ) -> Result<Precomputed, Error> {
+        self.precompute_with(problem, &Resources::with_budget(budget))
     }
 }
 

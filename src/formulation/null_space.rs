@@ -27,9 +27,9 @@ use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::cpu::clear_upper_vector_state;
 use crate::error::Error;
-use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::report::MethodFacts;
+use crate::resources::Resources;
 use crate::sparse::NormalPattern;
 use crate::sparse::{gather_columns, hard_residual_compensated, lower_to_full, mt_residual};
 
@@ -75,10 +75,10 @@ impl Formulation for NullSpaceQr {
         super::Method::NullSpaceQr
     }
 
-    fn precompute_within(
+    fn precompute_with(
         &self,
         problem: &LseProblem,
-        budget: MemoryBudget,
+        resources: &Resources,
     ) -> Result<Precomputed, Error> {
         let mut record = PrecomputeRecord::new(
             self.method(),
@@ -90,7 +90,7 @@ impl Formulation for NullSpaceQr {
         let t = Instant::now();
         let qr = self
             .qr
-            .factor_within(problem.b().as_ref(), self.tolerance, budget)?;
+            .factor_with(problem.b().as_ref(), self.tolerance, resources)?;
         record.timings.qr = t.elapsed().as_secs_f64();
         record.rank = Some(qr.rank());
         record.sizes.qr = Some(qr.storage_nnz());
@@ -113,7 +113,8 @@ impl Formulation for NullSpaceQr {
                 "the reduced normal matrix (AQ2)ᵀ(AQ2)",
                 |k| Some(qr.free_unknown(k)),
                 &mut record,
-                budget,
+                resources,
+                problem.n(),
             )?;
             Some(factor)
         };

@@ -34,7 +34,7 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
 use super::iterative_refinement::{Refine, Refinement, refine};
 use super::record::{PrecomputeRecord, Precomputed};
-use super::util::{split_normal, with_context};
+use super::util::{Analysed, analyze_under, split_normal, with_context};
 use super::{Formulation, Prepared};
 use crate::backend::FactorKind;
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic};
@@ -43,6 +43,7 @@ use crate::error::{Error, NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::report::{MethodFacts, Warning, WarningKind, first_non_finite};
+use crate::resources::Resources;
 use crate::sparse::{
     add_bt_times, at_residual, at_times, hard_residual, lower_diag, lower_sym_abs_mul,
     lower_sym_max_row_nnz, lower_sym_mul, lower_sym_norm_inf, lower_to_full,
@@ -112,13 +113,13 @@ impl Formulation for Penalty {
         super::Method::Penalty
     }
 
-    fn precompute_within(
+    fn precompute_with(
         &self,
         problem: &LseProblem,
-        budget: MemoryBudget,
+        resources: &Resources,
     ) -> Result<Precomputed, Error> {
         check_weight(self.weight, 1.0)?;
-        let sweep = PenaltySweep::within(problem, self.spd.as_ref(), budget)?;
+        let sweep = PenaltySweep::with_resources(problem, self.spd.as_ref(), resources)?;
         let mut record = PrecomputeRecord::new(
             self.method(),
             FactorKind::Cholesky(self.spd.name()),
@@ -128,7 +129,7 @@ impl Formulation for Penalty {
             },
         );
         record.timings.normal_matrix = sweep.normal_matrix_s;
-        record.timings.symbolic = sweep.symbolic_s;
+        sweep.analysed.record(&mut record);
         record.sizes.normal = Some(sweep.full_nnz());
         crate::interrupt::check()?;
         let t = Instant::now();
@@ -175,6 +176,8 @@ pub struct PenaltySweep {
     pub normal_matrix_s: f64,
     /// Seconds spent in the (single) symbolic analysis.
     pub symbolic_s: f64,
+    /// The analysis's ordering and threads.
+    analysed: Analysed,
 }
 
 /// The outcome of one weight of a sweep.
@@ -224,24 +227,37 @@ impl PenaltySweep {
     /// it, and the back end's symbolic analysis (the only one of the sweep).
     /// The factor's size is checked against the default memory budget.
     pub fn new(problem: &LseProblem, spd: &dyn SpdBackend) -> Result<PenaltySweep, Error> {
-        PenaltySweep::within(problem, spd, MemoryBudget::default())
+        PenaltySweep::with_resources(problem, spd, &Resources::default())
     }
 
-    /// [`PenaltySweep::new`] within a solve's memory `budget`.
+    /// [`PenaltySweep::with_resources`] a memory `budget`.
+    #[deprecated(
+        note = "use PenaltySweep::with_resources(problem, spd, &Resources::with_budget(budget))"
+    )]
     pub fn within(
         problem: &LseProblem,
         spd: &dyn SpdBackend,
         budget: MemoryBudget,
+    ) -> Result<PenaltySweep, Error> {
+        PenaltySweep::with_resources(problem, spd, &Resources::with_budget(budget))
+    }
+
+    /// [`PenaltySweep::new`] under `resources` (the budget, and the
+    /// ordering and threads of the one analysis and every factorisation).
+    pub fn with_resources(
+        problem: &LseProblem,
+        spd: &dyn SpdBackend,
+        resources: &Resources,
     ) -> Result<PenaltySweep, Error> {
         let t = Instant::now();
         let (pattern, ata, btb) = split_normal(problem);
         let normal_matrix_s = t.elapsed().as_secs_f64();
 
         crate::interrupt::check()?;
-        let t = Instant::now();
-        let symbolic = spd.analyze(pattern.as_ref())?;
-        let symbolic_s = t.elapsed().as_secs_f64();
-        symbolic.check_budget(budget, pattern.ncols(), "AᵀA + w²BᵀB")?;
+        let (symbolic, analysed) =
+            analyze_under(spd, pattern.as_ref(), resources, &|k| k, problem.n())?;
+        let symbolic_s = analysed.symbolic_s;
+        symbolic.check_budget(resources.budget, pattern.ncols(), "AᵀA + w²BᵀB")?;
         let ata_lower = faer::sparse::SparseColMatRef::new(pattern.as_ref(), &ata);
         let max_diagonal = (0..pattern.ncols())
             .map(|j| lower_diag(ata_lower, j))
@@ -255,6 +271,7 @@ impl PenaltySweep {
             backend: spd.name(),
             normal_matrix_s,
             symbolic_s,
+            analysed,
         })
     }
 

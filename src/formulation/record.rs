@@ -41,6 +41,10 @@ pub struct PhaseTimings {
     pub symbolic: f64,
     /// Numeric factorisation.
     pub numeric: f64,
+    /// Computing a fill-reducing ordering given to the back end (one held
+    /// equal across back ends); 0 when the back end ordered by itself,
+    /// inside `symbolic`.
+    pub ordering: f64,
 }
 
 /// The record of one precompute.
@@ -69,6 +73,13 @@ pub struct PrecomputeRecord {
     /// of the report (MUMPS: its ranks under `mumps`); `None` for back
     /// ends that report nothing more.
     pub backend_facts: Option<BackendFacts>,
+    /// The fill-reducing ordering the factorisation used
+    /// ([`crate::backend::ordering::PlanUsed`]); `None` when nothing was
+    /// factored.
+    pub ordering: Option<BackendName>,
+    /// The threads the factorisation ran on; `None` when nothing was
+    /// factored or the back end does not say.
+    pub threads: Option<usize>,
 }
 
 impl PrecomputeRecord {
@@ -84,6 +95,8 @@ impl PrecomputeRecord {
             warnings: Vec::new(),
             facts,
             backend_facts: None,
+            ordering: None,
+            threads: None,
         }
     }
 }

@@ -6,12 +6,15 @@
 
 use std::time::Instant;
 
-use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef, SymbolicSparseColMat};
+use faer::sparse::{
+    SparseColMat, SparseColMatRef, SparseRowMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef,
+};
 
 use super::record::PrecomputeRecord;
-use crate::backend::spd::{SpdBackend, SpdFactor};
+use crate::backend::ordering::{FactorPlan, PlanUsed};
+use crate::backend::spd::{SpdBackend, SpdFactor, SpdSymbolic};
 use crate::error::{Error, NumericalError, ProblemError};
-use crate::limits::MemoryBudget;
+use crate::resources::Resources;
 use crate::sparse::{NormalPattern, stack_rows};
 
 /// `tril(pattern(AᵀA + BᵀB))` and the values of `AᵀA` and of `BᵀB` on it
@@ -110,19 +113,87 @@ impl std::fmt::Display for RowKind {
 /// `tril(MᵀM)` and its Cholesky factor.
 pub(crate) type FactoredNormal = (SparseColMat<usize, f64>, Box<dyn SpdFactor>);
 
+/// What a planned symbolic analysis took and used.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Analysed {
+    /// Seconds computing the ordering given to the back end (0 when the
+    /// back end ordered by itself, inside its analysis).
+    pub ordering_s: f64,
+    /// Seconds of the back end's analysis.
+    pub symbolic_s: f64,
+    /// The ordering and threads used.
+    pub used: PlanUsed,
+}
+
+impl Analysed {
+    /// Records the times and what was used.
+    pub(crate) fn record(&self, record: &mut PrecomputeRecord) {
+        record.timings.ordering = self.ordering_s;
+        record.timings.symbolic = self.symbolic_s;
+        record.ordering = Some(self.used.ordering.clone());
+        record.threads = self.used.threads;
+    }
+}
+
+/// The symbolic analysis of `lower` by `spd` under `resources`: the back
+/// end's own analysis when threads and ordering are its own (unchanged),
+/// otherwise the plan ([`FactorPlan::new`]: the ordering computed once,
+/// on this matrix, timed apart) through [`SpdBackend::analyze_planned`].
+/// The matrix's unknown `k` is the problem's `original_of(k)`, of
+/// `n_original` (for a given ordering).
+pub(crate) fn analyze_under(
+    spd: &dyn SpdBackend,
+    lower: SymbolicSparseColMatRef<'_, usize>,
+    resources: &Resources,
+    original_of: &dyn Fn(usize) -> usize,
+    n_original: usize,
+) -> Result<(Box<dyn SpdSymbolic>, Analysed), Error> {
+    let t = Instant::now();
+    let plan = if resources.back_ends_choose() {
+        None
+    } else {
+        let plan = FactorPlan::new(
+            &resources.ordering,
+            resources.threads,
+            lower,
+            original_of,
+            n_original,
+        )?;
+        Some(plan)
+    };
+    let ordering_s = match plan {
+        Some(ref p) if p.permutation.is_some() => t.elapsed().as_secs_f64(),
+        _ => 0.0,
+    };
+    crate::interrupt::check()?;
+    let t = Instant::now();
+    let symbolic = match &plan {
+        None => spd.analyze(lower)?,
+        Some(plan) => spd.analyze_planned(lower, plan)?,
+    };
+    let analysed = Analysed {
+        ordering_s,
+        symbolic_s: t.elapsed().as_secs_f64(),
+        used: symbolic.plan_used(),
+    };
+    Ok((symbolic, analysed))
+}
+
 /// `tril(MᵀM)` and its Cholesky factor by `spd`: the normal matrix, the
-/// symbolic analysis, the factor's size checked against the memory `budget`
+/// symbolic analysis under `resources` ([`analyze_under`]), the factor's
+/// size checked against the memory budget
 /// ([`crate::backend::spd::SpdSymbolic::check_budget`]) before the numeric factorisation, and the
 /// numeric factorisation, each phase's time and size recorded in `record`.
 /// `matrix` names `MᵀM` in errors and `vertex_of` gives the vertex of one
-/// of its unknowns.
+/// of its unknowns (of `n_vertices`).
 pub(crate) fn factor_normal_matrix(
     m: SparseColMatRef<'_, usize, f64>,
     spd: &dyn SpdBackend,
     matrix: &str,
     vertex_of: impl Fn(usize) -> Option<usize>,
     record: &mut PrecomputeRecord,
-    budget: MemoryBudget,
+    resources: &Resources,
+    n_vertices: usize,
 ) -> Result<FactoredNormal, Error> {
     crate::interrupt::check()?;
     let t = Instant::now();
@@ -131,11 +202,11 @@ pub(crate) fn factor_normal_matrix(
     record.timings.normal_matrix = t.elapsed().as_secs_f64();
     record.sizes.normal = Some(pattern.full_nnz());
 
-    crate::interrupt::check()?;
-    let t = Instant::now();
-    let symbolic = spd.analyze(normal.symbolic())?;
-    record.timings.symbolic = t.elapsed().as_secs_f64();
-    symbolic.check_budget(budget, normal.ncols(), matrix)?;
+    let original_of = |k: usize| vertex_of(k).unwrap_or(k);
+    let (symbolic, analysed) =
+        analyze_under(spd, normal.symbolic(), resources, &original_of, n_vertices)?;
+    analysed.record(record);
+    symbolic.check_budget(resources.budget, normal.ncols(), matrix)?;
 
     // The numeric factorisation is one back-end call: not interruptible
     // inside (crate::interrupt), checked before and after.

@@ -58,7 +58,9 @@ const RELEASE_GIL_VERTICES: usize = 4096;
 /// row is `[0, 0, 0, 1]` within [`HOMOGENEOUS_TOLERANCE`]; errors name
 /// the argument `name`.
 pub(super) fn affine(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Affine> {
-    let (m, _) = convert::dense(obj, name, Some(4), false)?;
+    let budget = crate::limits::MemoryBudget::from_environment()
+        .map_err(|e| super::errors::to_py(e.into()))?;
+    let (m, _) = convert::dense(obj, name, Some(4), false, budget)?;
     let homogeneous = m.nrows() == 4
         && (0..4).all(|j| (m[(3, j)] - [0.0, 0.0, 0.0, 1.0][j]).abs() <= HOMOGENEOUS_TOLERANCE);
     if !(m.nrows() == 3 || homogeneous) {

@@ -27,10 +27,11 @@ use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use serde_json::Value;
 
 use super::errors::{allocation_failed, input, type_error};
-use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file_within};
+use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file_with};
 use crate::error::{MeshError, ProblemError};
 use crate::limits::MemoryBudget;
 use crate::report::Report;
+use crate::resources::Resources;
 
 /// Which dtypes an array may have.
 #[derive(Clone, Copy, PartialEq)]
@@ -119,16 +120,17 @@ fn bytes_of(items: usize, bytes_each: usize) -> u64 {
 
 /// Refuses `bytes` for `what` (named only on failure) beyond the memory
 /// budget: a `TooLargeError`.
-fn check_budget(what: &impl Fn() -> String, bytes: u64) -> PyResult<()> {
-    crate::limits::check(bytes, || format!("{} would need", what()))
+fn check_budget(what: &impl Fn() -> String, bytes: u64, budget: MemoryBudget) -> PyResult<()> {
+    budget
+        .check(bytes, || format!("{} would need", what()))
         .map_err(|detail| super::errors::to_py(ProblemError::TooLarge { detail }.into()))
 }
 
 /// An empty vector with room for `n` items, checked against the budget and
 /// reserved with `try_reserve_exact`: a `TooLargeError` instead of an abort.
-fn vec_for<T>(n: usize, what: impl Fn() -> String) -> PyResult<Vec<T>> {
+fn vec_for<T>(n: usize, budget: MemoryBudget, what: impl Fn() -> String) -> PyResult<Vec<T>> {
     let bytes = bytes_of(n, std::mem::size_of::<T>());
-    check_budget(&what, bytes)?;
+    check_budget(&what, bytes, budget)?;
     let mut v = Vec::new();
     v.try_reserve_exact(n)
         .map_err(|e| allocation_failed(&what(), bytes, e))?;
@@ -140,11 +142,12 @@ fn vec_for<T>(n: usize, what: impl Fn() -> String) -> PyResult<Vec<T>> {
 fn mat_from_fn(
     rows: usize,
     cols: usize,
+    budget: MemoryBudget,
     what: impl Fn() -> String,
     f: impl FnMut(usize, usize) -> f64,
 ) -> PyResult<Mat<f64>> {
     let bytes = bytes_of(rows, 8).saturating_mul(cols as u64);
-    check_budget(&what, bytes)?;
+    check_budget(&what, bytes, budget)?;
     let mut m = Mat::new();
     m.try_reserve(rows, cols)
         .map_err(|e| allocation_failed(&what(), bytes, format!("{e:?}")))?;
@@ -159,6 +162,7 @@ pub(crate) fn dense(
     name: &str,
     columns: Option<usize>,
     column_ok: bool,
+    budget: MemoryBudget,
 ) -> PyResult<(Mat<f64>, bool)> {
     let array = numeric_array(obj, name, Kind::Real)?;
     let (rows, cols) = shape_2d(&array, name, columns, column_ok)?;
@@ -167,22 +171,29 @@ pub(crate) fn dense(
     if one_d {
         let typed = array.cast::<PyArray1<f64>>()?.readonly();
         let view = typed.as_array();
-        Ok((mat_from_fn(rows, 1, what, |i, _| view[i])?, true))
+        Ok((mat_from_fn(rows, 1, budget, what, |i, _| view[i])?, true))
     } else {
         let typed = array.cast::<PyArray2<f64>>()?.readonly();
         let view = typed.as_array();
-        Ok((mat_from_fn(rows, cols, what, |i, j| view[[i, j]])?, false))
+        Ok((
+            mat_from_fn(rows, cols, budget, what, |i, j| view[[i, j]])?,
+            false,
+        ))
     }
 }
 
 /// An n × 3 real array as rows (read straight from the array: no
 /// intermediate matrix).
-pub(crate) fn rows3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<[f64; 3]>> {
+pub(crate) fn rows3(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    budget: MemoryBudget,
+) -> PyResult<Vec<[f64; 3]>> {
     let array = numeric_array(obj, name, Kind::Real)?;
     let (rows, _) = shape_2d(&array, name, Some(3), false)?;
     let typed = array.cast::<PyArray2<f64>>()?.readonly();
     let view = typed.as_array();
-    let mut out = vec_for(rows, || format!("the {rows} × 3 array {name}"))?;
+    let mut out = vec_for(rows, budget, || format!("the {rows} × 3 array {name}"))?;
     out.extend((0..rows).map(|i| [view[[i, 0]], view[[i, 1]], view[[i, 2]]]));
     Ok(out)
 }
@@ -194,11 +205,12 @@ fn index_entries(
     name: &str,
     columns: Option<usize>,
     column_ok: bool,
+    budget: MemoryBudget,
 ) -> PyResult<((usize, usize), Vec<i128>)> {
     let array = numeric_array(obj, name, Kind::Index)?;
     let shape = shape_2d(&array, name, columns, column_ok)?;
     let unsigned = array.dtype().kind() == b'u';
-    let mut values: Vec<i128> = vec_for(shape.0.saturating_mul(shape.1), || {
+    let mut values: Vec<i128> = vec_for(shape.0.saturating_mul(shape.1), budget, || {
         format!("the {} × {} index array {name}", shape.0, shape.1)
     })?;
     macro_rules! read {
@@ -230,9 +242,13 @@ fn as_index(v: i128) -> Option<usize> {
 /// `F` (m × 3 vertex indices) as faces; a negative index is the mesh
 /// layer's [`MeshError::IndexOutOfRange`], ranges are checked by
 /// [`crate::Mesh::new`].
-pub(crate) fn faces(obj: &Bound<'_, PyAny>, n_vertices: usize) -> PyResult<Vec<[usize; 3]>> {
-    let ((rows, _), values) = index_entries(obj, "F", Some(3), false)?;
-    let mut faces = vec_for(rows, || format!("the {rows} faces of F"))?;
+pub(crate) fn faces(
+    obj: &Bound<'_, PyAny>,
+    n_vertices: usize,
+    budget: MemoryBudget,
+) -> PyResult<Vec<[usize; 3]>> {
+    let ((rows, _), values) = index_entries(obj, "F", Some(3), false, budget)?;
+    let mut faces = vec_for(rows, budget, || format!("the {rows} faces of F"))?;
     for (face, chunk) in values.chunks_exact(3).enumerate() {
         let mut f = [0usize; 3];
         for (slot, &v) in f.iter_mut().zip(chunk) {
@@ -254,14 +270,18 @@ pub(crate) fn faces(obj: &Bound<'_, PyAny>, n_vertices: usize) -> PyResult<Vec<[
 }
 
 /// A 1-D (or k × 1) array of non-negative indices.
-pub(crate) fn indices(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<usize>> {
-    let ((_, cols), values) = index_entries(obj, name, None, true)?;
+pub(crate) fn indices(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    budget: MemoryBudget,
+) -> PyResult<Vec<usize>> {
+    let ((_, cols), values) = index_entries(obj, name, None, true, budget)?;
     if cols != 1 {
         return Err(input(format!(
             "{name} must be a 1-D array of indices (or k × 1), got {cols} columns"
         )));
     }
-    let mut out = vec_for(values.len(), || {
+    let mut out = vec_for(values.len(), budget, || {
         format!("the {} indices of {name}", values.len())
     })?;
     for (i, &v) in values.iter().enumerate() {
@@ -287,11 +307,12 @@ pub(crate) fn constraints(obj: &Bound<'_, PyAny>, budget: MemoryBudget) -> PyRes
             .call_method1("fspath", (obj,))?
             .extract()
             .map_err(|_| type_error("a constraints path must be a str or an os.PathLike of str"))?;
-        return read_constraints_file_within(path.as_ref(), budget).map_err(super::errors::to_py);
+        return read_constraints_file_with(path.as_ref(), &Resources::with_budget(budget))
+            .map_err(super::errors::to_py);
     }
     if let Some((b, bc)) = libigl_pair(obj)? {
-        let vertices = indices(&b, "b")?;
-        let targets = rows3(&bc, "bc")?;
+        let vertices = indices(&b, "b", budget)?;
+        let targets = rows3(&bc, "bc", budget)?;
         return ConstraintSet::positions(&vertices, &targets)
             .map_err(|e| super::errors::to_py(e.into()));
     }
@@ -392,32 +413,42 @@ fn to_json(obj: &Bound<'_, PyAny>, path: &str, depth: usize) -> PyResult<Value> 
 /// Refuses a matrix whose index arrays alone would exceed the memory
 /// budget ([`crate::limits`]) — a shape of 10¹⁸ columns must be an error,
 /// not an allocation failure.
-fn check_size(name: &str, rows: usize, cols: usize, entries: usize) -> PyResult<()> {
+fn check_size(
+    name: &str,
+    (rows, cols): (usize, usize),
+    entries: usize,
+    budget: MemoryBudget,
+) -> PyResult<()> {
     let bytes = (rows as u64)
         .saturating_add(cols as u64)
         .saturating_add(1)
         .saturating_mul(8)
         .saturating_add((entries as u64).saturating_mul(24));
-    crate::limits::check(bytes, || {
-        format!("the {rows} × {cols} matrix {name} would need")
-    })
-    .map_err(|detail| super::errors::to_py(ProblemError::TooLarge { detail }.into()))
+    budget
+        .check(bytes, || {
+            format!("the {rows} × {cols} matrix {name} would need")
+        })
+        .map_err(|detail| super::errors::to_py(ProblemError::TooLarge { detail }.into()))
 }
 
 /// A sparse matrix from `scipy.sparse` (CSC and CSR read directly, COO
 /// directly, other formats through `tocoo()`) or a dense 2-D array, as a
 /// faer CSC matrix (duplicates summed). Index arrays are checked (pointer
 /// monotonicity and range, row and column ranges) before use.
-pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMat<usize, f64>> {
+pub(crate) fn sparse(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    budget: MemoryBudget,
+) -> PyResult<SparseColMat<usize, f64>> {
     let py = obj.py();
     let scipy_sparse = py.import("scipy.sparse")?;
     if !scipy_sparse.call_method1("issparse", (obj,))?.is_truthy()? {
-        let (m, _) = dense(obj, name, None, false)?;
+        let (m, _) = dense(obj, name, None, false, budget)?;
         let nonzeros = (0..m.ncols())
             .map(|j| (0..m.nrows()).filter(|&i| m[(i, j)] != 0.0).count())
             .sum::<usize>();
-        check_size(name, m.nrows(), m.ncols(), nonzeros)?;
-        let mut triplets = vec_for(nonzeros, || {
+        check_size(name, (m.nrows(), m.ncols()), nonzeros, budget)?;
+        let mut triplets = vec_for(nonzeros, budget, || {
             format!("the {nonzeros} nonzeros of the dense array {name}")
         })?;
         for j in 0..m.ncols() {
@@ -427,7 +458,7 @@ pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMa
                 }
             }
         }
-        return from_triplets(name, m.nrows(), m.ncols(), &triplets);
+        return from_triplets(name, m.nrows(), m.ncols(), &triplets, budget);
     }
     let (rows, cols): (usize, usize) = obj.getattr("shape")?.extract().map_err(|_| {
         input(format!(
@@ -443,16 +474,23 @@ pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMa
             (&coo, "coo".to_string())
         }
     };
-    let data = dense(&obj.getattr("data")?, &format!("{name}.data"), None, true)?.0;
-    check_size(name, rows, cols, data.nrows())?;
-    let mut values = vec_for(data.nrows(), || {
+    let data = dense(
+        &obj.getattr("data")?,
+        &format!("{name}.data"),
+        None,
+        true,
+        budget,
+    )?
+    .0;
+    check_size(name, (rows, cols), data.nrows(), budget)?;
+    let mut values = vec_for(data.nrows(), budget, || {
         format!("the {} entries of {name}", data.nrows())
     })?;
     values.extend((0..data.nrows()).map(|i| data[(i, 0)]));
     let triplets = match format.as_str() {
         "coo" => {
-            let r = indices(&obj.getattr("row")?, &format!("{name}.row"))?;
-            let c = indices(&obj.getattr("col")?, &format!("{name}.col"))?;
+            let r = indices(&obj.getattr("row")?, &format!("{name}.row"), budget)?;
+            let c = indices(&obj.getattr("col")?, &format!("{name}.col"), budget)?;
             if r.len() != values.len() || c.len() != values.len() {
                 return Err(input(format!(
                     "{name}: row, col and data of a COO matrix must have one length, got {}, {} and {}",
@@ -463,7 +501,7 @@ pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMa
             }
             check_range(name, "row", &r, rows)?;
             check_range(name, "column", &c, cols)?;
-            let mut triplets = vec_for(values.len(), || {
+            let mut triplets = vec_for(values.len(), budget, || {
                 format!("the {} entries of {name}", values.len())
             })?;
             triplets.extend((0..values.len()).map(|k| Triplet::new(r[k], c[k], values[k])));
@@ -472,12 +510,12 @@ pub(crate) fn sparse(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<SparseColMa
         by_rows => {
             let by_rows = by_rows == "csr";
             let (major, minor) = if by_rows { (rows, cols) } else { (cols, rows) };
-            let ptr = indices(&obj.getattr("indptr")?, &format!("{name}.indptr"))?;
-            let idx = indices(&obj.getattr("indices")?, &format!("{name}.indices"))?;
-            compressed_triplets(name, major, minor, &ptr, &idx, &values, by_rows)?
+            let ptr = indices(&obj.getattr("indptr")?, &format!("{name}.indptr"), budget)?;
+            let idx = indices(&obj.getattr("indices")?, &format!("{name}.indices"), budget)?;
+            compressed_triplets(name, (major, minor), &ptr, &idx, &values, by_rows, budget)?
         }
     };
-    from_triplets(name, rows, cols, &triplets)
+    from_triplets(name, rows, cols, &triplets, budget)
 }
 
 /// Every index `< bound`, or an error naming the first that is not.
@@ -494,12 +532,12 @@ fn check_range(name: &str, what: &str, idx: &[usize], bound: usize) -> PyResult<
 /// The triplets of compressed arrays (CSC, or CSR when `by_rows`), checked.
 fn compressed_triplets(
     name: &str,
-    major: usize,
-    minor: usize,
+    (major, minor): (usize, usize),
     ptr: &[usize],
     idx: &[usize],
     values: &[f64],
     by_rows: bool,
+    budget: MemoryBudget,
 ) -> PyResult<Vec<Triplet<usize, usize, f64>>> {
     let (major_name, minor_name) = if by_rows {
         ("row", "column")
@@ -531,7 +569,7 @@ fn compressed_triplets(
         )));
     }
     check_range(name, minor_name, &idx[..ptr[major]], minor)?;
-    let mut triplets = vec_for(ptr[major], || {
+    let mut triplets = vec_for(ptr[major], budget, || {
         format!("the {} entries of {name}", ptr[major])
     })?;
     for k in 0..major {
@@ -548,8 +586,9 @@ fn from_triplets(
     rows: usize,
     cols: usize,
     triplets: &[Triplet<usize, usize, f64>],
+    budget: MemoryBudget,
 ) -> PyResult<SparseColMat<usize, f64>> {
-    check_size(name, rows, cols, triplets.len())?;
+    check_size(name, (rows, cols), triplets.len(), budget)?;
     SparseColMat::try_new_from_triplets(rows, cols, triplets)
         .map_err(|e| input(format!("{name}: not a valid sparse matrix ({e:?})")))
 }

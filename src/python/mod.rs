@@ -42,6 +42,7 @@ use crate::mesh::Mesh;
 use crate::options::{ArapOptions, DeformOptions};
 use crate::problem::LseProblem;
 use crate::report::Report;
+use crate::resources::{FillOrdering, OrderingWord, Resources, Threads};
 use crate::{Deformer, Error, LseSolver, SolveOptions};
 
 use errors::{
@@ -83,6 +84,8 @@ struct Keywords<'a, 'py> {
     weight: Option<f64>,
     refine: Option<&'a Bound<'py, PyAny>>,
     memory_limit: Option<&'a Bound<'py, PyAny>>,
+    /// `threads=` and `ordering=` ([`held`]).
+    held: Held<'a, 'py>,
     /// `out_of_core=`: the directory of an out-of-core factor (`None`: in
     /// core), as [`out_of_core_dir`] reads it.
     out_of_core: Option<&'a Bound<'py, PyAny>>,
@@ -205,7 +208,9 @@ impl Keywords<'_, '_> {
         f.build_with(&options.solve.factor_storage)
             .map_err(|e| to_py(with_keyword(e).into()))?;
         options.solve.refine = parse_refine(self.refine)?.or(options.solve.refine);
-        options.solve.memory_budget = parse_memory_limit(self.memory_limit)?;
+        options.solve.resources = self
+            .held
+            .resources(parse_memory_limit(self.memory_limit)?)?;
         Ok((options, objects))
     }
 }
@@ -219,6 +224,64 @@ where
     value
         .parse()
         .map_err(|e: crate::error::ParseWordError| to_py(ProblemError::from(e).into()))
+}
+
+/// The `threads=` and `ordering=` keywords.
+#[derive(Clone, Copy, Default)]
+struct Held<'a, 'py> {
+    threads: Option<&'a Bound<'py, PyAny>>,
+    ordering: Option<&'a Bound<'py, PyAny>>,
+}
+
+impl Held<'_, '_> {
+    /// `budget` with these threads and ordering: `threads=` `None`,
+    /// `"own"` or a positive int; `ordering=` `None`, a word (`"own"`,
+    /// `"amd"`, `"metis"`, `"natural"`) or a sequence of ints, the
+    /// permutation of the unknowns to eliminate in (entry `i` eliminated
+    /// `i`-th).
+    fn resources(self, budget: MemoryBudget) -> PyResult<Resources> {
+        Ok(Resources {
+            budget,
+            threads: parse_threads(self.threads)?,
+            ordering: parse_ordering(self.ordering, budget)?,
+        })
+    }
+}
+
+fn parse_threads(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Threads> {
+    const EXPECTED: &str = "threads must be a positive int, 'own' or None";
+    let Some(t) = threads.filter(|t| !t.is_none()) else {
+        return Ok(Threads::Own);
+    };
+    if t.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(type_error(EXPECTED));
+    }
+    if let Ok(word) = t.extract::<String>() {
+        return word
+            .parse()
+            .map_err(|e: String| input(format!("threads=: {e}")));
+    }
+    if !t.is_instance_of::<pyo3::types::PyInt>() {
+        return Err(type_error(EXPECTED));
+    }
+    t.extract::<usize>()
+        .ok()
+        .and_then(Threads::count)
+        .ok_or_else(|| input(format!("threads=: {EXPECTED}")))
+}
+
+fn parse_ordering(
+    ordering: Option<&Bound<'_, PyAny>>,
+    budget: MemoryBudget,
+) -> PyResult<FillOrdering> {
+    let Some(o) = ordering.filter(|o| !o.is_none()) else {
+        return Ok(FillOrdering::Own);
+    };
+    if let Ok(word) = o.extract::<String>() {
+        return Ok(option_word::<OrderingWord>(&word)?.into());
+    }
+    let order = convert::indices(o, "ordering", budget)?;
+    Ok(FillOrdering::Given(order.into()))
 }
 
 /// The `memory_limit` keyword: `None` (the default budget:
@@ -295,9 +358,14 @@ fn laplacian_kind(name: Option<&str>) -> PyResult<LaplacianKind> {
 }
 
 /// The mesh of `V`, `F` (validated by [`Mesh::new`], GIL released).
-fn mesh(py: Python<'_>, v: &Bound<'_, PyAny>, f: &Bound<'_, PyAny>) -> PyResult<Mesh> {
-    let positions = convert::rows3(v, "V")?;
-    let faces = convert::faces(f, positions.len())?;
+fn mesh(
+    py: Python<'_>,
+    v: &Bound<'_, PyAny>,
+    f: &Bound<'_, PyAny>,
+    budget: MemoryBudget,
+) -> PyResult<Mesh> {
+    let positions = convert::rows3(v, "V", budget)?;
+    let faces = convert::faces(f, positions.len(), budget)?;
     released(py, move || Ok(Mesh::new(positions, faces)?))
 }
 
@@ -412,7 +480,7 @@ fn deform_arap(
 /// solve in one call (with `energy="arap"`, the ARAP iterations). Returns
 /// `(U, report)`.
 #[pyfunction]
-#[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, energy=None, arap_energy=None, iterations=None, tolerance=None, arap_init=None, memory_limit=None, out_of_core=None, spd=None))]
+#[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, energy=None, arap_energy=None, iterations=None, tolerance=None, arap_init=None, memory_limit=None, out_of_core=None, spd=None, threads=None, ordering=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn deform<'py>(
     py: Python<'py>,
@@ -433,6 +501,8 @@ fn deform<'py>(
     memory_limit: Option<&Bound<'py, PyAny>>,
     out_of_core: Option<&Bound<'py, PyAny>>,
     spd: Option<&str>,
+    threads: Option<&Bound<'py, PyAny>>,
+    ordering: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
         let kind = laplacian_kind(laplacian)?;
@@ -443,6 +513,7 @@ fn deform<'py>(
             weight,
             refine,
             memory_limit,
+            held: Held { threads, ordering },
             out_of_core,
         }
         .options()?;
@@ -455,8 +526,8 @@ fn deform<'py>(
             arap_init,
         };
         let arap = keywords.parse(py, laplacian)?;
-        let mesh = mesh(py, V, F)?;
-        let set = constraints_for(constraints, &mesh, m.memory_budget)?;
+        let mesh = mesh(py, V, F, m.resources.budget)?;
+        let set = constraints_for(constraints, &mesh, m.resources.budget)?;
         let outcome = match arap {
             Some(options) => deform_arap(py, mesh, set, m, options),
             None => released(py, move || {
@@ -490,7 +561,7 @@ where
 /// as a list of dicts. A reference forward error above 1e-12 of the
 /// diagonal is a `RuntimeWarning`, as the CLI warns.
 #[pyfunction]
-#[pyo3(name = "compare", signature = (V, F, constraints, laplacian=None, methods=None, qr=None, factor=None, weights=None, refine=None, repeat=None, condition=None, spd=None))]
+#[pyo3(name = "compare", signature = (V, F, constraints, laplacian=None, methods=None, qr=None, factor=None, weights=None, refine=None, repeat=None, condition=None, spd=None, memory_limit=None, threads=None, ordering=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn compare_rows<'py>(
     py: Python<'py>,
@@ -506,12 +577,16 @@ fn compare_rows<'py>(
     repeat: Option<usize>,
     condition: Option<bool>,
     spd: Option<Vec<String>>,
+    memory_limit: Option<&Bound<'py, PyAny>>,
+    threads: Option<&Bound<'py, PyAny>>,
+    ordering: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     guarded(|| {
         let kind = laplacian_kind(laplacian)?;
         let defaults = CompareOptions::default();
         let mut objects = Objects::default();
         let factors = factor_list(factor, spd, &mut objects)?;
+        let resources = Held { threads, ordering }.resources(parse_memory_limit(memory_limit)?)?;
         let options = CompareOptions {
             methods: words("methods", methods)?.unwrap_or(defaults.methods),
             qrs: words("qr", qr)?,
@@ -520,14 +595,16 @@ fn compare_rows<'py>(
             refine: parse_refine(refine)?.or(defaults.refine),
             repeat: repeat.unwrap_or(defaults.repeat),
             condition: condition.unwrap_or(defaults.condition),
+            resources,
         };
         // Fail before any work when the filters leave nothing to run.
         let configs = options
             .configurations()
             .map_err(|e| input(format!("methods=/qr=/factor=/weights=: {e}")))?;
         let configs: Vec<Configuration> = configs.into_iter().map(Configuration::new).collect();
-        let mesh = mesh(py, V, F)?;
-        let set = constraints_for(constraints, &mesh, environment_budget()?)?;
+        let budget = options.resources.budget;
+        let mesh = mesh(py, V, F, budget)?;
+        let set = constraints_for(constraints, &mesh, budget)?;
         let outcome = released(py, move || {
             let mut deformer = Deformer::new(mesh, kind, set)?;
             compare::compare_configurations(&mut deformer, &configs, &options, &mut |_| {})
@@ -598,7 +675,7 @@ fn laplacian_matrix<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     guarded(|| {
         let kind = laplacian_kind(kind)?;
-        let mesh = mesh(py, V, F)?;
+        let mesh = mesh(py, V, F, environment_budget()?)?;
         let l = released(py, move || Ok(laplacian::laplacian(&mesh, kind)?))?;
         convert::csc_to_scipy(py, &l)
     })
@@ -607,7 +684,7 @@ fn laplacian_matrix<'py>(
 /// Solves `min ‖A X − C‖ subject to B X = D` for sparse `A` (l × n) and
 /// `B` (m × n) and dense `C` (l × k) and `D` (m × k); returns `(X, report)`.
 #[pyfunction]
-#[pyo3(signature = (A, C, B, D, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, out_of_core=None, spd=None))]
+#[pyo3(signature = (A, C, B, D, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, out_of_core=None, spd=None, threads=None, ordering=None))]
 #[allow(non_snake_case, clippy::too_many_arguments)]
 fn solve_lse<'py>(
     py: Python<'py>,
@@ -623,6 +700,8 @@ fn solve_lse<'py>(
     memory_limit: Option<&Bound<'py, PyAny>>,
     out_of_core: Option<&Bound<'py, PyAny>>,
     spd: Option<&str>,
+    threads: Option<&Bound<'py, PyAny>>,
+    ordering: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     guarded(|| {
         let (options, objects) = Keywords {
@@ -632,14 +711,16 @@ fn solve_lse<'py>(
             weight,
             refine,
             memory_limit,
+            held: Held { threads, ordering },
             out_of_core,
         }
         .options()?;
         let m = options.solve;
-        let a = convert::sparse(A, "A")?;
-        let b = convert::sparse(B, "B")?;
-        let (c, one_d) = convert::dense(C, "C", None, true)?;
-        let (d, _) = convert::dense(D, "D", None, true)?;
+        let budget = m.resources.budget;
+        let a = convert::sparse(A, "A", budget)?;
+        let b = convert::sparse(B, "B", budget)?;
+        let (c, one_d) = convert::dense(C, "C", None, true, budget)?;
+        let (d, _) = convert::dense(D, "D", None, true, budget)?;
         let outcome = released(py, move || {
             let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref())?;
             let mut solver = LseSolver::new(problem);
@@ -669,6 +750,9 @@ struct DeformerState {
 #[pyclass(name = "Deformer", module = "lse_deform", subclass)]
 struct PyDeformer {
     state: Mutex<DeformerState>,
+    /// The memory budget of `memory_limit=`, for the arrays later calls
+    /// convert (the solve options in the state hold it too).
+    budget: MemoryBudget,
     /// The back-end objects of `factor=`, to explain errors.
     objects: Objects,
 }
@@ -699,7 +783,7 @@ impl PyDeformer {
     /// Set-up: validates the mesh and constraints, builds the Laplacian and
     /// the system. Options as for `deform`.
     #[new]
-    #[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, out_of_core=None, spd=None))]
+    #[pyo3(signature = (V, F, constraints, laplacian=None, method=None, qr=None, factor=None, weight=None, refine=None, memory_limit=None, out_of_core=None, spd=None, threads=None, ordering=None))]
     #[allow(non_snake_case, clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -715,6 +799,8 @@ impl PyDeformer {
         memory_limit: Option<&Bound<'_, PyAny>>,
         out_of_core: Option<&Bound<'_, PyAny>>,
         spd: Option<&str>,
+        threads: Option<&Bound<'_, PyAny>>,
+        ordering: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyDeformer> {
         guarded(|| {
             let kind = laplacian_kind(laplacian)?;
@@ -725,21 +811,20 @@ impl PyDeformer {
                 weight,
                 refine,
                 memory_limit,
+                held: Held { threads, ordering },
                 out_of_core,
             }
             .options()?;
             let options = options.solve;
-            let mesh = mesh(py, V, F)?;
-            let set = constraints_for(constraints, &mesh, options.memory_budget)?;
+            let mesh = mesh(py, V, F, options.resources.budget)?;
+            let set = constraints_for(constraints, &mesh, options.resources.budget)?;
             let deformer = released(py, move || {
                 let mut deformer = Deformer::new(mesh, kind, set)?;
                 deformer.solver_mut().set_refine(options.refine);
-                deformer
-                    .solver_mut()
-                    .set_memory_budget(options.memory_budget);
                 Ok(deformer)
             })?;
             Ok(PyDeformer {
+                budget: options.resources.budget,
                 state: Mutex::new(DeformerState {
                     deformer,
                     options,
@@ -769,8 +854,8 @@ impl PyDeformer {
         targets: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         guarded(|| {
-            let indices = convert::indices(indices, "indices")?;
-            let targets = convert::rows3(targets, "targets")?;
+            let indices = convert::indices(indices, "indices", self.budget)?;
+            let targets = convert::rows3(targets, "targets", self.budget)?;
             if indices.len() != targets.len() {
                 return Err(input(format!(
                     "{} indices but {} targets (one row of targets per index)",

@@ -52,6 +52,8 @@ struct Wire<'a> {
     kkt_multiplier_scale: Option<f64>,
     arap: Option<&'a ArapReport>,
     memory_budget: Option<MemoryBudget>,
+    ordering: Option<&'a str>,
+    threads: Option<usize>,
     refactorizations: usize,
     /// The back end's own section, under its key (`mumps`), when it has
     /// one.
@@ -107,6 +109,8 @@ impl Serialize for Report {
             kkt_multiplier_scale: self.kkt_multiplier_scale(),
             arap: self.arap.as_ref(),
             memory_budget: self.memory_budget,
+            ordering: self.ordering.as_deref(),
+            threads: self.threads,
             refactorizations: self.refactorizations,
             backend_facts: self.backend_facts.as_ref().map(Section),
         }

@@ -68,6 +68,7 @@ use crate::formulation::{
 use crate::laplacian::LaplacianKind;
 use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
+use crate::resources::Resources;
 use crate::solver::LseSolver;
 use crate::testing::{
     ConstraintMix, ConstructedLse, ConstructedMix, RandomLse, constraint_mixes, constructed_lses,
@@ -1147,7 +1148,7 @@ fn method_budget(
     kind: LaplacianKind,
 ) -> Result<(), String> {
     let d = deformer(mix, kind)?;
-    match f.precompute_within(d.problem(), MemoryBudget::bytes(1)) {
+    match f.precompute_with(d.problem(), &Resources::with_budget(MemoryBudget::bytes(1))) {
         Err(Error::Problem(ProblemError::TooLarge { .. })) => Ok(()),
         Err(e) => Err(format!(
             "a precompute within one byte failed otherwise: {e}"
@@ -1636,8 +1637,11 @@ fn qr_several(backend: &dyn QrBackend, p: &RandomLse, q: &RandomLse) -> Result<(
 /// unlimited one is not.
 fn qr_budget(backend: &dyn QrBackend, lse: &RandomLse) -> Result<(), String> {
     let b = lse.problem.b();
-    let within = |budget| match backend.factor_within(b.as_ref(), RankTolerance::default(), budget)
-    {
+    let within = |budget| match backend.factor_with(
+        b.as_ref(),
+        RankTolerance::default(),
+        &Resources::with_budget(budget),
+    ) {
         Ok(_) => Ok(()),
         Err(Error::Problem(e)) => Err(e),
         Err(e) => Err(ProblemError::InvalidArgument {
@@ -1772,6 +1776,18 @@ impl SpdBackend for SpySpd {
             trap: Arc::clone(&self.trap),
         }))
     }
+
+    fn analyze_planned(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &crate::backend::ordering::FactorPlan,
+    ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+        let inner = self.inner.analyze_planned(lower, plan)?;
+        Ok(Box::new(SpySpdSymbolic {
+            inner,
+            trap: Arc::clone(&self.trap),
+        }))
+    }
 }
 
 impl SpdSymbolic for SpySpdSymbolic {
@@ -1798,6 +1814,10 @@ impl SpdSymbolic for SpySpdSymbolic {
         matrix: &str,
     ) -> Result<(), ProblemError> {
         self.inner.check_budget(budget, dim, matrix)
+    }
+
+    fn plan_used(&self) -> crate::backend::ordering::PlanUsed {
+        self.inner.plan_used()
     }
 }
 
@@ -1937,13 +1957,13 @@ impl QrBackend for SpyQr {
         self.inner.name()
     }
 
-    fn factor_within(
+    fn factor_with(
         &self,
         b: faer::sparse::SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
-        budget: MemoryBudget,
+        resources: &Resources,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
-        let qr = self.inner.factor_within(b, tolerance, budget)?;
+        let qr = self.inner.factor_with(b, tolerance, resources)?;
         self.trap.at(Phase::Factorize);
         Ok(qr)
     }

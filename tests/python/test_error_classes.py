@@ -348,3 +348,25 @@ def test_a_malformed_memory_limit_variable_is_an_input_error(value):
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split("\n")[:2] == ["InputError True"] * 2, out.stdout + out.stderr
+
+
+def test_memory_limit_bounds_the_array_conversions_too():
+    """memory_limit= is the budget of the whole call: an array that the
+    process's budget takes (a broadcast view of 2**20 rows, 24 MiB once
+    converted) is refused before conversion under a 1 MiB limit, naming
+    the array; the same arrays convert without the limit."""
+    rows = 2**20
+    V_big = huge((rows, 3))
+    with pytest.raises(TooLargeError) as e:
+        lse_deform.deform(V_big, F, (B_IDX, BC), memory_limit="1M")
+    assert "V" in str(e.value) and "solve options" in str(e.value), str(e.value)
+    C_big = huge((rows, 3))
+    A, _, B, D = small_lse()
+    with pytest.raises(TooLargeError) as e:
+        lse_deform.solve_lse(A, C_big, B, D, memory_limit="1M")
+    assert "C" in str(e.value), str(e.value)
+    # Without the limit the conversion is allowed (and the mismatch of
+    # shapes is what is refused, after it).
+    with pytest.raises(InputError) as e:
+        lse_deform.solve_lse(A, C_big, B, D)
+    assert not isinstance(e.value, TooLargeError), str(e.value)

@@ -81,3 +81,30 @@ def test_compare_takes_factor_and_spd(scene):
         new = lse_deform.compare(V, F, c, methods=["kkt"], factor=["faer-simplicial"], repeat=1, condition=False)
         old = lse_deform.compare(V, F, c, methods=["kkt"], spd=["faer-simplicial"], repeat=1, condition=False)
     assert [r["spd"] for r in new] == [r["spd"] for r in old] == ["faer-simplicial"]
+
+
+def test_threads_and_ordering_are_held_and_reported(scene):
+    """threads= and ordering= reach the back end and the report says what
+    was used; a given permutation is followed and changes no result;
+    the CLI's words and bad values are refused as InputErrors naming the
+    keyword."""
+    V, F, items = scene
+    U, own = lse_deform.deform(V, F, items)
+    assert own["ordering"] == "own (amd)" and own["threads"] == 1
+    U1, r = lse_deform.deform(V, F, items, ordering="amd", threads=1, factor="faer-simplicial")
+    assert r["ordering"] == "amd" and r["threads"] == 1
+    assert r["timings_s"]["ordering"] > 0
+    U2, n = lse_deform.deform(V, F, items, ordering="amd", threads=1, factor="nalgebra")
+    assert n["nnz"]["factor"] == r["nnz"]["factor"]
+    order = np.arange(len(V))[::-1]
+    U3, g = lse_deform.deform(V, F, items, ordering=order)
+    assert g["ordering"] == "given"
+    diagonal = np.linalg.norm(V.max(axis=0) - V.min(axis=0))
+    for other in (U1, U2, U3):
+        assert np.abs(other - U).max() <= 1e-9 * diagonal
+    for keyword, bad in (("ordering", "colamd"), ("threads", 0), ("threads", "two"), ("ordering", [0, 0])):
+        with pytest.raises(InputError) as e:
+            lse_deform.deform(V, F, items, **{keyword: bad})
+        assert keyword in str(e.value) or "permutation" in str(e.value), str(e.value)
+    rows = lse_deform.compare(V, F, items, methods=["nullspace-qr"], factor=["faer-simplicial"], ordering="amd", threads=1, condition=False, repeat=1)
+    assert [(row["ordering"], row["threads"]) for row in rows] == [("amd", 1)]

@@ -23,6 +23,7 @@ use crate::backend::faer_kernel;
 use crate::backend::spd::factor_size;
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
+use crate::resources::Threads;
 use crate::sparse::lower_diag;
 
 /// The name in a [`NumericalError::Backend`] from this back end.
@@ -32,10 +33,14 @@ const BACKEND: &str = "faer-ldlt";
 /// mesh's x, y, z); wider right-hand sides get their own.
 const WORKSPACE_COLUMNS: usize = 3;
 
-/// The parallelism of the numeric factorisation: every thread of rayon's
-/// pool.
-fn numeric_parallelism() -> Par {
-    Par::rayon(0)
+/// The parallelism of the numeric factorisation: `threads` when given,
+/// otherwise every thread of rayon's pool.
+fn numeric_parallelism(threads: Threads) -> Par {
+    match threads.requested() {
+        Some(1) => Par::Seq,
+        Some(n) => Par::rayon(n),
+        None => Par::rayon(0),
+    }
 }
 
 fn backend_error(e: impl std::fmt::Debug) -> NumericalError {
@@ -79,6 +84,16 @@ impl LdltBackend for FaerLdlt {
         lower: SymbolicSparseColMatRef<'_, usize>,
         order: &[usize],
     ) -> Result<Box<dyn LdltSymbolic>, NumericalError> {
+        self.analyze_on_threads(lower, order, Threads::Own)
+    }
+
+    /// faer's `Par` for the numeric factorisation.
+    fn analyze_on_threads(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        order: &[usize],
+        threads: Threads,
+    ) -> Result<Box<dyn LdltSymbolic>, NumericalError> {
         let dim = lower.ncols();
         let mut inv = vec![0usize; dim];
         for (new, &old) in order.iter().enumerate() {
@@ -98,12 +113,15 @@ impl LdltBackend for FaerLdlt {
         .map_err(backend_error)?;
         Ok(Box::new(FaerLdltSymbolic {
             symbolic: Arc::new(symbolic),
+            par: numeric_parallelism(threads),
         }))
     }
 }
 
 struct FaerLdltSymbolic {
     symbolic: Arc<SymbolicCholesky<usize>>,
+    /// The parallelism of every numeric factorisation.
+    par: Par,
 }
 
 impl LdltSymbolic for FaerLdltSymbolic {
@@ -113,7 +131,7 @@ impl LdltSymbolic for FaerLdltSymbolic {
     ) -> Result<Box<dyn LdltFactor>, NumericalError> {
         let symbolic = Arc::clone(&self.symbolic);
         let mut values = vec![0.0f64; symbolic.len_val()];
-        let par = numeric_parallelism();
+        let par = self.par;
         let mut mem = MemBuffer::try_new(
             symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
         )
@@ -158,7 +176,7 @@ impl LdltSymbolic for FaerLdltSymbolic {
     ) -> Result<(), ProblemError> {
         let symbolic = &*self.symbolic;
         let scratch = symbolic
-            .factorize_numeric_ldlt_scratch::<f64>(numeric_parallelism(), Default::default())
+            .factorize_numeric_ldlt_scratch::<f64>(self.par, Default::default())
             .and(symbolic.solve_in_place_scratch::<f64>(WORKSPACE_COLUMNS, Par::Seq))
             .size_bytes() as u64;
         let total = (symbolic.len_val() as u64)
@@ -174,7 +192,14 @@ impl LdltSymbolic for FaerLdltSymbolic {
         budget
             .check_on_top(total, || format!("{} would need", what()))
             .map_err(|detail| ProblemError::TooLarge { detail })?;
-        faer_kernel::reserve(numeric_parallelism(), total, &what())
+        faer_kernel::reserve(self.par, total, &what())
+    }
+
+    fn threads_used(&self) -> Option<usize> {
+        Some(match self.par {
+            Par::Seq => 1,
+            Par::Rayon(n) => n.get(),
+        })
     }
 }
 

@@ -32,6 +32,7 @@ use crate::backend::spd::check_factor_size;
 use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
+use crate::resources::Threads;
 
 mod faer_ldlt;
 
@@ -53,6 +54,20 @@ pub trait LdltBackend: Send + Sync {
         lower: SymbolicSparseColMatRef<'_, usize>,
         order: &[usize],
     ) -> Result<Box<dyn LdltSymbolic>, NumericalError>;
+
+    /// [`LdltBackend::analyze`] with the factorisations on `threads`
+    /// (called only when a count is asked for). The default ignores the
+    /// count: the report's `"threads"` is then what
+    /// [`LdltSymbolic::plan_used`] says (`null` unless the back end says).
+    fn analyze_on_threads(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        order: &[usize],
+        threads: Threads,
+    ) -> Result<Box<dyn LdltSymbolic>, NumericalError> {
+        let _ = threads;
+        self.analyze(lower, order)
+    }
 }
 
 /// The result of a symbolic analysis: factors any matrix with its pattern.
@@ -80,6 +95,12 @@ pub trait LdltSymbolic: Send + Sync {
         matrix: &str,
     ) -> Result<(), ProblemError> {
         check_factor_size(self.factor_values(), dim, matrix, budget)
+    }
+
+    /// The threads this analysis's factorisations use (the ordering is
+    /// always the caller's); `None` by default: not said.
+    fn threads_used(&self) -> Option<usize> {
+        None
     }
 }
 

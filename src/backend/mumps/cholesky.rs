@@ -30,6 +30,8 @@ use super::instance::Params;
 use super::session::DetectedPivots;
 use super::session::{Assembled, Factorisation, Session, Shared, lock};
 use super::{numerical, too_large};
+use crate::backend::openblas::{self, ThreadsFor};
+use crate::backend::ordering::{FactorPlan, PlanUsed};
 use crate::backend::spd::{SpdBackend, SpdFactor, SpdKind, SpdSymbolic};
 use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
@@ -53,13 +55,23 @@ impl MumpsLlt {
     }
 }
 
-/// `ICNTL(7) = 7`: automatic ordering; `ICNTL(28) = 1`: sequential
-/// analysis on rank 0.
-fn analysis_params() -> Params {
+/// `ICNTL(7) = 7`: automatic ordering, or `ICNTL(7) = 1`: the one given
+/// in `PERM_IN`; `ICNTL(28) = 1`: sequential analysis on rank 0.
+fn analysis_params(given: bool) -> Params {
     Params {
-        icntl: vec![(7, 7), (28, 1)],
+        icntl: vec![(7, if given { 1 } else { 7 }), (28, 1)],
         cntl: Vec::new(),
     }
+}
+
+/// MUMPS's `PERM_IN` for `perm[i]` eliminated `i`-th: the 1-based
+/// position of each unknown.
+pub(crate) fn perm_in(perm: &[usize]) -> Vec<i32> {
+    let mut positions = vec![0i32; perm.len()];
+    for (position, &unknown) in perm.iter().enumerate() {
+        positions[unknown] = position as i32 + 1;
+    }
+    positions
 }
 
 /// A factor with negative pivots (MUMPS's count, `INFOG(12)`) as the
@@ -87,9 +99,35 @@ impl SpdBackend for MumpsLlt {
             lower,
             1,
             Vec::new(),
-            &analysis_params(),
+            &analysis_params(false),
             self.out_of_core.as_deref(),
         )?;
+        Ok(Box::new(symbolic))
+    }
+
+    /// The plan's permutation as `PERM_IN` (`ICNTL(7) = 1`), and its
+    /// threads as OpenBLAS's count on the driving rank for the analysis
+    /// and each factorisation (other ranks keep their environment's:
+    /// `mpirun -x OPENBLAS_NUM_THREADS=…` sets theirs).
+    fn analyze_planned(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+    ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+        let given = plan.permutation.as_deref().map(perm_in);
+        let threads = ThreadsFor::new(plan.threads.requested());
+        let mut symbolic = MumpsSymbolic::analyse(
+            lower,
+            1,
+            given.clone().unwrap_or_default(),
+            &analysis_params(given.is_some()),
+            self.out_of_core.as_deref(),
+        )?;
+        symbolic.threads = plan.threads.requested();
+        if given.is_some() {
+            symbolic.ordering = plan.ordering.into();
+        }
+        drop(threads);
         Ok(Box::new(symbolic))
     }
 }
@@ -99,6 +137,11 @@ pub(crate) struct MumpsSymbolic {
     pub shared: Shared,
     /// `INFOG(20)`: estimated entries of the factor over all ranks.
     pub estimate: usize,
+    /// OpenBLAS's threads on this rank for each factorisation; `None`:
+    /// its own.
+    pub threads: Option<usize>,
+    /// The report's word for the ordering used.
+    pub ordering: std::borrow::Cow<'static, str>,
 }
 
 impl MumpsSymbolic {
@@ -115,9 +158,12 @@ impl MumpsSymbolic {
         let driver = Driver::create(sym, out_of_core).map_err(numerical)?;
         let session = Session::analyse(driver, matrix, perm_in, params).map_err(numerical)?;
         let estimate = super::ffi::count(session.driver.struc().infog(20)) as usize;
+        let own = super::session::ordering_name(session.driver.struc().infog(7));
         Ok(MumpsSymbolic {
             shared: Arc::new(Mutex::new(session)),
             estimate,
+            threads: None,
+            ordering: format!("own ({own})").into(),
         })
     }
 
@@ -135,7 +181,9 @@ impl SpdSymbolic for MumpsSymbolic {
         &self,
         lower: SparseColMatRef<'_, usize, f64>,
     ) -> Result<Box<dyn SpdFactor>, NumericalError> {
+        let threads = ThreadsFor::new(self.threads);
         let factor = Factorisation::new(&self.shared, lower).map_err(numerical)?;
+        drop(threads);
         check_pivots(&lock(&self.shared).detected_pivots())?;
         Ok(Box::new(MumpsFactor(factor)))
     }
@@ -151,6 +199,20 @@ impl SpdSymbolic for MumpsSymbolic {
         matrix: &str,
     ) -> Result<(), ProblemError> {
         self.check_every_rank(budget, matrix)
+    }
+
+    /// The threads on the driving rank: those asked for when OpenBLAS is
+    /// loaded, otherwise its count in effect (the report's `mumps` block
+    /// has the ranks).
+    fn plan_used(&self) -> PlanUsed {
+        let threads = match (self.threads, openblas::threads()) {
+            (Some(n), Some(_)) => Some(n),
+            (_, in_effect) => in_effect,
+        };
+        PlanUsed {
+            ordering: self.ordering.clone(),
+            threads,
+        }
     }
 }
 

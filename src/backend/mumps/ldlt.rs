@@ -45,9 +45,11 @@ use super::session::{Factorisation, lock};
 use crate::backend::ldlt::{
     LdltBackend, LdltFactor, LdltKind, LdltSymbolic, PivotFault, PivotRule,
 };
+use crate::backend::openblas::{self, ThreadsFor};
 use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
+use crate::resources::Threads;
 
 /// The null-pivot threshold relative to the norm of the scaled `K`
 /// (`CNTL(3)`): the KKT
@@ -112,10 +114,7 @@ impl LdltBackend for MumpsLdlt {
         order: &[usize],
     ) -> Result<Box<dyn LdltSymbolic>, NumericalError> {
         // PERM_IN(i): the (1-based) position of unknown i in the order.
-        let mut perm_in = vec![0i32; order.len()];
-        for (position, &unknown) in order.iter().enumerate() {
-            perm_in[unknown] = position as i32 + 1;
-        }
+        let perm_in = super::cholesky::perm_in(order);
         let position = perm_in.iter().map(|&p| p as usize - 1).collect();
         let symbolic = MumpsSymbolic::analyse(
             lower,
@@ -124,6 +123,27 @@ impl LdltBackend for MumpsLdlt {
             &analysis_params(),
             self.out_of_core.as_deref(),
         )?;
+        Ok(Box::new(MumpsLdltSymbolic { symbolic, position }))
+    }
+
+    /// OpenBLAS's count on the driving rank for each factorisation.
+    fn analyze_on_threads(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        order: &[usize],
+        threads: Threads,
+    ) -> Result<Box<dyn LdltSymbolic>, NumericalError> {
+        let _threads = ThreadsFor::new(threads.requested());
+        let perm_in = super::cholesky::perm_in(order);
+        let position = perm_in.iter().map(|&p| p as usize - 1).collect();
+        let mut symbolic = MumpsSymbolic::analyse(
+            lower,
+            2,
+            perm_in,
+            &analysis_params(),
+            self.out_of_core.as_deref(),
+        )?;
+        symbolic.threads = threads.requested();
         Ok(Box::new(MumpsLdltSymbolic { symbolic, position }))
     }
 }
@@ -140,6 +160,7 @@ impl LdltSymbolic for MumpsLdltSymbolic {
         lower: SparseColMatRef<'_, usize, f64>,
     ) -> Result<Box<dyn LdltFactor>, NumericalError> {
         let shared = &self.symbolic.shared;
+        let _threads = ThreadsFor::new(self.symbolic.threads);
         let mut factor = Factorisation::new(shared, lower).map_err(numerical)?;
         let mut detected = lock(shared).detected_pivots();
         if !detected.null.is_empty() {
@@ -171,6 +192,15 @@ impl LdltSymbolic for MumpsLdltSymbolic {
         matrix: &str,
     ) -> Result<(), ProblemError> {
         self.symbolic.check_every_rank(budget, matrix)
+    }
+
+    /// On the driving rank: those asked for when OpenBLAS is loaded,
+    /// otherwise its count in effect.
+    fn threads_used(&self) -> Option<usize> {
+        match (self.symbolic.threads, openblas::threads()) {
+            (Some(n), Some(_)) => Some(n),
+            (_, in_effect) => in_effect,
+        }
     }
 }
 

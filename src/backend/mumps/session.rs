@@ -228,7 +228,7 @@ impl Session {
 
 /// The ordering `INFOG(7)` names after a sequential analysis (user's
 /// guide, §6.2).
-fn ordering_name(infog7: i32) -> &'static str {
+pub(crate) fn ordering_name(infog7: i32) -> &'static str {
     match infog7 {
         0 => "amd",
         1 => "given",

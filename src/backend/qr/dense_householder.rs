@@ -42,12 +42,13 @@ impl QrBackend for DenseHouseholder {
         super::QrKind::DenseHouseholder.name().into()
     }
 
-    fn factor_within(
+    fn factor_with(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
-        budget: MemoryBudget,
+        resources: &crate::resources::Resources,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
+        let budget = resources.budget;
         factor_distinct_rows(b, |b| {
             factor_graph_rows(b, |b| {
                 Ok(Box::new(BlockHouseholderQr::new(b, tolerance, budget)?)

@@ -35,6 +35,7 @@ use faer::{Mat, MatMut, MatRef};
 
 use crate::error::{Error, ProblemError};
 use crate::limits::MemoryBudget;
+use crate::resources::Resources;
 
 mod dense_householder;
 mod distinct_rows;
@@ -163,22 +164,35 @@ pub trait QrBackend: Send + Sync {
     /// Factors `Bᵀ` for the hard-constraint matrix `b` (m × n, one row per
     /// constraint, in priority order), refusing with
     /// [`ProblemError::TooLarge`] a factor whose estimated storage exceeds
-    /// `budget`.
-    fn factor_within(
+    /// the budget of `resources`. The rows keep their priority order (rank
+    /// detection depends on it), so the resources' fill-reducing ordering
+    /// is not a QR's to take; the crate's QR back ends run on one thread.
+    fn factor_with(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
-        budget: MemoryBudget,
+        resources: &Resources,
     ) -> Result<Box<dyn ConstraintQr>, Error>;
 
-    /// [`QrBackend::factor_within`] the default budget
-    /// ([`MemoryBudget::default`]).
+    /// [`QrBackend::factor_with`] the default resources
+    /// ([`Resources::default`]).
     fn factor(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
-        self.factor_within(b, tolerance, MemoryBudget::default())
+        self.factor_with(b, tolerance, &Resources::default())
+    }
+
+    /// [`QrBackend::factor_with`] a memory `budget`.
+    #[deprecated(note = "use factor_with(b, tolerance, &Resources::with_budget(budget))")]
+    fn factor_within(
+        &self,
+        b: SparseRowMatRef<'_, usize, f64>,
+        tolerance: RankTolerance,
+        budget: MemoryBudget,
+    ) -> Result<Box<dyn ConstraintQr>, Error> {
+        self.factor_with(b, tolerance, &Resources::with_budget(budget))
     }
 }
 

@@ -112,16 +112,17 @@ impl QrBackend for SparseGivens {
         super::QrKind::SparseGivens.name().into()
     }
 
-    fn factor_within(
+    fn factor_with(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
-        budget: MemoryBudget,
+        resources: &crate::resources::Resources,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
+        let budget = resources.budget;
         factor_distinct_rows(b, |b| {
             factor_graph_rows(b, |b| {
                 Ok(
-                    Box::new(GivensQr::within(b, tolerance, self.order, budget)?)
+                    Box::new(GivensQr::with_budget(b, tolerance, self.order, budget)?)
                         as Box<dyn ConstraintQr>,
                 )
             })
@@ -195,11 +196,22 @@ impl GivensQr {
         tolerance: RankTolerance,
         order: GivensRowOrder,
     ) -> Result<GivensQr, Error> {
-        GivensQr::within(b, tolerance, order, MemoryBudget::default())
+        GivensQr::with_budget(b, tolerance, order, MemoryBudget::default())
+    }
+
+    /// [`GivensQr::with_budget`].
+    #[deprecated(note = "use GivensQr::with_budget")]
+    pub fn within(
+        b: SparseRowMatRef<'_, usize, f64>,
+        tolerance: RankTolerance,
+        order: GivensRowOrder,
+        budget: MemoryBudget,
+    ) -> Result<GivensQr, Error> {
+        GivensQr::with_budget(b, tolerance, order, budget)
     }
 
     /// [`GivensQr::new`] within a solve's memory `budget`.
-    pub fn within(
+    pub fn with_budget(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
         order: GivensRowOrder,

@@ -114,12 +114,13 @@ impl QrBackend for Spqr {
         super::QrKind::Spqr.name().into()
     }
 
-    fn factor_within(
+    fn factor_with(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
-        budget: crate::limits::MemoryBudget,
+        resources: &crate::resources::Resources,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
+        let budget = resources.budget;
         factor_distinct_rows(b, |b| {
             factor_graph_rows(b, |b| {
                 // Fixed ordering: R's fill is that of B Bᵀ in list order.

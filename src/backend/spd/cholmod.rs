@@ -30,8 +30,11 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use suitesparse_sys as ss;
 
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
+use crate::backend::openblas::{self, ThreadsFor};
+use crate::backend::ordering::{FactorPlan, PlanUsed};
 use crate::backend::suitesparse::{Common, Long, sparse_header};
 use crate::error::NumericalError;
+use crate::resources::Threads;
 
 const NAME: &str = "cholmod";
 
@@ -208,35 +211,105 @@ impl SpdBackend for Cholmod {
         &self,
         lower: SymbolicSparseColMatRef<'_, usize>,
     ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
-        if lower.nrows() != lower.ncols() {
-            return Err(backend_error(format!(
-                "matrix is {} × {}, not square",
-                lower.nrows(),
-                lower.ncols()
-            )));
-        }
-        let mut csc = LowerCsc::new(lower, None);
-        let mut common = Common::new()?;
-        configure(&mut common);
-        let mut header = csc.header();
-        // SAFETY: `header` describes valid arrays owned by `csc`, alive for
-        // the call; the common is started.
-        let l = unsafe { ss::cholmod_l_analyze(&mut header, common.ptr()) };
-        if l.is_null() {
-            return Err(backend_error(format!(
-                "cholmod_l_analyze failed (status {})",
-                common.status()
-            )));
-        }
-        let symbolic = Factor { l, common };
-        let nnz = symbolic.predicted_nnz();
-        Ok(Box::new(CholmodSymbolic {
-            symbolic,
-            n: lower.nrows(),
-            lower_nnz: csc.x.len(),
-            nnz,
-        }))
+        analyze_with(lower, &FactorPlan::own(Threads::Own))
     }
+
+    /// The plan's permutation through `cholmod_l_analyze_p` (one method,
+    /// `CHOLMOD_GIVEN`; CHOLMOD still postorders its elimination tree,
+    /// which keeps every column's fill), and its threads as OpenBLAS's
+    /// count for each factorisation.
+    fn analyze_planned(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+    ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+        analyze_with(lower, plan)
+    }
+}
+
+fn analyze_with(
+    lower: SymbolicSparseColMatRef<'_, usize>,
+    plan: &FactorPlan,
+) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+    if lower.nrows() != lower.ncols() {
+        return Err(backend_error(format!(
+            "matrix is {} × {}, not square",
+            lower.nrows(),
+            lower.ncols()
+        )));
+    }
+    let mut csc = LowerCsc::new(lower, None);
+    let mut common = Common::new()?;
+    configure(&mut common);
+    let mut header = csc.header();
+    let l = match &plan.permutation {
+        None => {
+            // SAFETY: `header` describes valid arrays owned by `csc`,
+            // alive for the call; the common is started.
+            unsafe { ss::cholmod_l_analyze(&mut header, common.ptr()) }
+        }
+        Some(perm) => {
+            if perm.len() != lower.nrows() {
+                return Err(backend_error("the permutation's length"));
+            }
+            let mut given: Vec<Long> = perm.iter().map(|&p| p as Long).collect();
+            common.get_mut().method[0].ordering = ss::CHOLMOD_GIVEN as _;
+            // SAFETY: as above; `given` holds n entries, a permutation.
+            unsafe {
+                ss::cholmod_l_analyze_p(
+                    &mut header,
+                    given.as_mut_ptr(),
+                    ptr::null_mut(),
+                    0,
+                    common.ptr(),
+                )
+            }
+        }
+    };
+    if l.is_null() {
+        return Err(backend_error(format!(
+            "cholmod_l_analyze failed (status {})",
+            common.status()
+        )));
+    }
+    let symbolic = Factor { l, common };
+    let nnz = symbolic.predicted_nnz();
+    Ok(Box::new(CholmodSymbolic {
+        symbolic,
+        n: lower.nrows(),
+        lower_nnz: csc.x.len(),
+        nnz,
+        threads: plan.threads.requested(),
+        ordering: plan.ordering_used("amd"),
+    }))
+}
+
+/// METIS's nested-dissection ordering of the pattern `lower` through
+/// `cholmod_l_metis` (postordered), `perm[i]` eliminated `i`-th.
+pub(crate) fn metis(lower: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, String> {
+    let mut csc = LowerCsc::new(lower, None);
+    let mut common = Common::new().map_err(|e| e.to_string())?;
+    let mut header = csc.header();
+    let mut perm: Vec<Long> = vec![0; lower.nrows()];
+    // SAFETY: `header` describes arrays owned by `csc`; `perm` has n
+    // entries; no subset is given.
+    let ok = unsafe {
+        ss::cholmod_l_metis(
+            &mut header,
+            ptr::null_mut(),
+            0,
+            1,
+            perm.as_mut_ptr(),
+            common.ptr(),
+        )
+    };
+    if ok == 0 {
+        return Err(format!(
+            "cholmod_l_metis failed (status {})",
+            common.status()
+        ));
+    }
+    Ok(perm.into_iter().map(|p| p as usize).collect())
 }
 
 struct CholmodSymbolic {
@@ -245,6 +318,10 @@ struct CholmodSymbolic {
     /// Entries of the analysed lower triangle.
     lower_nnz: usize,
     nnz: usize,
+    /// OpenBLAS's threads for each factorisation; `None`: its own.
+    threads: Option<usize>,
+    /// The report's word for the ordering used.
+    ordering: std::borrow::Cow<'static, str>,
 }
 
 impl SpdSymbolic for CholmodSymbolic {
@@ -276,6 +353,7 @@ impl SpdSymbolic for CholmodSymbolic {
         }
         let mut factor = Factor { l, common };
         let mut header = csc.header();
+        let _threads = ThreadsFor::new(self.threads);
         // SAFETY: `header` describes arrays owned by `csc`; `factor.l` is a
         // copy of the symbolic factor of this pattern.
         let ok = unsafe { ss::cholmod_l_factorize(&mut header, factor.l, factor.common.ptr()) };
@@ -306,6 +384,19 @@ impl SpdSymbolic for CholmodSymbolic {
 
     fn factor_nnz(&self) -> usize {
         self.nnz
+    }
+
+    /// The threads: those asked for when OpenBLAS is loaded (it is set
+    /// for each factorisation), otherwise OpenBLAS's count in effect.
+    fn plan_used(&self) -> PlanUsed {
+        let threads = match (self.threads, openblas::threads()) {
+            (Some(n), Some(_)) => Some(n),
+            (_, in_effect) => in_effect,
+        };
+        PlanUsed {
+            ordering: self.ordering.clone(),
+            threads,
+        }
     }
 }
 

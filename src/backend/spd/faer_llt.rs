@@ -1,10 +1,12 @@
 //! faer's sparse `LLᵀ` (AMD ordering; simplicial, supernodal, or chosen by
 //! faer's flop-ratio heuristic).
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError as DenseLltError, LltRegularization};
+use faer::perm::PermRef;
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
@@ -23,8 +25,10 @@ use super::triangular::{
 };
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
 use crate::backend::faer_kernel;
+use crate::backend::ordering::{FactorPlan, PlanUsed, inverse};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
+use crate::resources::Threads;
 
 /// faer's sparse Cholesky `LLᵀ` with AMD ordering.
 #[derive(Debug, Clone, Copy)]
@@ -83,13 +87,42 @@ impl SpdBackend for FaerLlt {
         &self,
         lower: SymbolicSparseColMatRef<'_, usize>,
     ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+        self.analyze_with(lower, &FactorPlan::own(Threads::Own))
+    }
+
+    /// The plan's permutation as faer's custom ordering, and its threads
+    /// as faer's `Par` for the numeric factorisation.
+    fn analyze_planned(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+    ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+        self.analyze_with(lower, plan)
+    }
+}
+
+impl FaerLlt {
+    fn analyze_with(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+    ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: self.threshold,
             ..Default::default()
         };
-        let symbolic =
-            factorize_symbolic_cholesky(lower, Side::Lower, SymmetricOrdering::Amd, params)
-                .map_err(|e| backend_error(self.kind.name(), e))?;
+        let inverse = plan.permutation.as_deref().map(inverse);
+        let ordering = match (plan.permutation.as_deref(), inverse.as_deref()) {
+            (Some(fwd), Some(inv)) => {
+                if fwd.len() != lower.ncols() {
+                    return Err(backend_error(self.kind.name(), "the permutation's length"));
+                }
+                SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, fwd.len()))
+            }
+            _ => SymmetricOrdering::Amd,
+        };
+        let symbolic = factorize_symbolic_cholesky(lower, Side::Lower, ordering, params)
+            .map_err(|e| backend_error(self.kind.name(), e))?;
         let size = factor_size(&symbolic);
         let split = TreeSplit::new(&symbolic).map(Arc::new);
         Ok(Box::new(FaerSymbolic {
@@ -98,6 +131,8 @@ impl SpdBackend for FaerLlt {
             name: self.kind.name(),
             nnz: size.nnz,
             index_bytes: size.index_bytes,
+            threads: plan.threads.requested(),
+            ordering: plan.ordering_used("amd"),
         }))
     }
 }
@@ -110,6 +145,22 @@ struct FaerSymbolic {
     name: &'static str,
     nnz: usize,
     index_bytes: usize,
+    /// The threads asked for; `None`: by size ([`numeric_parallelism`]).
+    threads: Option<usize>,
+    /// The report's word for the ordering used.
+    ordering: Cow<'static, str>,
+}
+
+impl FaerSymbolic {
+    /// The parallelism of the numeric factorisation: the plan's threads,
+    /// or by size.
+    fn par(&self) -> Par {
+        match self.threads {
+            Some(1) => Par::Seq,
+            Some(n) => Par::rayon(n),
+            None => numeric_parallelism(self.symbolic.len_val()),
+        }
+    }
 }
 
 impl SpdSymbolic for FaerSymbolic {
@@ -119,7 +170,7 @@ impl SpdSymbolic for FaerSymbolic {
     ) -> Result<Box<dyn SpdFactor>, NumericalError> {
         let symbolic = &*self.symbolic;
         let n = symbolic.nrows();
-        let par = numeric_parallelism(symbolic.len_val());
+        let par = self.par();
         let mut values = vec![0.0f64; symbolic.len_val()];
         let mut mem = MemBuffer::try_new(
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
@@ -187,7 +238,7 @@ impl SpdSymbolic for FaerSymbolic {
         dim: usize,
         matrix: &str,
     ) -> Result<(), ProblemError> {
-        let par = numeric_parallelism(self.symbolic.len_val());
+        let par = self.par();
         let values = (self.symbolic.len_val() as u64).saturating_mul(8);
         let total = values.saturating_add(self.workspace_bytes(par));
         let what = || {
@@ -200,6 +251,17 @@ impl SpdSymbolic for FaerSymbolic {
             .check_on_top(total, || format!("{} would need", what()))
             .map_err(|detail| ProblemError::TooLarge { detail })?;
         faer_kernel::reserve(par, total, &what())
+    }
+
+    fn plan_used(&self) -> PlanUsed {
+        let threads = match self.par() {
+            Par::Seq => 1,
+            Par::Rayon(n) => n.get(),
+        };
+        PlanUsed {
+            ordering: self.ordering.clone(),
+            threads: Some(threads),
+        }
     }
 }
 

@@ -16,6 +16,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, MatRef};
 
 pub use crate::backend::catalogue::SpdKind;
+use crate::backend::ordering::{FactorPlan, PlanUsed};
 use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
 use crate::limits::MemoryBudget;
@@ -25,11 +26,14 @@ mod cholmod;
 mod factor_size;
 mod faer_llt;
 mod nalgebra;
+mod permuted;
 mod tree_split;
 mod triangular;
 
 #[cfg(feature = "suitesparse")]
 pub use cholmod::Cholmod;
+#[cfg(feature = "suitesparse")]
+pub(crate) use cholmod::metis as cholmod_metis;
 pub(crate) use factor_size::factor_size;
 pub use faer_llt::FaerLlt;
 pub use nalgebra::NalgebraCsc;
@@ -77,6 +81,26 @@ pub trait SpdBackend: Send + Sync {
         &self,
         lower: SymbolicSparseColMatRef<'_, usize>,
     ) -> Result<Box<dyn SpdSymbolic>, NumericalError>;
+
+    /// Symbolic analysis under `plan`: its permutation instead of the back
+    /// end's own ordering (when it has one), on its threads. Called only
+    /// when the plan asks for something ([`FactorPlan::is_own`] is false);
+    /// otherwise [`SpdBackend::analyze`] runs, unchanged.
+    ///
+    /// The default, for a back end that takes neither: the permutation is
+    /// applied to the matrix (the back end analyses `P A Pᵀ`, and may
+    /// reorder it again by itself; the report says `"… (applied to the
+    /// matrix)"`), and the threads are the back end's own (the report's
+    /// `"threads"` is then `null` unless it says,
+    /// [`SpdSymbolic::plan_used`]). The crate's back ends override it
+    /// (docs/equal-terms.md lists what each takes).
+    fn analyze_planned(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+    ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+        permuted::analyze_permuted(self, lower, plan)
+    }
 }
 
 /// The result of a symbolic analysis: factors any matrix with its pattern.
@@ -105,6 +129,15 @@ pub trait SpdSymbolic: Send + Sync {
         matrix: &str,
     ) -> Result<(), ProblemError> {
         check_factor_size(self.factor_nnz(), dim, matrix, budget)
+    }
+
+    /// The ordering and threads this analysis's factorisations use, as the
+    /// report states them; by default `own` and not said (`None`).
+    fn plan_used(&self) -> PlanUsed {
+        PlanUsed {
+            ordering: "own".into(),
+            threads: None,
+        }
     }
 }
 

@@ -46,7 +46,9 @@ use nalgebra_sparse::pattern::SparsityPattern;
 
 use super::faer_llt::failing_column;
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
+use crate::backend::ordering::{FactorPlan, PlanUsed, inverse};
 use crate::error::NumericalError;
+use crate::resources::Threads;
 
 const NAME: &str = "nalgebra";
 
@@ -70,6 +72,28 @@ impl SpdBackend for NalgebraCsc {
         &self,
         lower: SymbolicSparseColMatRef<'_, usize>,
     ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+        self.analyze_with(lower, &FactorPlan::own(Threads::Own))
+    }
+
+    /// nalgebra-sparse's Cholesky has no ordering of its own: this back
+    /// end permutes the matrix itself, with the plan's permutation instead
+    /// of its AMD. It is sequential whatever the plan's threads (the
+    /// report's `"threads"` is 1).
+    fn analyze_planned(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+    ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
+        self.analyze_with(lower, plan)
+    }
+}
+
+impl NalgebraCsc {
+    fn analyze_with(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+    ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
         let n = lower.nrows();
         if lower.ncols() != n {
             return Err(backend_error(format!(
@@ -81,19 +105,12 @@ impl SpdBackend for NalgebraCsc {
         let (col_ptr, row_idx) = (lower.col_ptr(), lower.row_idx());
         let nnz = lower.compute_nnz();
 
-        // AMD: fwd[new] = old, inv[old] = new.
-        let mut fwd = vec![0usize; n];
-        let mut inv = vec![0usize; n];
-        let mut mem = MemBuffer::try_new(amd::order_maybe_unsorted_scratch::<usize>(n, nnz))
-            .map_err(|e| backend_error(format!("{e:?}")))?;
-        amd::order_maybe_unsorted(
-            &mut fwd,
-            &mut inv,
-            lower,
-            amd::Control::default(),
-            MemStack::new(&mut mem),
-        )
-        .map_err(|e| backend_error(format!("AMD ordering: {e:?}")))?;
+        // AMD or the plan's: fwd[new] = old, inv[old] = new.
+        let (fwd, inv) = match &plan.permutation {
+            Some(perm) if perm.len() == n => (perm.to_vec(), inverse(perm)),
+            Some(_) => return Err(backend_error("the permutation's length")),
+            None => own_ordering(lower, nnz)?,
+        };
 
         // Permuted full pattern: entry (i, j), i ≥ j, goes to (inv i, inv j)
         // and, off the diagonal, to (inv j, inv i). The diagonal is added
@@ -155,8 +172,30 @@ impl SpdBackend for NalgebraCsc {
             lower_nnz: col_ptr[n],
             symbolic,
             factor_nnz,
+            ordering: plan.ordering_used("amd"),
         }))
     }
+}
+
+/// faer's AMD on `lower`: `(fwd, inv)`.
+fn own_ordering(
+    lower: SymbolicSparseColMatRef<'_, usize>,
+    nnz: usize,
+) -> Result<(Vec<usize>, Vec<usize>), NumericalError> {
+    let n = lower.nrows();
+    let mut fwd = vec![0usize; n];
+    let mut inv = vec![0usize; n];
+    let mut mem = MemBuffer::try_new(amd::order_maybe_unsorted_scratch::<usize>(n, nnz))
+        .map_err(|e| backend_error(format!("{e:?}")))?;
+    amd::order_maybe_unsorted(
+        &mut fwd,
+        &mut inv,
+        lower,
+        amd::Control::default(),
+        MemStack::new(&mut mem),
+    )
+    .map_err(|e| backend_error(format!("AMD ordering: {e:?}")))?;
+    Ok((fwd, inv))
 }
 
 struct NalgebraSymbolic {
@@ -172,6 +211,8 @@ struct NalgebraSymbolic {
     lower_nnz: usize,
     symbolic: CscSymbolicCholesky,
     factor_nnz: usize,
+    /// The report's word for the ordering used.
+    ordering: std::borrow::Cow<'static, str>,
 }
 
 impl NalgebraSymbolic {
@@ -311,6 +352,13 @@ impl SpdSymbolic for NalgebraSymbolic {
 
     fn factor_nnz(&self) -> usize {
         self.factor_nnz
+    }
+
+    fn plan_used(&self) -> PlanUsed {
+        PlanUsed {
+            ordering: self.ordering.clone(),
+            threads: Some(1),
+        }
     }
 }
 

@@ -74,6 +74,7 @@ use flate2::write::GzEncoder;
 use super::Mesh;
 use crate::error::{Error, MeshError};
 use crate::limits::{self, MemoryBudget};
+use crate::resources::Resources;
 
 use obj::read_obj;
 pub use obj::write_obj;
@@ -175,10 +176,16 @@ const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 /// Within the default memory budget ([`MemoryBudget::default`]); see
 /// [`read_mesh_within`].
 pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
-    read_mesh_within(path, MemoryBudget::default())
+    read_mesh_with(path, &Resources::default())
 }
 
-/// [`read_mesh`] within `budget` ([`crate::limits`]): a regular file whose
+/// [`read_mesh_with`] a memory `budget`.
+#[deprecated(note = "use read_mesh_with(path, &Resources::with_budget(budget))")]
+pub fn read_mesh_within(path: &Path, budget: MemoryBudget) -> Result<LoadedMesh, Error> {
+    read_mesh_with(path, &Resources::with_budget(budget))
+}
+
+/// [`read_mesh`] within the budget of `resources` ([`crate::limits`]): a regular file whose
 /// size (× [`limits::GZIP_EXPANSION`] when compressed) would need more is
 /// refused before it is read; whatever the source (a pipe, a device,
 /// gzip-compressed data), at most `budget / `[`limits::MESH_BYTES_PER_FILE_BYTE`]
@@ -186,7 +193,8 @@ pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
 /// refused ([`MeshError::TooLarge`], naming the budget and the bytes read),
 /// never parsed as the mesh its first part may be; the mesh assembled is
 /// checked as it grows.
-pub fn read_mesh_within(path: &Path, budget: MemoryBudget) -> Result<LoadedMesh, Error> {
+pub fn read_mesh_with(path: &Path, resources: &Resources) -> Result<LoadedMesh, Error> {
+    let budget = resources.budget;
     let (format, gzip_ext) = MeshFormat::from_path(path)?;
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     // Only a regular file's length is the number of bytes it will deliver
@@ -295,16 +303,28 @@ fn read_capped<R: BufRead>(
 /// panics, whatever the bytes. Within the default memory budget; see
 /// [`read_mesh_bytes_within`].
 pub fn read_mesh_bytes(bytes: &[u8], format: MeshFormat) -> Result<LoadedMesh, MeshError> {
-    read_mesh_bytes_within(bytes, format, MemoryBudget::default())
+    read_mesh_bytes_with(bytes, format, &Resources::default())
 }
 
-/// [`read_mesh_bytes`] within `budget`: what is decompressed is capped as
-/// [`read_mesh_within`] caps a stream, and refused beyond the cap.
+/// [`read_mesh_bytes_with`] a memory `budget`.
+#[deprecated(note = "use read_mesh_bytes_with(bytes, format, &Resources::with_budget(budget))")]
 pub fn read_mesh_bytes_within(
     bytes: &[u8],
     format: MeshFormat,
     budget: MemoryBudget,
 ) -> Result<LoadedMesh, MeshError> {
+    read_mesh_bytes_with(bytes, format, &Resources::with_budget(budget))
+}
+
+/// [`read_mesh_bytes`] within the budget of `resources`: what is
+/// decompressed is capped as [`read_mesh_with`] caps a stream, and refused
+/// beyond the cap.
+pub fn read_mesh_bytes_with(
+    bytes: &[u8],
+    format: MeshFormat,
+    resources: &Resources,
+) -> Result<LoadedMesh, MeshError> {
+    let budget = resources.budget;
     let name = "the data";
     let result = if bytes.starts_with(&GZIP_MAGIC) {
         let decoder = BufReader::new(MultiGzDecoder::new(bytes));

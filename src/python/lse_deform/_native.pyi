@@ -88,6 +88,12 @@ MemoryLimit = Union[None, int, str]
 LSE_MEMORY_LIMIT when set, else the available memory), a number of bytes
 or a size such as '2G' (powers of 1024). A factor estimated beyond it
 raises TooLargeError before it is allocated."""
+Threads = Union[None, int, str]
+"""The factorisation's threads: None or 'own' (each back end's own), or a
+positive int (docs/equal-terms.md)."""
+Ordering = Union[None, str, Sequence[int]]
+"""The fill-reducing ordering: None or 'own' (each back end's own), 'amd',
+'metis', 'natural', or the unknowns in elimination order."""
 
 def deform(
     V: npt.ArrayLike,
@@ -107,6 +113,8 @@ def deform(
     memory_limit: MemoryLimit = None,
     out_of_core: Optional[str | bytes | os.PathLike[str] | os.PathLike[bytes]] = None,
     spd: Optional[str] = None,
+    threads: Threads = None,
+    ordering: Ordering = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """Deforms (V, F) under the constraints; returns (U, report).
 
@@ -129,7 +137,13 @@ def deform(
     10), tolerance on the relative energy decrease (default 0: run all) and
     arap_init 'linear' (default) or 'rest'. Options the energy does not use
     are RuntimeWarnings, as the CLI warns.
-    memory_limit: the precompute's memory budget (see MemoryLimit).
+    memory_limit: the memory budget of the call: the arrays' conversion and
+    the precompute (see MemoryLimit).
+    threads: the factorisation's threads, an int or 'own' (default: each
+    back end's own); ordering: its fill-reducing ordering, 'own' (default),
+    'amd', 'metis' (wheels with SuiteSparse), 'natural', or a sequence of
+    ints (the unknowns in elimination order). report['ordering'] and
+    report['threads'] say what was used (docs/equal-terms.md).
     out_of_core: a directory (it must exist) in which factor='mumps' keeps
     its factor (removed afterwards, also on error); only what stays in
     memory then counts against memory_limit. Any other factor with
@@ -149,6 +163,9 @@ def compare(
     repeat: Optional[int] = None,
     condition: Optional[bool] = None,
     spd: Optional[Sequence[str]] = None,
+    memory_limit: MemoryLimit = None,
+    threads: Threads = None,
+    ordering: Ordering = None,
 ) -> List[Dict[str, Any]]:
     """`lse-deform compare`: every configuration against the refined
     null-space reference; one dict per configuration with the keys of
@@ -161,7 +178,9 @@ def compare(
     next to words, each with rows under its name (spd) for every method
     but kkt; weights: penalty weights (default 1e4,
     1e8, 1e12); repeat: solves per configuration (default 5); condition:
-    estimate condition numbers (default True). None: the default.
+    estimate condition numbers (default True); memory_limit, threads and
+    ordering as for deform, the same for every configuration. None: the
+    default.
     """
 
 def laplacian(
@@ -182,6 +201,8 @@ def solve_lse(
     memory_limit: MemoryLimit = None,
     out_of_core: Optional[str | bytes | os.PathLike[str] | os.PathLike[bytes]] = None,
     spd: Optional[str] = None,
+    threads: Threads = None,
+    ordering: Ordering = None,
 ) -> Tuple[npt.NDArray[np.float64], Report]:
     """min ||A X - C|| subject to B X = D; returns (X, report).
 
@@ -206,6 +227,8 @@ class Deformer:
         memory_limit: MemoryLimit = None,
         out_of_core: Optional[str | bytes | os.PathLike[str] | os.PathLike[bytes]] = None,
         spd: Optional[str] = None,
+        threads: Threads = None,
+        ordering: Ordering = None,
     ) -> None: ...
     def precompute(self) -> None:
         """Factors the system (GIL released)."""

@@ -1,0 +1,215 @@
+//! What a run may use: the memory budget, the threads of a factorisation
+//! and its fill-reducing ordering, in one value ([`Resources`]) that every
+//! phase takes, from reading a file to the factor.
+//!
+//! The default is what a run without options did before this value
+//! existed: the process's memory budget ([`MemoryBudget::default`]) and,
+//! for threads and ordering, each back end's own choice
+//! ([`Threads::Own`], [`FillOrdering::Own`]). Holding the last two equal
+//! across back ends is what a fair comparison needs (docs/equal-terms.md):
+//! one AMD permutation of the matrix factored, computed once and handed
+//! to every back end, and one thread count.
+
+use std::num::NonZeroUsize;
+use std::sync::Arc;
+
+use crate::choice::Word;
+use crate::limits::MemoryBudget;
+
+/// How many threads a factorisation may use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Threads {
+    /// Each back end's own choice: faer's above its size threshold,
+    /// OpenBLAS's count in effect for CHOLMOD and MUMPS, one for
+    /// nalgebra. The report states the count it used.
+    #[default]
+    Own,
+    /// This many threads for every back end that can take a count;
+    /// nalgebra is sequential and says so (the report's `"threads"` is 1).
+    Count(NonZeroUsize),
+}
+
+impl Threads {
+    /// `Count(n)`, or `None` for `n = 0`.
+    pub fn count(n: usize) -> Option<Threads> {
+        NonZeroUsize::new(n).map(Threads::Count)
+    }
+
+    /// The requested count, `None` for the back end's own.
+    pub fn requested(self) -> Option<usize> {
+        match self {
+            Threads::Own => None,
+            Threads::Count(n) => Some(n.get()),
+        }
+    }
+}
+
+impl std::fmt::Display for Threads {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Threads::Own => f.write_str("own"),
+            Threads::Count(n) => write!(f, "{n}"),
+        }
+    }
+}
+
+impl std::str::FromStr for Threads {
+    type Err = String;
+
+    /// `own`, or a positive count.
+    fn from_str(word: &str) -> Result<Threads, String> {
+        if word == "own" {
+            return Ok(Threads::Own);
+        }
+        word.parse::<usize>()
+            .ok()
+            .and_then(Threads::count)
+            .ok_or_else(|| format!("threads: expected own or a positive count, got {word:?}"))
+    }
+}
+
+/// The fill-reducing ordering of a sparse factorisation: which unknown is
+/// eliminated when. Fill (the factor's entries) and the factorisation's
+/// cost depend on it, so two back ends compared on their own orderings
+/// compare orderings as much as factorisations.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
+pub enum FillOrdering {
+    /// Each back end's own: AMD for faer, nalgebra and CHOLMOD (each its
+    /// own implementation), MUMPS's automatic choice (`ICNTL(7) = 7`).
+    #[default]
+    Own,
+    /// Approximate minimum degree (faer's implementation), computed once
+    /// on the matrix factored and given to every back end.
+    Amd,
+    /// METIS nested dissection (through CHOLMOD's `cholmod_l_metis`:
+    /// builds with the feature `suitesparse` only), computed once and
+    /// given to every back end.
+    Metis,
+    /// The unknowns in their own order (no reordering).
+    Natural,
+    /// A permutation of the problem's unknowns: entry `i` is the unknown
+    /// eliminated `i`-th. A factored matrix over a subset of the unknowns
+    /// (the null-space method's free unknowns, elimination's free
+    /// vertices) is eliminated in the order this induces on the subset.
+    Given(Arc<[usize]>),
+}
+
+/// The words of the orderings other than [`FillOrdering::Given`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OrderingWord {
+    /// [`FillOrdering::Own`].
+    Own,
+    /// [`FillOrdering::Amd`].
+    Amd,
+    /// [`FillOrdering::Metis`].
+    Metis,
+    /// [`FillOrdering::Natural`].
+    Natural,
+}
+
+impl Word for OrderingWord {
+    const WHAT: &'static str = "ordering";
+
+    fn all() -> &'static [OrderingWord] {
+        &[
+            OrderingWord::Own,
+            OrderingWord::Amd,
+            OrderingWord::Metis,
+            OrderingWord::Natural,
+        ]
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            OrderingWord::Own => "own",
+            OrderingWord::Amd => "amd",
+            OrderingWord::Metis => "metis",
+            OrderingWord::Natural => "natural",
+        }
+    }
+}
+
+crate::choice::word_traits!(OrderingWord);
+
+impl From<OrderingWord> for FillOrdering {
+    fn from(word: OrderingWord) -> FillOrdering {
+        match word {
+            OrderingWord::Own => FillOrdering::Own,
+            OrderingWord::Amd => FillOrdering::Amd,
+            OrderingWord::Metis => FillOrdering::Metis,
+            OrderingWord::Natural => FillOrdering::Natural,
+        }
+    }
+}
+
+impl FillOrdering {
+    /// The word of the report and the CLI: `own`, `amd`, `metis`,
+    /// `natural` or `given`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            FillOrdering::Own => "own",
+            FillOrdering::Amd => "amd",
+            FillOrdering::Metis => "metis",
+            FillOrdering::Natural => "natural",
+            FillOrdering::Given(_) => "given",
+        }
+    }
+}
+
+/// What a run may use ([module documentation](self)).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Resources {
+    /// The memory of every phase ([`crate::limits`]).
+    pub budget: MemoryBudget,
+    /// The threads of a factorisation.
+    pub threads: Threads,
+    /// The fill-reducing ordering of a factorisation.
+    pub ordering: FillOrdering,
+}
+
+impl Resources {
+    /// `budget`, with each back end's own threads and ordering.
+    pub fn with_budget(budget: MemoryBudget) -> Resources {
+        Resources {
+            budget,
+            ..Resources::default()
+        }
+    }
+
+    /// Whether threads and ordering are each back end's own (what a run
+    /// without options does; back ends then take their own path,
+    /// unchanged).
+    pub fn back_ends_choose(&self) -> bool {
+        self.threads == Threads::Own && self.ordering == FillOrdering::Own
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn threads_parse_own_and_positive_counts_only() {
+        assert_eq!("own".parse::<Threads>(), Ok(Threads::Own));
+        assert_eq!("3".parse::<Threads>().unwrap().requested(), Some(3));
+        for bad in ["0", "-1", "two", ""] {
+            let err = bad.parse::<Threads>().unwrap_err();
+            assert!(err.contains("positive count"), "{err}");
+        }
+    }
+
+    #[test]
+    fn the_default_lets_back_ends_choose() {
+        assert!(Resources::default().back_ends_choose());
+        let held = Resources {
+            ordering: FillOrdering::Amd,
+            ..Resources::default()
+        };
+        assert!(!held.back_ends_choose());
+        assert_eq!(
+            "metis".parse::<OrderingWord>().map(FillOrdering::from),
+            Ok(FillOrdering::Metis)
+        );
+        assert!("colamd".parse::<OrderingWord>().is_err());
+    }
+}
