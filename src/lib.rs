@@ -82,6 +82,7 @@ pub use refinement_types as refinement;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod report;
+pub mod request;
 pub mod resources;
 pub mod scene;
 pub mod solver;

@@ -242,6 +242,12 @@ impl LdltKind {
         }
     }
 
+    /// Whether this build has the back end (`Mumps` needs the cargo
+    /// feature `mumps`).
+    pub fn in_this_build(self) -> bool {
+        self != LdltKind::Mumps || cfg!(feature = "mumps")
+    }
+
     /// The back end, keeping its factor in core.
     ///
     /// Errors: [`ProblemError::InvalidArgument`] for `Mumps` in a build

@@ -4,13 +4,15 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
+use lse_deform::arap::{ArapEnergy, ArapInit};
 use lse_deform::choice::Energy;
 use lse_deform::options::{ArapOptions, DeformOptions};
-use lse_deform::{ConstraintSet, Deformer, Error, LaplacianKind, mesh};
+use lse_deform::report::{ArapReport, Report};
+use lse_deform::request::{self, Given, Outcome, Request};
+use lse_deform::{Error, LaplacianKind, mesh};
 
 use super::files::{check_distinct, mesh_and_constraints};
-use super::summary::{check_strict, check_strict_conflicts, finish_report, write_report};
+use super::summary::{finish_report, write_report};
 use super::{MethodArgs, check_outputs, constraints_with_warnings, load, phase, with_default};
 
 /// Arguments of `deform`.
@@ -68,11 +70,30 @@ impl DeformArgs {
     /// ([`MethodArgs::options`], checked, and the energy, Laplacian and
     /// strictness).
     fn options(&self) -> Result<DeformOptions, Error> {
-        let mut options = self.method.options()?;
+        let mut options = self.method.parse_checked()?;
         options.energy = self.energy.energy;
         options.laplacian = self.laplacian.unwrap_or(options.laplacian);
         options.strict = self.strict;
         Ok(options)
+    }
+
+    /// The library's request for these arguments, with which options were
+    /// given.
+    fn request(&self) -> Result<Request, Error> {
+        let e = &self.energy;
+        Ok(Request {
+            options: self.options()?,
+            arap: e.arap_options(),
+            given: Given {
+                laplacian: self.laplacian.is_some(),
+                arap_energy: e.arap_energy.is_some(),
+                iterations: e.iterations.is_some(),
+                tolerance: e.tolerance.is_some(),
+                arap_init: e.arap_init.is_some(),
+                qr: self.method.qr.is_some(),
+            },
+            condition: self.condition,
+        })
     }
 }
 
@@ -87,28 +108,10 @@ impl EnergyArgs {
             init: self.arap_init.unwrap_or(d.init),
         }
     }
-
-    /// The ARAP options given without `--energy arap`, which ignores them.
-    fn inapplicable(&self) -> Vec<String> {
-        if self.energy == Energy::Arap {
-            return Vec::new();
-        }
-        [
-            ("--arap-energy", self.arap_energy.is_some()),
-            ("--iterations", self.iterations.is_some()),
-            ("--tolerance", self.tolerance.is_some()),
-            ("--arap-init", self.arap_init.is_some()),
-        ]
-        .into_iter()
-        .filter(|(_, given)| *given)
-        .map(|(flag, _)| {
-            format!("{flag} applies to --energy arap only; ignored with --energy laplacian")
-        })
-        .collect()
-    }
 }
 
-/// Runs `deform`: Laplacian editing, or ARAP with `--energy arap`.
+/// Runs `deform`: Laplacian editing, or ARAP with `--energy arap`
+/// ([`lse_deform::request::deform`] decides and runs).
 pub fn deform(a: DeformArgs) -> Result<(), Error> {
     let mut outputs = vec![("-o", a.output.as_path())];
     outputs.extend(a.report.as_deref().map(|r| ("--report", r)));
@@ -118,74 +121,83 @@ pub fn deform(a: DeformArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh, budget)?;
     let (constraints, warnings) =
         constraints_with_warnings(&a.constraints, &mesh, a.strict, budget)?;
-    let options = a.options()?;
-    for warning in a.energy.inapplicable() {
-        eprintln!("warning: {warning}");
+    let request = a.request()?;
+    for i in request.inapplicable() {
+        eprintln!("warning: {}", super::inapplicable_words(&i));
     }
-    if options.energy == Energy::Arap {
-        if a.laplacian.is_some() {
-            eprintln!(
-                "warning: --laplacian applies to --energy laplacian only; ignored with --energy arap (cotangent weights)"
-            );
+    let bar = phase(&format!(
+        "set-up, precompute ({}) and {}",
+        request.options.solve.formulation.method,
+        match request.options.energy {
+            Energy::Arap => "ARAP iterations",
+            Energy::Laplacian => "solve",
         }
-        return deform_arap(&a, mesh, (constraints, &warnings), &options);
-    }
-    let bar = phase("set-up");
-    let mut deformer = Deformer::new(mesh, options.laplacian, constraints)?;
-    bar.set_message(format!("precompute ({})", options.solve.formulation.method));
-    deformer.precompute_with(&options.solve)?;
-    if a.condition {
-        bar.set_message("condition estimate (Lanczos)");
-        deformer.solver_mut().estimate_condition()?;
-    }
-    bar.set_message("solve");
-    let solution = deformer.solve()?;
+    ));
+    let outcome = request::deform(mesh, constraints, &request)?;
     bar.finish_and_clear();
-    if options.strict && !solution.report.conflicting.is_empty() {
-        // The warnings and the summary line with its counts still go to
-        // stderr; nothing is written.
-        finish_report(&solution.report, &warnings, None, NAMES, || Ok(()))?;
-        check_strict_conflicts(&solution.report, options.strict)?;
+    match &outcome.arap {
+        Some(history) => finish_arap(&a, &outcome, history, &warnings),
+        None => finish_linear(&a, &outcome, &warnings),
     }
-    check_strict(&solution.report, options.strict)?;
-    let out = deformer.mesh().with_positions(solution.positions)?;
-    finish_report(
-        &solution.report,
-        &warnings,
-        a.report.as_deref(),
-        NAMES,
-        || {
-            let bar = phase(&format!("writing {}", a.output.display()));
-            mesh::write_mesh(&out, &a.output)?;
-            bar.finish_and_clear();
-            Ok(())
-        },
-    )
 }
 
 /// What the summary line of a mesh calls the unknowns and the rows of `B`.
 const NAMES: (&str, &str) = ("vertices", "constraints");
 
-fn deform_arap(
+/// The Laplacian energy's outputs: a strict refusal (after the warnings and
+/// the summary when a constraint conflicts), or the mesh and the report.
+fn finish_linear(a: &DeformArgs, outcome: &Outcome, warnings: &[String]) -> Result<(), Error> {
+    let report = &outcome.report;
+    if let Err(e) = outcome.verdict() {
+        if !report.conflicting.is_empty() {
+            // The warnings and the summary line with its counts still go
+            // to stderr; nothing is written.
+            finish_report(report, warnings, None, NAMES, || Ok(()))?;
+        }
+        return Err(e);
+    }
+    let out = outcome.mesh.with_positions(outcome.positions.clone())?;
+    finish_report(report, warnings, a.report.as_deref(), NAMES, || {
+        let bar = phase(&format!("writing {}", a.output.display()));
+        mesh::write_mesh(&out, &a.output)?;
+        bar.finish_and_clear();
+        Ok(())
+    })
+}
+
+/// ARAP's outputs: its warnings and summary, a strict refusal, or the mesh
+/// and the report.
+fn finish_arap(
     a: &DeformArgs,
-    mesh: mesh::Mesh,
-    (constraints, warnings): (ConstraintSet, &[String]),
-    options: &DeformOptions,
+    outcome: &Outcome,
+    history: &ArapReport,
+    warnings: &[String],
 ) -> Result<(), Error> {
-    let e = a.energy.arap_options();
-    let bar = phase("set-up");
-    let mut arap = ArapDeformer::new(mesh, constraints, e.energy)?;
-    bar.set_message(format!("precompute ({})", options.solve.formulation.method));
-    arap.precompute_with(&options.solve)?;
-    bar.set_message("ARAP iterations");
-    arap.initialize(e.init)?;
-    let history = arap.run(e.iterations, e.tolerance)?;
-    bar.finish_and_clear();
-    let report = arap.report().clone();
+    let report = &outcome.report;
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
-    let summary = format!(
+    let summary = arap_summary(report, history);
+    if let Err(e) = outcome.verdict() {
+        eprintln!("{summary}");
+        return Err(e);
+    }
+    let out = outcome.mesh.with_positions(outcome.positions.clone())?;
+    // Staged together: a report that cannot be written leaves no mesh.
+    super::staged(|| {
+        mesh::write_mesh(&out, &a.output)?;
+        match &a.report {
+            Some(path) => write_report(report, warnings, path),
+            None => Ok(()),
+        }
+    })?;
+    eprintln!("{summary}");
+    Ok(())
+}
+
+/// ARAP's one-line summary.
+fn arap_summary(report: &Report, history: &ArapReport) -> String {
+    format!(
         "{} + ARAP ({}, init {}): {} vertices, {} hard constraints ({} redundant, {} conflicting), max |BX - D| = {:.2e} mesh units ({:.1e} × diagonal); {} iterations ({}), energy {:.6e} -> {:.6e} mesh units²; precompute {:.3} s, {:.4} s per iteration (local {:.3} s, global {:.3} s in all)",
         report.method,
         history.energy,
@@ -210,22 +222,7 @@ fn deform_arap(
         history.time_per_iteration_s,
         history.local_time_s,
         history.global_time_s,
-    );
-    if options.strict && !report.conflicting.is_empty() {
-        eprintln!("{summary}");
-        return check_strict_conflicts(&report, options.strict);
-    }
-    let out = arap.mesh().with_positions(arap.positions())?;
-    // Staged together: a report that cannot be written leaves no mesh.
-    super::staged(|| {
-        mesh::write_mesh(&out, &a.output)?;
-        match &a.report {
-            Some(path) => write_report(&report, warnings, path),
-            None => Ok(()),
-        }
-    })?;
-    eprintln!("{summary}");
-    Ok(())
+    )
 }
 
 #[cfg(test)]

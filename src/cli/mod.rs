@@ -15,6 +15,7 @@ use lse_deform::formulation::Refine;
 use lse_deform::limits::{MemoryBudget, parse_bytes};
 use lse_deform::mesh;
 use lse_deform::options::DeformOptions;
+use lse_deform::request::{Given, Inapplicable, Request, RequestOption};
 use lse_deform::resources::{FillOrdering, OrderingWord, Resources, Threads};
 use lse_deform::{Error, Method, QrKind, SpdKind};
 
@@ -164,14 +165,29 @@ impl MethodArgs {
     /// formulation checked (a penalty without weight, a back end missing
     /// from this build) before anything is read.
     pub fn options(&self) -> Result<DeformOptions, Error> {
-        for warning in self.inapplicable() {
-            eprintln!("warning: {warning}");
+        let options = self.parse_checked()?;
+        let request = Request {
+            options: options.clone(),
+            given: Given {
+                qr: self.qr.is_some(),
+                ..Given::default()
+            },
+            ..Request::default()
+        };
+        for i in request.inapplicable() {
+            eprintln!("warning: {}", inapplicable_words(&i));
         }
+        Ok(options)
+    }
+
+    /// [`MethodArgs::options`] without the warnings (the caller words the
+    /// request's own list).
+    pub fn parse_checked(&self) -> Result<DeformOptions, Error> {
         let options = self.parse();
         options
             .solve
             .formulation
-            .build_with(&options.solve.factor_storage)
+            .validate(&options.solve.factor_storage)
             .map_err(with_flag)?;
         Ok(options)
     }
@@ -200,25 +216,25 @@ impl MethodArgs {
     pub fn budget(&self) -> MemoryBudget {
         self.memory_limit.unwrap_or_default()
     }
+}
 
-    /// The options given that the chosen method does not use: each is
-    /// ignored, and said so rather than silently.
-    pub fn inapplicable(&self) -> Vec<String> {
-        let mut out = Vec::new();
-        if self.weight.is_some() && self.method != Method::Penalty {
-            out.push(format!(
-                "--weight applies to --method penalty only; ignored with --method {}",
-                self.method
-            ));
-        }
-        if self.qr.is_some() && self.method != Method::NullSpaceQr {
-            out.push(format!(
-                "--qr applies to --method nullspace-qr only; ignored with --method {}",
-                self.method
-            ));
-        }
-        out
-    }
+/// A request's option that does not apply, in the command line's words:
+/// `--weight applies to --method penalty only; ignored with --method kkt`.
+pub fn inapplicable_words(i: &Inapplicable) -> String {
+    let flag = match i.option {
+        RequestOption::Laplacian => "--laplacian",
+        RequestOption::ArapEnergy => "--arap-energy",
+        RequestOption::Iterations => "--iterations",
+        RequestOption::Tolerance => "--tolerance",
+        RequestOption::ArapInit => "--arap-init",
+        RequestOption::Weight => "--weight",
+        RequestOption::Qr => "--qr",
+    };
+    let note = i.note.map(|n| format!(" ({n})")).unwrap_or_default();
+    format!(
+        "{flag} applies to --{} {} only; ignored with --{} {}{note}",
+        i.applies_to.0, i.applies_to.1, i.chosen.0, i.chosen.1
+    )
 }
 
 /// A library error about an option, with the option's flag in front.

@@ -3,8 +3,7 @@
 
 use std::path::Path;
 
-use lse_deform::refinement::FORWARD_ERROR_WARNING;
-use lse_deform::report::{Warning, WarningKind, WarningSubject};
+use lse_deform::report::{Warning, WarningKind};
 use lse_deform::{Error, Report};
 
 use super::write_text;
@@ -55,58 +54,6 @@ pub fn write_report(report: &Report, input_warnings: &[String], path: &Path) -> 
     }
     .map_err(|e| Error::io(path, e.into()))?;
     write_text(path, json)
-}
-
-/// `--strict`: a conflicting hard constraint is an error (exit 2) before
-/// anything is written; the message names the first (every one is among
-/// the warnings).
-pub fn check_strict_conflicts(report: &Report, strict: bool) -> Result<(), Error> {
-    let count = report.conflicting.len();
-    if !strict || count == 0 {
-        return Ok(());
-    }
-    let first_index = report.conflicting[0].index;
-    let first = report
-        .warnings
-        .iter()
-        .find(|w| {
-            matches!(
-                w.subject,
-                Some(WarningSubject::ConflictingConstraint { index, .. }) if index == first_index
-            )
-        })
-        .map(|w| w.message.clone())
-        .unwrap_or_else(|| {
-            format!(
-                "constraint {} conflicts with earlier constraints (residual {:.3e})",
-                report.conflicting[0].index, report.conflicting[0].residual
-            )
-        });
-    let detail = if count > 1 {
-        format!("{first}; and {} more", count - 1)
-    } else {
-        first
-    };
-    Err(lse_deform::error::ConstraintError::Conflicting { count, detail }.into())
-}
-
-/// `--strict`: an estimated forward error above the warning threshold is
-/// an error (exit 3) before anything is written.
-pub fn check_strict(report: &Report, strict: bool) -> Result<(), Error> {
-    let estimate = report.forward_error_estimate.unwrap_or(0.0);
-    if strict && (estimate.is_nan() || estimate > FORWARD_ERROR_WARNING) {
-        return Err(lse_deform::error::NumericalError::LostAccuracy {
-            matrix: format!("{} (--strict)", report.method),
-            estimate,
-            tolerance: FORWARD_ERROR_WARNING,
-            advice: lse_deform::solver::lost_accuracy_advice(
-                report.method,
-                report.refinement.as_ref(),
-            ),
-        }
-        .into());
-    }
-    Ok(())
 }
 
 /// The one-line summary of a deformation or solve on stderr.

@@ -19,8 +19,9 @@ use crate::handle::HandleBasis;
 use crate::laplacian::LaplacianKind;
 use crate::mesh::Mesh;
 use crate::options::{
-    ArapOptions, DeformOptions, INTERACTIVE_ARAP_ITERATIONS_PER_FRAME, SUGGESTED_PENALTY_WEIGHT,
+    DeformOptions, INTERACTIVE_ARAP_ITERATIONS_PER_FRAME, SUGGESTED_PENALTY_WEIGHT,
 };
+use crate::request::{self, Prepared, Request};
 use crate::solver::SolveOptions;
 
 /// The group that never moves in a drag: left out of the response basis
@@ -96,7 +97,10 @@ impl Settings {
         };
         options.solve.formulation.method = self.method;
         options.solve.formulation.weight = Some(self.weight);
-        options.solve.formulation.build()?;
+        options
+            .solve
+            .formulation
+            .validate(&options.solve.factor_storage)?;
         options.solve.refine = Some(self.refine);
         Ok(options)
     }
@@ -170,7 +174,9 @@ pub struct Built {
 /// Set-up, precompute, response basis and the first positions of
 /// `constraints` on `mesh` with `settings` (the basis at the identity, with
 /// their diagnostics; a solve when nothing but `fixed` is grouped); `stage`
-/// is told each phase's name.
+/// is told each phase's name. The library's request layer
+/// ([`crate::request::prepare`]) picks the energy and runs its set-up and
+/// precompute (ARAP's initial guess included).
 pub fn build(
     mesh: &Mesh,
     constraints: &ConstraintSet,
@@ -179,39 +185,54 @@ pub fn build(
 ) -> Result<Built, Error> {
     settings.check()?;
     let t0 = Instant::now();
-    stage("set-up");
     let options = settings.options()?;
-    let deformer = Deformer::new(mesh.clone(), options.laplacian, constraints.clone())?;
-    let setup_s = t0.elapsed().as_secs_f64();
-    if options.energy == Energy::Arap {
-        return build_arap(deformer, settings, &options, setup_s, stage);
+    let request = Request {
+        options: DeformOptions {
+            solve: SolveOptions {
+                // ARAP refines with the formulation's default, as it
+                // always has.
+                refine: match options.energy {
+                    Energy::Arap => None,
+                    Energy::Laplacian => options.solve.refine,
+                },
+                ..options.solve.clone()
+            },
+            ..options.clone()
+        },
+        ..Request::default()
+    };
+    stage(match options.energy {
+        Energy::Arap => "set-up and ARAP precompute",
+        Energy::Laplacian => "set-up and precompute (factorisation)",
+    });
+    match request::prepare(mesh.clone(), constraints.clone(), &request)? {
+        Prepared::Arap(arap) => build_arap(*arap, settings, &options, t0),
+        Prepared::Linear(deformer) => build_linear(*deformer, &options, t0, stage),
     }
-    build_linear(deformer, &options, (t0, setup_s), stage)
 }
 
-/// [`build`] for ARAP: the iterations from [`ArapOptions::default`]'s
-/// energy and initial guess, `arap_iterations_per_frame` of them;
-/// `targets` computes the groups' targets.
+/// [`build`] for ARAP (precomputed and initialised by the request layer):
+/// `arap_iterations_per_frame` iterations; `targets` computes the groups'
+/// targets.
 fn build_arap(
-    targets: Deformer,
+    mut arap: ArapDeformer,
     settings: &Settings,
     options: &DeformOptions,
-    setup_s: f64,
-    stage: &dyn Fn(&str),
+    t0: Instant,
 ) -> Result<Built, Error> {
-    stage("ARAP precompute");
-    let t = Instant::now();
-    let defaults = ArapOptions::default();
-    let (mesh, constraints) = (targets.mesh().clone(), targets.constraints().clone());
-    let mut arap = ArapDeformer::new(mesh, constraints, defaults.energy)?;
-    // ARAP refines with the formulation's default, as it always has.
-    arap.precompute_with(&SolveOptions {
-        refine: None,
-        ..options.solve.clone()
-    })?;
-    arap.initialize(defaults.init)?;
+    let targets = Deformer::new(
+        arap.mesh().clone(),
+        options.laplacian,
+        arap.constraints().clone(),
+    )?;
     arap.iterate(settings.arap_iterations_per_frame)?;
-    let report = serde_json::to_value(arap.finish()?).unwrap_or(Value::Null);
+    let report = arap.finish()?;
+    let timings = json!({
+        "setup_s": report.timings_s.setup,
+        "precompute_s": report.timings_s.precompute(),
+        "ready_s": t0.elapsed().as_secs_f64(),
+    });
+    let report = serde_json::to_value(report).unwrap_or(Value::Null);
     let positions = arap.positions();
     Ok(Built {
         engine: Engine::Arap {
@@ -220,16 +241,16 @@ fn build_arap(
         },
         positions,
         report,
-        timings: json!({"setup_s": setup_s, "precompute_s": t.elapsed().as_secs_f64()}),
+        timings,
     })
 }
 
-/// [`build`] for the Laplacian energy: precompute, the response basis of
-/// the movable groups and the first positions.
+/// [`build`] for the Laplacian energy (precomputed by the request layer):
+/// the response basis of the movable groups and the first positions.
 fn build_linear(
     mut deformer: Deformer,
     options: &DeformOptions,
-    (t0, setup_s): (Instant, f64),
+    t0: Instant,
     stage: &dyn Fn(&str),
 ) -> Result<Built, Error> {
     let groups = deformer.constraints().group_names();
@@ -240,10 +261,10 @@ fn build_linear(
         .collect();
     let movable: Vec<&str> = movable.iter().map(String::as_str).collect();
     check_basis_size(&deformer, movable.len(), options.solve.resources.budget)?;
-    stage("precompute (factorisation)");
-    let t = Instant::now();
-    deformer.precompute_with(&options.solve)?;
-    let precompute_s = t.elapsed().as_secs_f64();
+    let (setup_s, precompute_s) = {
+        let t = &deformer.report().timings_s;
+        (t.setup, t.precompute())
+    };
     stage("response basis");
     let t = Instant::now();
     let basis = if movable.is_empty() {

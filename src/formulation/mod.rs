@@ -49,6 +49,48 @@ pub use penalty::{
 };
 pub use record::{FactorSizes, PhaseTimings, PrecomputeRecord, Precomputed};
 
+/// KKT's refusal of an SPD back end that selects no `LDLᵀ` variant.
+fn not_an_ldlt(spd: &dyn std::fmt::Display) -> ProblemError {
+    ProblemError::InvalidOption {
+        option: SolveOption::Spd,
+        message: format!(
+            "the KKT method factors a symmetric indefinite matrix with an LDLᵀ back end: its SPD back end must select one (faer-auto, faer-simplicial, faer-supernodal or mumps), not '{spd}'; or give the LDLᵀ back end itself"
+        ),
+    }
+}
+
+/// [`FormulationChoice::validate`] of an SPD choice: in this build, and
+/// able to keep its factor in `storage`; MUMPS driven from this process.
+fn check_spd(spd: &SpdChoice, storage: &FactorStorage) -> Result<(), ProblemError> {
+    match spd {
+        // Not in the build: the catalogue's refusal (nothing is built).
+        Chosen::Builtin(kind) if !kind.in_this_build() => kind.backend_with(storage).map(drop),
+        Chosen::Builtin(SpdKind::Mumps) => mumps_drivable(),
+        Chosen::Builtin(kind) => storage.refuse_out_of_core(kind.name()),
+        Chosen::Own(backend) => storage.refuse_out_of_core(&backend.name()),
+    }
+}
+
+/// [`check_spd`] for an `LDLᵀ` variant.
+fn check_ldlt(kind: LdltKind, storage: &FactorStorage) -> Result<(), ProblemError> {
+    match kind {
+        LdltKind::Mumps if !kind.in_this_build() => kind.backend_with(storage).map(drop),
+        LdltKind::Mumps => mumps_drivable(),
+        _ => storage.refuse_out_of_core(kind.name()),
+    }
+}
+
+/// Whether this process can drive MUMPS (rank 0 of ranks that serve it).
+#[cfg(feature = "mumps")]
+fn mumps_drivable() -> Result<(), ProblemError> {
+    crate::backend::mumps::check_driving_rank()
+}
+
+#[cfg(not(feature = "mumps"))]
+fn mumps_drivable() -> Result<(), ProblemError> {
+    Ok(())
+}
+
 /// A way to solve `min ‖AX − C‖ s.t. BX = D`.
 pub trait Formulation: Send + Sync {
     /// The method this formulation implements.
@@ -409,6 +451,39 @@ impl FormulationChoice {
         }
     }
 
+    /// Checks what [`FormulationChoice::build_with`] would refuse, without
+    /// building a back end: the storage, the penalty weight, and each back
+    /// end in this build and able to keep its factor in `storage` (MUMPS:
+    /// driven from this process; its out-of-core directory is checked on
+    /// every rank when it is built).
+    pub fn validate(&self, storage: &FactorStorage) -> Result<(), ProblemError> {
+        storage.check()?;
+        match self.method {
+            Method::NullSpaceQr => {
+                if let Chosen::Builtin(kind) = self.qr
+                    && !kind.in_this_build()
+                {
+                    kind.backend()?;
+                }
+                check_spd(&self.spd, storage)
+            }
+            Method::Penalty => {
+                self.penalty_weight()?;
+                check_spd(&self.spd, storage)
+            }
+            Method::Kkt => match (&self.ldlt, &self.spd) {
+                (Some(Chosen::Builtin(kind)), _) => check_ldlt(*kind, storage),
+                (Some(Chosen::Own(backend)), _) => storage.refuse_out_of_core(&backend.name()),
+                (None, Chosen::Builtin(spd)) => check_ldlt(
+                    LdltKind::for_spd(*spd).ok_or_else(|| not_an_ldlt(spd))?,
+                    storage,
+                ),
+                (None, spd @ Chosen::Own(_)) => Err(not_an_ldlt(spd)),
+            },
+            Method::Eliminate => check_spd(&self.spd, storage),
+        }
+    }
+
     /// The SPD back end, a built-in made with `storage`.
     fn spd_backend(&self, storage: &FactorStorage) -> Result<Arc<dyn SpdBackend>, ProblemError> {
         match &self.spd {
@@ -449,12 +524,7 @@ impl FormulationChoice {
     /// KKT's `LDLᵀ` back end: `ldlt`, or the catalogue's variant that a
     /// built-in `spd` selects, made with `storage`.
     fn ldlt_backend(&self, storage: &FactorStorage) -> Result<Arc<dyn LdltBackend>, ProblemError> {
-        let refuse = |spd: &dyn std::fmt::Display| ProblemError::InvalidOption {
-            option: SolveOption::Spd,
-            message: format!(
-                "the KKT method factors a symmetric indefinite matrix with an LDLᵀ back end: its SPD back end must select one (faer-auto, faer-simplicial, faer-supernodal or mumps), not '{spd}'; or give the LDLᵀ back end itself"
-            ),
-        };
+        let refuse = |spd: &dyn std::fmt::Display| not_an_ldlt(spd);
         match (&self.ldlt, &self.spd) {
             (Some(Chosen::Builtin(kind)), _) => kind.backend_with(storage),
             (Some(Chosen::Own(backend)), _) => {

@@ -27,7 +27,6 @@ use std::sync::{Arc, Mutex};
 use pyo3::exceptions::{PyRuntimeError, PyRuntimeWarning, PyUserWarning};
 use pyo3::prelude::*;
 
-use crate::arap::ArapDeformer;
 use crate::backend::FactorStorage;
 use crate::backend::qr::QrKind;
 use crate::backend::spd::SpdKind;
@@ -42,6 +41,7 @@ use crate::mesh::Mesh;
 use crate::options::{ArapOptions, DeformOptions};
 use crate::problem::LseProblem;
 use crate::report::Report;
+use crate::request::{self, Given, Request, RequestOption};
 use crate::resources::{FillOrdering, OrderingWord, Resources, Threads};
 use crate::{Deformer, Error, LseSolver, SolveOptions};
 
@@ -205,7 +205,7 @@ impl Keywords<'_, '_> {
             options.solve.factor_storage = FactorStorage::OutOfCore(dir);
         }
         let f = &options.solve.formulation;
-        f.build_with(&options.solve.factor_storage)
+        f.validate(&options.solve.factor_storage)
             .map_err(|e| to_py(with_keyword(e).into()))?;
         options.solve.refine = parse_refine(self.refine)?.or(options.solve.refine);
         options.solve.resources = self
@@ -410,12 +410,13 @@ struct EnergyKeywords<'a> {
 }
 
 impl EnergyKeywords<'_> {
-    /// The energy, and the ARAP options when it is ARAP. Options the energy
-    /// does not use are `RuntimeWarning`s, as the CLI warns about them.
-    fn parse(&self, py: Python<'_>, laplacian: Option<&str>) -> PyResult<Option<ArapOptions>> {
+    /// The request of `options` with these energy keywords (and
+    /// `laplacian=`, `qr=` as given).
+    fn request(&self, options: DeformOptions, given: Given) -> PyResult<Request> {
+        let d = ArapOptions::default();
         let energy = match self.energy {
             Some(w) => word::<Energy>("energy", w)?,
-            None => DeformOptions::default().energy,
+            None => options.energy,
         };
         let arap_energy = self
             .arap_energy
@@ -425,55 +426,64 @@ impl EnergyKeywords<'_> {
             .arap_init
             .map(|w| word::<ArapInit>("arap_init", w))
             .transpose()?;
-        if energy != Energy::Arap {
-            let given = [
-                ("arap_energy", arap_energy.is_some()),
-                ("iterations", self.iterations.is_some()),
-                ("tolerance", self.tolerance.is_some()),
-                ("arap_init", init.is_some()),
-            ];
-            for (keyword, _) in given.iter().filter(|(_, g)| *g) {
-                warn::<PyRuntimeWarning>(
-                    py,
-                    &format!(
-                        "{keyword}= applies to energy='arap' only; ignored with energy='{energy}'"
-                    ),
-                )?;
-            }
-            return Ok(None);
-        }
-        if laplacian.is_some() {
-            warn::<PyRuntimeWarning>(
-                py,
-                "laplacian= applies to energy='laplacian' only; ignored with energy='arap' (cotangent weights)",
-            )?;
-        }
-        let d = ArapOptions::default();
-        Ok(Some(ArapOptions {
-            energy: arap_energy.unwrap_or(d.energy),
-            iterations: self.iterations.unwrap_or(d.iterations),
-            tolerance: self.tolerance.unwrap_or(d.tolerance),
-            init: init.unwrap_or(d.init),
-        }))
+        Ok(Request {
+            options: DeformOptions { energy, ..options },
+            arap: ArapOptions {
+                energy: arap_energy.unwrap_or(d.energy),
+                iterations: self.iterations.unwrap_or(d.iterations),
+                tolerance: self.tolerance.unwrap_or(d.tolerance),
+                init: init.unwrap_or(d.init),
+            },
+            given: Given {
+                arap_energy: arap_energy.is_some(),
+                iterations: self.iterations.is_some(),
+                tolerance: self.tolerance.is_some(),
+                arap_init: init.is_some(),
+                ..given
+            },
+            condition: false,
+        })
     }
 }
 
-/// The ARAP deformation of `mesh` (GIL released): set-up, precompute, the
-/// initial guess and the iterations, as `deform --energy arap` runs them.
-fn deform_arap(
-    py: Python<'_>,
-    mesh: Mesh,
-    set: ConstraintSet,
-    solve: SolveOptions,
-    options: ArapOptions,
-) -> PyResult<(Vec<[f64; 3]>, Report)> {
-    released(py, move || {
-        let mut arap = ArapDeformer::new(mesh, set, options.energy)?;
-        arap.precompute_with(&solve)?;
-        arap.initialize(options.init)?;
-        arap.run(options.iterations, options.tolerance)?;
-        Ok((arap.positions(), arap.report().clone()))
-    })
+/// The request's options that do not apply, as `RuntimeWarning`s in
+/// Python's words (`weight= applies to method='penalty' only; ignored
+/// with method='kkt'`), as the CLI warns about them.
+fn warn_inapplicable(py: Python<'_>, request: &Request) -> PyResult<()> {
+    for i in request.inapplicable() {
+        let keyword = match i.option {
+            RequestOption::Laplacian => "laplacian",
+            RequestOption::ArapEnergy => "arap_energy",
+            RequestOption::Iterations => "iterations",
+            RequestOption::Tolerance => "tolerance",
+            RequestOption::ArapInit => "arap_init",
+            RequestOption::Weight => "weight",
+            RequestOption::Qr => "qr",
+        };
+        let note = i.note.map(|n| format!(" ({n})")).unwrap_or_default();
+        warn::<PyRuntimeWarning>(
+            py,
+            &format!(
+                "{keyword}= applies to {}='{}' only; ignored with {}='{}'{note}",
+                i.applies_to.0, i.applies_to.1, i.chosen.0, i.chosen.1
+            ),
+        )?;
+    }
+    Ok(())
+}
+
+/// [`warn_inapplicable`] of the solve options alone (`Deformer`,
+/// `solve_lse`: the weight and the QR back end).
+fn warn_solve_inapplicable(py: Python<'_>, options: &DeformOptions, qr: bool) -> PyResult<()> {
+    let request = Request {
+        options: options.clone(),
+        given: Given {
+            qr,
+            ..Given::default()
+        },
+        ..Request::default()
+    };
+    warn_inapplicable(py, &request)
 }
 
 /// Deforms the mesh `(V, F)` under `constraints`: set-up, precompute and
@@ -517,7 +527,6 @@ fn deform<'py>(
             out_of_core,
         }
         .options()?;
-        let m = options.solve;
         let keywords = EnergyKeywords {
             energy,
             arap_energy,
@@ -525,18 +534,24 @@ fn deform<'py>(
             tolerance,
             arap_init,
         };
-        let arap = keywords.parse(py, laplacian)?;
-        let mesh = mesh(py, V, F, m.resources.budget)?;
-        let set = constraints_for(constraints, &mesh, m.resources.budget)?;
-        let outcome = match arap {
-            Some(options) => deform_arap(py, mesh, set, m, options),
-            None => released(py, move || {
-                let mut deformer = Deformer::new(mesh, kind, set)?;
-                deformer.precompute_with(&m)?;
-                let solution = deformer.solve()?;
-                Ok((solution.positions, solution.report))
-            }),
+        let given = Given {
+            laplacian: laplacian.is_some(),
+            qr: qr.is_some(),
+            ..Given::default()
         };
+        let options = DeformOptions {
+            laplacian: kind,
+            ..options
+        };
+        let request = keywords.request(options, given)?;
+        warn_inapplicable(py, &request)?;
+        let budget = request.options.solve.resources.budget;
+        let mesh = mesh(py, V, F, budget)?;
+        let set = constraints_for(constraints, &mesh, budget)?;
+        let outcome = released(py, move || {
+            let outcome = request::deform(mesh, set, &request)?;
+            Ok((outcome.positions, outcome.report))
+        });
         let (positions, report) = objects.explain(py, outcome)?;
         Ok((
             convert::positions_to_numpy(py, &positions).into_any(),
@@ -715,6 +730,7 @@ fn solve_lse<'py>(
             out_of_core,
         }
         .options()?;
+        warn_solve_inapplicable(py, &options, qr.is_some())?;
         let m = options.solve;
         let budget = m.resources.budget;
         let a = convert::sparse(A, "A", budget)?;
@@ -815,6 +831,7 @@ impl PyDeformer {
                 out_of_core,
             }
             .options()?;
+            warn_solve_inapplicable(py, &options, qr.is_some())?;
             let options = options.solve;
             let mesh = mesh(py, V, F, options.resources.budget)?;
             let set = constraints_for(constraints, &mesh, options.resources.budget)?;
