@@ -196,7 +196,7 @@ impl ArapDeformer {
     }
 
     /// The global step's solver (in the problem's units: lengths divided
-    /// by [`ArapDeformer::length_unit`]): its refinement, memory budget,
+    /// by [`ArapDeformer::length_unit`]): its refinement,
     /// prepared system and report of the last precompute. Read-only: the
     /// precompute goes through [`ArapDeformer::precompute`] (which keeps
     /// the ARAP report) and targets through [`ArapDeformer::set_target`]
