@@ -16,6 +16,11 @@ use std::sync::Arc;
 use crate::choice::Word;
 use crate::limits::MemoryBudget;
 
+/// The most threads a count may ask for. faer sizes a factorisation's
+/// workspace by its thread count, so a count from user input is bounded
+/// (far above any machine this crate runs on) rather than trusted.
+pub const MAX_THREADS: usize = 1024;
+
 /// How many threads a factorisation may use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Threads {
@@ -30,16 +35,19 @@ pub enum Threads {
 }
 
 impl Threads {
-    /// `Count(n)`, or `None` for `n = 0`.
+    /// `Count(n)`, or `None` for `n = 0` and above [`MAX_THREADS`].
     pub fn count(n: usize) -> Option<Threads> {
-        NonZeroUsize::new(n).map(Threads::Count)
+        NonZeroUsize::new(n)
+            .filter(|n| n.get() <= MAX_THREADS)
+            .map(Threads::Count)
     }
 
-    /// The requested count, `None` for the back end's own.
+    /// The requested count (at most [`MAX_THREADS`], also for a `Count`
+    /// built directly), `None` for the back end's own.
     pub fn requested(self) -> Option<usize> {
         match self {
             Threads::Own => None,
-            Threads::Count(n) => Some(n.get()),
+            Threads::Count(n) => Some(n.get().min(MAX_THREADS)),
         }
     }
 }
@@ -64,7 +72,11 @@ impl std::str::FromStr for Threads {
         word.parse::<usize>()
             .ok()
             .and_then(Threads::count)
-            .ok_or_else(|| format!("threads: expected own or a positive count, got {word:?}"))
+            .ok_or_else(|| {
+                format!(
+                    "threads: expected own or a positive count up to {MAX_THREADS}, got {word:?}"
+                )
+            })
     }
 }
 
@@ -192,7 +204,7 @@ mod tests {
     fn threads_parse_own_and_positive_counts_only() {
         assert_eq!("own".parse::<Threads>(), Ok(Threads::Own));
         assert_eq!("3".parse::<Threads>().unwrap().requested(), Some(3));
-        for bad in ["0", "-1", "two", ""] {
+        for bad in ["0", "-1", "two", "", "1025", "99999999999999999999"] {
             let err = bad.parse::<Threads>().unwrap_err();
             assert!(err.contains("positive count"), "{err}");
         }

@@ -249,7 +249,7 @@ impl Held<'_, '_> {
 }
 
 fn parse_threads(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Threads> {
-    const EXPECTED: &str = "threads must be a positive int, 'own' or None";
+    const EXPECTED: &str = "threads must be a positive int (at most 1024), 'own' or None";
     let Some(t) = threads.filter(|t| !t.is_none()) else {
         return Ok(Threads::Own);
     };
