@@ -47,6 +47,16 @@ fn set_threads(n: usize) -> bool {
     true
 }
 
+/// The threads a call on OpenBLAS ran on when `requested` were asked
+/// for: those, when OpenBLAS is loaded (it was set to them), otherwise the
+/// count in effect (`None` without OpenBLAS).
+pub(crate) fn threads_used(requested: Option<usize>) -> Option<usize> {
+    match (requested, threads()) {
+        (Some(n), Some(_)) => Some(n),
+        (_, in_effect) => in_effect,
+    }
+}
+
 /// OpenBLAS on `n` threads until dropped (then back to the count before);
 /// with `None` or without OpenBLAS, nothing changes.
 pub(crate) struct ThreadsFor {

@@ -101,18 +101,25 @@ fn invalid(message: String) -> ProblemError {
     ProblemError::InvalidArgument { message }
 }
 
-/// faer's AMD on the pattern of `lower` (`perm[i]` eliminated `i`-th).
-fn amd_permutation(lower: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, ProblemError> {
+/// Why faer's AMD gave no ordering: its workspace could not be had, or
+/// the ordering itself failed (each with faer's words).
+pub(crate) enum AmdFailure {
+    Workspace(String),
+    Order(String),
+}
+
+/// faer's AMD (default controls) on the pattern of `lower`: `(fwd, inv)`,
+/// `fwd[i]` eliminated `i`-th (one implementation for the held ordering
+/// and nalgebra's own).
+pub(crate) fn amd_order(
+    lower: SymbolicSparseColMatRef<'_, usize>,
+) -> Result<(Vec<usize>, Vec<usize>), AmdFailure> {
     let n = lower.ncols();
     let nnz = lower.compute_nnz();
     let mut fwd = vec![0usize; n];
     let mut inv = vec![0usize; n];
-    let mut mem =
-        MemBuffer::try_new(amd::order_maybe_unsorted_scratch::<usize>(n, nnz)).map_err(|e| {
-            ProblemError::TooLarge {
-                detail: format!("the AMD ordering's workspace ({n} unknowns): {e:?}"),
-            }
-        })?;
+    let mut mem = MemBuffer::try_new(amd::order_maybe_unsorted_scratch::<usize>(n, nnz))
+        .map_err(|e| AmdFailure::Workspace(format!("{e:?}")))?;
     amd::order_maybe_unsorted(
         &mut fwd,
         &mut inv,
@@ -120,8 +127,20 @@ fn amd_permutation(lower: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usiz
         amd::Control::default(),
         MemStack::new(&mut mem),
     )
-    .map_err(|e| invalid(format!("the AMD ordering failed: {e:?}")))?;
-    Ok(fwd)
+    .map_err(|e| AmdFailure::Order(format!("{e:?}")))?;
+    Ok((fwd, inv))
+}
+
+/// [`amd_order`]'s permutation, its failures as the plan's errors.
+fn amd_permutation(lower: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, ProblemError> {
+    let n = lower.ncols();
+    match amd_order(lower) {
+        Ok((fwd, _)) => Ok(fwd),
+        Err(AmdFailure::Workspace(e)) => Err(ProblemError::TooLarge {
+            detail: format!("the AMD ordering's workspace ({n} unknowns): {e}"),
+        }),
+        Err(AmdFailure::Order(e)) => Err(invalid(format!("the AMD ordering failed: {e}"))),
+    }
 }
 
 #[cfg(feature = "suitesparse")]

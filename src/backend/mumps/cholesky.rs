@@ -205,13 +205,9 @@ impl SpdSymbolic for MumpsSymbolic {
     /// loaded, otherwise its count in effect (the report's `mumps` block
     /// has the ranks).
     fn plan_used(&self) -> PlanUsed {
-        let threads = match (self.threads, openblas::threads()) {
-            (Some(n), Some(_)) => Some(n),
-            (_, in_effect) => in_effect,
-        };
         PlanUsed {
             ordering: self.ordering.clone(),
-            threads,
+            threads: openblas::threads_used(self.threads),
         }
     }
 }

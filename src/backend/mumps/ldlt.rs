@@ -197,10 +197,7 @@ impl LdltSymbolic for MumpsLdltSymbolic {
     /// On the driving rank: those asked for when OpenBLAS is loaded,
     /// otherwise its count in effect.
     fn threads_used(&self) -> Option<usize> {
-        match (self.symbolic.threads, openblas::threads()) {
-            (Some(n), Some(_)) => Some(n),
-            (_, in_effect) => in_effect,
-        }
+        openblas::threads_used(self.symbolic.threads)
     }
 }
 

@@ -389,13 +389,9 @@ impl SpdSymbolic for CholmodSymbolic {
     /// The threads: those asked for when OpenBLAS is loaded (it is set
     /// for each factorisation), otherwise OpenBLAS's count in effect.
     fn plan_used(&self) -> PlanUsed {
-        let threads = match (self.threads, openblas::threads()) {
-            (Some(n), Some(_)) => Some(n),
-            (_, in_effect) => in_effect,
-        };
         PlanUsed {
             ordering: self.ordering.clone(),
-            threads,
+            threads: openblas::threads_used(self.threads),
         }
     }
 }

@@ -34,7 +34,6 @@
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError as DenseLltError, LltRegularization};
 use faer::sparse::linalg::SupernodalThreshold;
-use faer::sparse::linalg::amd;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky,
 };
@@ -46,7 +45,7 @@ use nalgebra_sparse::pattern::SparsityPattern;
 
 use super::faer_llt::failing_column;
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
-use crate::backend::ordering::{FactorPlan, PlanUsed, inverse};
+use crate::backend::ordering::{AmdFailure, FactorPlan, PlanUsed, amd_order, inverse};
 use crate::error::NumericalError;
 use crate::resources::Threads;
 
@@ -109,7 +108,10 @@ impl NalgebraCsc {
         let (fwd, inv) = match &plan.permutation {
             Some(perm) if perm.len() == n => (perm.to_vec(), inverse(perm)),
             Some(_) => return Err(backend_error("the permutation's length")),
-            None => own_ordering(lower, nnz)?,
+            None => amd_order(lower).map_err(|e| match e {
+                AmdFailure::Workspace(e) => backend_error(e),
+                AmdFailure::Order(e) => backend_error(format!("AMD ordering: {e}")),
+            })?,
         };
 
         // Permuted full pattern: entry (i, j), i ≥ j, goes to (inv i, inv j)
@@ -175,27 +177,6 @@ impl NalgebraCsc {
             ordering: plan.ordering_used("amd"),
         }))
     }
-}
-
-/// faer's AMD on `lower`: `(fwd, inv)`.
-fn own_ordering(
-    lower: SymbolicSparseColMatRef<'_, usize>,
-    nnz: usize,
-) -> Result<(Vec<usize>, Vec<usize>), NumericalError> {
-    let n = lower.nrows();
-    let mut fwd = vec![0usize; n];
-    let mut inv = vec![0usize; n];
-    let mut mem = MemBuffer::try_new(amd::order_maybe_unsorted_scratch::<usize>(n, nnz))
-        .map_err(|e| backend_error(format!("{e:?}")))?;
-    amd::order_maybe_unsorted(
-        &mut fwd,
-        &mut inv,
-        lower,
-        amd::Control::default(),
-        MemStack::new(&mut mem),
-    )
-    .map_err(|e| backend_error(format!("AMD ordering: {e:?}")))?;
-    Ok((fwd, inv))
 }
 
 struct NalgebraSymbolic {
