@@ -28,6 +28,7 @@ use clap::builder::{PossibleValue, PossibleValuesParser};
 
 use harness::context::{self, AnyError, Context};
 use harness::demo;
+use harness::environment;
 use harness::registry::{self, Experiment, Summary, assemble_readme};
 use harness::rows::markdown_table;
 use studies::{
@@ -196,6 +197,7 @@ fn run_fresh(ctx: &Context, e: &Experiment) -> Result<Summary, AnyError> {
 }
 
 fn main() -> ExitCode {
+    environment::record_startup_environment();
     // A child of `mpi-in-process` times and exits before any parsing.
     if mpi_in_process::probe_if_asked() {
         return ExitCode::SUCCESS;

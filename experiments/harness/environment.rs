@@ -45,7 +45,7 @@ impl Python {
     /// output, or `Err` with the last line of its standard error.
     pub fn script(&self, script: &str, args: &[&OsStr]) -> Result<Vec<u8>, String> {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(script);
-        let out = Command::new(&self.exe)
+        let out = child(&self.exe)
             .arg(path)
             .args(args)
             .output()
@@ -56,6 +56,65 @@ impl Python {
             Err(format!("{script} failed: {}", last_line(&out.stderr)))
         }
     }
+}
+
+/// The prefixes of the variables Open MPI and PMIx put into a process's
+/// own environment when it initialises MPI as a singleton (which this
+/// program does once a section has used MUMPS in the process): the
+/// address of its PMIx server, its job and its rank.
+const INHERITED_MPI_PREFIXES: [&str; 5] = ["OMPI_", "PMIX_", "ORTE_", "OPAL_", "PRTE_"];
+
+/// The MPI variables this program was started with (the user's own, such
+/// as `OMPI_MCA_btl`), recorded by [`record_startup_environment`] before
+/// any MPI initialisation.
+static STARTUP_MPI_VARIABLES: std::sync::OnceLock<Vec<std::ffi::OsString>> =
+    std::sync::OnceLock::new();
+
+/// Records which MPI variables the environment holds now; call first in
+/// `main`, before any section can initialise MPI.
+pub fn record_startup_environment() {
+    let _ = STARTUP_MPI_VARIABLES.get_or_init(|| {
+        std::env::vars_os()
+            .map(|(k, _)| k)
+            .filter(|k| is_mpi_variable(k))
+            .collect()
+    });
+}
+
+/// A command for `program` that does not inherit this process's MPI
+/// singleton: without it, an `mpirun` started after a section used MUMPS
+/// in the process takes itself for a rank of that singleton and fails, and
+/// a child that initialises MPI joins the parent's job instead of starting
+/// its own. The MPI variables the program was started with are passed on.
+pub fn child(program: impl AsRef<OsStr>) -> Command {
+    let mut command = Command::new(program);
+    let startup = STARTUP_MPI_VARIABLES
+        .get()
+        .map(Vec::as_slice)
+        .unwrap_or(&[]);
+    for (key, _) in std::env::vars_os() {
+        if is_mpi_variable(&key) && !startup.contains(&key) {
+            command.env_remove(key);
+        }
+    }
+    command
+}
+
+/// Whether `key` starts with one of [`INHERITED_MPI_PREFIXES`].
+fn is_mpi_variable(key: &OsStr) -> bool {
+    key.to_str()
+        .is_some_and(|k| INHERITED_MPI_PREFIXES.iter().any(|p| k.starts_with(p)))
+}
+
+/// Why a child failed: the last line of its error output, else of its
+/// standard output, and its exit status.
+pub fn failure(out: &std::process::Output) -> String {
+    let line = [&out.stderr, &out.stdout]
+        .into_iter()
+        .map(|b| last_line(b))
+        .find(|l| l != "no output")
+        .unwrap_or_else(|| "no output".into());
+    format!("{line} ({})", out.status)
 }
 
 /// The last non-empty line of a program's output (its error, usually).
@@ -81,7 +140,7 @@ fn run(cmd: &mut Command, what: &str) -> Result<(), String> {
 
 /// `true` if `python -c "import MODULES"` succeeds.
 fn imports(python: &Path, modules: &str) -> bool {
-    Command::new(python)
+    child(python)
         .args(["-c", &format!("import {modules}")])
         .output()
         .is_ok_and(|o| o.status.success())
@@ -106,13 +165,13 @@ pub fn python_with_libigl() -> Result<Python, String> {
     let exe = venv.join("bin").join("python");
     if !exe.exists() {
         run(
-            Command::new("python3").args(["-m", "venv"]).arg(&venv),
+            child("python3").args(["-m", "venv"]).arg(&venv),
             &format!("`python3 -m venv {VENV}`"),
         )?;
     }
     if !imports(&exe, MODULES) {
         run(
-            Command::new(&exe).args(["-m", "pip", "install", "-q", "numpy", "scipy", "libigl"]),
+            child(&exe).args(["-m", "pip", "install", "-q", "numpy", "scipy", "libigl"]),
             &format!("`pip install numpy scipy libigl` in {VENV}"),
         )?;
     }
@@ -128,7 +187,7 @@ pub fn python_with_libigl() -> Result<Python, String> {
 pub fn python_with_package() -> Result<Python, String> {
     let python = python_with_libigl()?;
     run(
-        Command::new(&python.exe)
+        child(&python.exe)
             .args([
                 "-m",
                 "pip",
@@ -187,7 +246,7 @@ pub fn browser() -> Result<Browser, String> {
     let tests = workspace_root().join("tests").join("browser");
     if !tests.join("node_modules").join("playwright-core").is_dir() {
         run(
-            Command::new("npm")
+            child("npm")
                 .args(["ci", "--no-audit", "--no-fund"])
                 .current_dir(&tests),
             "`npm ci` in tests/browser (playwright-core)",
@@ -216,7 +275,7 @@ pub fn cli_binary() -> Result<PathBuf, String> {
     let root = workspace_root();
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let features = mirrored_features();
-    let mut command = Command::new(cargo);
+    let mut command = child(cargo);
     command.args(["build", "--release", "--bin", "lse-deform"]);
     if !features.is_empty() {
         command.args(["--features", &features.join(",")]);
@@ -247,4 +306,30 @@ pub fn mpirun() -> Result<PathBuf, String> {
 pub fn gnu_time() -> Option<PathBuf> {
     let p = PathBuf::from("/usr/bin/time");
     p.is_file().then_some(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_singletons_variables_are_dropped_and_the_rest_kept() {
+        for key in ["PMIX_SERVER_URI2", "OMPI_MCA_ess", "ORTE_SCHIZO_DETECTION"] {
+            assert!(is_mpi_variable(OsStr::new(key)), "{key}");
+        }
+        for key in ["PATH", "LSE_MESH_DIR", "OPENBLAS_NUM_THREADS", "XOMPI_"] {
+            assert!(!is_mpi_variable(OsStr::new(key)), "{key}");
+        }
+    }
+
+    #[test]
+    fn a_failure_names_standard_output_when_the_error_output_is_empty() {
+        let out = std::process::Command::new("sh")
+            .args(["-c", "echo first; echo 'the reason'; exit 3"])
+            .output()
+            .expect("sh runs");
+        let why = failure(&out);
+        assert!(why.starts_with("the reason ("), "{why}");
+        assert!(why.contains('3'), "{why}");
+    }
 }

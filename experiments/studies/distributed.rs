@@ -28,7 +28,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 use crate::harness::context::{AnyError, Context};
-use crate::harness::environment::{self, last_line};
+use crate::harness::environment;
 use crate::harness::plot::{self, Category, LegendPosition, Output, StackedBars};
 use crate::harness::registry::{Experiment, Input, Summary};
 use crate::harness::rows::{fmt_time, markdown_table};
@@ -172,16 +172,16 @@ impl Tools {
         if setting == Setting::Faer {
             return match &self.time {
                 Some(time) => {
-                    let mut c = Command::new(time);
+                    let mut c = environment::child(time);
                     c.args(["-f", "%M", "-o"])
                         .arg(rank_file(rss, 0))
                         .arg(&self.bin);
                     c
                 }
-                None => Command::new(&self.bin),
+                None => environment::child(&self.bin),
             };
         }
-        let mut c = Command::new(&self.mpirun);
+        let mut c = environment::child(&self.mpirun);
         c.envs(MPI_ENV)
             .arg("-np")
             .arg(setting.ranks().to_string())
@@ -223,14 +223,14 @@ fn parse_time_kib(text: &str) -> Option<u64> {
 
 /// Runs `tools.bin ARGS` (as `what`), or the last line of its error.
 fn run_cli(tools: &Tools, args: &[&std::ffi::OsStr], what: &str) -> Result<(), String> {
-    let out = Command::new(&tools.bin)
+    let out = environment::child(&tools.bin)
         .args(args)
         .output()
         .map_err(|e| format!("{what}: {e}"))?;
     if out.status.success() {
         Ok(())
     } else {
-        Err(format!("{what} failed: {}", last_line(&out.stderr)))
+        Err(format!("{what} failed: {}", environment::failure(&out)))
     }
 }
 
@@ -273,7 +273,7 @@ fn deform(tools: &Tools, case: &Case, scene: &Path, setting: Setting) -> Result<
         return Err(format!(
             "{} failed: {}",
             setting.label(),
-            last_line(&out.stderr)
+            environment::failure(&out)
         ));
     }
     let text = std::fs::read_to_string(&report).map_err(|e| format!("report: {e}"))?;
@@ -1138,6 +1138,15 @@ pub fn run(ctx: &Context) -> Result<Summary, AnyError> {
     });
     let _ = std::fs::remove_dir_all(&tools.scratch);
     let (rows, sources) = outcome?;
+    if !rows.iter().any(|r| r.mumps && r.status == "ok") {
+        let why = notes
+            .iter()
+            .rev()
+            .find(|n| n.contains("failed"))
+            .cloned()
+            .unwrap_or_else(|| "no mesh was measured".into());
+        return Err(format!("no MUMPS run succeeded; the last failure: {why}").into());
+    }
     let model = model(&rows);
     let tables = Tables {
         projection: model.as_ref().map(project).unwrap_or_default(),

@@ -15,7 +15,6 @@
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::process::Command;
 
 use lse_deform::mesh::write_mesh;
 use serde::{Deserialize, Serialize};
@@ -211,7 +210,7 @@ fn end_to_end(
     chromium: &std::path::Path,
 ) -> Result<(), AnyError> {
     let tests = environment::workspace_root().join("tests").join("browser");
-    let out = Command::new("node")
+    let out = environment::child("node")
         .arg("editor.test.mjs")
         .current_dir(&tests)
         .env("LSE_DEFORM_BIN", bin)
@@ -243,7 +242,7 @@ fn measure(ctx: &Context, dir: &std::path::Path) -> Result<(Vec<Row>, Vec<ArapRo
         let vertices = lse_deform::mesh::read_mesh(&mesh)?.mesh.n_vertices();
         let frames = if ctx.quick { 30 } else { FRAMES };
         let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("editor_frames.mjs");
-        let status = Command::new("node")
+        let status = environment::child("node")
             .arg(script)
             .args(["--frames", &frames.to_string()])
             .args([

@@ -15,13 +15,13 @@
 
 use std::fmt::Write as _;
 use std::path::Path;
-use std::process::Command;
 
 use lse_deform::mesh::{read_mesh, write_mesh};
 use lse_deform::scene::FixedAndHandle;
 use serde::{Deserialize, Serialize};
 
 use crate::harness::context::{AnyError, Context};
+use crate::harness::environment;
 use crate::harness::registry::{Experiment, Input, Summary};
 use crate::harness::rows::{fmt_time, markdown_table, median};
 use crate::harness::timing::{Terms, null_space_with_spd, setup_and_precompute, start_mpi};
@@ -106,7 +106,7 @@ fn probe(mesh_path: &Path, mpi: bool, reps: usize) -> Result<Probe, AnyError> {
 /// One child: this program with the probe's environment.
 fn run_child(mesh: &Path, mpi: bool, reps: usize) -> Result<Probe, AnyError> {
     let exe = std::env::current_exe()?;
-    let out = Command::new(exe)
+    let out = environment::child(exe)
         .env(PROBE_MESH, mesh)
         .env(PROBE_MPI, if mpi { "1" } else { "0" })
         .env(PROBE_REPS, reps.to_string())

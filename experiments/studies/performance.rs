@@ -465,7 +465,7 @@ pub fn memory_probe(mesh_path: &Path) -> Result<(), AnyError> {
 
 fn run_probe(mesh_path: &Path) -> Result<MemoryProbe, AnyError> {
     let exe = std::env::current_exe()?;
-    let out = std::process::Command::new(exe)
+    let out = crate::harness::environment::child(exe)
         .arg(NAME)
         .arg("--memory-probe")
         .arg(mesh_path)

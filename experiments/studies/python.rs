@@ -14,7 +14,7 @@
 use std::fmt::Write as _;
 use std::io::{BufRead, BufReader, Write as _};
 use std::path::Path;
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::process::{Child, ChildStdin, ChildStdout, Stdio};
 use std::time::Instant;
 
 use lse_deform::mesh::write_mesh;
@@ -75,7 +75,7 @@ struct Door {
 impl Door {
     fn start(python: &Python, mesh: &Path, scene: &Path) -> Result<Door, AnyError> {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python_door.py");
-        let mut child = Command::new(&python.exe)
+        let mut child = environment::child(&python.exe)
             .arg(script)
             .arg(mesh)
             .arg(scene)
