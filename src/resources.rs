@@ -16,6 +16,10 @@ use std::sync::Arc;
 use crate::choice::Word;
 use crate::limits::MemoryBudget;
 
+pub mod ordering_file;
+
+pub use ordering_file::read_ordering_file;
+
 /// The most threads a count may ask for. faer sizes a factorisation's
 /// workspace by its thread count, so a count from user input is bounded
 /// (far above any machine this crate runs on) rather than trusted.

@@ -5,7 +5,7 @@ use std::path::Path;
 use lse_deform::mesh::read_mesh;
 
 mod common;
-use common::{path_in, run, stderr};
+use common::{grid_and_default_scene, path_in, run, stderr};
 
 #[test]
 fn generate_scene_deform_round_trip() {
@@ -1071,12 +1071,7 @@ fn refine_zero_means_zero_steps() {
 #[test]
 fn ordering_and_threads_are_held_and_reported() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = path_in(dir.path(), "grid.obj");
-    let o = run(&["generate", "grid", "--vertices", "900", "-o", &mesh]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let scene = path_in(dir.path(), "scene.json");
-    let o = run(&["scene", &mesh, "-o", &scene]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let (mesh, scene) = grid_and_default_scene(dir.path(), 900);
     let report_of = |factor: &str, held: &[&str]| {
         let out = path_in(dir.path(), &format!("out-{factor}.obj"));
         let report = path_in(dir.path(), &format!("report-{factor}.json"));
@@ -1108,4 +1103,100 @@ fn ordering_and_threads_are_held_and_reported() {
         assert_eq!(o.status.code(), Some(2), "{flag} {value}");
         assert!(stderr(&o).contains(flag), "{}", stderr(&o));
     }
+}
+
+/// `--ordering-file`: the identity written as a file factors with the
+/// factor `--ordering natural` gives (same fill), the report says `given`,
+/// and the deformation is the default's; a word that is not an index, a
+/// list that is not a permutation and an output onto the file are usage
+/// errors naming what is wrong.
+#[test]
+fn an_ordering_file_is_given_to_the_back_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (mesh, scene) = grid_and_default_scene(d, 900);
+    let original = read_mesh(Path::new(&mesh)).unwrap().mesh;
+    let n = original.n_vertices();
+    let identity = path_in(d, "identity.txt");
+    let words: Vec<String> = (0..n).map(|i| i.to_string()).collect();
+    std::fs::write(
+        &identity,
+        format!("# the identity\n[{}]\n", words.join(", ")),
+    )
+    .unwrap();
+    let deform = |name: &str, held: &[&str]| {
+        let out = path_in(d, &format!("{name}.obj"));
+        let report = path_in(d, &format!("{name}.json"));
+        let mut args = vec![
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--report",
+            &report,
+            "--factor",
+            "faer-simplicial",
+        ];
+        args.extend_from_slice(held);
+        let o = run(&args);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        let text = std::fs::read_to_string(&report).unwrap();
+        let r: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let x = read_mesh(Path::new(&out)).unwrap().mesh;
+        (r, x.positions().to_vec())
+    };
+    let (own, own_x) = deform("own", &[]);
+    let (natural, _) = deform("natural", &["--ordering", "natural"]);
+    let (given, given_x) = deform("given", &["--ordering-file", &identity]);
+    assert_eq!(given["ordering"], "given");
+    assert_eq!(given["nnz"]["factor"], natural["nnz"]["factor"]);
+    assert_ne!(given["nnz"]["factor"], own["nnz"]["factor"]);
+    let diagonal = original.bbox_diagonal();
+    let worst = own_x
+        .iter()
+        .zip(&given_x)
+        .flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).abs()))
+        .fold(0.0, f64::max);
+    assert!(worst <= 1e-10 * diagonal, "{worst} of {diagonal}");
+
+    let out = path_in(d, "bad.obj");
+    let not_an_index = path_in(d, "word.txt");
+    std::fs::write(&not_an_index, "0\n1\nthree\n").unwrap();
+    let repeated = path_in(d, "repeated.txt");
+    let mut twice = words.clone();
+    twice[1] = "0".into();
+    std::fs::write(&repeated, twice.join("\n")).unwrap();
+    for (file, expected) in [(&not_an_index, "line 3"), (&repeated, "not a permutation")] {
+        let o = run(&[
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--ordering-file",
+            file,
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(expected), "{}", stderr(&o));
+    }
+    let o = run(&[
+        "deform",
+        &mesh,
+        "-c",
+        &scene,
+        "-o",
+        &identity,
+        "--ordering-file",
+        &identity,
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--ordering-file"), "{}", stderr(&o));
+    assert!(
+        std::fs::read_to_string(&identity)
+            .unwrap()
+            .starts_with("# the identity")
+    );
 }

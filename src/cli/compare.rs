@@ -65,9 +65,9 @@ pub struct CompareArgs {
 
 impl CompareArgs {
     /// The library's options for these arguments.
-    fn options(&self) -> CompareOptions {
+    fn options(&self) -> Result<CompareOptions, Error> {
         let d = CompareOptions::default();
-        CompareOptions {
+        Ok(CompareOptions {
             methods: self.methods.clone().unwrap_or(d.methods),
             qrs: (!self.qr.is_empty()).then(|| self.qr.clone()),
             spds: (!self.factor.is_empty())
@@ -76,8 +76,8 @@ impl CompareArgs {
             refine: self.refine,
             repeat: self.repeat,
             condition: !self.no_condition,
-            resources: self.held.resources(self.memory_limit.unwrap_or_default()),
-        }
+            resources: self.held.resources(self.memory_limit.unwrap_or_default())?,
+        })
     }
 }
 
@@ -93,13 +93,12 @@ fn listed<T: std::fmt::Display>(values: &[T]) -> String {
 /// Runs `compare` and prints its table (and writes the rows as JSON).
 pub fn compare(a: CompareArgs) -> Result<(), Error> {
     if let Some(json) = &a.json {
-        check_distinct(
-            &mesh_and_constraints(&a.mesh, &a.constraints),
-            &[("--json", json.as_path())],
-        )?;
+        let mut inputs = mesh_and_constraints(&a.mesh, &a.constraints).to_vec();
+        inputs.extend(a.held.inputs());
+        check_distinct(&inputs, &[("--json", json.as_path())])?;
     }
     check_outputs(None, a.json.as_deref())?;
-    let options = a.options();
+    let options = a.options()?;
     // Fail before any work when the filters leave nothing to run.
     let configs = options
         .configurations()

@@ -115,7 +115,9 @@ impl EnergyArgs {
 pub fn deform(a: DeformArgs) -> Result<(), Error> {
     let mut outputs = vec![("-o", a.output.as_path())];
     outputs.extend(a.report.as_deref().map(|r| ("--report", r)));
-    check_distinct(&mesh_and_constraints(&a.mesh, &a.constraints), &outputs)?;
+    let mut inputs = mesh_and_constraints(&a.mesh, &a.constraints).to_vec();
+    inputs.extend(a.method.held.inputs());
+    check_distinct(&inputs, &outputs)?;
     check_outputs(Some(&a.output), a.report.as_deref())?;
     let budget = a.method.budget();
     let mesh = load(&a.mesh, budget)?;

@@ -44,7 +44,9 @@ pub fn export_system(a: ExportArgs) -> Result<(), Error> {
     ];
     let paths = names.map(|n| a.output.join(n));
     let outputs: Vec<_> = paths.iter().map(|p| ("-o", p.as_path())).collect();
-    check_distinct(&mesh_and_constraints(&a.mesh, &a.constraints), &outputs)?;
+    let mut inputs = mesh_and_constraints(&a.mesh, &a.constraints).to_vec();
+    inputs.extend(a.method.held.inputs());
+    check_distinct(&inputs, &outputs)?;
     create_output_dir(&a.output)?;
     super::notes(mesh::check_writable(&paths[0])?);
     let budget = a.method.budget();

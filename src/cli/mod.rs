@@ -3,7 +3,7 @@
 //! progress spinners, reading inputs and checking outputs. No numerics: the
 //! commands call the library and print what it returns.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use clap::Args;
@@ -100,16 +100,37 @@ pub struct HeldArgs {
     /// "ordering" says what was used. [default: own]
     #[arg(long)]
     pub ordering: Option<OrderingWord>,
+    /// A fill-reducing ordering made elsewhere, given to every back end:
+    /// a file of the problem's unknowns (the mesh's vertices; solve: the
+    /// columns of A) in elimination order, 0-based, separated by
+    /// whitespace or commas, '#' comments, or one JSON array
+    /// (docs/equal-terms.md §2). The report's "ordering" is "given".
+    #[arg(long, value_name = "FILE", conflicts_with = "ordering")]
+    pub ordering_file: Option<PathBuf>,
 }
 
 impl HeldArgs {
-    /// `budget` with these threads and ordering.
-    pub fn resources(&self, budget: MemoryBudget) -> Resources {
-        Resources {
+    /// `budget` with these threads and ordering (the ordering file read
+    /// within `budget`).
+    pub fn resources(&self, budget: MemoryBudget) -> Result<Resources, Error> {
+        let ordering = match &self.ordering_file {
+            Some(path) => lse_deform::resources::read_ordering_file(path, budget)?,
+            None => self.ordering.map(FillOrdering::from).unwrap_or_default(),
+        };
+        Ok(Resources {
             budget,
             threads: self.threads.unwrap_or_default(),
-            ordering: self.ordering.map(FillOrdering::from).unwrap_or_default(),
-        }
+            ordering,
+        })
+    }
+
+    /// The ordering file as an input of the command (outputs never
+    /// replace it).
+    pub fn inputs(&self) -> Vec<files::Role<'_>> {
+        self.ordering_file
+            .iter()
+            .map(|p| ("the ordering file given with --ordering-file", p.as_path()))
+            .collect()
     }
 }
 
@@ -183,7 +204,7 @@ impl MethodArgs {
     /// [`MethodArgs::options`] without the warnings (the caller words the
     /// request's own list).
     pub fn parse_checked(&self) -> Result<DeformOptions, Error> {
-        let options = self.parse();
+        let options = self.parse()?;
         options
             .solve
             .formulation
@@ -192,8 +213,9 @@ impl MethodArgs {
         Ok(options)
     }
 
-    /// [`MethodArgs::options`] unchecked and without the warnings.
-    fn parse(&self) -> DeformOptions {
+    /// [`MethodArgs::options`] unchecked and without the warnings (the
+    /// ordering file read).
+    fn parse(&self) -> Result<DeformOptions, Error> {
         let mut options = DeformOptions::default();
         let solve = &mut options.solve;
         solve.formulation.method = self.method;
@@ -205,11 +227,11 @@ impl MethodArgs {
         solve.refine = self.refine.or(solve.refine);
         solve.resources = self
             .held
-            .resources(self.memory_limit.unwrap_or(solve.resources.budget));
+            .resources(self.memory_limit.unwrap_or(solve.resources.budget))?;
         if let Some(dir) = &self.out_of_core {
             solve.factor_storage = FactorStorage::OutOfCore(dir.clone());
         }
-        options
+        Ok(options)
     }
 
     /// The run's memory budget: `--memory-limit`, else the default.

@@ -91,6 +91,7 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
         ("the matrix D", pd.as_path()),
     ];
     inputs.extend(meta_path.as_deref().map(|p| ("the meta.json read", p)));
+    inputs.extend(a.method.held.inputs());
     let mut outputs = vec![("-o", a.output.as_path())];
     outputs.extend(a.report.as_deref().map(|r| ("--report", r)));
     check_distinct(&inputs, &outputs)?;

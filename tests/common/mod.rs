@@ -26,6 +26,25 @@ pub fn path_in(dir: &Path, name: &str) -> String {
     dir.join(name).to_string_lossy().into_owned()
 }
 
+/// `lse-deform generate grid --vertices N` and its default `scene` in
+/// `dir`: the mesh's and the constraints file's paths.
+pub fn grid_and_default_scene(dir: &Path, vertices: usize) -> (String, String) {
+    let mesh = path_in(dir, "grid.obj");
+    let o = run(&[
+        "generate",
+        "grid",
+        "--vertices",
+        &vertices.to_string(),
+        "-o",
+        &mesh,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = path_in(dir, "scene.json");
+    let o = run(&["scene", &mesh, "-o", &scene]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (mesh, scene)
+}
+
 /// A running `lse-deform edit`: the process, its address and session
 /// token.
 pub struct Editor {
