@@ -464,6 +464,18 @@ fn malformed_requests_get_400_with_a_message_and_change_nothing() {
             "colour",
         ),
         (
+            "PUT",
+            "/api/settings",
+            br#"{"threads": 0}"#.to_vec(),
+            "threads",
+        ),
+        (
+            "PUT",
+            "/api/settings",
+            br#"{"ordering": "colamd"}"#.to_vec(),
+            "colamd",
+        ),
+        (
             "POST",
             "/api/iterate",
             br#"{"iterations": -1}"#.to_vec(),
@@ -504,6 +516,36 @@ fn huge_bodies_get_413_stating_the_limit() {
     );
     // Still serving.
     assert_eq!(request(&server.client, "GET", "/api/mesh", b"").0, 200);
+}
+
+/// The ordering and the threads held by the settings reach the
+/// factorisation: the report says what was used, and the identity
+/// ordering gives a factor with other fill than the back end's own (AMD).
+#[test]
+fn settings_hold_the_ordering_and_the_threads() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    let (status, body) = request(c, "GET", "/api/report", b"");
+    assert_eq!(status, 200);
+    let own = json(&body);
+    assert!(
+        own["ordering"].as_str().unwrap().starts_with("own"),
+        "{own}"
+    );
+    let (status, body) = request(
+        c,
+        "PUT",
+        "/api/settings",
+        br#"{"ordering": "natural", "threads": 1}"#,
+    );
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let held = json(&body);
+    assert_eq!(held["ordering"], "natural");
+    assert_eq!(held["threads"], 1);
+    assert_ne!(held["nnz"]["factor"], own["nnz"]["factor"]);
+    let settings = &held["editor"]["settings"];
+    assert_eq!(settings["ordering"], "natural", "{settings}");
+    assert_eq!(settings["threads"], 1, "{settings}");
 }
 
 #[test]

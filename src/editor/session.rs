@@ -22,6 +22,7 @@ use crate::options::{
     DeformOptions, INTERACTIVE_ARAP_ITERATIONS_PER_FRAME, SUGGESTED_PENALTY_WEIGHT,
 };
 use crate::request::{self, Prepared, Request};
+use crate::resources::{OrderingWord, Threads};
 use crate::solver::SolveOptions;
 
 /// The group that never moves in a drag: left out of the response basis
@@ -56,6 +57,51 @@ pub struct Settings {
     pub energy: Energy,
     /// ARAP iterations per frame during a drag.
     pub arap_iterations_per_frame: usize,
+    /// The factorisation's fill-reducing ordering: own, amd, metis or
+    /// natural (docs/equal-terms.md §2); own when not given.
+    #[serde(default = "own_ordering", deserialize_with = "deserialize_word")]
+    pub ordering: OrderingWord,
+    /// The factorisation's threads: own, or a count (a JSON number, or
+    /// the count as a word); own when not given.
+    #[serde(
+        default,
+        deserialize_with = "deserialize_threads",
+        serialize_with = "serialize_threads"
+    )]
+    pub threads: Threads,
+}
+
+/// [`Settings::ordering`] when not given.
+fn own_ordering() -> OrderingWord {
+    OrderingWord::Own
+}
+
+/// [`Settings::threads`] from `"own"`, a count as a word, or a number.
+fn deserialize_threads<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Threads, D::Error> {
+    match Value::deserialize(d)? {
+        Value::String(word) => word.parse().map_err(serde::de::Error::custom),
+        Value::Number(n) => n
+            .as_u64()
+            .and_then(|n| usize::try_from(n).ok())
+            .and_then(Threads::count)
+            .ok_or_else(|| {
+                serde::de::Error::custom(format!(
+                    "threads: expected own or a positive count up to {}, got {n}",
+                    crate::resources::MAX_THREADS
+                ))
+            }),
+        other => Err(serde::de::Error::custom(format!(
+            "threads: expected own or a positive count, got {other}"
+        ))),
+    }
+}
+
+/// [`Settings::threads`] as the page shows it: `"own"` or the count.
+fn serialize_threads<S: serde::Serializer>(threads: &Threads, s: S) -> Result<S::Ok, S::Error> {
+    match threads.requested() {
+        Some(n) => s.serialize_u64(n as u64),
+        None => s.serialize_str("own"),
+    }
 }
 
 impl Default for Settings {
@@ -77,6 +123,8 @@ impl Default for Settings {
             refine: d.solve.refine.unwrap_or_default(),
             energy: d.energy,
             arap_iterations_per_frame: INTERACTIVE_ARAP_ITERATIONS_PER_FRAME,
+            ordering: OrderingWord::Own,
+            threads: d.solve.resources.threads,
         }
     }
 }
@@ -102,6 +150,8 @@ impl Settings {
             .formulation
             .validate(&options.solve.factor_storage)?;
         options.solve.refine = Some(self.refine);
+        options.solve.resources.ordering = self.ordering.into();
+        options.solve.resources.threads = self.threads;
         Ok(options)
     }
 
@@ -631,5 +681,40 @@ mod tests {
         expected.solve.refine = Some(Refine::Auto);
         assert_eq!(Settings::default().options().unwrap(), expected);
         assert_eq!(Settings::default().arap_iterations_per_frame, 2);
+    }
+
+    /// Ordering and threads: absent means own; a word or a number is
+    /// read into the options; a count out of range and an unknown word
+    /// are refused naming the field; what is written reads back.
+    #[test]
+    fn ordering_and_threads_settings_reach_the_options() {
+        let fields = |v: Value| v.as_object().unwrap().clone();
+        let d = Settings::default();
+        let own = d.with(fields(json!({}))).unwrap();
+        assert_eq!(own.options().unwrap().solve.resources, Default::default());
+        let held = d
+            .with(fields(json!({"ordering": "amd", "threads": 1})))
+            .unwrap();
+        let resources = held.options().unwrap().solve.resources;
+        assert_eq!(resources.ordering, crate::resources::FillOrdering::Amd);
+        assert_eq!(resources.threads, Threads::count(1).unwrap());
+        assert_eq!(
+            d.with(fields(json!({"threads": "2"}))).unwrap().threads,
+            Threads::count(2).unwrap()
+        );
+        let written = serde_json::to_value(&held).unwrap();
+        assert_eq!(written["threads"], 1);
+        assert_eq!(written["ordering"], "amd");
+        for bad in [
+            json!({"threads": 0}),
+            json!({"threads": 100000}),
+            json!({"threads": -1}),
+            json!({"threads": [1]}),
+            json!({"ordering": "colamd"}),
+        ] {
+            let e = d.with(fields(bad.clone())).unwrap_err().to_string();
+            let field = bad.as_object().unwrap().keys().next().unwrap().clone();
+            assert!(e.contains(&field), "{bad}: {e}");
+        }
     }
 }

@@ -237,6 +237,12 @@ try {
   await page.waitForTimeout(300);
   const penalty = await page.evaluate(() => window.editor.scriptedDrag('handle 1', 2, 0.1, 1, { render: false }));
   assert.equal(penalty.path, 'server', 'the penalty method');
+  // The ordering and threads menus reach the factorisation: the report
+  // after the new precompute says what was used.
+  await page.selectOption('#ordering', 'natural');
+  await page.waitForFunction(() => window.editor.state.report?.ordering === 'natural' && document.getElementById('progress').style.display === 'none', null, { timeout: 120000 });
+  await page.selectOption('#threads', '1');
+  await page.waitForFunction(() => window.editor.state.report?.threads === 1 && window.editor.state.report?.editor?.settings?.threads === 1, null, { timeout: 120000 });
 
   if (dragFrames > 0) {
     const figure = await page.evaluate((f) => window.editor.scriptedDrag('handle 1', f), dragFrames);

@@ -510,7 +510,7 @@ function setupEvents() {
     showError(null);
     try { setReport(await withProgress(send('PUT', '/api/settings', change))); state.transforms.clear(); await loadPositions(); } catch (e) { showError(e); }
   };
-  for (const id of ['energy', 'laplacian', 'method', 'refine']) {
+  for (const id of ['energy', 'laplacian', 'method', 'refine', 'ordering', 'threads']) {
     $(id).addEventListener('change', (e) => settings({ [id]: e.target.value }));
   }
   $('weight').addEventListener('change', (e) => { $('wval').textContent = e.target.value; settings({ weight: 10 ** Number(e.target.value) }); });
@@ -547,7 +547,7 @@ async function main() {
   await refreshReport();
   await loadPositions();
   const s = state.report?.editor?.settings;
-  if (s) for (const id of ['energy', 'laplacian', 'method', 'refine']) $(id).value = String(s[id]);
+  if (s) for (const id of ['energy', 'laplacian', 'method', 'refine', 'ordering', 'threads']) $(id).value = String(s[id]);
   window.addEventListener('resize', () => view.render());
   window.editor.ready = true;
 }
