@@ -621,26 +621,9 @@ pub fn read_constraints_file_with(
     let io = |e| Error::io(path, e);
     let file = std::fs::File::open(path).map_err(io)?;
     let per_byte = crate::limits::CONSTRAINT_BYTES_PER_FILE_BYTE;
-    let too_large = |size: u64| {
-        budget
-            .check(size.saturating_mul(per_byte), || {
-                format!(
-                    "{} ({}) would need",
-                    path.display(),
-                    crate::limits::format_bytes(size)
-                )
-            })
-            .map_err(|detail| ConstraintError::TooLarge { detail })
-    };
-    let size = file
-        .metadata()
-        .ok()
-        .filter(|m| m.is_file())
-        .map(|m| m.len());
-    if let Some(size) = size {
-        too_large(size)?;
-    }
-    let cap = budget.limit() / per_byte;
+    let name = path.display().to_string();
+    let cap = crate::limits::file_read_cap(&file, &name, budget, per_byte)
+        .map_err(|detail| ConstraintError::TooLarge { detail })?;
     let mut reader = BufReader::with_capacity(1 << 16, file.take(cap.saturating_add(1)));
     if reader.fill_buf().map_err(io)?.starts_with(BOM) {
         reader.consume(BOM.len());
@@ -650,7 +633,6 @@ pub fn read_constraints_file_with(
     drop(de);
     if reader.get_ref().limit() == 0 {
         // The stream went on past the cap: refused, parsed or not.
-        let name = path.display().to_string();
         let detail = crate::limits::beyond_the_cap(budget, &name, cap, "", per_byte, "parsing");
         return Err(ConstraintError::TooLarge { detail }.into());
     }

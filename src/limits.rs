@@ -396,6 +396,34 @@ fn status_bytes(name: &str) -> Option<u64> {
     kib.checked_mul(1024)
 }
 
+/// The most bytes a whole-or-refused read of `file` (named `name`) may
+/// take within `budget` at `per_byte` bytes of memory per byte read:
+/// a regular file's size is checked first, so that one beyond the budget
+/// is refused before it is read (`Err` with the detail); a stream (a pipe,
+/// a device) reports no size and is capped only. The caller reads at most
+/// the cap plus one byte and refuses the read that reaches it
+/// ([`beyond_the_cap`]).
+pub fn file_read_cap(
+    file: &std::fs::File,
+    name: &str,
+    budget: MemoryBudget,
+    per_byte: u64,
+) -> Result<u64, String> {
+    // Only a regular file's length is the number of bytes it will deliver
+    // (a pipe reports 0).
+    let size = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
+    if let Some(size) = size {
+        budget.check(size.saturating_mul(per_byte), || {
+            format!("{name} ({}) would need", format_bytes(size))
+        })?;
+    }
+    Ok(budget.limit() / per_byte)
+}
+
 /// The detail of a refusal of `name`, a stream that went on beyond `cap`,
 /// the bytes read (`after`: e.g. " after decompression"), the most that
 /// `budget` allows at `per_byte` bytes of memory (of `of`) per byte read.

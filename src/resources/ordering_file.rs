@@ -51,29 +51,14 @@ pub fn read_ordering_file(path: &Path, budget: MemoryBudget) -> Result<FillOrder
     let io = |e| Error::io(path, e);
     let file = std::fs::File::open(path).map_err(io)?;
     let per_byte = ORDERING_BYTES_PER_FILE_BYTE;
-    let size = file
-        .metadata()
-        .ok()
-        .filter(|m| m.is_file())
-        .map(|m| m.len());
-    if let Some(size) = size {
-        budget
-            .check(size.saturating_mul(per_byte), || {
-                format!(
-                    "the ordering file {} ({}) would need",
-                    path.display(),
-                    crate::limits::format_bytes(size)
-                )
-            })
-            .map_err(|detail| ProblemError::TooLarge { detail })?;
-    }
-    let cap = budget.limit() / per_byte;
+    let name = format!("the ordering file {}", path.display());
+    let cap = crate::limits::file_read_cap(&file, &name, budget, per_byte)
+        .map_err(|detail| ProblemError::TooLarge { detail })?;
     let mut bytes = Vec::new();
     file.take(cap.saturating_add(1))
         .read_to_end(&mut bytes)
         .map_err(io)?;
     if bytes.len() as u64 > cap {
-        let name = format!("the ordering file {}", path.display());
         let detail = crate::limits::beyond_the_cap(budget, &name, cap, "", per_byte, "reading");
         return Err(ProblemError::TooLarge { detail }.into());
     }
