@@ -40,7 +40,7 @@ use rayon::prelude::*;
 
 fn mesh(file: &str, generated: usize) -> (String, Mesh) {
     if let Some(dir) = std::env::var_os("LSE_MESH_DIR").map(PathBuf::from)
-        && let Ok(m) = read_mesh(&dir.join(file))
+        && let Ok(m) = read_mesh(&dir.join(file), lse_deform::limits::MemoryBudget::default())
     {
         return (file.to_string(), m.mesh);
     }
@@ -85,11 +85,14 @@ fn frame(d: f64, k: usize) -> Affine {
 fn per_frame(c: &mut Criterion, file: &str, generated: usize) {
     let (name, mesh) = mesh(file, generated);
     let n = mesh.n_vertices();
-    let mut deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, grouped_scene(&mesh))
-        .expect("deformer");
-    deformer
-        .precompute(&NullSpaceQr::default())
-        .expect("precompute");
+    let mut deformer = Deformer::with_formulation(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        grouped_scene(&mesh),
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .expect("precompute");
     let basis = HandleBasis::new(&mut deformer, &["handle"]).expect("basis");
     let radius = 0.15 * mesh.bbox_diagonal();
     let mut out = vec![[0.0; 3]; n];
@@ -170,17 +173,27 @@ fn new_selection(c: &mut Criterion) {
     g.sample_size(10).measurement_time(Duration::from_secs(15));
     g.bench_function("deform-precompute", |b| {
         b.iter(|| {
-            let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, scene.clone())
-                .expect("deformer");
-            d.precompute(&NullSpaceQr::default()).expect("precompute");
+            let d = Deformer::with_formulation(
+                mesh.clone(),
+                LaplacianKind::Cotangent,
+                scene.clone(),
+                &NullSpaceQr::default(),
+                &lse_deform::resources::Resources::default(),
+            )
+            .expect("precompute");
             black_box(d.report().rank)
         })
     });
     g.bench_function("new-selection", |b| {
         b.iter(|| {
-            let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, scene.clone())
-                .expect("deformer");
-            d.precompute(&NullSpaceQr::default()).expect("precompute");
+            let mut d = Deformer::with_formulation(
+                mesh.clone(),
+                LaplacianKind::Cotangent,
+                scene.clone(),
+                &NullSpaceQr::default(),
+                &lse_deform::resources::Resources::default(),
+            )
+            .expect("precompute");
             black_box(
                 HandleBasis::new(&mut d, &["handle"])
                     .expect("basis")
@@ -202,9 +215,18 @@ const SELECTION_ROUNDS: usize = 21;
 fn alternated_selection(mesh: &Mesh, scene: &ConstraintSet, rounds: usize) {
     let timed = |basis: bool| {
         let t = std::time::Instant::now();
-        let mut d =
-            Deformer::new(mesh.clone(), LaplacianKind::Cotangent, scene.clone()).expect("deformer");
-        d.precompute(&NullSpaceQr::default()).expect("precompute");
+        let mut d = Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Cotangent,
+            scene.clone(),
+            &lse_deform::SolveOptions::default(),
+        )
+        .expect("deformer");
+        d.refactor_with(
+            &NullSpaceQr::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .expect("precompute");
         if basis {
             black_box(
                 HandleBasis::new(&mut d, &["handle"])

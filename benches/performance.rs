@@ -62,7 +62,10 @@ fn mesh_dir() -> Option<PathBuf> {
 /// The Bunny with `LSE_MESH_DIR`, else a generated 35k-vertex bumpy sphere.
 fn main_mesh() -> Mesh {
     if let Some(dir) = mesh_dir()
-        && let Ok(m) = read_mesh(&dir.join("bunny-35k-stanford.obj"))
+        && let Ok(m) = read_mesh(
+            &dir.join("bunny-35k-stanford.obj"),
+            lse_deform::limits::MemoryBudget::default(),
+        )
     {
         return m.mesh;
     }
@@ -73,7 +76,10 @@ fn main_mesh() -> Mesh {
 /// igea-537k with `LSE_MESH_DIR`, else a generated 250k-vertex bumpy sphere.
 fn large_mesh() -> Mesh {
     if let Some(dir) = mesh_dir()
-        && let Ok(m) = read_mesh(&dir.join("igea-537k-subdiv.obj.gz"))
+        && let Ok(m) = read_mesh(
+            &dir.join("igea-537k-subdiv.obj.gz"),
+            lse_deform::limits::MemoryBudget::default(),
+        )
     {
         return m.mesh;
     }
@@ -85,7 +91,7 @@ fn large_mesh() -> Mesh {
 /// of about `vertices` vertices.
 fn named_mesh(file: &str, vertices: usize) -> Mesh {
     if let Some(dir) = mesh_dir()
-        && let Ok(m) = read_mesh(&dir.join(file))
+        && let Ok(m) = read_mesh(&dir.join(file), lse_deform::limits::MemoryBudget::default())
     {
         return m.mesh;
     }
@@ -100,7 +106,13 @@ fn scene(mesh: &Mesh) -> ConstraintSet {
 }
 
 fn deformer(mesh: &Mesh, cs: &ConstraintSet) -> Deformer {
-    Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone()).expect("set-up")
+    Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs.clone(),
+        &lse_deform::SolveOptions::default(),
+    )
+    .expect("set-up")
 }
 
 /// The lower triangle of the reduced normal matrix our precompute factors.
@@ -154,7 +166,12 @@ fn t1_precompute(c: &mut Criterion) {
     let f = ours();
     g.bench_function(
         "ours: QR + preparation + normal + symbolic + numeric",
-        |b| b.iter(|| d.precompute(&f).expect("precompute")),
+        |b| {
+            b.iter(|| {
+                d.refactor_with(&f, &lse_deform::resources::Resources::default())
+                    .expect("precompute")
+            })
+        },
     );
     if let Some(backend) = reference() {
         let normal = reduced_normal(&d);
@@ -173,7 +190,8 @@ fn t2_solve(c: &mut Criterion) {
     let mesh = main_mesh();
     let cs = scene(&mesh);
     let mut d = deformer(&mesh, &cs);
-    d.precompute(&ours()).expect("precompute");
+    d.refactor_with(&ours(), &lse_deform::resources::Resources::default())
+        .expect("precompute");
     let bytes = d.report().nnz.factor_bytes.unwrap_or(0);
     let mut g = c.benchmark_group("t2_solve");
     g.sample_size(30);
@@ -220,7 +238,12 @@ fn t3_relative(c: &mut Criterion) {
         g.bench_with_input(
             BenchmarkId::new("ours: precompute", relative),
             &relative,
-            |b, _| b.iter(|| d.precompute(&f).expect("precompute")),
+            |b, _| {
+                b.iter(|| {
+                    d.refactor_with(&f, &lse_deform::resources::Resources::default())
+                        .expect("precompute")
+                })
+            },
         );
     }
     g.finish();
@@ -262,9 +285,13 @@ fn t5_large(c: &mut Criterion) {
     g.sample_size(10).measurement_time(Duration::from_secs(20));
     let f = ours();
     g.bench_function("ours: precompute", |b| {
-        b.iter(|| d.precompute(&f).expect("precompute"))
+        b.iter(|| {
+            d.refactor_with(&f, &lse_deform::resources::Resources::default())
+                .expect("precompute")
+        })
     });
-    d.precompute(&f).expect("precompute");
+    d.refactor_with(&f, &lse_deform::resources::Resources::default())
+        .expect("precompute");
     let bytes = d.report().nnz.factor_bytes.unwrap_or(0);
     g.bench_function("ours: solve", |b| {
         b.iter(|| d.solve_matrix().expect("solve"))
@@ -297,8 +324,16 @@ fn t6_setup(c: &mut Criterion) {
     g.sample_size(10).measurement_time(Duration::from_secs(15));
     g.bench_function("read mesh + build L and A", |b| {
         b.iter(|| {
-            let m = read_mesh(&path).expect("read").mesh;
-            Deformer::new(m, LaplacianKind::Cotangent, cs.clone()).expect("set-up")
+            let m = read_mesh(&path, lse_deform::limits::MemoryBudget::default())
+                .expect("read")
+                .mesh;
+            Deformer::new(
+                m,
+                LaplacianKind::Cotangent,
+                cs.clone(),
+                &lse_deform::SolveOptions::default(),
+            )
+            .expect("set-up")
         })
     });
     g.finish();
@@ -315,9 +350,13 @@ fn t7_scaling(c: &mut Criterion) {
         let mut d = deformer(&mesh, &cs);
         let v = mesh.n_vertices();
         g.bench_with_input(BenchmarkId::new("precompute", v), &v, |b, _| {
-            b.iter(|| d.precompute(&f).expect("precompute"))
+            b.iter(|| {
+                d.refactor_with(&f, &lse_deform::resources::Resources::default())
+                    .expect("precompute")
+            })
         });
-        d.precompute(&f).expect("precompute");
+        d.refactor_with(&f, &lse_deform::resources::Resources::default())
+            .expect("precompute");
         g.bench_with_input(BenchmarkId::new("solve", v), &v, |b, _| {
             b.iter(|| d.solve_matrix().expect("solve"))
         });
@@ -334,8 +373,12 @@ fn refine(c: &mut Criterion) {
     ] {
         let mesh = named_mesh(file, vertices);
         let d = deformer(&mesh, &scene(&mesh));
-        let mut solver = LseSolver::new(d.problem().clone());
-        solver.precompute(&ours()).expect("precompute");
+        let mut solver = LseSolver::with_formulation(
+            d.problem().clone(),
+            &ours(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .expect("precompute");
         let mut x0 = Mat::<f64>::zeros(d.problem().n(), 3);
         solver.solve_unrefined_into(x0.as_mut()).expect("solve");
         let mut x = x0.clone();
@@ -382,7 +425,8 @@ fn t8_crowded(c: &mut Criterion) {
             g.bench_with_input(BenchmarkId::new(name, count), &count, |b, _| {
                 b.iter(|| {
                     let mut d = deformer(&mesh, &cs);
-                    d.precompute(&f).expect("precompute");
+                    d.refactor_with(&f, &lse_deform::resources::Resources::default())
+                        .expect("precompute");
                     black_box(d.solve().expect("solve"))
                 })
             });

@@ -15,10 +15,13 @@ use crate::backend::BackendName;
 use crate::backend::qr::QrKind;
 use crate::backend::spd::SpdKind;
 use crate::choice::Method;
+use crate::constraints::ConstraintSet;
 use crate::deform::Deformer;
 use crate::error::{Error, ProblemError};
 use crate::formulation::{FormulationChoice, Kkt, NullSpaceQr, SpdChoice};
+use crate::laplacian::LaplacianKind;
 use crate::limits::MemoryBudget;
+use crate::mesh::Mesh;
 use crate::refinement_types::Refine;
 use crate::resources::Resources;
 
@@ -133,11 +136,26 @@ pub struct Reference {
     pub forward_error_estimate: Option<f64>,
 }
 
-/// Solves the reference with `deformer`: the null-space method with its
-/// default back ends, refined until it converges, within `budget`.
-pub fn reference(deformer: &mut Deformer, budget: MemoryBudget) -> Result<Reference, Error> {
-    deformer.solver_mut().set_refine(Some(Refine::Auto));
-    deformer.precompute_using(&NullSpaceQr::default(), &Resources::with_budget(budget))?;
+/// The deformer of a comparison, factored for its reference: the
+/// null-space method with its default back ends, refined until it
+/// converges, within `budget`. [`compare`] and [`compare_configurations`]
+/// take it, solve the reference first and then refactor it row by row.
+pub fn reference_deformer(
+    mesh: Mesh,
+    laplacian: LaplacianKind,
+    constraints: ConstraintSet,
+    budget: MemoryBudget,
+) -> Result<Deformer, Error> {
+    let resources = Resources::with_budget(budget);
+    let formulation = NullSpaceQr::default();
+    let mut d = Deformer::with_formulation(mesh, laplacian, constraints, &formulation, &resources)?;
+    d.solver_mut().set_refine(Some(Refine::Auto));
+    Ok(d)
+}
+
+/// Solves the reference with `deformer` as [`reference_deformer`]
+/// factored it.
+pub fn reference(deformer: &mut Deformer) -> Result<Reference, Error> {
     let x = deformer.solve_matrix()?;
     let r = deformer.report();
     Ok(Reference {
@@ -321,7 +339,7 @@ fn measure(
 ) -> Result<(), Error> {
     let f = config.choice.build()?;
     deformer.solver_mut().set_refine(options.refine);
-    deformer.precompute_using(f.as_ref(), &options.resources)?;
+    deformer.refactor_with(f.as_ref(), &options.resources)?;
     let mut times = Vec::new();
     let mut x = Mat::<f64>::zeros(0, 0);
     for _ in 0..options.repeat.max(1) {
@@ -354,8 +372,8 @@ fn measure(
     Ok(())
 }
 
-/// Every configuration of `options` on `deformer`'s problem, after the
-/// reference; `progress` is told each configuration before it runs.
+/// Every configuration of `options` on `deformer`'s problem (a
+/// [`reference_deformer`]), after the reference; `progress` is told each configuration before it runs.
 pub fn compare(
     deformer: &mut Deformer,
     options: &CompareOptions,
@@ -369,8 +387,8 @@ pub fn compare(
     compare_configurations(deformer, &configs, options, progress)
 }
 
-/// `configs`, built-in or not, on `deformer`'s problem after the
-/// reference, each measured as [`compare`] measures the built-ins (the
+/// `configs`, built-in or not, on `deformer`'s problem (a
+/// [`reference_deformer`]) after the reference, each measured as [`compare`] measures the built-ins (the
 /// same reference, ΔX, ΔE, phase timings, condition estimate, weights and
 /// refinement from `options`; `options`' lists of methods, back ends and
 /// weights are not used). `progress` is told each configuration before it
@@ -391,7 +409,7 @@ pub fn compare_configurations(
         }
         .into());
     }
-    let reference = reference(deformer, options.resources.budget)?;
+    let reference = reference(deformer)?;
     let mut rows = Vec::with_capacity(configs.len());
     for config in configs {
         // An interruption is no configuration's failure: it ends the

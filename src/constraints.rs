@@ -43,7 +43,6 @@
 //! ([`MeshSignature`], written by [`crate::scene`]);
 //! [`ConstraintSet::mesh_mismatch`] compares it with the mesh at hand.
 
-use crate::resources::Resources;
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -582,26 +581,9 @@ fn check_values(index: usize, c: &Constraint) -> Result<(), ConstraintError> {
 /// Reads a constraints file and checks its vertices against a mesh of
 /// `n_vertices` vertices.
 pub fn read_constraints(path: &Path, n_vertices: usize) -> Result<ConstraintSet, Error> {
-    let set = read_constraints_file(path)?;
+    let set = read_constraints_file(path, crate::limits::MemoryBudget::default())?;
     set.check_vertices(n_vertices)?;
     Ok(set)
-}
-
-/// Reads a constraints file without checking vertex ranges (so that a
-/// caller can first compare the file's `"mesh"` with the mesh at hand; see
-/// [`ConstraintSet::mesh_mismatch`], then [`ConstraintSet::check_vertices`]),
-/// within the default memory budget ([`read_constraints_file_with`]).
-pub fn read_constraints_file(path: &Path) -> Result<ConstraintSet, Error> {
-    read_constraints_file_with(path, &Resources::default())
-}
-
-/// [`read_constraints_file_with`] a memory `budget`.
-#[deprecated(note = "use read_constraints_file_with(path, &Resources::with_budget(budget))")]
-pub fn read_constraints_file_within(
-    path: &Path,
-    budget: crate::limits::MemoryBudget,
-) -> Result<ConstraintSet, Error> {
-    read_constraints_file_with(path, &Resources::with_budget(budget))
 }
 
 /// [`read_constraints_file`] within the budget of `resources`.
@@ -612,11 +594,10 @@ pub fn read_constraints_file_within(
 /// stream (a pipe, a device) is read up to the size that estimate allows;
 /// one that reaches it is refused ([`ConstraintError::TooLarge`], naming
 /// the budget and the bytes read), whatever its first part parses as.
-pub fn read_constraints_file_with(
+pub fn read_constraints_file(
     path: &Path,
-    resources: &Resources,
+    budget: crate::limits::MemoryBudget,
 ) -> Result<ConstraintSet, Error> {
-    let budget = resources.budget;
     use std::io::{BufRead, BufReader, Read};
     let io = |e| Error::io(path, e);
     let file = std::fs::File::open(path).map_err(io)?;

@@ -1,10 +1,10 @@
-//! The high-level deformer with the paper's three phases: set-up
-//! ([`Deformer::new`]), precompute ([`Deformer::precompute`]) and solve
-//! ([`Deformer::solve`]); a dragged handle changes targets only
+//! The high-level deformer with the paper's three phases: set-up and
+//! precompute ([`Deformer::new`], which returns the factored deformer)
+//! and solve ([`Deformer::solve`]); a dragged handle changes targets only
 //! ([`Deformer::set_target`]) and re-solves without refactoring.
 //!
 //! ```
-//! use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
+//! use lse_deform::{Deformer, LaplacianKind, SolveOptions};
 //! use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 //! use lse_deform::mesh::generate;
 //!
@@ -18,8 +18,8 @@
 //!     let q = mesh.positions()[top];
 //!     constraints.push(Constraint::hard(ConstraintKind::Position { vertex: top, target: [q[0], q[1], 0.5] })).unwrap();
 //! }
-//! let mut deformer = Deformer::new(mesh, LaplacianKind::Cotangent, constraints).unwrap();
-//! deformer.precompute(&NullSpaceQr::default()).unwrap();
+//! let options = SolveOptions::default();
+//! let mut deformer = Deformer::new(mesh, LaplacianKind::Cotangent, constraints, &options).unwrap();
 //! let solution = deformer.solve().unwrap();
 //! assert!(solution.report.max_constraint_residual < 1e-12);
 //! assert!((solution.positions[76][2] - 0.5).abs() < 1e-12);
@@ -37,6 +37,7 @@ use crate::laplacian::{self, LaplacianKind};
 use crate::mesh::{Mesh, topology};
 use crate::problem::{LseProblem, SoftWeightScale, check_pinned, target_in_unit};
 use crate::report::{EnergyOperator, Report};
+use crate::resources::Resources;
 use crate::solver::{LseSolver, SolveOptions};
 
 /// Deformed positions and the report of how they were obtained.
@@ -78,12 +79,23 @@ pub struct Solution {
 /// [`Deformer::solver`] are in the problem's.
 pub struct Deformer {
     mesh: Mesh,
+    targets: GroupTargets,
+    solver: LseSolver,
+}
+
+/// The constraints' targets in the mesh's units with their rest targets
+/// and groups: what [`Deformer`] adds to its solver, and what the editor's
+/// ARAP engine moves groups with.
+///
+/// Invariant: `constraints` holds the current targets, `rest[i]` the rest
+/// target of constraint `i`; `unit` is the length the problem's lengths
+/// are divided by.
+pub struct GroupTargets {
     constraints: ConstraintSet,
     rest: Vec<[f64; 3]>,
-    /// [`Mesh::length_unit`] of `mesh`: the problem is in lengths divided
-    /// by it.
+    /// [`Mesh::length_unit`] of the mesh: the problem is in lengths
+    /// divided by it.
     unit: f64,
-    solver: LseSolver,
 }
 
 /// A mesh and its constraints in the problem's units — positions and
@@ -130,13 +142,13 @@ impl UnitScaled {
         })
     }
 
-    /// The solver of `min ‖A X − C‖ s.t. B X = D` with the energy rows
+    /// The problem `min ‖A X − C‖ s.t. B X = D` with the energy rows
     /// `a X ≈ c` (in the problem's units) and the constraints' rows, each
-    /// soft weight `w` carrying `w ℓ^power` ([`SoftWeightScale`]); its
-    /// reports start from the set-up's: `operator`, the warnings of
+    /// soft weight `w` carrying `w ℓ^power` ([`SoftWeightScale`]), and the
+    /// report its solver's reports start from: `operator`, the warnings of
     /// `mesh` (the mesh as given), the length unit, the soft weight scale
     /// and the seconds since `started`.
-    pub(crate) fn solver(
+    pub(crate) fn problem(
         &self,
         a: &SparseColMat<usize, f64>,
         c: &Mat<f64>,
@@ -144,7 +156,7 @@ impl UnitScaled {
         power: i32,
         mesh: &Mesh,
         started: Instant,
-    ) -> Result<LseSolver, Error> {
+    ) -> Result<(LseProblem, Report), Error> {
         let soft_scale = SoftWeightScale {
             length: self.unit,
             power,
@@ -164,7 +176,7 @@ impl UnitScaled {
             ..Report::default()
         };
         report.timings_s.setup = started.elapsed().as_secs_f64();
-        Ok(LseSolver::with_report(problem, report))
+        Ok((problem, report))
     }
 }
 
@@ -172,185 +184,64 @@ impl UnitScaled {
 /// transform of a group of targets ([`Deformer::transform_group`]).
 pub type Affine = [[f64; 4]; 3];
 
-impl Deformer {
-    /// Set-up phase: checks the constraints against the mesh (vertex range,
-    /// every component pinned), builds `L`, `δ = L P`, `A`, `C`, `B`, `D`.
-    pub fn new(
-        mesh: Mesh,
-        laplacian: LaplacianKind,
-        constraints: ConstraintSet,
-    ) -> Result<Deformer, Error> {
-        let t = Instant::now();
-        let scaled = UnitScaled::new(&mesh, &constraints)?;
-        let l = laplacian::laplacian(&scaled.mesh, laplacian)?;
-        crate::interrupt::check()?;
-        let delta = laplacian::apply(&l, scaled.mesh.positions());
-        let operator = EnergyOperator::Laplacian(laplacian);
-        let solver = scaled.solver(
-            &l,
-            &delta,
-            operator,
-            laplacian.inverse_length_power(),
-            &mesh,
-            t,
-        )?;
+/// What [`Deformer::new`] and [`Deformer::with_formulation`] share: the
+/// set-up phase (checks, `L`, `δ = L P`, `A`, `C`, `B`, `D`), then the
+/// precompute `factor` makes of the problem and its base report.
+fn set_up(
+    mesh: Mesh,
+    laplacian: LaplacianKind,
+    constraints: ConstraintSet,
+    factor: impl FnOnce(LseProblem, Report) -> Result<LseSolver, Error>,
+) -> Result<Deformer, Error> {
+    let t = Instant::now();
+    let scaled = UnitScaled::new(&mesh, &constraints)?;
+    let l = laplacian::laplacian(&scaled.mesh, laplacian)?;
+    crate::interrupt::check()?;
+    let delta = laplacian::apply(&l, scaled.mesh.positions());
+    let operator = EnergyOperator::Laplacian(laplacian);
+    let power = laplacian.inverse_length_power();
+    let (problem, report) = scaled.problem(&l, &delta, operator, power, &mesh, t)?;
+    let solver = factor(problem, report)?;
+    Ok(Deformer {
+        mesh,
+        targets: GroupTargets::new(constraints, scaled.unit),
+        solver,
+    })
+}
+
+impl GroupTargets {
+    /// `constraints` as given, their targets the rest targets; `unit` the
+    /// mesh's length unit.
+    pub(crate) fn new(constraints: ConstraintSet, unit: f64) -> GroupTargets {
         let rest = constraints
             .as_slice()
             .iter()
             .map(|c| c.kind.rhs())
             .collect();
-        Ok(Deformer {
-            mesh,
+        GroupTargets {
             constraints,
             rest,
-            unit: scaled.unit,
-            solver,
-        })
+            unit,
+        }
     }
 
-    /// The solver of the assembled problem (in its units: lengths divided
-    /// by [`Deformer::length_unit`]): its refinement
-    /// ([`LseSolver::refine_mode`]), prepared system,
-    /// condition estimate, diagnostics and its solves in the problem's
-    /// units. The mesh-level phases below go through it.
-    pub fn solver(&self) -> &LseSolver {
-        &self.solver
+    /// The constraints with their current targets.
+    pub(crate) fn constraints(&self) -> &ConstraintSet {
+        &self.constraints
     }
 
-    /// The solver, to change its settings ([`LseSolver::set_refine`]), solve in the problem's units
-    /// ([`LseSolver::solve_into`], [`LseSolver::solve_columns`]), diagnose
-    /// or estimate the condition. Targets are moved through the deformer
-    /// ([`Deformer::set_target`] and the like), which keeps them in the
-    /// mesh's units and the rest targets: [`LseSolver::set_rhs`] here would
-    /// leave [`Deformer::constraints`] behind.
-    pub fn solver_mut(&mut self) -> &mut LseSolver {
-        &mut self.solver
-    }
-
-    /// Precompute phase: factors the system with `formulation` under the
-    /// default resources ([`LseSolver::precompute`]).
-    pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
-        self.solver.precompute(formulation)
-    }
-
-    /// Precompute phase under `resources` (budget, threads, ordering:
-    /// [`LseSolver::precompute_using`]).
-    pub fn precompute_using(
+    /// [`Deformer::transform_group`] on the targets alone: returns the
+    /// constraints it moved with their new targets (mesh units).
+    pub(crate) fn transform_group(
         &mut self,
-        formulation: &dyn Formulation,
-        resources: &crate::resources::Resources,
-    ) -> Result<(), Error> {
-        self.solver.precompute_using(formulation, resources)
-    }
-
-    /// Precompute phase with `options`: its formulation, refinement and
-    /// resources ([`LseSolver::precompute_with`]).
-    pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
-        self.solver.precompute_with(options)
-    }
-
-    /// Solve phase: positions for the current targets, in the mesh's units.
-    pub fn solve(&mut self) -> Result<Solution, Error> {
-        let x = self.solve_matrix()?;
-        Ok(Solution {
-            positions: self.positions_of(&x),
-            report: self.report().clone(),
-        })
-    }
-
-    /// [`LseSolver::solve_into`] as positions in the mesh's units: refined
-    /// unless the mode is [`crate::formulation::Refine::EstimateOnly`] (then no correction at all, so no
-    /// forward-error estimate), without the solution diagnostics (the
-    /// report's solution fields read "not computed",
-    /// [`Report::clear_solution_diagnostics`], until
-    /// [`LseSolver::diagnose`]).
-    pub fn solve_undiagnosed(&mut self) -> Result<Vec<[f64; 3]>, Error> {
-        let mut x = Mat::zeros(self.problem().n(), 3);
-        self.solver.solve_into(x.as_mut())?;
-        Ok(self.positions_of(&x))
-    }
-
-    /// The rows of `x` (problem units) as positions in the mesh's units.
-    fn positions_of(&self, x: &Mat<f64>) -> Vec<[f64; 3]> {
-        let u = self.unit;
-        (0..x.nrows())
-            .map(|i| [x[(i, 0)] * u, x[(i, 1)] * u, x[(i, 2)] * u])
-            .collect()
-    }
-
-    /// Solve phase returning `X` (n × 3) of the assembled problem — in its
-    /// units, the positions divided by [`Deformer::length_unit`] — after
-    /// refinement ([`LseSolver::refine_mode`]), updating
-    /// [`Deformer::report`] with the solution diagnostics, the refinement
-    /// and its warnings.
-    pub fn solve_matrix(&mut self) -> Result<Mat<f64>, Error> {
-        self.solver.solve()
-    }
-
-    /// Moves the target of constraint `index` (a position, edge or face
-    /// target, or a relative vector). The next [`Deformer::solve`] reuses
-    /// the factorisation.
-    /// The rest target becomes `target` too.
-    pub fn set_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
-        self.set_targets(&[(index, target)])
-    }
-
-    /// Moves several targets at once (constraint index, new target or
-    /// relative vector), which also become the rest targets. All updates
-    /// are checked first: on error nothing changes.
-    pub fn set_targets(&mut self, updates: &[(usize, [f64; 3])]) -> Result<(), Error> {
-        for &(index, target) in updates {
-            self.check_update(index, target)?;
+        name: &str,
+        m: &Affine,
+    ) -> Result<Vec<(usize, [f64; 3])>, Error> {
+        let moved = self.transformed_targets(name, m)?;
+        for &(index, target) in &moved {
+            self.constraints.set_rhs(index, target)?;
         }
-        for &(index, target) in updates {
-            self.write_target(index, target)?;
-            self.rest[index] = target;
-        }
-        Ok(())
-    }
-
-    /// Sets the targets of group `name`, one per member in increasing
-    /// constraint index ([`ConstraintSet::group`]); they become the rest
-    /// targets. On error (unknown group, wrong count, non-finite value)
-    /// nothing changes.
-    pub fn set_group_targets(&mut self, name: &str, targets: &[[f64; 3]]) -> Result<(), Error> {
-        let members = self.group_members(name)?;
-        if members.len() != targets.len() {
-            return Err(ProblemError::BadUpdate {
-                message: format!(
-                    "group '{name}' has {} constraints, {} targets were given",
-                    members.len(),
-                    targets.len()
-                ),
-            }
-            .into());
-        }
-        let updates: Vec<(usize, [f64; 3])> =
-            members.into_iter().zip(targets.iter().copied()).collect();
-        self.set_targets(&updates)
-    }
-
-    /// Applies the affine map `m` (3 × 4, row-major: `p ↦ R p + t` with
-    /// `R = m[:, 0..3]`, `t = m[:, 3]`) to the **rest** targets of group
-    /// `name`: a position, edge or face target `u` becomes `R u + t`, a
-    /// relative vector `v` becomes `R v` (a difference does not
-    /// translate). The rest targets stay, so successive calls with the
-    /// transforms of a dragged handle do not accumulate; the identity puts
-    /// the group back. The next solve reuses the factorisation. On error
-    /// (unknown group, non-finite `m` or result) nothing changes.
-    pub fn transform_group(&mut self, name: &str, m: &Affine) -> Result<(), Error> {
-        for (index, target) in self.transformed_targets(name, m)? {
-            self.write_target(index, target)?;
-        }
-        Ok(())
-    }
-
-    /// Whether [`Deformer::transform_group`]`(name, m)` would succeed,
-    /// changing nothing: the same checks (a known group, a finite `m`,
-    /// targets finite and representable in the problem's unit), for
-    /// callers that apply `m` another way (a response basis).
-    pub fn check_transform(&self, name: &str, m: &Affine) -> Result<(), Error> {
-        self.transformed_targets(name, m).map(|_| ())
+        Ok(moved)
     }
 
     /// The targets `m` gives the members of group `name`, checked.
@@ -382,7 +273,7 @@ impl Deformer {
 
     /// The constraint indices of group `name` (increasing); an error naming
     /// the groups there are if it has no member.
-    pub fn group_members(&self, name: &str) -> Result<Vec<usize>, Error> {
+    pub(crate) fn group_members(&self, name: &str) -> Result<Vec<usize>, Error> {
         let members = self.constraints.group(name);
         if members.is_empty() {
             // The first few names: a set can hold 10⁵ groups.
@@ -401,11 +292,8 @@ impl Deformer {
         Ok(members.to_vec())
     }
 
-    /// The rest target of every constraint (see [`Deformer::transform_group`]).
-    pub fn rest_targets(&self) -> &[[f64; 3]] {
-        &self.rest
-    }
-
+    /// Checks a new target of constraint `index` (mesh units): it exists,
+    /// and the target is finite and representable in the problem's unit.
     fn check_update(&self, index: usize, target: [f64; 3]) -> Result<(), Error> {
         if index >= self.rest.len() {
             return Err(ProblemError::BadUpdate {
@@ -427,14 +315,213 @@ impl Deformer {
         target_in_unit(index, target, self.unit)?;
         Ok(())
     }
+}
+
+impl Deformer {
+    /// The set-up phase alone: the problem `min ‖A X − C‖ s.t. B X = D`
+    /// that [`Deformer::new`] factors, in its units (lengths divided by
+    /// the mesh's [`Mesh::length_unit`]), for a caller that factors it
+    /// itself or exports it.
+    pub fn assemble(
+        mesh: &Mesh,
+        laplacian: LaplacianKind,
+        constraints: &ConstraintSet,
+    ) -> Result<LseProblem, Error> {
+        let t = Instant::now();
+        let scaled = UnitScaled::new(mesh, constraints)?;
+        let l = laplacian::laplacian(&scaled.mesh, laplacian)?;
+        let delta = laplacian::apply(&l, scaled.mesh.positions());
+        let operator = EnergyOperator::Laplacian(laplacian);
+        let power = laplacian.inverse_length_power();
+        Ok(scaled.problem(&l, &delta, operator, power, mesh, t)?.0)
+    }
+
+    /// Set-up and precompute phases: checks the constraints against the
+    /// mesh (vertex range, every component pinned), builds `L`, `δ = L P`,
+    /// `A`, `C`, `B`, `D`, and factors the system as `options` say
+    /// ([`LseSolver::new`]). Set-up errors come before any factorisation.
+    pub fn new(
+        mesh: Mesh,
+        laplacian: LaplacianKind,
+        constraints: ConstraintSet,
+        options: &SolveOptions,
+    ) -> Result<Deformer, Error> {
+        set_up(mesh, laplacian, constraints, |problem, report| {
+            LseSolver::with_base_report(problem, report, options)
+        })
+    }
+
+    /// [`Deformer::new`] with a formulation object under `resources`
+    /// ([`LseSolver::with_formulation`]).
+    pub fn with_formulation(
+        mesh: Mesh,
+        laplacian: LaplacianKind,
+        constraints: ConstraintSet,
+        formulation: &dyn Formulation,
+        resources: &Resources,
+    ) -> Result<Deformer, Error> {
+        set_up(mesh, laplacian, constraints, |problem, report| {
+            LseSolver::factored(problem, report, formulation, resources)
+        })
+    }
+
+    /// The solver of the assembled problem (in its units: lengths divided
+    /// by [`Deformer::length_unit`]): its refinement
+    /// ([`LseSolver::refine_mode`]), prepared system,
+    /// condition estimate, diagnostics and its solves in the problem's
+    /// units. The mesh-level phases below go through it.
+    pub fn solver(&self) -> &LseSolver {
+        &self.solver
+    }
+
+    /// The solver, to change its settings ([`LseSolver::set_refine`]), solve in the problem's units
+    /// ([`LseSolver::solve_into`], [`LseSolver::solve_columns`]), diagnose
+    /// or estimate the condition. Targets are moved through the deformer
+    /// ([`Deformer::set_target`] and the like), which keeps them in the
+    /// mesh's units and the rest targets: [`LseSolver::set_rhs`] here would
+    /// leave [`Deformer::constraints`] behind.
+    pub fn solver_mut(&mut self) -> &mut LseSolver {
+        &mut self.solver
+    }
+
+    /// Precompute phase again with `options` ([`LseSolver::refactor`]):
+    /// on error the previous factorisation stays.
+    pub fn refactor(&mut self, options: &SolveOptions) -> Result<(), Error> {
+        self.solver.refactor(options)
+    }
+
+    /// Precompute phase again with a formulation object under `resources`
+    /// ([`LseSolver::refactor_with`]).
+    pub fn refactor_with(
+        &mut self,
+        formulation: &dyn Formulation,
+        resources: &Resources,
+    ) -> Result<(), Error> {
+        self.solver.refactor_with(formulation, resources)
+    }
+
+    /// Solve phase: positions for the current targets, in the mesh's units.
+    pub fn solve(&mut self) -> Result<Solution, Error> {
+        let x = self.solve_matrix()?;
+        Ok(Solution {
+            positions: self.positions_of(&x),
+            report: self.report().clone(),
+        })
+    }
+
+    /// [`LseSolver::solve_into`] as positions in the mesh's units: refined
+    /// unless the mode is [`crate::formulation::Refine::EstimateOnly`] (then no correction at all, so no
+    /// forward-error estimate), without the solution diagnostics (the
+    /// report's solution fields read "not computed",
+    /// [`Report::clear_solution_diagnostics`], until
+    /// [`LseSolver::diagnose`]).
+    pub fn solve_undiagnosed(&mut self) -> Result<Vec<[f64; 3]>, Error> {
+        let mut x = Mat::zeros(self.problem().n(), 3);
+        self.solver.solve_into(x.as_mut())?;
+        Ok(self.positions_of(&x))
+    }
+
+    /// The rows of `x` (problem units) as positions in the mesh's units.
+    fn positions_of(&self, x: &Mat<f64>) -> Vec<[f64; 3]> {
+        let u = self.targets.unit;
+        (0..x.nrows())
+            .map(|i| [x[(i, 0)] * u, x[(i, 1)] * u, x[(i, 2)] * u])
+            .collect()
+    }
+
+    /// Solve phase returning `X` (n × 3) of the assembled problem — in its
+    /// units, the positions divided by [`Deformer::length_unit`] — after
+    /// refinement ([`LseSolver::refine_mode`]), updating
+    /// [`Deformer::report`] with the solution diagnostics, the refinement
+    /// and its warnings.
+    pub fn solve_matrix(&mut self) -> Result<Mat<f64>, Error> {
+        self.solver.solve()
+    }
+
+    /// Moves the target of constraint `index` (a position, edge or face
+    /// target, or a relative vector). The next [`Deformer::solve`] reuses
+    /// the factorisation.
+    /// The rest target becomes `target` too.
+    pub fn set_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
+        self.set_targets(&[(index, target)])
+    }
+
+    /// Moves several targets at once (constraint index, new target or
+    /// relative vector), which also become the rest targets. All updates
+    /// are checked first: on error nothing changes.
+    pub fn set_targets(&mut self, updates: &[(usize, [f64; 3])]) -> Result<(), Error> {
+        for &(index, target) in updates {
+            self.targets.check_update(index, target)?;
+        }
+        for &(index, target) in updates {
+            self.write_target(index, target)?;
+            self.targets.rest[index] = target;
+        }
+        Ok(())
+    }
+
+    /// Sets the targets of group `name`, one per member in increasing
+    /// constraint index ([`ConstraintSet::group`]); they become the rest
+    /// targets. On error (unknown group, wrong count, non-finite value)
+    /// nothing changes.
+    pub fn set_group_targets(&mut self, name: &str, targets: &[[f64; 3]]) -> Result<(), Error> {
+        let members = self.targets.group_members(name)?;
+        if members.len() != targets.len() {
+            return Err(ProblemError::BadUpdate {
+                message: format!(
+                    "group '{name}' has {} constraints, {} targets were given",
+                    members.len(),
+                    targets.len()
+                ),
+            }
+            .into());
+        }
+        let updates: Vec<(usize, [f64; 3])> =
+            members.into_iter().zip(targets.iter().copied()).collect();
+        self.set_targets(&updates)
+    }
+
+    /// Applies the affine map `m` (3 × 4, row-major: `p ↦ R p + t` with
+    /// `R = m[:, 0..3]`, `t = m[:, 3]`) to the **rest** targets of group
+    /// `name`: a position, edge or face target `u` becomes `R u + t`, a
+    /// relative vector `v` becomes `R v` (a difference does not
+    /// translate). The rest targets stay, so successive calls with the
+    /// transforms of a dragged handle do not accumulate; the identity puts
+    /// the group back. The next solve reuses the factorisation. On error
+    /// (unknown group, non-finite `m` or result) nothing changes.
+    pub fn transform_group(&mut self, name: &str, m: &Affine) -> Result<(), Error> {
+        for (index, target) in self.targets.transformed_targets(name, m)? {
+            self.write_target(index, target)?;
+        }
+        Ok(())
+    }
+
+    /// Whether [`Deformer::transform_group`]`(name, m)` would succeed,
+    /// changing nothing: the same checks (a known group, a finite `m`,
+    /// targets finite and representable in the problem's unit), for
+    /// callers that apply `m` another way (a response basis).
+    pub fn check_transform(&self, name: &str, m: &Affine) -> Result<(), Error> {
+        self.targets.transformed_targets(name, m).map(|_| ())
+    }
+
+    /// The rest target of every constraint (see [`Deformer::transform_group`]).
+    pub fn rest_targets(&self) -> &[[f64; 3]] {
+        &self.targets.rest
+    }
+
+    /// The constraint indices of group `name` (increasing); an error naming
+    /// the groups there are if it has no member.
+    pub fn group_members(&self, name: &str) -> Result<Vec<usize>, Error> {
+        self.targets.group_members(name)
+    }
 
     /// Writes a checked target (in the mesh's units) into the problem (in
     /// its units) and the constraints.
     fn write_target(&mut self, index: usize, target: [f64; 3]) -> Result<(), Error> {
-        let u = self.unit;
+        let u = self.targets.unit;
         self.solver
             .set_rhs(index, [target[0] / u, target[1] / u, target[2] / u])?;
-        self.constraints.set_rhs(index, target)?;
+        self.targets.constraints.set_rhs(index, target)?;
         Ok(())
     }
 
@@ -450,7 +537,7 @@ impl Deformer {
 
     /// The constraints with their current targets.
     pub fn constraints(&self) -> &ConstraintSet {
-        &self.constraints
+        &self.targets.constraints
     }
 
     /// The assembled problem: on the mesh and targets divided by
@@ -462,6 +549,6 @@ impl Deformer {
     /// The length the problem's lengths are divided by: the mesh's mean
     /// edge length ([`Mesh::length_unit`]).
     pub fn length_unit(&self) -> f64 {
-        self.unit
+        self.targets.unit
     }
 }

@@ -75,10 +75,6 @@ pub mod problem;
 #[cfg(feature = "python")]
 pub mod python;
 pub mod refinement_types;
-/// Deprecated alias of [`refinement_types`] (its name until the algorithm,
-/// `formulation::iterative_refinement`, moved beside it), kept for one
-/// release.
-pub use refinement_types as refinement;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod report;

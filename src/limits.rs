@@ -20,17 +20,17 @@
 //!
 //! | what | estimate | where |
 //! |---|---|---|
-//! | a mesh file | [`MESH_BYTES_PER_FILE_BYTE`] × file size (× [`GZIP_EXPANSION`] when compressed) | [`crate::mesh::read_mesh_within`] |
-//! | the bytes of a mesh read from a stream or decompressed | at most budget / [`MESH_BYTES_PER_FILE_BYTE`] bytes are read; one more is a refusal, never a parse of the prefix | [`crate::mesh::read_mesh_within`], [`crate::mesh::read_mesh_bytes_within`] |
+//! | a mesh file | [`MESH_BYTES_PER_FILE_BYTE`] × file size (× [`GZIP_EXPANSION`] when compressed) | [`crate::mesh::read_mesh`] |
+//! | the bytes of a mesh read from a stream or decompressed | at most budget / [`MESH_BYTES_PER_FILE_BYTE`] bytes are read; one more is a refusal, never a parse of the prefix | [`crate::mesh::read_mesh`], [`crate::mesh::read_mesh_bytes`] |
 //! | a mesh header's counts (OFF, PLY) | [`MESH_BYTES_PER_VERTEX`] × vertices + [`MESH_BYTES_PER_FACE`] × faces | the OFF and PLY readers |
 //! | a mesh as it is assembled | the same per vertex and per triangle of the lists' capacity (a full list doubles; a polygon's fan counts its triangles), reserved fallibly | every mesh reader, at each vertex and polygon |
-//! | a constraints file | [`CONSTRAINT_BYTES_PER_FILE_BYTE`] × file size; a stream at most budget / that many bytes, one more is a refusal | [`crate::constraints::read_constraints_file_within`] |
+//! | a constraints file | [`CONSTRAINT_BYTES_PER_FILE_BYTE`] × file size; a stream at most budget / that many bytes, one more is a refusal | [`crate::constraints::read_constraints_file`] |
 //! | a dense Householder block | its reflectors, `8 k min(k, m)` bytes, and its dense `(k − m)²` block of the normal matrix | [`crate::backend::qr::DenseHouseholder`] |
 //! | a Cholesky factor | [`FACTOR_BYTES_PER_ENTRY`] × the factor's nnz from the symbolic analysis, on top of the resident set ([`MemoryBudget::check_on_top`]) | every formulation, between analysis and numeric factorisation |
 //! | a faer `LLᵀ` or `LDLᵀ` factorisation | on top of the resident set: 8 bytes per stored value, faer's scratch (`factorize_numeric_*_scratch`) and the back end's own arrays; with faer's matrix-multiply kernel's per-thread buffer, against the address-space limit ([`check_address_space`]) | `FaerLlt` and `FaerLdlt`, between analysis and numeric factorisation |
 //! | the `R` of a sparse QR of `Bᵀ` | 16 bytes × `nnz(R)` counted from the column elimination tree of `Bᵀ` (never forming `B Bᵀ`) | `sparse-givens` (each column order it tries) and `spqr`, before factoring |
 //! | a response basis of `G` groups | `8 k (3 (l + m) + 6 n)` bytes, `k = 3 + 4G` columns ([`crate::handle::HandleBasis::estimated_bytes`]) | [`crate::handle::HandleBasis::new`]; the editor before its precompute |
-//! | the four Matrix Market files of `solve` | from their headers together: 48 bytes per announced entry and 8 per column of `A` and `B`, and `C`, `D` dense | [`crate::mtx::read_system_within`], before any entry is read |
+//! | the four Matrix Market files of `solve` | from their headers together: 48 bytes per announced entry and 8 per column of `A` and `B`, and `C`, `D` dense | [`crate::mtx::read_system`], before any entry is read |
 //!
 //! What has no size up front is bounded as it is read: a stream (a pipe, a
 //! device, gzip-compressed data) given as a mesh or constraints file is
@@ -209,9 +209,9 @@ impl BudgetSource {
 /// [`MemoryBudget::from_environment`] is the same but reports a malformed
 /// `LSE_MEMORY_LIMIT`. [`MemoryBudget::bytes`] sets one for a call,
 /// whatever the environment says; the readers' `_within` variants
-/// ([`crate::mesh::read_mesh_within`],
-/// [`crate::constraints::read_constraints_file_within`],
-/// [`crate::mtx::read_system_within`]) take it, so one budget can bound a
+/// ([`crate::mesh::read_mesh`],
+/// [`crate::constraints::read_constraints_file`],
+/// [`crate::mtx::read_system`]) take it, so one budget can bound a
 /// whole run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MemoryBudget {

@@ -47,7 +47,6 @@ use faer::{Mat, MatRef};
 use crate::error::{Error, MatrixFileError, ProblemError};
 use crate::interop::faer_to_sprs;
 use crate::limits::MemoryBudget;
-use crate::resources::Resources;
 
 /// A matrix read from a Matrix Market file, in the form the file has.
 #[derive(Debug, Clone)]
@@ -385,45 +384,14 @@ pub type SystemMatrices = (
     Mat<f64>,
 );
 
-/// The matrices of `min ‖AX − C‖ s.t. BX = D` from four Matrix Market
-/// files (what `lse-deform solve` reads): `A` and `B` sparse (an `array`
-/// file converted), `C` and `D` dense (a `coordinate` file expanded).
-///
-/// All four headers are read first, and before any entry is read: the
-/// shapes must fit together (the checks of
-/// [`crate::problem::LseProblem::from_parts`],
-/// [`ProblemError::Dimensions`]), `A` and `B` must announce at least one
-/// entry per unknown and `B` one per row (else an unknown or a constraint
-/// is empty: the problem has no unique solution), and the memory of
-/// reading all four (with the dense expansions) must fit the memory
-/// budget ([`ProblemError::TooLarge`]). So a few bytes of header cannot
-/// make the reader allocate for a matrix that would be refused anyway.
-/// Within the default memory budget; see [`read_system_with`].
-pub fn read_system(a: &Path, c: &Path, b: &Path, d: &Path) -> Result<SystemMatrices, Error> {
-    read_system_with(a, c, b, d, &Resources::default())
-}
-
-/// [`read_system_with`] a memory `budget`.
-#[deprecated(note = "use read_system_with(a, c, b, d, &Resources::with_budget(budget))")]
-pub fn read_system_within(
+/// [`read_system`] within the budget of `resources`.
+pub fn read_system(
     a: &Path,
     c: &Path,
     b: &Path,
     d: &Path,
     budget: MemoryBudget,
 ) -> Result<SystemMatrices, Error> {
-    read_system_with(a, c, b, d, &Resources::with_budget(budget))
-}
-
-/// [`read_system`] within the budget of `resources`.
-pub fn read_system_with(
-    a: &Path,
-    c: &Path,
-    b: &Path,
-    d: &Path,
-    resources: &Resources,
-) -> Result<SystemMatrices, Error> {
-    let budget = resources.budget;
     fn open_file(path: &Path) -> Result<Opened<'_, BufReader<File>>, Error> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
         open(BufReader::new(file), path)
@@ -1213,7 +1181,7 @@ mod tests {
             &format!("%%MatrixMarket matrix coordinate real general\n1 300000000 1\n{garbage}"),
         );
         let (c, d) = (write("C.mtx", one_row), write("D.mtx", one_row));
-        let e = read_system(&a, &c, &b, &d).unwrap_err();
+        let e = read_system(&a, &c, &b, &d, MemoryBudget::default()).unwrap_err();
         assert!(
             matches!(e, Error::Problem(ProblemError::Dimensions { .. })),
             "{e}"
@@ -1236,7 +1204,7 @@ mod tests {
             "C2.mtx",
             "%%MatrixMarket matrix coordinate real general\n2 3 1\n1 1 1\n",
         );
-        let e = read_system(&a2, &c2, &b2, &d2).unwrap_err();
+        let e = read_system(&a2, &c2, &b2, &d2, MemoryBudget::default()).unwrap_err();
         assert!(e.to_string().contains("some row of B has no entry"), "{e}");
         // Shapes, before C's one entry is expanded into 3·10⁸ rows.
         let b3 = write(
@@ -1247,7 +1215,7 @@ mod tests {
             "C3.mtx",
             &format!("%%MatrixMarket matrix coordinate real general\n300000000 3 1\n{garbage}"),
         );
-        let e = read_system(&a2, &c3, &b3, &d).unwrap_err();
+        let e = read_system(&a2, &c3, &b3, &d, MemoryBudget::default()).unwrap_err();
         assert!(
             e.to_string().contains("C must have as many rows as A"),
             "{e}"
@@ -1262,7 +1230,7 @@ mod tests {
             "C4.mtx",
             "%%MatrixMarket matrix array real general\n2 3\n1\n2\n3\n4\n5\n6\n",
         );
-        let (ma, mc, mb, md) = read_system(&a2, &c4, &b0, &d0).unwrap();
+        let (ma, mc, mb, md) = read_system(&a2, &c4, &b0, &d0, MemoryBudget::default()).unwrap();
         assert_eq!(
             (ma.nrows(), mc.ncols(), mb.nrows(), md.nrows()),
             (2, 3, 0, 0)

@@ -39,11 +39,6 @@ pub enum Refine {
 }
 
 impl Refine {
-    /// Deprecated alias of [`Refine::EstimateOnly`] (the variant's name
-    /// until it was named for what it does), kept for one release.
-    #[allow(non_upper_case_globals)]
-    pub const Off: Refine = Refine::EstimateOnly;
-
     /// Whether no correction is applied: [`Refine::EstimateOnly`], and
     /// [`Refine::Steps`]`(0)`, which is the same (zero steps; one
     /// correction computed for the estimate).

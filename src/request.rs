@@ -193,14 +193,12 @@ pub fn prepare(
     let o = &request.options;
     match o.energy {
         Energy::Arap => {
-            let mut arap = ArapDeformer::new(mesh, constraints, request.arap.energy)?;
-            arap.precompute_with(&o.solve)?;
+            let mut arap = ArapDeformer::new(mesh, constraints, request.arap.energy, &o.solve)?;
             arap.initialize(request.arap.init)?;
             Ok(Prepared::Arap(Box::new(arap)))
         }
         Energy::Laplacian => {
-            let mut deformer = Deformer::new(mesh, o.laplacian, constraints)?;
-            deformer.precompute_with(&o.solve)?;
+            let deformer = Deformer::new(mesh, o.laplacian, constraints, &o.solve)?;
             Ok(Prepared::Linear(Box::new(deformer)))
         }
     }

@@ -8,7 +8,7 @@
 //! use faer::sparse::{SparseColMat, Triplet};
 //! use lse_deform::problem::LseProblem;
 //! use lse_deform::solver::LseSolver;
-//! use lse_deform::NullSpaceQr;
+//! use lse_deform::SolveOptions;
 //!
 //! // min ‖x − c‖ subject to x0 + x1 + x2 = 1, one right-hand side.
 //! let a = SparseColMat::<usize, f64>::try_new_from_triplets(
@@ -20,8 +20,7 @@
 //! let c = Mat::from_fn(3, 1, |i, _| i as f64);
 //! let d = Mat::from_fn(1, 1, |_, _| 1.0);
 //! let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref()).unwrap();
-//! let mut solver = LseSolver::new(problem);
-//! solver.precompute(&NullSpaceQr::default()).unwrap();
+//! let mut solver = LseSolver::new(problem, &SolveOptions::default()).unwrap();
 //! let x = solver.solve().unwrap();
 //! // The projection of c = (0, 1, 2) onto the plane: c − (Σc − 1)/3.
 //! assert!((x[(0, 0)] + 2.0 / 3.0).abs() < 1e-14);
@@ -109,11 +108,13 @@ impl SolveOptions {
     }
 }
 
-/// A problem with its precomputed system and the report of the last
+/// A problem with its precomputed system (the factorisation: a value, made
+/// by [`LseSolver::new`] or [`LseSolver::with_formulation`], so that a
+/// solve can only follow a precompute) and the report of the last
 /// precompute and solve.
 pub struct LseSolver {
     problem: LseProblem,
-    system: Option<Box<dyn Prepared>>,
+    system: Box<dyn Prepared>,
     /// What every precompute's report starts from (Laplacian, set-up time,
     /// mesh warnings).
     base: Report,
@@ -134,40 +135,125 @@ pub struct LseSolver {
     rounding: FactorRounding,
 }
 
+/// What a precompute produced, before it is an [`LseSolver`]: the system,
+/// the report it starts, and the earlier constraints each skipped one
+/// contradicts.
+struct Factored {
+    system: Box<dyn Prepared>,
+    report: Report,
+    conflict_sources: ConflictSources,
+}
+
+/// Precompute phase: factors `problem` with `formulation` under
+/// `resources`, the report starting from `base`.
+fn factor(
+    problem: &LseProblem,
+    base: &Report,
+    formulation: &dyn Formulation,
+    resources: &Resources,
+) -> Result<Factored, Error> {
+    crate::interrupt::check()?;
+    let Precomputed { system, record } = formulation
+        .precompute_with(problem, resources)
+        .map_err(|e| name_free_unknown(e, problem))?;
+    let mut report = base.clone();
+    report.memory_budget = Some(resources.budget);
+    apply_record(&mut report, record);
+    let conflict_sources = ConflictSources::new(system.skipped());
+    Ok(Factored {
+        system,
+        report,
+        conflict_sources,
+    })
+}
+
 impl LseSolver {
-    /// A solver for `problem`, not yet precomputed.
-    pub fn new(problem: LseProblem) -> LseSolver {
-        LseSolver::with_report(problem, Report::default())
+    /// Precompute phase: factors `problem` as `options` say (their
+    /// formulation and back ends, refinement and resources).
+    ///
+    /// Errors: those of [`FormulationChoice::build`] and of
+    /// [`LseSolver::with_formulation`].
+    pub fn new(problem: LseProblem, options: &SolveOptions) -> Result<LseSolver, Error> {
+        LseSolver::with_base_report(problem, Report::default(), options)
     }
 
-    /// A solver whose reports start from `base` (the mesh layer's
-    /// Laplacian, set-up time and warnings).
-    pub fn with_report(problem: LseProblem, mut base: Report) -> LseSolver {
+    /// Precompute phase with a formulation object (an outside one, or a
+    /// built-in with settings [`SolveOptions`] does not name) under
+    /// `resources` (the budget, and the threads and ordering of the
+    /// factorisation, which the report states); the formulation's default
+    /// refinement.
+    pub fn with_formulation(
+        problem: LseProblem,
+        formulation: &dyn Formulation,
+        resources: &Resources,
+    ) -> Result<LseSolver, Error> {
+        LseSolver::factored(problem, Report::default(), formulation, resources)
+    }
+
+    /// [`LseSolver::new`] with reports that start from `base` (the mesh
+    /// layer's Laplacian, set-up time and warnings).
+    pub fn with_base_report(
+        problem: LseProblem,
+        base: Report,
+        options: &SolveOptions,
+    ) -> Result<LseSolver, Error> {
+        let formulation = options.formulation.build_with(&options.factor_storage)?;
+        let mut solver =
+            LseSolver::factored(problem, base, formulation.as_ref(), &options.resources)?;
+        solver.refine = options.refine;
+        Ok(solver)
+    }
+
+    /// [`LseSolver::with_formulation`] with reports that start from `base`.
+    pub(crate) fn factored(
+        problem: LseProblem,
+        mut base: Report,
+        formulation: &dyn Formulation,
+        resources: &Resources,
+    ) -> Result<LseSolver, Error> {
         if base.length_unit == 0.0 {
             base.length_unit = 1.0;
         }
-        LseSolver {
+        let made = factor(&problem, &base, formulation, resources)?;
+        Ok(LseSolver {
             problem,
-            system: None,
-            report: base.clone(),
-            precompute_warnings: base.warnings.clone(),
+            system: made.system,
+            precompute_warnings: made.report.warnings.clone(),
+            report: made.report,
             base,
             refine: None,
             last_refinement: None,
-            conflict_sources: ConflictSources::default(),
+            conflict_sources: made.conflict_sources,
             rounding: FactorRounding::default(),
-        }
+        })
     }
 
-    /// Applies `options`: builds its formulation, sets its refinement, and
-    /// precomputes under its resources.
-    ///
-    /// Errors: those of [`FormulationChoice::build`] (the previous system is
-    /// kept then) and of [`LseSolver::precompute_using`].
-    pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
+    /// Precompute phase again, as `options` say: the matrices stay, the
+    /// factorisation and the refinement are replaced. On error the solver
+    /// keeps its previous factorisation and settings (both systems are
+    /// held while the new one is made).
+    pub fn refactor(&mut self, options: &SolveOptions) -> Result<(), Error> {
         let formulation = options.formulation.build_with(&options.factor_storage)?;
-        self.set_refine(options.refine);
-        self.precompute_using(formulation.as_ref(), &options.resources)
+        self.refactor_with(formulation.as_ref(), &options.resources)?;
+        self.refine = options.refine;
+        Ok(())
+    }
+
+    /// [`LseSolver::refactor`] with a formulation object under
+    /// `resources`; the refinement setting stays.
+    pub fn refactor_with(
+        &mut self,
+        formulation: &dyn Formulation,
+        resources: &Resources,
+    ) -> Result<(), Error> {
+        let made = factor(&self.problem, &self.base, formulation, resources)?;
+        self.system = made.system;
+        self.precompute_warnings = made.report.warnings.clone();
+        self.report = made.report;
+        self.conflict_sources = made.conflict_sources;
+        self.rounding = FactorRounding::default();
+        self.last_refinement = None;
+        Ok(())
     }
 
     /// Sets the refinement of every following solve (see
@@ -195,43 +281,11 @@ impl LseSolver {
 
     /// The refinement the next solve uses.
     pub fn refine_mode(&self) -> Refine {
-        match (self.refine, &self.system) {
-            (Some(mode), _) => mode,
-            (None, Some(system)) if !system.exact() => Refine::EstimateOnly,
-            _ => Refine::Auto,
+        match self.refine {
+            Some(mode) => mode,
+            None if !self.system.exact() => Refine::EstimateOnly,
+            None => Refine::Auto,
         }
-    }
-
-    /// Precompute phase: factors the system with `formulation` under the
-    /// default resources ([`Resources::default`]). On error the previous
-    /// system is gone (solve then fails until a precompute succeeds).
-    pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
-        self.precompute_using(formulation, &Resources::default())
-    }
-
-    /// Precompute phase under `resources` (the budget, and the threads and
-    /// ordering of the factorisation, which the report states). On error the
-    /// previous system is gone.
-    pub fn precompute_using(
-        &mut self,
-        formulation: &dyn Formulation,
-        resources: &Resources,
-    ) -> Result<(), Error> {
-        self.system = None;
-        crate::interrupt::check()?;
-        self.rounding = FactorRounding::default();
-        let Precomputed { system, record } = formulation
-            .precompute_with(&self.problem, resources)
-            .map_err(|e| name_free_unknown(e, &self.problem))?;
-        let mut report = self.base.clone();
-        report.memory_budget = Some(resources.budget);
-        apply_record(&mut report, record);
-        self.conflict_sources = ConflictSources::new(system.skipped());
-        self.system = Some(system);
-        self.precompute_warnings = report.warnings.clone();
-        self.report = report;
-        self.last_refinement = None;
-        Ok(())
     }
 
     /// Solve phase: `X` (n × k) for the current `C` and `D`, refined as
@@ -257,7 +311,7 @@ impl LseSolver {
     /// hands rayon one small task per triangular solve); refinement and
     /// other formulations allocate their temporaries.
     ///
-    /// Errors: a shape mismatch of `x`, a solve before precompute, the
+    /// Errors: a shape mismatch of `x`, the
     /// formulation's numerical errors, and a non-finite result
     /// ([`NumericalError::NonFiniteSolution`], naming the row of `X`). On
     /// error the contents of `x` are unspecified.
@@ -280,16 +334,11 @@ impl LseSolver {
     /// the refinement for [`LseSolver::diagnose`]'s estimate and warnings.
     pub fn refine_solution(&mut self, x: &mut Mat<f64>) -> Result<&Refinement, Error> {
         let mode = self.refine_mode();
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "refinement called before precompute".into(),
-            })?;
         check_finite(x.as_ref())?;
         let t = Instant::now();
         let rounding = Some(&mut self.rounding);
-        let refinement = refine_with_rounding(system.as_mut(), &self.problem, x, mode, rounding)?;
+        let system = self.system.as_mut();
+        let refinement = refine_with_rounding(system, &self.problem, x, mode, rounding)?;
         self.report.timings_s.refine = t.elapsed().as_secs_f64();
         Ok(self.last_refinement.insert(refinement))
     }
@@ -321,12 +370,7 @@ impl LseSolver {
             .into());
         }
         let refining = mode != Refine::EstimateOnly || estimate;
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "solve called before precompute".into(),
-            })?;
+        let system = &mut self.system;
         let t = Instant::now();
         let mut refinements = Vec::new();
         self.report.timings_s.refine = 0.0;
@@ -399,15 +443,9 @@ impl LseSolver {
             }
             .into());
         }
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "solve called before precompute".into(),
-            })?;
         let mut x = Mat::zeros(n, c.ncols());
         let refinements = solve_blocks_of(
-            system.as_mut(),
+            self.system.as_mut(),
             &mut self.problem,
             c,
             d,
@@ -436,11 +474,7 @@ impl LseSolver {
     /// one and the rest counted).
     pub fn diagnose(&mut self, x: MatRef<'_, f64>) -> &Report {
         let t = Instant::now();
-        let (skipped, exact) = self
-            .system
-            .as_ref()
-            .map(|s| (s.skipped().to_vec(), s.exact()))
-            .unwrap_or_default();
+        let (skipped, exact) = (self.system.skipped().to_vec(), self.system.exact());
         fill_solution_diagnostics(
             &mut self.report,
             &self.problem,
@@ -484,19 +518,13 @@ impl LseSolver {
     /// Estimates the 2-norm condition number of the matrix the formulation
     /// factored (see [`crate::condition`]) and records it in the report.
     pub fn estimate_condition(&mut self) -> Result<&ConditionEstimate, Error> {
-        let system = self
-            .system
-            .as_mut()
-            .ok_or_else(|| ProblemError::BadUpdate {
-                message: "estimate_condition called before precompute".into(),
-            })?;
-        let estimate = system.estimate_condition()?;
+        let estimate = self.system.estimate_condition()?;
         Ok(self.report.condition_estimate.insert(estimate))
     }
 
-    /// The prepared system of the last precompute, if any (for export).
-    pub fn prepared(&self) -> Option<&dyn Prepared> {
-        self.system.as_deref()
+    /// The prepared system of the last precompute (for export).
+    pub fn prepared(&self) -> &dyn Prepared {
+        self.system.as_ref()
     }
 
     /// The report of the last precompute and solve.

@@ -40,7 +40,8 @@ fn exact_methods() -> Vec<(Box<dyn Formulation>, Option<Refine>)> {
 
 fn positions(d: &mut Deformer, f: &dyn Formulation, refine: Option<Refine>) -> Vec<[f64; 3]> {
     d.solver_mut().set_refine(refine);
-    d.precompute(f).unwrap();
+    d.refactor_with(f, &lse_deform::resources::Resources::default())
+        .unwrap();
     d.solve().unwrap().positions
 }
 
@@ -159,7 +160,13 @@ fn hand_assembled_problem_matches_and_every_method_solves_it() {
     let b = Mat::from_fn(2, 5, |i, j| if i == j { 1.0 } else { 0.0 });
     let d = Mat::from_fn(2, 3, |i, k| if i == 0 { p[0][k] } else { lifted[k] });
 
-    let mut deformer = Deformer::new(mesh, LaplacianKind::Uniform, set(cs)).unwrap();
+    let mut deformer = Deformer::new(
+        mesh,
+        LaplacianKind::Uniform,
+        set(cs),
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     // The problem is assembled on the mesh divided by its mean edge length
     // (4 edges of 0.8, 4 of √(0.4² + 0.4² + 0.3²), each face's three
     // edges counted: the mean of 0.8, s, s over the faces): the uniform `A`
@@ -257,7 +264,8 @@ fn rest_targets_give_the_rest_positions() {
         let cs = mixed_constraints(&mesh, false);
         let rest = mesh.positions().to_vec();
         let diagonal = mesh.bbox_diagonal();
-        let mut d = Deformer::new(mesh, kind, set(cs)).unwrap();
+        let mut d =
+            Deformer::new(mesh, kind, set(cs), &lse_deform::SolveOptions::default()).unwrap();
         for (f, refine) in exact_methods() {
             let x = positions(&mut d, f.as_ref(), refine);
             let e = max_distance(&x, &rest) / diagonal;
@@ -306,8 +314,20 @@ fn a_rigid_motion_of_mesh_and_targets_moves_the_answer_rigidly() {
     let moved_cs: Vec<Constraint> = cs.iter().map(|c| moved_constraint(c, &r, t)).collect();
     let diagonal = mesh.bbox_diagonal();
     for kind in [LaplacianKind::Uniform, LaplacianKind::Cotangent] {
-        let mut d0 = Deformer::new(mesh.clone(), kind, set(cs.clone())).unwrap();
-        let mut d1 = Deformer::new(moved_mesh.clone(), kind, set(moved_cs.clone())).unwrap();
+        let mut d0 = Deformer::new(
+            mesh.clone(),
+            kind,
+            set(cs.clone()),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
+        let mut d1 = Deformer::new(
+            moved_mesh.clone(),
+            kind,
+            set(moved_cs.clone()),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         for (f, refine) in exact_methods() {
             let x0 = positions(&mut d0, f.as_ref(), refine);
             let x1 = positions(&mut d1, f.as_ref(), refine);
@@ -356,7 +376,7 @@ fn outcome(
     cs: Vec<Constraint>,
     kind: LaplacianKind,
 ) -> (Option<usize>, Vec<usize>, Vec<usize>, Vec<[f64; 3]>) {
-    let mut d = Deformer::new(mesh, kind, set(cs)).unwrap();
+    let mut d = Deformer::new(mesh, kind, set(cs), &lse_deform::SolveOptions::default()).unwrap();
     let x = positions(&mut d, &NullSpaceQr::default(), None);
     let r = d.report();
     (
@@ -480,7 +500,13 @@ fn the_earlier_of_two_conflicting_constraints_wins() {
             cs.push(pos(7, first));
             cs.push(pos(7, second));
             let f = nullspace_qr_with(qr);
-            let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs)).unwrap();
+            let mut d = Deformer::new(
+                mesh.clone(),
+                LaplacianKind::Cotangent,
+                set(cs),
+                &lse_deform::SolveOptions::default(),
+            )
+            .unwrap();
             let x = positions(&mut d, f.as_ref(), None);
             let r = d.report();
             assert_eq!(
@@ -520,8 +546,13 @@ fn rows_a_factor_ten_either_side_of_the_rank_tolerance() {
         }));
         for qr in [QrKind::DenseHouseholder, QrKind::SparseGivens] {
             let f = nullspace_qr_with(qr);
-            let mut d =
-                Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs.clone())).unwrap();
+            let mut d = Deformer::new(
+                mesh.clone(),
+                LaplacianKind::Cotangent,
+                set(cs.clone()),
+                &lse_deform::SolveOptions::default(),
+            )
+            .unwrap();
             positions(&mut d, f.as_ref(), None);
             let r = d.report();
             if kept {
@@ -543,8 +574,14 @@ fn set_target_on_a_redundant_constraint_reclassifies_it() {
     let lifted = [p[20][0], p[20][1], p[20][2] + 0.1];
     cs.push(pos(20, lifted));
     cs.push(pos(20, lifted));
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set(cs)).unwrap();
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    let mut d = Deformer::with_formulation(
+        mesh,
+        LaplacianKind::Cotangent,
+        set(cs),
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     d.solve().unwrap();
     assert_eq!(d.report().redundant, vec![4]);
     // Moving the dependent copy makes it conflict; the earlier one holds.
@@ -571,7 +608,13 @@ fn set_target_on_a_redundant_constraint_reclassifies_it() {
 fn penalty_refinement_reaches_the_constrained_solution_and_stops_on_conflicts() {
     let mesh = random_surface(7, 6, 5);
     let cs = mixed_constraints(&mesh, true);
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs.clone())).unwrap();
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        set(cs.clone()),
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     let exact = positions(&mut d, &NullSpaceQr::default(), None);
     let diagonal = mesh.bbox_diagonal();
     for w in [1.0, 1e2, 1e4] {
@@ -605,7 +648,13 @@ fn penalty_refinement_reaches_the_constrained_solution_and_stops_on_conflicts() 
     let p = mesh.positions();
     let mut conflicting = cs;
     conflicting.push(pos(0, [p[0][0], p[0][1] + 0.1, p[0][2]]));
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set(conflicting)).unwrap();
+    let mut d = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        set(conflicting),
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     positions(&mut d, &Penalty::new(1e2), Some(Refine::Auto));
     let r = d.report();
     let refinement = r.refinement.as_ref().unwrap();
@@ -627,7 +676,13 @@ fn penalty_refinement_reaches_the_constrained_solution_and_stops_on_conflicts() 
 fn refine_until_stops_at_the_first_correction_within_the_tolerance() {
     let mesh = random_surface(7, 6, 5);
     let cs = mixed_constraints(&mesh, true);
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs)).unwrap();
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        set(cs),
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     let exact = positions(&mut d, &NullSpaceQr::default(), None);
     let diagonal = mesh.bbox_diagonal();
     for (w, tol) in [(1.0, 1e-4), (1.0, 1e-9), (1e1, 1e-7)] {
@@ -697,7 +752,7 @@ proptest! {
                 cs.push(pos(v, [p[v][0], p[v][1], p[v][2] + lift]));
             }
         }
-        let d = Deformer::new(mesh, LaplacianKind::Cotangent, set(cs)).unwrap();
+        let d = Deformer::new(mesh, LaplacianKind::Cotangent, set(cs), &lse_deform::SolveOptions::default()).unwrap();
         let problem = d.problem();
         let scale = problem.length_scale();
         let rows: Vec<usize> = (0..problem.b().nrows()).collect();
@@ -756,7 +811,7 @@ proptest! {
             .filter(|&i| matches!(cs[i].kind, ConstraintKind::Position { .. }))
             .take(2)
             .collect();
-        let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs)).unwrap();
+        let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs), &lse_deform::SolveOptions::default()).unwrap();
         // (Elimination supports position rows only; its refinement is the
         // null-space one with a selection for Q2.)
         let f: Box<dyn Formulation> = if kkt {
@@ -764,7 +819,7 @@ proptest! {
         } else {
             Box::new(NullSpaceQr::default())
         };
-        d.precompute(f.as_ref()).unwrap();
+        d.refactor_with(f.as_ref(), &lse_deform::resources::Resources::default()).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let diagonal = mesh.bbox_diagonal();
         let (mut first, mut later) = (0, 0);
@@ -858,7 +913,13 @@ fn a_nearly_dependent_kept_row_shows_in_the_estimate_and_is_refined_away() {
         }),
     }));
     for qr in [QrKind::DenseHouseholder, QrKind::SparseGivens] {
-        let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs.clone())).unwrap();
+        let mut d = Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Cotangent,
+            set(cs.clone()),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         let problem = d.problem().clone();
         let rows: Vec<usize> = (0..problem.b().nrows()).collect();
         let reference = lse_deform::testing::accurate_reference(&problem, &rows);
@@ -876,7 +937,8 @@ fn a_nearly_dependent_kept_row_shows_in_the_estimate_and_is_refined_away() {
         };
         let f = nullspace_qr_with(qr);
         d.solver_mut().set_refine(Some(Refine::EstimateOnly));
-        d.precompute(f.as_ref()).unwrap();
+        d.refactor_with(f.as_ref(), &lse_deform::resources::Resources::default())
+            .unwrap();
         let x = d.solve_matrix().unwrap();
         assert_eq!(d.report().rank, Some(5), "{qr}");
         let (truth, estimate) = (error(&x), d.report().forward_error_estimate.unwrap());
@@ -909,7 +971,13 @@ fn a_first_refinement_stops_on_the_correction_that_measures_the_floor() {
     let cs = FixedAndHandle::paper_default(&mesh)
         .constraints(&mesh)
         .unwrap();
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs).unwrap();
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     let f = NullSpaceQr::default();
     let auto = positions(&mut d, &f, Some(Refine::Auto));
     let r = d.report().refinement.clone().unwrap();

@@ -201,8 +201,14 @@ fn iterations_match_a_dense_implementation_from_the_definition() {
         let mesh = random_surface(nx, ny, 11);
         let cs = bend_scene(&mesh, nx, ny);
         let dense = DenseArap::new(&mesh, energy, &cs);
-        let mut arap = ArapDeformer::new(mesh.clone(), cs.clone(), energy).unwrap();
-        arap.precompute(&NullSpaceQr::default()).unwrap();
+        let mut arap = ArapDeformer::with_formulation(
+            mesh.clone(),
+            cs.clone(),
+            energy,
+            &NullSpaceQr::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
         arap.initialize(ArapInit::Rest).unwrap();
         let mut x = rest_with_positions(&mesh, &cs);
         let r0 = dense.rotations(&x);
@@ -244,8 +250,14 @@ fn linear_init_is_the_identity_rotation_global_step() {
     let cs = bend_scene(&mesh, nx, ny);
     let dense = DenseArap::new(&mesh, ArapEnergy::SpokesAndRims, &cs);
     let expected = dense.global(&vec![M3::identity(); mesh.n_vertices()]);
-    let mut arap = ArapDeformer::new(mesh.clone(), cs, ArapEnergy::SpokesAndRims).unwrap();
-    arap.precompute(&NullSpaceQr::default()).unwrap();
+    let mut arap = ArapDeformer::with_formulation(
+        mesh.clone(),
+        cs,
+        ArapEnergy::SpokesAndRims,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     arap.initialize(ArapInit::Linear).unwrap();
     for (a, b) in arap.positions().iter().zip(&expected) {
         for c in 0..3 {
@@ -264,8 +276,14 @@ fn check_run(
     iterations: usize,
 ) -> Result<(), TestCaseError> {
     let scale = mesh.bbox_diagonal();
-    let mut arap = ArapDeformer::new(mesh, cs, energy).unwrap();
-    arap.precompute(&NullSpaceQr::default()).unwrap();
+    let mut arap = ArapDeformer::with_formulation(
+        mesh,
+        cs,
+        energy,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     arap.initialize(ArapInit::Rest).unwrap();
     let report = arap.run(iterations, 0.0).unwrap();
     prop_assert!(arap.positions().iter().flatten().all(|v| v.is_finite()));
@@ -444,17 +462,35 @@ fn arap_warns_about_its_forward_error_like_the_laplacian_path() {
                 .collect()
         };
     for refine in [Refine::EstimateOnly, Refine::Auto] {
-        let mut laplacian =
-            Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone()).unwrap();
+        let mut laplacian = Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Cotangent,
+            constraints.clone(),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         laplacian.solver_mut().set_refine(Some(refine));
-        laplacian.precompute(penalty().as_ref()).unwrap();
+        laplacian
+            .refactor_with(
+                penalty().as_ref(),
+                &lse_deform::resources::Resources::default(),
+            )
+            .unwrap();
         let deform = forward_error_warnings(&laplacian.solve().unwrap().report.warnings);
 
-        let mut arap =
-            ArapDeformer::new(mesh.clone(), constraints.clone(), ArapEnergy::SpokesAndRims)
-                .unwrap();
+        let mut arap = ArapDeformer::new(
+            mesh.clone(),
+            constraints.clone(),
+            ArapEnergy::SpokesAndRims,
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         arap.set_refine(Some(refine));
-        arap.precompute(penalty().as_ref()).unwrap();
+        arap.refactor_with(
+            penalty().as_ref(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
         arap.initialize(ArapInit::Rest).unwrap();
         arap.run(3, 0.0).unwrap();
         let report = arap.finish().unwrap();
@@ -501,9 +537,20 @@ fn both_deformers_share_the_unit_scaled_set_up() {
         )
         .unwrap();
     let cs = bend_scene(&mesh, nx, ny);
-    let linear =
-        Deformer::new(mesh.clone(), LaplacianKind::CotangentSymmetric, cs.clone()).unwrap();
-    let arap = ArapDeformer::new(mesh.clone(), cs, ArapEnergy::SpokesAndRims).unwrap();
+    let linear = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::CotangentSymmetric,
+        cs.clone(),
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
+    let arap = ArapDeformer::new(
+        mesh.clone(),
+        cs,
+        ArapEnergy::SpokesAndRims,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     assert_eq!(linear.length_unit(), mesh.length_unit());
     assert_eq!(linear.length_unit(), arap.length_unit());
     assert_eq!(linear.report().length_unit, arap.report().length_unit);

@@ -69,8 +69,14 @@ fn scaled(mesh: &Mesh, s: f64) -> Mesh {
 
 /// Runs `iterations` from the linear guess: positions and the report.
 fn run(mesh: Mesh, cs: ConstraintSet, iterations: usize) -> (Vec<[f64; 3]>, lse_deform::Report) {
-    let mut arap = ArapDeformer::new(mesh, cs, ArapEnergy::SpokesAndRims).unwrap();
-    arap.precompute(&NullSpaceQr::default()).unwrap();
+    let mut arap = ArapDeformer::with_formulation(
+        mesh,
+        cs,
+        ArapEnergy::SpokesAndRims,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     arap.initialize(ArapInit::Linear).unwrap();
     arap.run(iterations, 0.0).unwrap();
     (arap.positions(), arap.report().clone())
@@ -144,8 +150,14 @@ fn an_energy_beyond_double_precision_is_a_numerical_error() {
     let mut cs = scene(&mesh, nx, ny, 1.0);
     cs.set_rhs(1, [1e160, 0.0, 0.0]).unwrap();
     for init in [ArapInit::Linear, ArapInit::Rest] {
-        let mut arap = ArapDeformer::new(mesh.clone(), cs.clone(), ArapEnergy::Spokes).unwrap();
-        arap.precompute(&NullSpaceQr::default()).unwrap();
+        let mut arap = ArapDeformer::with_formulation(
+            mesh.clone(),
+            cs.clone(),
+            ArapEnergy::Spokes,
+            &NullSpaceQr::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
         let e = arap.initialize(init).unwrap_err();
         assert!(
             matches!(
@@ -158,8 +170,14 @@ fn an_energy_beyond_double_precision_is_a_numerical_error() {
     }
     // Moved there between iterations: the error names the iteration.
     let cs = scene(&mesh, nx, ny, 1.0);
-    let mut arap = ArapDeformer::new(mesh, cs, ArapEnergy::Spokes).unwrap();
-    arap.precompute(&NullSpaceQr::default()).unwrap();
+    let mut arap = ArapDeformer::with_formulation(
+        mesh,
+        cs,
+        ArapEnergy::Spokes,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     arap.initialize(ArapInit::Linear).unwrap();
     arap.iterate(2).unwrap();
     arap.set_target(1, [-1e160, 0.0, 0.0]).unwrap();

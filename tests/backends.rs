@@ -346,6 +346,7 @@ fn report(label: &str, mesh: &lse_deform::Mesh, cs: Vec<Constraint>) {
         mesh.clone(),
         LaplacianKind::Cotangent,
         ConstraintSet::from_vec(cs).unwrap(),
+        &lse_deform::SolveOptions::default(),
     )
     .unwrap();
     let b = d.problem().b();
@@ -410,7 +411,13 @@ fn relative_chain_uses_fill_reducing_order() {
         conflict: false,
     };
     let cs = scene.constraints(&mesh).unwrap();
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs).unwrap();
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     let b = d.problem().b().clone();
     let nnz_b = b.val().len();
     let tol = RankTolerance::default();
@@ -427,14 +434,19 @@ fn relative_chain_uses_fill_reducing_order() {
         "{} rotations for nnz(B) = {nnz_b}",
         reordered.n_rotations()
     );
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    d.refactor_with(
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let x = d.solve_matrix().unwrap();
     assert!(d.report().max_constraint_residual <= 1e-12 * mesh.bbox_diagonal());
     let paper = NullSpaceQr::new(
         Arc::new(qr::DenseHouseholder),
         Arc::new(spd::FaerLlt::auto()),
     );
-    d.precompute(&paper).unwrap();
+    d.refactor_with(&paper, &lse_deform::resources::Resources::default())
+        .unwrap();
     let reference = d.solve_matrix().unwrap();
     let diff = relative_difference(&x, &reference);
     assert!(diff < 1e-9, "differs from DenseHouseholder by {diff:e}");

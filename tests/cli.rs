@@ -35,8 +35,15 @@ fn generate_scene_deform_round_trip() {
         "deform", &mesh, "-c", &scene, "-o", &out, "--report", &report,
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let deformed = read_mesh(Path::new(&out)).unwrap().mesh;
-    let original = read_mesh(Path::new(&mesh)).unwrap().mesh;
+    let deformed = read_mesh(Path::new(&out), lse_deform::limits::MemoryBudget::default())
+        .unwrap()
+        .mesh;
+    let original = read_mesh(
+        Path::new(&mesh),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh;
     assert_eq!(deformed.n_vertices(), original.n_vertices());
     assert_eq!(deformed.faces(), original.faces());
 
@@ -264,11 +271,14 @@ fn export_system_then_solve_reproduces_deform() {
         let o = run(&args);
         assert!(o.status.success(), "{:?}: {}", method, stderr(&o));
         let x = lse_deform::mtx::read_dense(Path::new(&x_path)).unwrap();
-        let positions = read_mesh(Path::new(&deformed))
-            .unwrap()
-            .mesh
-            .positions()
-            .to_vec();
+        let positions = read_mesh(
+            Path::new(&deformed),
+            lse_deform::limits::MemoryBudget::default(),
+        )
+        .unwrap()
+        .mesh
+        .positions()
+        .to_vec();
         let (mut num, mut den) = (0.0f64, 0.0f64);
         // X is in the problem's units: the positions over `length_unit`.
         let unit = meta["length_unit"].as_f64().unwrap();
@@ -419,8 +429,15 @@ fn the_written_mesh_meets_the_targets() {
         "deform", &mesh, "-c", &scene, "-o", &out, "--report", &report,
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let x = read_mesh(Path::new(&out)).unwrap().mesh;
-    let original = read_mesh(Path::new(&mesh)).unwrap().mesh;
+    let x = read_mesh(Path::new(&out), lse_deform::limits::MemoryBudget::default())
+        .unwrap()
+        .mesh;
+    let original = read_mesh(
+        Path::new(&mesh),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh;
     let set = lse_deform::constraints::parse_constraints(&std::fs::read_to_string(&scene).unwrap())
         .unwrap();
     let r: serde_json::Value =
@@ -596,7 +613,9 @@ fn generate_says_which_vertex_count_it_produced() {
 /// The mesh at `mesh` bent, as `dir/other.obj`: the same counts and faces,
 /// other positions (so another fingerprint).
 fn bent_copy(dir: &Path, mesh: &str) -> String {
-    let grid = read_mesh(Path::new(mesh)).unwrap().mesh;
+    let grid = read_mesh(Path::new(mesh), lse_deform::limits::MemoryBudget::default())
+        .unwrap()
+        .mesh;
     let bent: Vec<[f64; 3]> = grid
         .positions()
         .iter()
@@ -793,13 +812,16 @@ fn scene_axis_takes_a_direction() {
             .status
             .success()
     );
-    let ys: Vec<f64> = read_mesh(Path::new(&mesh))
-        .unwrap()
-        .mesh
-        .positions()
-        .iter()
-        .map(|q| q[1])
-        .collect();
+    let ys: Vec<f64> = read_mesh(
+        Path::new(&mesh),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh
+    .positions()
+    .iter()
+    .map(|q| q[1])
+    .collect();
     let (lo, hi) = ys
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &y| {
@@ -1115,7 +1137,12 @@ fn an_ordering_file_is_given_to_the_back_end() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (mesh, scene) = grid_and_default_scene(d, 900);
-    let original = read_mesh(Path::new(&mesh)).unwrap().mesh;
+    let original = read_mesh(
+        Path::new(&mesh),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh;
     let n = original.n_vertices();
     let identity = path_in(d, "identity.txt");
     let words: Vec<String> = (0..n).map(|i| i.to_string()).collect();
@@ -1144,7 +1171,9 @@ fn an_ordering_file_is_given_to_the_back_end() {
         assert!(o.status.success(), "{name}: {}", stderr(&o));
         let text = std::fs::read_to_string(&report).unwrap();
         let r: serde_json::Value = serde_json::from_str(&text).unwrap();
-        let x = read_mesh(Path::new(&out)).unwrap().mesh;
+        let x = read_mesh(Path::new(&out), lse_deform::limits::MemoryBudget::default())
+            .unwrap()
+            .mesh;
         (r, x.positions().to_vec())
     };
     let (own, own_x) = deform("own", &[]);

@@ -122,7 +122,7 @@ fn setup(args: &[&str]) {
 }
 
 fn mesh(path: &str) -> Mesh {
-    read_mesh(Path::new(path))
+    read_mesh(Path::new(path), lse_deform::limits::MemoryBudget::default())
         .unwrap_or_else(|e| panic!("{path}: {e}"))
         .mesh
 }

@@ -120,7 +120,11 @@ fn a_scene_file_drags_on_the_basis_path_as_it_is() {
         .status()
         .unwrap();
     assert!(status.success());
-    let cs = lse_deform::constraints::read_constraints_file(&c_path).unwrap();
+    let cs = lse_deform::constraints::read_constraints_file(
+        &c_path,
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap();
     let groups: std::collections::BTreeSet<_> = cs
         .as_slice()
         .iter()
@@ -146,11 +150,23 @@ fn a_scene_file_drags_on_the_basis_path_as_it_is() {
     let _ = child.wait();
     assert_eq!(status, 200, "{answer}");
     assert_eq!(json(answer.as_bytes())["path"], "basis", "{answer}");
-    let mesh = lse_deform::mesh::read_mesh(&mesh_path).unwrap().mesh;
+    let mesh = lse_deform::mesh::read_mesh(&mesh_path, lse_deform::limits::MemoryBudget::default())
+        .unwrap()
+        .mesh;
     let diag = mesh.bbox_diagonal();
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs).unwrap();
+    let mut d = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     d.transform_group("handle", &m).unwrap();
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    d.refactor_with(
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let want = d.solve().unwrap().positions;
     let moved = want
         .iter()
@@ -291,13 +307,14 @@ fn rotation_x(angle: f64, t: [f64; 3]) -> [[f64; 4]; 3] {
 /// The server's scene solved by the library (the editor's defaults), with
 /// a group moved first if given.
 fn library_positions(server: &Server, moved: Option<(&str, [[f64; 4]; 3])>) -> Vec<[f64; 3]> {
-    let mut deformer = Deformer::new(
+    let mut deformer = Deformer::with_formulation(
         server.mesh.clone(),
         LaplacianKind::Cotangent,
         server.constraints.clone(),
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
     )
     .unwrap();
-    deformer.precompute(&NullSpaceQr::default()).unwrap();
     if let Some((group, m)) = moved {
         deformer.transform_group(group, &m).unwrap();
     }

@@ -195,7 +195,8 @@ impl Model {
             return mesh().positions().to_vec();
         }
         let laplacian: LaplacianKind = self.laplacian.parse().unwrap();
-        let mut deformer = Deformer::new(mesh(), laplacian, cs).unwrap();
+        let mut deformer =
+            Deformer::new(mesh(), laplacian, cs, &lse_deform::SolveOptions::default()).unwrap();
         deformer
             .solver_mut()
             .set_refine(Some(self.refine.parse::<Refine>().unwrap()));
@@ -204,7 +205,10 @@ impl Model {
             ..FormulationChoice::new(self.method.parse().unwrap())
         };
         deformer
-            .precompute(choice.build().unwrap().as_ref())
+            .refactor_with(
+                choice.build().unwrap().as_ref(),
+                &lse_deform::resources::Resources::default(),
+            )
             .unwrap();
         for (group, m) in &self.transforms {
             deformer.transform_group(group, m).unwrap();

@@ -35,7 +35,13 @@ fn deformer() -> Deformer {
     let set = FixedAndHandle::paper_default(&mesh)
         .constraints(&mesh)
         .unwrap();
-    Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap()
+    Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        set,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap()
 }
 
 /// Penalty with `spd`: the matrix factored is `tril(AᵀA + w²BᵀB)` over
@@ -134,7 +140,7 @@ fn one_amd_permutation_gives_the_exact_fill_back_ends_the_fill_counted_by_hand()
     let by_hand = fill_by_elimination(graph, plan.permutation.as_deref().unwrap());
 
     let reference = {
-        d.precompute_with(&SolveOptions::default()).unwrap();
+        d.refactor(&SolveOptions::default()).unwrap();
         d.solve().unwrap().positions
     };
     let diagonal = d.mesh().bbox_diagonal();
@@ -143,7 +149,7 @@ fn one_amd_permutation_gives_the_exact_fill_back_ends_the_fill_counted_by_hand()
             resources: held(FillOrdering::Amd, 1),
             ..penalty(kind)
         };
-        d.precompute_with(&options).unwrap();
+        d.refactor(&options).unwrap();
         let solution = d.solve().unwrap();
         let r = &solution.report;
         assert_eq!(r.nnz.factor, Some(by_hand), "{kind}");
@@ -153,7 +159,7 @@ fn one_amd_permutation_gives_the_exact_fill_back_ends_the_fill_counted_by_hand()
         // Penalty at w = 1e3 is near the constrained solution, not on it:
         // its own ordering gives the same numbers to rounding.
         let own = {
-            d.precompute_with(&penalty(kind)).unwrap();
+            d.refactor(&penalty(kind)).unwrap();
             d.solve().unwrap()
         };
         assert!(own.report.ordering.as_deref().unwrap().starts_with("own ("));
@@ -182,7 +188,7 @@ fn a_given_order_is_followed_and_changes_no_solution_of_any_method() {
             ..FormulationChoice::new(method)
         };
         let own = SolveOptions::new(choice.clone());
-        d.precompute_with(&own).unwrap();
+        d.refactor(&own).unwrap();
         let expected = d.solve().unwrap().positions;
         for ordering in [
             FillOrdering::Given(reversed.clone()),
@@ -194,7 +200,7 @@ fn a_given_order_is_followed_and_changes_no_solution_of_any_method() {
                 resources: held(ordering, 2),
                 ..own.clone()
             };
-            d.precompute_with(&options).unwrap();
+            d.refactor(&options).unwrap();
             let solution = d.solve().unwrap();
             let used = solution.report.ordering.clone().unwrap();
             let expected_word = match method {
@@ -216,7 +222,7 @@ fn natural_order_fills_more_than_amd_on_a_surface() {
             resources: held(ordering, 1),
             ..penalty(SpdKind::FaerSimplicial)
         };
-        d.precompute_with(&options).unwrap();
+        d.refactor(&options).unwrap();
         d.report().nnz.factor.unwrap()
     };
     let (natural, amd) = (nnz(FillOrdering::Natural), nnz(FillOrdering::Amd));
@@ -237,7 +243,7 @@ fn a_given_order_that_is_not_a_permutation_is_refused_typed() {
             resources: held(FillOrdering::Given(order.into()), 1),
             ..SolveOptions::default()
         };
-        match d.precompute_with(&options) {
+        match d.refactor(&options) {
             Err(Error::Problem(ProblemError::InvalidArgument { message })) => {
                 assert!(message.contains(expected), "{message}");
             }
@@ -249,7 +255,7 @@ fn a_given_order_that_is_not_a_permutation_is_refused_typed() {
             resources: held(FillOrdering::Metis, 1),
             ..SolveOptions::default()
         };
-        match d.precompute_with(&options) {
+        match d.refactor(&options) {
             Err(Error::Problem(ProblemError::InvalidArgument { message })) => {
                 assert!(message.contains("not in this build"), "{message}");
             }
@@ -273,13 +279,13 @@ fn threads_are_what_each_back_end_used() {
             },
             ..penalty(kind)
         };
-        d.precompute_with(&options).unwrap();
+        d.refactor(&options).unwrap();
         assert_eq!(d.report().threads, Some(used), "{kind} asked {asked}");
         assert!(d.report().ordering.as_deref().unwrap().starts_with("own ("));
     }
     // Own threads: faer's small factor runs on one (below its 50 M-value
     // threshold).
-    d.precompute_with(&penalty(SpdKind::FaerAuto)).unwrap();
+    d.refactor(&penalty(SpdKind::FaerAuto)).unwrap();
     assert_eq!(d.report().threads, Some(1));
     assert_eq!(d.report().ordering.as_deref(), Some("own (amd)"));
 }
@@ -316,7 +322,7 @@ impl SpdBackend for NoOrdering {
 fn a_back_end_from_outside_factors_the_permuted_matrix() {
     let mut d = deformer();
     let diagonal = d.mesh().bbox_diagonal();
-    d.precompute_with(&SolveOptions::default()).unwrap();
+    d.refactor(&SolveOptions::default()).unwrap();
     let expected = d.solve().unwrap().positions;
     let amd = held(FillOrdering::Amd, 1);
     let faer = SolveOptions {
@@ -326,7 +332,7 @@ fn a_back_end_from_outside_factors_the_permuted_matrix() {
             ..FormulationChoice::new(Method::NullSpaceQr)
         })
     };
-    d.precompute_with(&faer).unwrap();
+    d.refactor(&faer).unwrap();
     let faer_nnz = d.report().nnz.factor;
     let outside = SolveOptions {
         resources: amd,
@@ -335,7 +341,7 @@ fn a_back_end_from_outside_factors_the_permuted_matrix() {
             ..FormulationChoice::new(Method::NullSpaceQr)
         })
     };
-    d.precompute_with(&outside).unwrap();
+    d.refactor(&outside).unwrap();
     let solution = d.solve().unwrap();
     assert_eq!(
         solution.report.ordering.as_deref(),
@@ -347,7 +353,7 @@ fn a_back_end_from_outside_factors_the_permuted_matrix() {
     let apart = max_distance(&expected, &solution.positions);
     assert!(apart <= 1e-9 * diagonal, "{apart:e}");
     // Without a held ordering it analyses the matrix as given.
-    d.precompute_with(&SolveOptions::new(FormulationChoice {
+    d.refactor(&SolveOptions::new(FormulationChoice {
         spd: Chosen::Own(Arc::new(NoOrdering)),
         ..FormulationChoice::new(Method::NullSpaceQr)
     }))
@@ -372,14 +378,13 @@ proptest! {
             state ^= state << 17;
             order.swap(i, (state % (i as u64 + 1)) as usize);
         }
-        let mut solver = LseSolver::new(lse.problem.clone());
-        solver.precompute(&NullSpaceQr::default()).unwrap();
+        let mut solver = LseSolver::with_formulation(lse.problem.clone(), &NullSpaceQr::default(), &lse_deform::resources::Resources::default()).unwrap();
         let expected = solver.solve().unwrap();
         let scale = expected.norm_max().max(1.0);
         for ordering in [FillOrdering::Given(order.into()), FillOrdering::Amd, FillOrdering::Natural] {
             let word = ordering.name();
             let resources = held(ordering, 1);
-            solver.precompute_using(&NullSpaceQr::default(), &resources).unwrap();
+            solver.refactor_with(&NullSpaceQr::default(), &resources).unwrap();
             let x = solver.solve().unwrap();
             let apart = (&x - &expected).norm_max();
             prop_assert!(apart <= 1e-9 * scale, "{}: {:e}", word, apart);

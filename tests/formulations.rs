@@ -25,11 +25,17 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 fn deformer(mesh: &Mesh, kind: LaplacianKind, cs: Vec<Constraint>) -> Deformer {
-    Deformer::new(mesh.clone(), kind, ConstraintSet::from_vec(cs).unwrap()).unwrap()
+    Deformer::new(
+        mesh.clone(),
+        kind,
+        ConstraintSet::from_vec(cs).unwrap(),
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap()
 }
 
 fn solve_with(d: &mut Deformer, f: &dyn Formulation) -> Result<Mat<f64>, Error> {
-    d.precompute(f)?;
+    d.refactor_with(f, &lse_deform::resources::Resources::default())?;
     d.solve_matrix()
 }
 
@@ -364,7 +370,13 @@ fn penalty_rejects_bad_weights() {
     let (mesh, cs) = handle_problem();
     let mut d = deformer(&mesh, LaplacianKind::Uniform, cs);
     for w in [0.0, -1.0, f64::NAN, 1e200] {
-        let err = d.precompute(&Penalty::new(w)).err().unwrap();
+        let err = d
+            .refactor_with(
+                &Penalty::new(w),
+                &lse_deform::resources::Resources::default(),
+            )
+            .err()
+            .unwrap();
         assert!(
             matches!(err, Error::Problem(ProblemError::InvalidArgument { .. })),
             "{w}: {err}"
@@ -498,7 +510,13 @@ fn elimination_refuses_other_kinds_and_skips_repeated_positions() {
         target: p[3],
     });
     let mut d = deformer(&mesh, LaplacianKind::Cotangent, vec![pos(0, p[0]), edge]);
-    let err = d.precompute(&Elimination::default()).err().unwrap();
+    let err = d
+        .refactor_with(
+            &Elimination::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .err()
+        .unwrap();
     assert!(
         matches!(
             err,
@@ -515,7 +533,13 @@ fn elimination_refuses_other_kinds_and_skips_repeated_positions() {
         vector: [0.1, 0.0, 0.0],
     });
     let mut d = deformer(&mesh, LaplacianKind::Uniform, vec![pos(0, p[0]), relative]);
-    let err = d.precompute(&Elimination::default()).err().unwrap();
+    let err = d
+        .refactor_with(
+            &Elimination::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .err()
+        .unwrap();
     assert!(matches!(
         err,
         Error::Problem(ProblemError::Unsupported {

@@ -28,8 +28,12 @@ fn null_space_on_every_back_end_matches_the_dense_reference_and_names_dependent_
                     ..FormulationChoice::new(Method::NullSpaceQr)
                 };
                 let f = choice.build().unwrap();
-                let mut solver = LseSolver::new(lse.problem.clone());
-                solver.precompute(f.as_ref()).unwrap();
+                let mut solver = LseSolver::with_formulation(
+                    lse.problem.clone(),
+                    f.as_ref(),
+                    &lse_deform::resources::Resources::default(),
+                )
+                .unwrap();
                 let x = solver.solve().unwrap();
                 assert_eq!((x.nrows(), x.ncols()), (40, k));
                 let diff = relative_difference(&x, &reference);
@@ -59,14 +63,22 @@ fn kkt_penalty_and_elimination_solve_general_problems() {
         Box::new(Kkt::default()) as Box<dyn Formulation>,
         Box::new(Kkt::simplicial()),
     ] {
-        let mut solver = LseSolver::new(lse.problem.clone());
-        solver.precompute(f.as_ref()).unwrap();
+        let mut solver = LseSolver::with_formulation(
+            lse.problem.clone(),
+            f.as_ref(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
         let x = solver.solve().unwrap();
         assert!(relative_difference(&x, &reference) < 1e-9);
     }
     // Penalty: the hard rows hold to O(1/w²).
-    let mut solver = LseSolver::new(lse.problem.clone());
-    solver.precompute(&lse_deform::Penalty::new(1e4)).unwrap();
+    let mut solver = LseSolver::with_formulation(
+        lse.problem.clone(),
+        &lse_deform::Penalty::new(1e4),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let x = solver.solve().unwrap();
     assert!(relative_difference(&x, &reference) < 1e-5);
     assert!(solver.report().max_constraint_residual < 1e-5);
@@ -90,10 +102,12 @@ fn kkt_penalty_and_elimination_solve_general_problems() {
     .unwrap();
     let d = Mat::from_fn(2, 1, |i, _| if i == 0 { 0.0 } else { 2.0 * 5.0 });
     let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref()).unwrap();
-    let mut solver = LseSolver::new(problem);
-    solver
-        .precompute(&lse_deform::Elimination::default())
-        .unwrap();
+    let mut solver = LseSolver::with_formulation(
+        problem,
+        &lse_deform::Elimination::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let x = solver.solve().unwrap();
     // A chain with both ends fixed: the straight line 0, 1, ..., 5.
     for i in 0..n {
@@ -207,8 +221,11 @@ fn a_singular_general_problem_names_the_free_unknown() {
         Box::new(Kkt::default()),
     ];
     for f in formulations {
-        let mut solver = LseSolver::new(problem.clone());
-        let err = solver.precompute(f.as_ref()).unwrap_err();
+        let mut solver =
+            LseSolver::new(problem.clone(), &lse_deform::SolveOptions::default()).unwrap();
+        let err = solver
+            .refactor_with(f.as_ref(), &lse_deform::resources::Resources::default())
+            .unwrap_err();
         match &err {
             Error::Numerical(NumericalError::FreeUnknown { unknown, .. }) => {
                 assert!([2, 3].contains(unknown), "{}: {err}", f.name());
@@ -223,8 +240,12 @@ fn a_singular_general_problem_names_the_free_unknown() {
 #[test]
 fn solve_into_matches_solve_and_checks_its_output_shape() {
     let lse = random_lse(25, 8, 2, 3, 11);
-    let mut solver = LseSolver::new(lse.problem.clone());
-    solver.precompute(&NullSpaceQr::default()).unwrap();
+    let mut solver = LseSolver::with_formulation(
+        lse.problem.clone(),
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let x = solver.solve().unwrap();
     assert!(solver.report().forward_error_estimate.is_some());
     let mut y = Mat::<f64>::zeros(25, 3);
@@ -297,8 +318,14 @@ fn grid_deformer() -> Deformer {
         .in_group("handle"),
     )
     .unwrap();
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    let d = Deformer::with_formulation(
+        mesh,
+        LaplacianKind::Cotangent,
+        set,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     d
 }
 
@@ -407,8 +434,7 @@ proptest::proptest! {
     /// rows are the constructed ones, and X equals the dense oracle's.
     #[test]
     fn random_general_problems_match_the_oracle(lse in lse_deform::testing::random_lses()) {
-        let mut solver = LseSolver::new(lse.problem.clone());
-        solver.precompute(&NullSpaceQr::default()).unwrap();
+        let mut solver = LseSolver::with_formulation(lse.problem.clone(), &NullSpaceQr::default(), &lse_deform::resources::Resources::default()).unwrap();
         let x = solver.solve().unwrap();
         let report = solver.report();
         proptest::prop_assert_eq!(report.rank, Some(lse.independent_rows.len()));
@@ -431,8 +457,7 @@ proptest::proptest! {
         let base = lse_deform::testing::independent_constraints(&mesh, &mut rng, 6, false);
         let added = lse_deform::testing::dependent_constraints(&base, &mut rng, 3);
         let all: Vec<Constraint> = base.iter().chain(&added).cloned().collect();
-        let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, ConstraintSet::from_vec(all).unwrap()).unwrap();
-        d.precompute(&NullSpaceQr::default()).unwrap();
+        let mut d = Deformer::with_formulation(mesh, LaplacianKind::Cotangent, ConstraintSet::from_vec(all).unwrap(), &NullSpaceQr::default(), &lse_deform::resources::Resources::default()).unwrap();
         d.solve_matrix().unwrap();
         proptest::prop_assert_eq!(d.report().rank, Some(base.len()));
         proptest::prop_assert_eq!(d.report().redundant.clone(), (6..9).collect::<Vec<_>>());
@@ -899,8 +924,12 @@ fn the_recorded_general_case_keeps_its_rank_and_dependent_rows() {
             qr: q.into(),
             ..FormulationChoice::new(Method::NullSpaceQr)
         };
-        let mut solver = LseSolver::new(problem.clone());
-        solver.precompute(choice.build().unwrap().as_ref()).unwrap();
+        let mut solver = LseSolver::with_formulation(
+            problem.clone(),
+            choice.build().unwrap().as_ref(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
         let x = solver.solve().unwrap();
         let report = solver.report();
         assert_eq!(report.rank, Some(kept.len()), "{q}");

@@ -58,12 +58,17 @@ fn basis_vs_full_solve(
     let diagonal = mesh.bbox_diagonal();
     let n = mesh.n_vertices();
     let set = ConstraintSet::from_vec(constraints)?;
-    let mut deformer = Deformer::new(mesh, LaplacianKind::Cotangent, set)?;
+    let mut deformer = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        set,
+        &lse_deform::SolveOptions::default(),
+    )?;
     // Auto for every formulation: penalty's refinement is the method of
     // multipliers, which makes it exact (unrefined, its own forward error
     // of about w²·ε·κ would be compared, not the basis).
     deformer.solver_mut().set_refine(Some(Refine::Auto));
-    deformer.precompute(formulation)?;
+    deformer.refactor_with(formulation, &lse_deform::resources::Resources::default())?;
     let basis = HandleBasis::new(&mut deformer, groups)?;
     let mut out = vec![[0.0; 3]; n];
     let mut out_f32 = vec![[0.0f32; 3]; n];
@@ -210,13 +215,14 @@ fn translation_moves_handle_vertices_exactly_and_fixed_ones_not_at_all() {
         h.group = Some("handle".into());
         cs.push(h);
     }
-    let mut deformer = Deformer::new(
+    let mut deformer = Deformer::with_formulation(
         mesh,
         LaplacianKind::Cotangent,
         ConstraintSet::from_vec(cs).unwrap(),
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
     )
     .unwrap();
-    deformer.precompute(&NullSpaceQr::default()).unwrap();
     let basis = HandleBasis::new(&mut deformer, &["fixed", "handle"]).unwrap();
     let mut out = vec![[0.0; 3]; 49];
     let shift = [
@@ -249,11 +255,17 @@ fn bad_requests_are_typed_errors() {
         mesh,
         LaplacianKind::Cotangent,
         ConstraintSet::from_vec(vec![c]).unwrap(),
+        &lse_deform::SolveOptions::default(),
     )
     .unwrap();
     // Before precompute.
     assert!(HandleBasis::new(&mut deformer, &["h"]).is_err());
-    deformer.precompute(&NullSpaceQr::default()).unwrap();
+    deformer
+        .refactor_with(
+            &NullSpaceQr::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
     let unknown = HandleBasis::new(&mut deformer, &["nope"])
         .unwrap_err()
         .to_string();

@@ -24,7 +24,7 @@ use lse_deform::{
 // Meshes
 
 fn mesh_err(text: &[u8], format: MeshFormat) -> MeshError {
-    match read_mesh_bytes(text, format) {
+    match read_mesh_bytes(text, format, lse_deform::limits::MemoryBudget::default()) {
         Ok(m) => panic!(
             "expected an error, got a mesh of {} vertices",
             m.mesh.n_vertices()
@@ -67,7 +67,13 @@ fn the_valid_files_of_this_catalogue_load() {
         (TETRA_OFF, MeshFormat::Off),
         (TETRA_PLY, MeshFormat::Ply),
     ] {
-        let m = read_mesh_bytes(text.as_bytes(), format).unwrap().mesh;
+        let m = read_mesh_bytes(
+            text.as_bytes(),
+            format,
+            lse_deform::limits::MemoryBudget::default(),
+        )
+        .unwrap()
+        .mesh;
         assert_eq!((m.n_vertices(), m.faces().len()), (4, 4));
     }
 }
@@ -142,7 +148,12 @@ fn binary_ply_with_a_wrong_element_count() {
 #[test]
 fn polygons_are_fan_triangulated_with_a_note() {
     let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
-    let loaded = read_mesh_bytes(quad.as_bytes(), MeshFormat::Obj).unwrap();
+    let loaded = read_mesh_bytes(
+        quad.as_bytes(),
+        MeshFormat::Obj,
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap();
     assert_eq!(loaded.mesh.faces(), &[[0, 1, 2], [0, 2, 3]]);
     assert!(
         loaded.notes.iter().any(|n| n.contains("triangulated")),
@@ -182,7 +193,12 @@ fn face_indices_out_of_range_negative_or_repeated() {
     );
     // OBJ negative indices are relative (-1 = the last vertex), so only one
     // that reaches before the first vertex is out of range.
-    let ok = read_mesh_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n", MeshFormat::Obj).unwrap();
+    let ok = read_mesh_bytes(
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n",
+        MeshFormat::Obj,
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap();
     assert_eq!(ok.mesh.faces(), &[[0, 1, 2]]);
     let e = mesh_err(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 -2 -1\n", MeshFormat::Obj);
     expect!(
@@ -252,6 +268,7 @@ fn zero_area_and_duplicate_faces() {
     let loaded = read_mesh_bytes(
         b"v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 4\nf 1 3 2\n",
         MeshFormat::Obj,
+        lse_deform::limits::MemoryBudget::default(),
     )
     .unwrap();
     let warnings: Vec<String> = loaded
@@ -303,7 +320,12 @@ fn zero_area_and_duplicate_faces() {
 fn non_manifold_edges_are_accepted_with_a_warning_and_deform() {
     // Three triangles on edge (0, 1): not a manifold.
     let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n";
-    let loaded = read_mesh_bytes(obj, MeshFormat::Obj).unwrap();
+    let loaded = read_mesh_bytes(
+        obj,
+        MeshFormat::Obj,
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap();
     assert_eq!(
         lse_deform::mesh::Topology::of(&loaded.mesh).n_non_manifold_edges,
         1
@@ -331,8 +353,14 @@ fn non_manifold_edges_are_accepted_with_a_warning_and_deform() {
             .collect(),
     )
     .unwrap();
-    let mut d = Deformer::new(loaded.mesh, LaplacianKind::Cotangent, cs).unwrap();
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    let mut d = Deformer::with_formulation(
+        loaded.mesh,
+        LaplacianKind::Cotangent,
+        cs,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let s = d.solve().unwrap();
     assert!(s.positions.iter().flatten().all(|c| c.is_finite()));
     assert_eq!(
@@ -375,16 +403,27 @@ fn set(cs: Vec<Constraint>) -> ConstraintSet {
 #[test]
 fn a_component_no_constraint_pins_is_named() {
     let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 0 0\nv 6 0 0\nv 5 1 0\nf 1 2 3\nf 4 5 6\n";
-    let mesh = read_mesh_bytes(obj, MeshFormat::Obj).unwrap().mesh;
+    let mesh = read_mesh_bytes(
+        obj,
+        MeshFormat::Obj,
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh;
     // A relative constraint on the second triangle does not pin it.
     let rel = Constraint::hard(ConstraintKind::Relative {
         vertices: [3, 4],
         vector: [1.0, 0.0, 0.0],
     });
     let cs = set(vec![pos(0, [0.0; 3]), rel]);
-    let e = Deformer::new(mesh, LaplacianKind::Cotangent, cs)
-        .err()
-        .unwrap();
+    let e = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )
+    .err()
+    .unwrap();
     expect!(
         e,
         Error::Problem(ProblemError::UnpinnedComponent {
@@ -400,9 +439,14 @@ fn a_component_no_constraint_pins_is_named() {
 #[test]
 fn no_constraints_and_relative_constraints_alone() {
     let mesh = generate::grid(4, 4).unwrap();
-    let e = Deformer::new(mesh.clone(), LaplacianKind::Uniform, ConstraintSet::new())
-        .err()
-        .unwrap();
+    let e = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Uniform,
+        ConstraintSet::new(),
+        &lse_deform::SolveOptions::default(),
+    )
+    .err()
+    .unwrap();
     expect!(
         e,
         Error::Problem(ProblemError::NoConstraints),
@@ -412,9 +456,14 @@ fn no_constraints_and_relative_constraints_alone() {
         vertices: [0, 1],
         vector: [1.0, 0.0, 0.0],
     });
-    let e = Deformer::new(mesh, LaplacianKind::Uniform, set(vec![rel]))
-        .err()
-        .unwrap();
+    let e = Deformer::new(
+        mesh,
+        LaplacianKind::Uniform,
+        set(vec![rel]),
+        &lse_deform::SolveOptions::default(),
+    )
+    .err()
+    .unwrap();
     expect!(
         e,
         Error::Problem(ProblemError::UnpinnedComponent { .. }),
@@ -525,7 +574,11 @@ fn a_repeated_key_at_any_depth_is_refused_with_its_line() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("c.json");
     std::fs::write(&path, cases[0].0).unwrap();
-    let e = lse_deform::constraints::read_constraints_file(&path).unwrap_err();
+    let e = lse_deform::constraints::read_constraints_file(
+        &path,
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap_err();
     std::fs::remove_dir_all(&dir).unwrap();
     assert!(
         matches!(
@@ -693,8 +746,14 @@ fn no_constraint_row_is_all_zero() {
 fn target_updates_are_checked_and_change_nothing_when_refused() {
     let mesh = generate::grid(2, 2).unwrap();
     let cs = set(vec![pos(0, [0.0; 3]), pos(8, [1.0, 1.0, 0.3])]);
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs).unwrap();
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    let mut d = Deformer::with_formulation(
+        mesh,
+        LaplacianKind::Cotangent,
+        cs,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     expect!(
         d.set_target(1, [0.0, f64::NAN, 0.0]).unwrap_err(),
         Error::Constraint(ConstraintError::NonFinite {
@@ -720,9 +779,19 @@ fn target_updates_are_checked_and_change_nothing_when_refused() {
 fn a_target_too_large_for_the_mesh_units_says_so() {
     let mesh = generate::grid(2, 2).unwrap();
     let cs = set(vec![pos(0, [0.0; 3]), pos(8, [1.0, 1.0, 0.3])]);
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs).unwrap();
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     assert!(d.length_unit() < 1.0);
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    d.refactor_with(
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let huge = [f64::MAX, 0.0, 0.0];
     for e in [
         d.set_target(1, huge).unwrap_err(),
@@ -731,6 +800,7 @@ fn a_target_too_large_for_the_mesh_units_says_so() {
             mesh,
             LaplacianKind::Cotangent,
             set(vec![pos(0, [0.0; 3]), pos(8, huge)]),
+            &lse_deform::SolveOptions::default(),
         )
         .err()
         .unwrap(),
@@ -772,13 +842,25 @@ fn a_soft_weight_too_large_is_refused_up_front() {
     };
     for kind in [LaplacianKind::Cotangent, LaplacianKind::Uniform] {
         let unit_power = kind.inverse_length_power();
-        let unit = Deformer::new(mesh.clone(), kind, soft(1.0))
-            .unwrap()
-            .length_unit();
+        let unit = Deformer::new(
+            mesh.clone(),
+            kind,
+            soft(1.0),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap()
+        .length_unit();
         // The row weight is w ℓᵃ: refused above √(f64::MAX) ≈ 1.34e154.
         let scale = unit.powi(unit_power);
         for w in [1e308, 1e200 / scale, 1.35e154 / scale] {
-            let e = Deformer::new(mesh.clone(), kind, soft(w)).err().unwrap();
+            let e = Deformer::new(
+                mesh.clone(),
+                kind,
+                soft(w),
+                &lse_deform::SolveOptions::default(),
+            )
+            .err()
+            .unwrap();
             let msg = expect!(
                 e,
                 Error::Numerical(NumericalError::SoftWeightTooLarge { index: 2, .. }),
@@ -791,9 +873,23 @@ fn a_soft_weight_too_large_is_refused_up_front() {
         // Below the bound: accepted at set-up (whether a factorisation
         // then keeps its digits is the solve's business), and a large
         // weight that does keep them holds the soft target.
-        assert!(Deformer::new(mesh.clone(), kind, soft(1.3e154 / scale)).is_ok());
-        let mut d = Deformer::new(mesh.clone(), kind, soft(1e100 / scale)).unwrap();
-        d.precompute(&NullSpaceQr::default()).unwrap();
+        assert!(
+            Deformer::new(
+                mesh.clone(),
+                kind,
+                soft(1.3e154 / scale),
+                &lse_deform::SolveOptions::default()
+            )
+            .is_ok()
+        );
+        let mut d = Deformer::with_formulation(
+            mesh.clone(),
+            kind,
+            soft(1e100 / scale),
+            &NullSpaceQr::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
         let x = d.solve().unwrap().positions[40];
         assert!((x[2] - 0.2).abs() < 1e-6, "{kind:?}: {x:?}");
     }
@@ -832,8 +928,14 @@ fn conflicting_hard_constraints_are_reported_not_an_error() {
     let n = cs.len();
     cs.push(pos(0, [0.0, 0.0, 1.0])); // conflicts with constraint 0
     cs.push(cs[1].clone()); // repeats constraint 1: redundant
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set(cs)).unwrap();
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    let mut d = Deformer::with_formulation(
+        mesh,
+        LaplacianKind::Cotangent,
+        set(cs),
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let s = d.solve().unwrap();
     assert_eq!(s.report.redundant, vec![n + 1]);
     assert_eq!(s.report.conflicting.len(), 1);
@@ -899,21 +1001,28 @@ fn many_conflicts_are_warned_one_by_one_then_counted() {
             "{what}: {warnings:?}"
         );
     };
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set(cs.clone())).unwrap();
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    let mut d = Deformer::with_formulation(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        set(cs.clone()),
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let s = d.solve().unwrap();
     assert_eq!(s.report.conflicting.len(), 15);
     check(&s.report.warnings, "laplacian");
     // A second solve does not repeat them.
     let again = d.solve().unwrap();
     assert_eq!(again.report.warnings, s.report.warnings);
-    let mut arap = lse_deform::arap::ArapDeformer::new(
+    let mut arap = lse_deform::arap::ArapDeformer::with_formulation(
         mesh,
         set(cs),
         lse_deform::arap::ArapEnergy::SpokesAndRims,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
     )
     .unwrap();
-    arap.precompute(&NullSpaceQr::default()).unwrap();
     arap.initialize(lse_deform::arap::ArapInit::Linear).unwrap();
     arap.run(2, 0.0).unwrap();
     check(&arap.report().warnings, "arap");
@@ -926,11 +1035,23 @@ fn a_penalty_weight_too_large_is_a_breakdown_not_garbage() {
     // A relative constraint puts w²[1 −1; −1 1] on two unknowns; eliminating
     // the first cancels the second pivot to rounding once w² ≫ 1/ε.
     let (mesh, cs) = grid_scene(true);
-    let mut d = Deformer::new(mesh, LaplacianKind::Uniform, cs).unwrap();
-    d.precompute(&Penalty::new(1e4)).unwrap();
+    let mut d = Deformer::with_formulation(
+        mesh,
+        LaplacianKind::Uniform,
+        cs,
+        &Penalty::new(1e4),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     assert!(d.solve().is_ok(), "a moderate weight works");
     for w in [1e10, 1e12, 1e14] {
-        let e = match d.precompute(&Penalty::new(w)).and_then(|_| d.solve()) {
+        let e = match d
+            .refactor_with(
+                &Penalty::new(w),
+                &lse_deform::resources::Resources::default(),
+            )
+            .and_then(|_| d.solve())
+        {
             Ok(s) => panic!(
                 "w = {w:e}: expected a numerical error, got {:?}",
                 &s.positions[..2]
@@ -956,9 +1077,18 @@ fn a_redundant_constraint_makes_kkt_singular_and_says_which() {
     let mut cs = base.as_slice().to_vec();
     let n = cs.len();
     cs.push(cs[3].clone());
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set(cs)).unwrap();
+    let mut d = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        set(cs),
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     let e = d
-        .precompute(&Kkt::default())
+        .refactor_with(
+            &Kkt::default(),
+            &lse_deform::resources::Resources::default(),
+        )
         .and_then(|_| d.solve().map(|_| ()))
         .unwrap_err();
     expect!(
@@ -977,9 +1107,18 @@ fn sliver_meshes_solve_exactly_or_fail_with_a_reason() {
         .unwrap();
     let diag = mesh.bbox_diagonal();
     for kind in [LaplacianKind::Cotangent, LaplacianKind::Uniform] {
-        let mut d = Deformer::new(mesh.clone(), kind, cs.clone()).unwrap();
+        let mut d = Deformer::new(
+            mesh.clone(),
+            kind,
+            cs.clone(),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         match d
-            .precompute(&NullSpaceQr::default())
+            .refactor_with(
+                &NullSpaceQr::default(),
+                &lse_deform::resources::Resources::default(),
+            )
             .and_then(|_| d.solve())
         {
             Ok(s) => {
@@ -1014,10 +1153,17 @@ fn check_crowded(partners: usize, count: usize) {
     let (added, redundant, conflicting) = scene.expected(base_len);
     assert!(!redundant.is_empty() && !conflicting.is_empty());
     let shift = 0.01 * mesh.bbox_diagonal();
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs).unwrap();
+    let mut d = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     for qr in QrKind::available() {
         let f = nullspace_qr_with(qr);
-        d.precompute(f.as_ref()).unwrap();
+        d.refactor_with(f.as_ref(), &lse_deform::resources::Resources::default())
+            .unwrap();
         let s = d.solve().unwrap();
         let r = &s.report;
         // The base scene's position constraints are on distinct vertices.

@@ -89,7 +89,11 @@ fn a_header_declaring_more_than_memory_is_refused_before_reserving() {
     let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
     gz.write_all(text).unwrap();
     let bytes = gz.finish().unwrap();
-    match read_mesh_bytes(&bytes, MeshFormat::Off) {
+    match read_mesh_bytes(
+        &bytes,
+        MeshFormat::Off,
+        lse_deform::limits::MemoryBudget::default(),
+    ) {
         Err(e @ MeshError::TooLarge { .. }) => {
             let msg = e.to_string();
             assert!(msg.contains("1000000000000 vertices"), "{msg}");

@@ -15,15 +15,27 @@ use proptest::prelude::*;
 // helpers
 
 fn obj(text: &str) -> Result<lse_deform::mesh::LoadedMesh, MeshError> {
-    read_mesh_bytes(text.as_bytes(), MeshFormat::Obj)
+    read_mesh_bytes(
+        text.as_bytes(),
+        MeshFormat::Obj,
+        lse_deform::limits::MemoryBudget::default(),
+    )
 }
 
 fn off(text: &str) -> Result<lse_deform::mesh::LoadedMesh, MeshError> {
-    read_mesh_bytes(text.as_bytes(), MeshFormat::Off)
+    read_mesh_bytes(
+        text.as_bytes(),
+        MeshFormat::Off,
+        lse_deform::limits::MemoryBudget::default(),
+    )
 }
 
 fn ply(bytes: &[u8]) -> Result<lse_deform::mesh::LoadedMesh, MeshError> {
-    read_mesh_bytes(bytes, MeshFormat::Ply)
+    read_mesh_bytes(
+        bytes,
+        MeshFormat::Ply,
+        lse_deform::limits::MemoryBudget::default(),
+    )
 }
 
 fn bits(m: &Mesh) -> Vec<[u64; 3]> {
@@ -125,9 +137,13 @@ fn round_trip_in_memory_is_bit_identical_for_every_format() {
     for mesh in &meshes {
         for f in FORMATS {
             let bytes = write_to_vec(mesh, f);
-            let back = read_mesh_bytes(&bytes, format_of(f))
-                .unwrap_or_else(|e| panic!("{f}: {e}"))
-                .mesh;
+            let back = read_mesh_bytes(
+                &bytes,
+                format_of(f),
+                lse_deform::limits::MemoryBudget::default(),
+            )
+            .unwrap_or_else(|e| panic!("{f}: {e}"))
+            .mesh;
             assert_identical(mesh, &back);
         }
     }
@@ -148,7 +164,7 @@ fn round_trip_through_files_including_gzip() {
             name.to_ascii_lowercase().ends_with(".gz"),
             "{name}: gzip iff .gz"
         );
-        let loaded = read_mesh(&path).unwrap();
+        let loaded = read_mesh(&path, lse_deform::limits::MemoryBudget::default()).unwrap();
         assert_identical(&mesh, &loaded.mesh);
         assert!(loaded.notes.is_empty(), "{name}: {:?}", loaded.notes);
     }
@@ -166,11 +182,16 @@ fn gzip_is_detected_by_content_with_a_note() {
     let bytes = write_to_vec(&mesh, "obj");
     let path = dir.path("actually-gzipped.obj");
     std::fs::write(&path, gzip(&bytes)).unwrap();
-    let loaded = read_mesh(&path).unwrap();
+    let loaded = read_mesh(&path, lse_deform::limits::MemoryBudget::default()).unwrap();
     assert_identical(&mesh, &loaded.mesh);
     assert!(loaded.notes[0].contains("gzip-compressed"));
     // In memory as well.
-    let loaded = read_mesh_bytes(&gzip(&bytes), MeshFormat::Obj).unwrap();
+    let loaded = read_mesh_bytes(
+        &gzip(&bytes),
+        MeshFormat::Obj,
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap();
     assert_identical(&mesh, &loaded.mesh);
 }
 
@@ -180,7 +201,11 @@ fn truncated_or_corrupt_gzip_is_an_error() {
     let gz = gzip(&write_to_vec(&mesh, "obj"));
     // Cut: the stream ends early (no silently smaller mesh).
     for cut in [gz.len() / 2, gz.len() - 4] {
-        match read_mesh_bytes(&gz[..cut], MeshFormat::Obj) {
+        match read_mesh_bytes(
+            &gz[..cut],
+            MeshFormat::Obj,
+            lse_deform::limits::MemoryBudget::default(),
+        ) {
             Err(MeshError::Parse { message, .. }) => {
                 assert!(message.contains("could not read the data"), "{message}")
             }
@@ -191,7 +216,7 @@ fn truncated_or_corrupt_gzip_is_an_error() {
     let dir = TempDir::new("gzcut");
     let path = dir.path("cut.obj.gz");
     std::fs::write(&path, &gz[..gz.len() / 2]).unwrap();
-    match read_mesh(&path).unwrap_err() {
+    match read_mesh(&path, lse_deform::limits::MemoryBudget::default()).unwrap_err() {
         Error::Io { path: p, source } => {
             assert_eq!(p, path);
             assert!(source.to_string().contains("gzip"), "{source}");
@@ -223,7 +248,11 @@ fn format_from_path() {
         f("noextension").unwrap_err(),
         MeshError::UnsupportedFormat { .. }
     ));
-    let e = read_mesh(Path::new("/nonexistent/dir/m.obj")).unwrap_err();
+    let e = read_mesh(
+        Path::new("/nonexistent/dir/m.obj"),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e}");
     assert!(e.to_string().contains("/nonexistent/dir/m.obj"));
 }
@@ -895,7 +924,13 @@ fn off_counts_larger_than_the_file() {
         other => panic!("{other:?}"),
     }
     // Gzip hides the size: the reader finds out at the end of the data.
-    match read_mesh_bytes(&gzip(text.as_bytes()), MeshFormat::Off).unwrap_err() {
+    match read_mesh_bytes(
+        &gzip(text.as_bytes()),
+        MeshFormat::Off,
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap_err()
+    {
         MeshError::Parse { message, .. } => {
             assert!(
                 message.contains("after 4 of the 1000000 vertices"),
@@ -1010,7 +1045,8 @@ fn apply(bytes: &mut Vec<u8>, m: &Mutation) {
 
 fn check_no_panic(bytes: &[u8], format: MeshFormat) {
     // Any result is fine; a valid result must be a valid mesh.
-    if let Ok(loaded) = read_mesh_bytes(bytes, format) {
+    if let Ok(loaded) = read_mesh_bytes(bytes, format, lse_deform::limits::MemoryBudget::default())
+    {
         let m = loaded.mesh;
         assert!(Mesh::new(m.positions().to_vec(), m.faces().to_vec()).is_ok());
     }
@@ -1056,7 +1092,10 @@ proptest! {
 #[test]
 fn every_seed_file_is_valid_and_every_single_truncation_is_handled() {
     for (format, bytes) in seeds() {
-        assert!(read_mesh_bytes(&bytes, format).is_ok(), "{format:?}");
+        assert!(
+            read_mesh_bytes(&bytes, format, lse_deform::limits::MemoryBudget::default()).is_ok(),
+            "{format:?}"
+        );
         for cut in 0..bytes.len() {
             check_no_panic(&bytes[..cut], format);
         }

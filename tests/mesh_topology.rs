@@ -689,7 +689,8 @@ fn real_meshes_match_the_readme_table() {
             eprintln!("skipped {file}: not found");
             continue;
         }
-        let loaded = read_mesh(&path).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let loaded = read_mesh(&path, lse_deform::limits::MemoryBudget::default())
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
         assert!(loaded.notes.is_empty(), "{file}: {:?}", loaded.notes);
         let m = loaded.mesh;
         let t = Topology::of(&m);
@@ -728,9 +729,12 @@ fn real_meshes_match_the_readme_table() {
 #[ignore]
 fn igea_537k_gz_matches_the_readme_table() {
     let Some(dir) = mesh_dir() else { return };
-    let m = read_mesh(&dir.join("igea-537k-subdiv.obj.gz"))
-        .unwrap()
-        .mesh;
+    let m = read_mesh(
+        &dir.join("igea-537k-subdiv.obj.gz"),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh;
     let t = Topology::of(&m);
     let q = Quality::of(&m);
     assert_eq!((m.n_vertices(), m.n_faces()), (537_374, 1_074_744));

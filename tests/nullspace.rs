@@ -67,8 +67,13 @@ fn solve(
     constraints: Vec<Constraint>,
 ) -> Result<(Deformer, faer::Mat<f64>), Error> {
     let set = ConstraintSet::from_vec(constraints).unwrap();
-    let mut d = Deformer::new(mesh.clone(), kind, set)?;
-    d.precompute(&NullSpaceQr::default())?;
+    let mut d = Deformer::with_formulation(
+        mesh.clone(),
+        kind,
+        set,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     let x = d.solve_matrix()?;
     Ok((d, x))
 }
@@ -255,10 +260,19 @@ fn no_hard_constraint_solves_like_the_other_methods() {
     let mut general = Vec::new();
     for choice in &choices {
         let formulation = choice.build().unwrap();
-        let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, set.clone()).unwrap();
+        let mut d = Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Cotangent,
+            set.clone(),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         assert_eq!(d.problem().b().nrows(), 0);
-        d.precompute(formulation.as_ref())
-            .unwrap_or_else(|e| panic!("{:?}: {e}", choice.method));
+        d.refactor_with(
+            formulation.as_ref(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap_or_else(|e| panic!("{:?}: {e}", choice.method));
         solutions.push(d.solve_matrix().unwrap());
         // The same matrices as a general problem.
         let problem = d.problem();
@@ -272,9 +286,12 @@ fn no_hard_constraint_solves_like_the_other_methods() {
             problem.d().as_ref(),
         )
         .unwrap();
-        let mut solver = LseSolver::new(parts);
+        let mut solver = LseSolver::new(parts, &lse_deform::SolveOptions::default()).unwrap();
         solver
-            .precompute(formulation.as_ref())
+            .refactor_with(
+                formulation.as_ref(),
+                &lse_deform::resources::Resources::default(),
+            )
             .unwrap_or_else(|e| panic!("{:?} (general): {e}", choice.method));
         general.push(solver.solve().unwrap());
     }
@@ -385,9 +402,14 @@ fn unpinned_component_is_named_before_factorising() {
         })
     };
     let set = ConstraintSet::from_vec(vec![pos(0), rel(4, 3)]).unwrap();
-    let err = Deformer::new(mesh.clone(), LaplacianKind::Uniform, set)
-        .err()
-        .unwrap();
+    let err = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Uniform,
+        set,
+        &lse_deform::SolveOptions::default(),
+    )
+    .err()
+    .unwrap();
     assert!(
         matches!(
             err,
@@ -401,19 +423,37 @@ fn unpinned_component_is_named_before_factorising() {
     );
     // A relative constraint across the components pins the second one.
     let set = ConstraintSet::from_vec(vec![pos(0), rel(4, 0)]).unwrap();
-    assert!(Deformer::new(mesh.clone(), LaplacianKind::Uniform, set).is_ok());
+    assert!(
+        Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Uniform,
+            set,
+            &lse_deform::SolveOptions::default()
+        )
+        .is_ok()
+    );
     // Relative constraints alone pin nothing.
     let set = ConstraintSet::from_vec(vec![rel(1, 0), rel(4, 3)]).unwrap();
-    let err = Deformer::new(mesh.clone(), LaplacianKind::Uniform, set)
-        .err()
-        .unwrap();
+    let err = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Uniform,
+        set,
+        &lse_deform::SolveOptions::default(),
+    )
+    .err()
+    .unwrap();
     assert!(matches!(
         err,
         Error::Problem(ProblemError::UnpinnedComponent { component: 0, .. })
     ));
     // No constraints at all.
-    let err = Deformer::new(mesh, LaplacianKind::Uniform, ConstraintSet::new())
-        .err()
-        .unwrap();
+    let err = Deformer::new(
+        mesh,
+        LaplacianKind::Uniform,
+        ConstraintSet::new(),
+        &lse_deform::SolveOptions::default(),
+    )
+    .err()
+    .unwrap();
     assert!(matches!(err, Error::Problem(ProblemError::NoConstraints)));
 }

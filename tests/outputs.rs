@@ -177,7 +177,10 @@ fn writes_leave_no_temporary_files() {
         ]);
         assert!(o.status.success(), "{}", stderr(&o));
     }
-    let m = lse_deform::mesh::read_mesh(Path::new(&out)).unwrap().mesh;
+    let m =
+        lse_deform::mesh::read_mesh(Path::new(&out), lse_deform::limits::MemoryBudget::default())
+            .unwrap()
+            .mesh;
     assert_eq!(m.n_vertices(), 900);
     assert_eq!(
         names(dir.path()),

@@ -345,7 +345,13 @@ fn scene() -> Deformer {
     let constraints = FixedAndHandle::paper_default(&mesh)
         .constraints(&mesh)
         .unwrap();
-    Deformer::new(mesh, LaplacianKind::Cotangent, constraints).unwrap()
+    Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        constraints,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -353,7 +359,11 @@ fn the_report_names_the_pcg_back_end_and_its_solution_is_the_defaults() {
     let mut d = scene();
     let pcg: Arc<dyn SpdBackend> = Arc::new(JacobiPcg::default());
     let qr = QrKind::SparseGivens.backend().unwrap();
-    d.precompute(&NullSpaceQr::new(qr, pcg)).unwrap();
+    d.refactor_with(
+        &NullSpaceQr::new(qr, pcg),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let x = d.solve_matrix().unwrap();
     let report = serde_json::to_value(d.report()).unwrap();
     assert_eq!(report["factor_backend"], NAME);
@@ -366,7 +376,11 @@ fn the_report_names_the_pcg_back_end_and_its_solution_is_the_defaults() {
     let dim = r.vertices - r.rank.unwrap();
     let normal = r.nnz.normal.unwrap();
     assert_eq!(r.nnz.factor, Some((normal + dim) / 2));
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    d.refactor_with(
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let reference = d.solve_matrix().unwrap();
     let diff = relative_difference(&x, &reference);
     assert!(diff < 1e-10, "{diff:e} from faer's Cholesky");
@@ -457,10 +471,10 @@ fn compare_lists_the_pcg_back_end_beside_the_builtins() {
 fn the_precompute_breakdown_with_the_pcg_back_end() {
     let mut d = scene();
     let pcg: Arc<dyn SpdBackend> = Arc::new(JacobiPcg::default());
-    d.precompute(&NullSpaceQr::new(
-        QrKind::SparseGivens.backend().unwrap(),
-        pcg,
-    ))
+    d.refactor_with(
+        &NullSpaceQr::new(QrKind::SparseGivens.backend().unwrap(), pcg),
+        &lse_deform::resources::Resources::default(),
+    )
     .unwrap();
     d.solve_matrix().unwrap();
     let t = &d.report().timings_s;

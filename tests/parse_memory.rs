@@ -119,7 +119,9 @@ fn parsing_holds_the_constraints_not_a_document_tree() {
     let path = dir.path().join("c.json");
     std::fs::write(&path, &text).unwrap();
     drop(text);
-    let (again, from_file) = peak_during(|| read_constraints_file(&path).unwrap());
+    let (again, from_file) = peak_during(|| {
+        read_constraints_file(&path, lse_deform::limits::MemoryBudget::default()).unwrap()
+    });
     let size = std::fs::metadata(&path).unwrap().len() as f64;
     let ratio = from_file as f64 / size;
     eprintln!("read_constraints_file: peak {from_file} bytes ({ratio:.2} per byte of the file)");

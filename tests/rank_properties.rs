@@ -557,7 +557,13 @@ fn check_method(
 
 fn check_mix(mix: &ConstructedMix, kind: LaplacianKind) -> Result<(), TestCaseError> {
     let set = ConstraintSet::from_vec(mix.constraints.clone()).unwrap();
-    let mut d = Deformer::new(mix.mesh.clone(), kind, set).unwrap();
+    let mut d = Deformer::new(
+        mix.mesh.clone(),
+        kind,
+        set,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     let problem = d.problem().clone();
     let kept_rows: Vec<usize> = mix.kept.iter().map(|&i| hard_row(&problem, i)).collect();
     let reference = accurate_reference(&problem, &kept_rows);
@@ -576,7 +582,7 @@ fn check_mix(mix: &ConstructedMix, kind: LaplacianKind) -> Result<(), TestCaseEr
             let f = formulation(method, qr);
             d.solver_mut().set_refine(Some(refine));
             let outcome = d
-                .precompute(f.as_ref())
+                .refactor_with(f.as_ref(), &lse_deform::resources::Resources::default())
                 .and_then(|()| d.solve_matrix())
                 .map(|x| (x, d.report().clone()));
             let again = solve_again(refine, outcome.is_ok(), || {
@@ -635,14 +641,15 @@ fn check_lse(lse: &ConstructedLse) -> Result<(), TestCaseError> {
         scaled_rows: lse.row_scales.iter().any(|&e| e != 0),
         tiny_entries: &[],
     };
-    let mut solver = LseSolver::new(lse.problem.clone());
+    let mut solver =
+        LseSolver::new(lse.problem.clone(), &lse_deform::SolveOptions::default()).unwrap();
     let mut violations = Vec::new();
     for (label, method, qr) in configurations(false) {
         for refine in [Refine::EstimateOnly, Refine::Auto] {
             let f = formulation(method, qr);
             solver.set_refine(Some(refine));
             let outcome = solver
-                .precompute(f.as_ref())
+                .refactor_with(f.as_ref(), &lse_deform::resources::Resources::default())
                 .and_then(|()| solver.solve())
                 .map(|x| (x, solver.report().clone()));
             let again = solve_again(refine, outcome.is_ok(), || {
@@ -715,10 +722,18 @@ fn an_edge_with_t_near_the_largest_double_is_conflicting_not_redundant() {
     .unwrap();
     for qr in [QrKind::SparseGivens, QrKind::DenseHouseholder] {
         let method = (Method::NullSpaceQr, qr);
-        let mut deformer =
-            Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone()).unwrap();
+        let mut deformer = Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Cotangent,
+            cs.clone(),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         deformer
-            .precompute(formulation(method.0, method.1).as_ref())
+            .refactor_with(
+                formulation(method.0, method.1).as_ref(),
+                &lse_deform::resources::Resources::default(),
+            )
             .unwrap();
         let report = deformer.solve().unwrap().report;
         assert!(
@@ -768,7 +783,13 @@ fn kkt_refusals_are_told_apart_by_their_messages() {
     };
     let deformer = |mesh: &lse_deform::mesh::Mesh, cs: Vec<Constraint>| {
         let cs = ConstraintSet::from_vec(cs).unwrap();
-        Deformer::new(mesh.clone(), LaplacianKind::Uniform, cs).unwrap()
+        Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Uniform,
+            cs,
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap()
     };
     let kkt = formulation(Method::Kkt, QrKind::SparseGivens);
     let relative = Constraint::hard(ConstraintKind::Relative {
@@ -781,15 +802,20 @@ fn kkt_refusals_are_told_apart_by_their_messages() {
         target: [1.5, 1.0, 0.0],
     });
     let mut held = deformer(&two, vec![pin(0), pin(n - 1), relative, bridge]);
-    let vertex = held.precompute(kkt.as_ref()).expect_err("KKT refuses");
+    let vertex = held
+        .refactor_with(kkt.as_ref(), &lse_deform::resources::Resources::default())
+        .expect_err("KKT refuses");
     assert!(vertex_pivot_lost(&vertex), "{vertex}");
     assert_eq!(kkt_names(&vertex), None, "{vertex}");
     // The problem itself is sound: the null-space method solves it.
-    held.precompute(formulation(Method::NullSpaceQr, QrKind::SparseGivens).as_ref())
-        .unwrap();
+    held.refactor_with(
+        formulation(Method::NullSpaceQr, QrKind::SparseGivens).as_ref(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let mut pinned_twice = deformer(&grid, vec![pin(0), pin(n - 1), pin(0)]);
     let duplicate = pinned_twice
-        .precompute(kkt.as_ref())
+        .refactor_with(kkt.as_ref(), &lse_deform::resources::Resources::default())
         .expect_err("KKT refuses");
     assert_eq!(kkt_names(&duplicate), Some(2), "{duplicate}");
     assert!(!vertex_pivot_lost(&duplicate), "{duplicate}");

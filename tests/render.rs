@@ -188,14 +188,20 @@ fn a_deformation_that_collapses_a_face_renders_and_reads_back() {
     let mesh = path_in(dir.path(), "grid.obj");
     let o = run(&["generate", "grid", "--vertices", "100", "-o", &mesh]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let first = lse_deform::mesh::read_mesh(Path::new(&mesh))
-        .unwrap()
-        .mesh
-        .faces()[0];
-    let last = lse_deform::mesh::read_mesh(Path::new(&mesh))
-        .unwrap()
-        .mesh
-        .n_vertices()
+    let first = lse_deform::mesh::read_mesh(
+        Path::new(&mesh),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh
+    .faces()[0];
+    let last = lse_deform::mesh::read_mesh(
+        Path::new(&mesh),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh
+    .n_vertices()
         - 1;
     let mut constraints: Vec<String> = first
         .iter()
@@ -215,7 +221,11 @@ fn a_deformation_that_collapses_a_face_renders_and_reads_back() {
     assert!(o.status.success(), "{}", stderr(&o));
 
     // Read back: a warning, not an error.
-    let loaded = lse_deform::mesh::read_mesh(Path::new(&collapsed)).unwrap();
+    let loaded = lse_deform::mesh::read_mesh(
+        Path::new(&collapsed),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap();
     let warnings: Vec<String> = loaded
         .mesh
         .warnings()

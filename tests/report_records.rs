@@ -18,25 +18,34 @@ use lse_deform::{Deformer, LaplacianKind, Method};
 
 fn deformer() -> Deformer {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/report_shape");
-    let mesh = read_mesh(&dir.join("grid.obj")).unwrap().mesh;
-    let constraints = read_constraints_file(&dir.join("positions.json")).unwrap();
-    Deformer::new(mesh, LaplacianKind::Cotangent, constraints).unwrap()
+    let mesh = read_mesh(
+        &dir.join("grid.obj"),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh;
+    let constraints = read_constraints_file(
+        &dir.join("positions.json"),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap();
+    Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        constraints,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap()
 }
 
 #[test]
 fn off_is_the_estimate_only_mode_and_is_written_off() {
     assert_eq!("off".parse::<Refine>().unwrap(), Refine::EstimateOnly);
     assert_eq!("estimate".parse::<Refine>().unwrap(), Refine::EstimateOnly);
-    assert_eq!(Refine::Off, Refine::EstimateOnly);
     assert_eq!(Refine::EstimateOnly.to_string(), "off");
     assert_eq!(
         serde_json::to_value(Refine::EstimateOnly).unwrap(),
         serde_json::json!("off")
-    );
-    // The module's old path is an alias.
-    assert_eq!(
-        "off".parse::<lse_deform::refinement::Refine>().unwrap(),
-        Refine::EstimateOnly
     );
 }
 
@@ -71,7 +80,11 @@ fn precompute_records_carry_the_methods_own_facts() {
 #[test]
 fn factor_backend_and_its_alias_spd_backend_agree() {
     let mut d = deformer();
-    d.precompute(&Kkt::default()).unwrap();
+    d.refactor_with(
+        &Kkt::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let report = serde_json::to_value(d.report()).unwrap();
     assert_eq!(report["factor_backend"], "faer-ldlt-auto");
     assert_eq!(report["spd_backend"], report["factor_backend"]);
@@ -116,7 +129,11 @@ fn refinement_warnings_have_their_codes() {
 #[test]
 fn condition_method_is_typed_and_serialised_as_its_sentence() {
     let mut d = deformer();
-    d.precompute(&NullSpaceQr::default()).unwrap();
+    d.refactor_with(
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )
+    .unwrap();
     let estimate = d.solver_mut().estimate_condition().unwrap().clone();
     assert_eq!(
         estimate.method,

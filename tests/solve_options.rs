@@ -84,9 +84,14 @@ fn a_tiny_budget_is_refused_per_solve_and_the_default_succeeds_in_the_same_proce
     ];
     for (formulation, constraints) in cases {
         let name = format!("{} / {}", formulation.method, formulation.qr);
-        let mut small =
-            Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone()).unwrap();
-        let detail = too_large(small.precompute_with(&tiny(formulation.clone())));
+        let mut small = Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Cotangent,
+            constraints.clone(),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
+        let detail = too_large(small.refactor(&tiny(formulation.clone())));
         assert!(
             detail.ends_with(
                 "more than the memory budget of 64 B (the memory budget of the solve options)"
@@ -95,10 +100,15 @@ fn a_tiny_budget_is_refused_per_solve_and_the_default_succeeds_in_the_same_proce
         );
         assert!(!detail.contains("--"), "{name}: a CLI flag in {detail}");
 
-        let mut default =
-            Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone()).unwrap();
+        let mut default = Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Cotangent,
+            constraints.clone(),
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         default
-            .precompute_with(&SolveOptions::new(formulation.clone()))
+            .refactor(&SolveOptions::new(formulation.clone()))
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let solution = default.solve().unwrap();
         // Penalty only approximates the hard rows.
@@ -114,7 +124,7 @@ fn a_tiny_budget_is_refused_per_solve_and_the_default_succeeds_in_the_same_proce
 
         // The refused deformer takes a budget that fits and then succeeds.
         small
-            .precompute_with(&SolveOptions {
+            .refactor(&SolveOptions {
                 resources: Resources::with_budget(MemoryBudget::unlimited()),
                 ..SolveOptions::new(formulation)
             })
@@ -127,22 +137,33 @@ fn the_qr_factor_is_checked_against_the_solve_budget_before_the_cholesky_factor(
     // The dense Householder blocks are sized before any factor: the
     // refusal names them, not the Cholesky factor.
     let (mesh, set) = scene();
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
+    let mut d = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        set,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     let formulation = FormulationChoice {
         qr: QrKind::DenseHouseholder.into(),
         ..FormulationChoice::new(Method::NullSpaceQr)
     };
-    let detail = too_large(d.precompute_with(&tiny(formulation)));
+    let detail = too_large(d.refactor(&tiny(formulation)));
     assert!(detail.contains("dense Householder blocks"), "{detail}");
-    let detail = too_large(d.precompute_with(&tiny(FormulationChoice::new(Method::Kkt))));
+    let detail = too_large(d.refactor(&tiny(FormulationChoice::new(Method::Kkt))));
     assert!(detail.contains("the KKT matrix"), "{detail}");
 }
 
 #[test]
 fn the_response_basis_uses_the_precomputes_budget_or_the_one_given() {
     let (mesh, set) = scene();
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
-    d.precompute_with(&SolveOptions::default()).unwrap();
+    let mut d = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        set,
+        &SolveOptions::default(),
+    )
+    .unwrap();
     HandleBasis::new(&mut d, &["top"]).unwrap();
     // Less than 7 columns of 121 vertices.
     let tiny = Resources::with_budget(MemoryBudget::bytes(4096));
@@ -158,25 +179,40 @@ fn the_response_basis_uses_the_precomputes_budget_or_the_one_given() {
 #[test]
 fn arap_takes_the_options_budget_and_refinement() {
     let (mesh, set) = scene();
-    let mut arap = ArapDeformer::new(mesh.clone(), set.clone(), ArapEnergy::SpokesAndRims).unwrap();
+    let mut arap = ArapDeformer::new(
+        mesh.clone(),
+        set.clone(),
+        ArapEnergy::SpokesAndRims,
+        &lse_deform::SolveOptions::default(),
+    )
+    .unwrap();
     let formulation = FormulationChoice::new(Method::NullSpaceQr);
-    too_large(arap.precompute_with(&tiny(formulation.clone())));
-    let mut arap = ArapDeformer::new(mesh, set, ArapEnergy::SpokesAndRims).unwrap();
-    arap.precompute_with(&SolveOptions::new(formulation))
-        .unwrap();
+    too_large(arap.refactor(&tiny(formulation.clone())));
+    let _arap = ArapDeformer::new(
+        mesh,
+        set,
+        ArapEnergy::SpokesAndRims,
+        &SolveOptions::new(formulation),
+    )
+    .unwrap();
 }
 
 #[test]
 fn an_invalid_formulation_is_refused_before_the_solver_changes() {
     let (mesh, set) = scene();
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, set).unwrap();
-    d.precompute_with(&SolveOptions::default()).unwrap();
+    let mut d = Deformer::new(
+        mesh,
+        LaplacianKind::Cotangent,
+        set,
+        &SolveOptions::default(),
+    )
+    .unwrap();
     let before = d.report().clone();
     let no_weight = SolveOptions {
         resources: Resources::with_budget(MemoryBudget::bytes(64)),
         ..SolveOptions::new(FormulationChoice::new(Method::Penalty))
     };
-    match d.precompute_with(&no_weight) {
+    match d.refactor(&no_weight) {
         Err(Error::Problem(ProblemError::InvalidOption { .. })) => {}
         other => panic!("expected InvalidOption, got {other:?}"),
     }

@@ -140,21 +140,28 @@ pub fn solve_all(mesh: &Mesh, sc: &Scene) -> Result<Vec<Solved>, AnyError> {
         weight: Some(w),
         ..FormulationChoice::new(Method::Penalty)
     };
-    let solve =
-        |d: &mut Deformer, c: FormulationChoice| -> Result<(Vec<[f64; 3]>, Report), String> {
-            c.build()
-                .map_err(Error::from)
-                .and_then(|f| d.precompute(f.as_ref()))
-                .and_then(|_| d.solve())
-                .map(|s| (s.positions, s.report))
-                .map_err(|e| format!("{} — {e}", failure_kind(&e)))
-        };
+    let solve = |d: &mut Deformer,
+                 c: FormulationChoice|
+     -> Result<(Vec<[f64; 3]>, Report), String> {
+        c.build()
+            .map_err(Error::from)
+            .and_then(|f| d.refactor_with(f.as_ref(), &lse_deform::resources::Resources::default()))
+            .and_then(|_| d.solve())
+            .map(|s| (s.positions, s.report))
+            .map_err(|e| format!("{} — {e}", failure_kind(&e)))
+    };
     let soft = all_soft(&sc.constraints, SOFT_WEIGHT)?;
-    let mut soft_deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, soft)?;
+    let mut soft_deformer = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        soft,
+        &lse_deform::SolveOptions::default(),
+    )?;
     let mut d = Deformer::new(
         mesh.clone(),
         LaplacianKind::Cotangent,
         sc.constraints.clone(),
+        &lse_deform::SolveOptions::default(),
     )?;
     Ok(vec![
         Solved {

@@ -520,7 +520,7 @@ pub fn mesh_files_in(dir: &Path) -> Result<Vec<PathBuf>, AnyError> {
 
 /// Loads a mesh file as a case named by its [`mesh_stem`].
 fn load_case(path: &Path) -> Result<MeshCase, AnyError> {
-    let mesh = read_mesh(path)
+    let mesh = read_mesh(path, lse_deform::limits::MemoryBudget::default())
         .map_err(|e| format!("{}: {e}", path.display()))?
         .mesh;
     Ok(MeshCase {

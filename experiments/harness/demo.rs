@@ -33,8 +33,13 @@ fn deform(mesh: &Mesh, handle_weight: Option<f64>) -> Result<Deformed, AnyError>
         ..FixedAndHandle::paper_default(mesh)
     };
     let constraints = scene.constraints(mesh)?;
-    let mut deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints)?;
-    deformer.precompute(&NullSpaceQr::default())?;
+    let mut deformer = Deformer::with_formulation(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        constraints,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     let solution = deformer.solve()?;
     Ok(Deformed {
         positions: solution.positions,

@@ -133,8 +133,13 @@ pub fn setup_and_precompute(
     formulation: &dyn Formulation,
     resources: &Resources,
 ) -> Result<Deformer, AnyError> {
-    let mut deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints.clone())?;
-    deformer.precompute_using(formulation, resources)?;
+    let deformer = Deformer::with_formulation(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        constraints.clone(),
+        formulation,
+        resources,
+    )?;
     Ok(deformer)
 }
 

@@ -163,10 +163,18 @@ struct Measured {
 /// Measures one mesh and Laplacian.
 fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
     let constraints = FixedAndHandle::paper_default(&case.mesh).constraints(&case.mesh)?;
-    let mut deformer = Deformer::new(case.mesh.clone(), kind, constraints)?;
+    let mut deformer = Deformer::new(
+        case.mesh.clone(),
+        kind,
+        constraints,
+        &lse_deform::SolveOptions::default(),
+    )?;
     let diag = case.mesh.bbox_diagonal() / deformer.length_unit();
     deformer.solver_mut().set_refine(Some(Refine::Auto));
-    deformer.precompute(&NullSpaceQr::default())?;
+    deformer.refactor_with(
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     let x_star = deformer.solve_matrix()?;
     let reference = Reference {
         mesh: case.name.clone(),
@@ -194,7 +202,10 @@ fn measure(case: &MeshCase, kind: LaplacianKind) -> Result<Measured, AnyError> {
             refine_s: None,
             failure: None,
         };
-        if let Err(e) = deformer.precompute(formulation(m)?.as_ref()) {
+        if let Err(e) = deformer.refactor_with(
+            formulation(m)?.as_ref(),
+            &lse_deform::resources::Resources::default(),
+        ) {
             for mode in [Refine::EstimateOnly, Refine::Auto] {
                 rows.push(Row {
                     refine: mode.to_string(),

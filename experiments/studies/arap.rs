@@ -163,8 +163,13 @@ fn bend_and_twist(ctx: &Context, dir: &Path) -> Result<Bend, AnyError> {
     let iterations = if ctx.quick { 30 } else { 3000 };
     let mesh = tube(around, along, r, length)?;
     let cs = bend_constraints(&mesh, around, (along / 20).max(1), length)?;
-    let mut arap = ArapDeformer::new(mesh.clone(), cs, ArapEnergy::SpokesAndRims)?;
-    arap.precompute(&NullSpaceQr::default())?;
+    let mut arap = ArapDeformer::with_formulation(
+        mesh.clone(),
+        cs,
+        ArapEnergy::SpokesAndRims,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     arap.initialize(ArapInit::Linear)?;
     let linear = arap.positions();
     let linear_energy = arap.energy();
@@ -377,8 +382,13 @@ fn ours_from_rest(
     checkpoints: &[usize],
 ) -> Result<(Vec<(f64, f64)>, Vec<Vec<[f64; 3]>>), AnyError> {
     let last = *checkpoints.last().ok_or("no checkpoints")?;
-    let mut arap = ArapDeformer::new(mesh.clone(), cs.clone(), ArapEnergy::SpokesAndRims)?;
-    arap.precompute(&NullSpaceQr::default())?;
+    let mut arap = ArapDeformer::with_formulation(
+        mesh.clone(),
+        cs.clone(),
+        ArapEnergy::SpokesAndRims,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     arap.initialize(ArapInit::Rest)?;
     let (mut ours, mut snapshots, mut elapsed) = (Vec::new(), Vec::new(), 0.0);
     for k in 1..=last {
@@ -558,8 +568,13 @@ fn exact_constraints(ctx: &Context, dir: &Path, case: &MeshCase) -> Result<Exact
     let relative = count(|k| matches!(k, ConstraintKind::Relative { .. }));
     let on_edge = count(|k| matches!(k, ConstraintKind::Edge { .. }));
     let iterations = if ctx.quick { 20 } else { 100 };
-    let mut arap = ArapDeformer::new(mesh.clone(), cs.clone(), ArapEnergy::SpokesAndRims)?;
-    arap.precompute(&NullSpaceQr::default())?;
+    let mut arap = ArapDeformer::with_formulation(
+        mesh.clone(),
+        cs.clone(),
+        ArapEnergy::SpokesAndRims,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     arap.initialize(ArapInit::Linear)?;
     let report = arap.run(iterations, 0.0)?;
     let diag = mesh.bbox_diagonal();
@@ -664,8 +679,13 @@ fn initial_guesses(ctx: &Context, dir: &Path, case: &MeshCase) -> Result<Vec<Ini
         (Init::Rest, ArapInit::Rest),
         (Init::Linear, ArapInit::Linear),
     ] {
-        let mut arap = ArapDeformer::new(mesh.clone(), cs.clone(), ArapEnergy::SpokesAndRims)?;
-        arap.precompute(&NullSpaceQr::default())?;
+        let mut arap = ArapDeformer::with_formulation(
+            mesh.clone(),
+            cs.clone(),
+            ArapEnergy::SpokesAndRims,
+            &NullSpaceQr::default(),
+            &lse_deform::resources::Resources::default(),
+        )?;
         arap.initialize(start)?;
         for k in 0..=last {
             if k > 0 {

@@ -339,8 +339,8 @@ fn row_of(case: &Case, setting: Setting, run: &Result<Run, String>) -> Row {
 /// The largest vertex distance between two meshes of the same vertices
 /// over `diagonal`.
 fn max_difference(a: &Path, b: &Path, diagonal: f64) -> Result<f64, AnyError> {
-    let a = read_mesh(a)?.mesh;
-    let b = read_mesh(b)?.mesh;
+    let a = read_mesh(a, lse_deform::limits::MemoryBudget::default())?.mesh;
+    let b = read_mesh(b, lse_deform::limits::MemoryBudget::default())?.mesh;
     if a.n_vertices() != b.n_vertices() {
         return Err("the two results differ in their vertex count".into());
     }
@@ -375,7 +375,8 @@ fn measure_case(tools: &Tools, case: &Case, notes: &mut Vec<String>) -> Vec<Row>
         .into_iter()
         .map(|s| (s, deform(tools, case, &scene, s)))
         .collect();
-    let diagonal = read_mesh(&case.path).map(|m| m.mesh.bbox_diagonal());
+    let diagonal = read_mesh(&case.path, lse_deform::limits::MemoryBudget::default())
+        .map(|m| m.mesh.bbox_diagonal());
     if let Err(e) = &diagonal {
         notes.push(format!("{}: reading the rest mesh: {e}", case.name));
     }
@@ -427,7 +428,9 @@ fn generated(ctx: &Context, tools: &Tools, kind: &str, vertices: usize) -> Resul
         ],
         "lse-deform generate",
     )?;
-    let made = read_mesh(&path)?.mesh.n_vertices();
+    let made = read_mesh(&path, lse_deform::limits::MemoryBudget::default())?
+        .mesh
+        .n_vertices();
     Ok(Case {
         name: format!("{kind}-{}k", (made + 500) / 1000),
         path,

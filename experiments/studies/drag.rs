@@ -408,12 +408,13 @@ fn precompute_all(mesh: &Mesh, drag: &Drag, configs: &[Config]) -> Vec<Slot> {
 /// The precompute, warm-up solve and, for the basis row, the basis of
 /// configuration `c` into `slot`.
 fn prepare(slot: &mut Slot, mesh: &Mesh, drag: &Drag, c: &Config) -> Result<(), AnyError> {
-    let mut d = Deformer::new(
+    let mut d = Deformer::with_formulation(
         mesh.clone(),
         LaplacianKind::Cotangent,
         drag.constraints.clone(),
+        c.formulation.as_ref(),
+        &lse_deform::resources::Resources::default(),
     )?;
-    d.precompute(c.formulation.as_ref())?;
     slot.precompute = Some(d.report().timings_s.precompute());
     slot.nnz_factor = d.report().nnz.factor;
     if c.frame_call == FrameCall::UnrefinedSolveInto {

@@ -239,7 +239,10 @@ fn measure(ctx: &Context, dir: &std::path::Path) -> Result<(Vec<Row>, Vec<ArapRo
     std::fs::create_dir_all(&work)?;
     let (mut rows, mut arap) = (Vec::new(), Vec::new());
     for mesh in mesh_files(ctx, &work)? {
-        let vertices = lse_deform::mesh::read_mesh(&mesh)?.mesh.n_vertices();
+        let vertices =
+            lse_deform::mesh::read_mesh(&mesh, lse_deform::limits::MemoryBudget::default())?
+                .mesh
+                .n_vertices();
         let frames = if ctx.quick { 30 } else { FRAMES };
         let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("editor_frames.mjs");
         let status = environment::child("node")

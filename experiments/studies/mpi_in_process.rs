@@ -87,7 +87,7 @@ fn probe(mesh_path: &Path, mpi: bool, reps: usize) -> Result<Probe, AnyError> {
     if mpi {
         start_mpi();
     }
-    let mesh = read_mesh(mesh_path)?.mesh;
+    let mesh = read_mesh(mesh_path, lse_deform::limits::MemoryBudget::default())?.mesh;
     let constraints = FixedAndHandle::paper_default(&mesh).constraints(&mesh)?;
     let mut medians = Vec::new();
     for name in probed_backends() {

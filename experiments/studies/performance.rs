@@ -294,7 +294,12 @@ fn side_by_side(
     reps: usize,
     solves: usize,
 ) -> Result<SideBySide, AnyError> {
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone())?;
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs.clone(),
+        &lse_deform::SolveOptions::default(),
+    )?;
     let f = ours();
     // CHOLMOD first, then MUMPS.
     let mut refs: Vec<Option<ReferenceRuns>> = [reference_backend(), mumps_backend()]
@@ -307,7 +312,7 @@ fn side_by_side(
     };
     let (mut pre, mut phases) = (Vec::new(), vec![Vec::new(); 5]);
     for _ in 0..reps {
-        d.precompute(&f)?;
+        d.refactor_with(&f, &lse_deform::resources::Resources::default())?;
         let t = &d.report().timings_s;
         pre.push(precompute_total(t));
         for (k, v) in [t.qr, t.preparation, t.normal_matrix, t.symbolic, t.numeric]
@@ -363,13 +368,20 @@ fn precompute_medians(
 ) -> Result<Vec<f64>, AnyError> {
     let mut deformers = sets
         .iter()
-        .map(|cs| Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone()))
+        .map(|cs| {
+            Deformer::new(
+                mesh.clone(),
+                LaplacianKind::Cotangent,
+                cs.clone(),
+                &lse_deform::SolveOptions::default(),
+            )
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let f = ours();
     let mut times = vec![Vec::new(); sets.len()];
     for _ in 0..reps {
         for (k, d) in deformers.iter_mut().enumerate() {
-            d.precompute(&f)?;
+            d.refactor_with(&f, &lse_deform::resources::Resources::default())?;
             times[k].push(precompute_total(&d.report().timings_s));
         }
     }
@@ -390,12 +402,20 @@ struct SweepTimes {
 }
 
 fn weight_sweep(mesh: &Mesh, cs: &ConstraintSet, reps: usize) -> Result<SweepTimes, AnyError> {
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone())?;
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs.clone(),
+        &lse_deform::SolveOptions::default(),
+    )?;
     let weights: Vec<f64> = (0..=16).map(|k| 10f64.powi(k)).collect();
     let spd = FaerLlt::supernodal();
     let (mut num, mut ana) = (Vec::new(), Vec::new());
     for _ in 0..reps {
-        d.precompute(&Penalty::with_backend(1e8, Arc::new(FaerLlt::supernodal())))?;
+        d.refactor_with(
+            &Penalty::with_backend(1e8, Arc::new(FaerLlt::supernodal())),
+            &lse_deform::resources::Resources::default(),
+        )?;
         num.push(d.report().timings_s.numeric);
         ana.push(d.report().timings_s.symbolic);
     }
@@ -444,12 +464,17 @@ fn peak_rss() -> Option<u64> {
 /// The child side of the peak-memory measurement: read the mesh, set up the
 /// paper's scene, precompute, solve once, print a [`MemoryProbe`] as JSON.
 pub fn memory_probe(mesh_path: &Path) -> Result<(), AnyError> {
-    let mesh = read_mesh(mesh_path)?.mesh;
+    let mesh = read_mesh(mesh_path, lse_deform::limits::MemoryBudget::default())?.mesh;
     let cs = FixedAndHandle::paper_default(&mesh).constraints(&mesh)?;
     let mesh_bytes = (mesh.n_vertices() * 24 + mesh.n_faces() * 3 * 8) as u64;
     let vertices = mesh.n_vertices();
-    let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, cs)?;
-    d.precompute(&ours())?;
+    let mut d = Deformer::with_formulation(
+        mesh,
+        LaplacianKind::Cotangent,
+        cs,
+        &ours(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     let x = d.solve_matrix()?;
     std::hint::black_box(x);
     let probe = MemoryProbe {
@@ -528,9 +553,17 @@ struct RefineTimes {
 /// Target 8 on `mesh` with the paper's default scene.
 fn refine_vs_solve(name: &str, mesh: &Mesh, reps: usize) -> Result<RefineTimes, AnyError> {
     let cs = FixedAndHandle::paper_default(mesh).constraints(mesh)?;
-    let d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs)?;
-    let mut solver = LseSolver::new(d.problem().clone());
-    solver.precompute(&ours())?;
+    let d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )?;
+    let mut solver = LseSolver::with_formulation(
+        d.problem().clone(),
+        &ours(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     let mut x0 = Mat::<f64>::zeros(d.problem().n(), 3);
     solver.solve_unrefined_into(x0.as_mut())?;
     let mut x = x0.clone();
@@ -658,9 +691,14 @@ fn timed_setup_from_file(path: &Path) -> Result<(Mesh, f64), AnyError> {
     let mut mesh = None;
     for _ in 0..3 {
         let t = Instant::now();
-        let m = read_mesh(path)?.mesh;
+        let m = read_mesh(path, lse_deform::limits::MemoryBudget::default())?.mesh;
         let cs = FixedAndHandle::paper_default(&m).constraints(&m)?;
-        let d = Deformer::new(m.clone(), LaplacianKind::Cotangent, cs)?;
+        let d = Deformer::new(
+            m.clone(),
+            LaplacianKind::Cotangent,
+            cs,
+            &lse_deform::SolveOptions::default(),
+        )?;
         times.push(t.elapsed().as_secs_f64());
         std::hint::black_box(&d);
         mesh = Some(m);
@@ -682,7 +720,12 @@ fn large_case(ctx: &Context) -> Result<(String, Mesh, f64, Option<PathBuf>), Any
     let t = Instant::now();
     let m = generate::with_about_vertices(generate::GeneratedKind::BumpySphere, n, ctx.seed)?;
     let cs = FixedAndHandle::paper_default(&m).constraints(&m)?;
-    let d = Deformer::new(m.clone(), LaplacianKind::Cotangent, cs)?;
+    let d = Deformer::new(
+        m.clone(),
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )?;
     std::hint::black_box(&d);
     let setup = t.elapsed().as_secs_f64();
     let name = format!("bumpy-sphere-{}k (generated)", m.n_vertices() / 1000);
@@ -695,12 +738,17 @@ fn scaling_point(ctx: &Context, n: usize) -> Result<ScalingPoint, AnyError> {
     let cs = FixedAndHandle::paper_default(&mesh).constraints(&mesh)?;
     let r = if n >= 200_000 { 1 } else { 3 };
     let t = Instant::now();
-    let mut d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs)?;
+    let mut d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs,
+        &lse_deform::SolveOptions::default(),
+    )?;
     let setup = t.elapsed().as_secs_f64();
     let f = ours();
     let mut pre = Vec::new();
     for _ in 0..r {
-        d.precompute(&f)?;
+        d.refactor_with(&f, &lse_deform::resources::Resources::default())?;
         pre.push(precompute_total(&d.report().timings_s));
     }
     let mut ts = Vec::new();
@@ -1132,7 +1180,12 @@ fn equal_terms_of(
     cs: &ConstraintSet,
     reps: usize,
 ) -> Result<Vec<equal_terms::EqualRow>, AnyError> {
-    let d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, cs.clone())?;
+    let d = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        cs.clone(),
+        &lse_deform::SolveOptions::default(),
+    )?;
     let normal = reduced_normal(&d)?;
     drop(d);
     equal_terms::measure(case, &normal, reps)

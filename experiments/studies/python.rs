@@ -148,10 +148,18 @@ fn alternate(
 ) -> Result<(Agreement, Vec<Round>), AnyError> {
     let agreement: Agreement = door.line()?;
     let formulation = FormulationChoice::new(Method::NullSpaceQr).build()?;
-    let mut deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints)?;
+    let mut deformer = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        constraints,
+        &lse_deform::SolveOptions::default(),
+    )?;
     let mut rust = || -> Result<f64, AnyError> {
         let t = Instant::now();
-        deformer.precompute(formulation.as_ref())?;
+        deformer.refactor_with(
+            formulation.as_ref(),
+            &lse_deform::resources::Resources::default(),
+        )?;
         std::hint::black_box(deformer.solve()?);
         Ok(t.elapsed().as_secs_f64())
     };

@@ -176,7 +176,12 @@ fn setups(case: &MeshCase, ks: &[usize]) -> Result<Setups, AnyError> {
     for &k in ks {
         let (set, added) = scene(&case.mesh, k)?;
         let t = Instant::now();
-        let d = Deformer::new(case.mesh.clone(), LaplacianKind::Cotangent, set)?;
+        let d = Deformer::new(
+            case.mesh.clone(),
+            LaplacianKind::Cotangent,
+            set,
+            &lse_deform::SolveOptions::default(),
+        )?;
         out.seconds.push(t.elapsed().as_secs_f64());
         out.deformers.push(d);
         out.k_actual.push(added);
@@ -207,7 +212,10 @@ fn first_run(
     cell: &mut Cell,
     notes: &mut Vec<String>,
 ) -> Option<f64> {
-    if let Err(e) = d.precompute(m.formulation.as_ref()) {
+    if let Err(e) = d.refactor_with(
+        m.formulation.as_ref(),
+        &lse_deform::resources::Resources::default(),
+    ) {
         notes.push(format!("{}, k = {k}: {e}", m.label));
         cell.status = Some(format!("failed: {}", short_error(&e.to_string())));
         return None;
@@ -293,7 +301,10 @@ fn repetitions(methods: &[Config], deformers: &mut [Deformer], grid: &mut [Vec<C
                 if rep >= cell.reps || cell.status.is_some() {
                     continue;
                 }
-                match d.precompute(m.formulation.as_ref()) {
+                match d.refactor_with(
+                    m.formulation.as_ref(),
+                    &lse_deform::resources::Resources::default(),
+                ) {
                     Ok(()) => cell.runs.push(d.report().clone()),
                     Err(e) => {
                         cell.status = Some(format!("failed: {}", short_error(&e.to_string())))

@@ -48,8 +48,13 @@ fn deform(
     kind: LaplacianKind,
     constraints: lse_deform::ConstraintSet,
 ) -> Result<Vec<[f64; 3]>, AnyError> {
-    let mut d = Deformer::new(mesh.clone(), kind, constraints)?;
-    d.precompute(&NullSpaceQr::default())?;
+    let mut d = Deformer::with_formulation(
+        mesh.clone(),
+        kind,
+        constraints,
+        &NullSpaceQr::default(),
+        &lse_deform::resources::Resources::default(),
+    )?;
     Ok(d.solve()?.positions)
 }
 

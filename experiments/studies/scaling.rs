@@ -192,7 +192,7 @@ fn measure_backend(
     let mut reps = if ctx.quick { 1 } else { 3 };
     let mut rep = 0;
     while rep < reps {
-        deformer.precompute(&formulation)?;
+        deformer.refactor_with(&formulation, &lse_deform::resources::Resources::default())?;
         let t = deformer.report().timings_s.precompute();
         reports.push(deformer.report().clone());
         if t > 2.0 {
@@ -243,7 +243,12 @@ fn measure_case(
     let kind_index = usize::from(*kind == "real");
     let constraints = FixedAndHandle::paper_default(mesh).constraints(mesh)?;
     let t = Instant::now();
-    let mut deformer = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints)?;
+    let mut deformer = Deformer::new(
+        mesh.clone(),
+        LaplacianKind::Cotangent,
+        constraints,
+        &lse_deform::SolveOptions::default(),
+    )?;
     let setup_s = t.elapsed().as_secs_f64();
     for (bi, &spd_name) in spd_backends().iter().enumerate() {
         let mut row = blank_row(case, kind, spd_name, setup_s);

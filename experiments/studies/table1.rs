@@ -152,7 +152,9 @@ fn run_formulation(deformer: &mut Deformer, formulation: &dyn Formulation) -> Ou
         forward_error_estimate: None,
         precompute_s: None,
     };
-    if let Err(e) = deformer.precompute(formulation) {
+    if let Err(e) =
+        deformer.refactor_with(formulation, &lse_deform::resources::Resources::default())
+    {
         out.error = Some(e);
         return out;
     }
@@ -187,7 +189,12 @@ fn run_penalty(deformer: &mut Deformer, penalty: &dyn Formulation, weight: f64) 
 fn run_case(case: &MeshCase, kind: LaplacianKind) -> Result<Vec<Row>, AnyError> {
     let scene = FixedAndHandle::paper_default(&case.mesh);
     let constraints = scene.constraints(&case.mesh)?;
-    let mut deformer = Deformer::new(case.mesh.clone(), kind, constraints)?;
+    let mut deformer = Deformer::new(
+        case.mesh.clone(),
+        kind,
+        constraints,
+        &lse_deform::SolveOptions::default(),
+    )?;
     let diag = case.mesh.bbox_diagonal();
 
     let mut outcomes = Vec::new();
@@ -978,8 +985,14 @@ mod tests {
         let mesh = generate::grid(12, 12).unwrap();
         let scene = FixedAndHandle::paper_default(&mesh);
         let constraints = scene.constraints(&mesh).unwrap();
-        let mut d = Deformer::new(mesh, LaplacianKind::Cotangent, constraints).unwrap();
-        d.precompute(&NullSpaceQr::default()).unwrap();
+        let mut d = Deformer::with_formulation(
+            mesh,
+            LaplacianKind::Cotangent,
+            constraints,
+            &NullSpaceQr::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
         let x = d.solve_matrix().unwrap();
         (d, x)
     }
@@ -1004,7 +1017,11 @@ mod tests {
     #[test]
     fn exact_methods_have_no_gap_and_penalty_undercuts() {
         let (mut d, xs) = grid_problem();
-        d.precompute(&Kkt::default()).unwrap();
+        d.refactor_with(
+            &Kkt::default(),
+            &lse_deform::resources::Resources::default(),
+        )
+        .unwrap();
         let xk = d.solve_matrix().unwrap();
         let p = d.problem();
         assert!(energy_gap(p, &xk, &xs).abs() < 1e-10);
@@ -1027,7 +1044,13 @@ mod tests {
         let mut scene = FixedAndHandle::paper_default(&mesh);
         scene.offset = [0.0; 3];
         let constraints = scene.constraints(&mesh).unwrap();
-        let d = Deformer::new(mesh.clone(), LaplacianKind::Cotangent, constraints).unwrap();
+        let d = Deformer::new(
+            mesh.clone(),
+            LaplacianKind::Cotangent,
+            constraints,
+            &lse_deform::SolveOptions::default(),
+        )
+        .unwrap();
         let unit = d.length_unit();
         let p = Mat::<f64>::from_fn(mesh.n_vertices(), 3, |i, c| mesh.positions()[i][c] / unit);
         let xq = qr_reference(d.problem()).unwrap().unwrap();

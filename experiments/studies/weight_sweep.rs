@@ -210,7 +210,7 @@ fn kappas(d: &mut Deformer, normal: bool) -> Kappas {
     let equilibrated = if normal {
         d.solver()
             .prepared()
-            .and_then(|p| p.factored_matrix())
+            .factored_matrix()
             .and_then(|m| equilibrated_condition(&m))
     } else {
         None
@@ -228,7 +228,7 @@ fn method_rows(d: &mut Deformer, judge: &Judge, choice: FormulationChoice) -> Ve
     let factored = choice
         .build()
         .map_err(Error::from)
-        .and_then(|f| d.precompute(&*f));
+        .and_then(|f| d.refactor_with(&*f, &lse_deform::resources::Resources::default()));
     if let Err(e) = factored {
         let failed = |refined| {
             judge.row(
@@ -259,11 +259,19 @@ fn method_rows(d: &mut Deformer, judge: &Judge, choice: FormulationChoice) -> Ve
 /// Every row of one mesh and scene.
 fn sweep_scene(case: &MeshCase, scene: Scene, quick: bool) -> Result<Vec<Row>, AnyError> {
     let hard_rows = scene.constraints.n_hard();
-    let mut d = Deformer::new(case.mesh.clone(), LAPLACIAN, scene.constraints)?;
+    let mut d = Deformer::new(
+        case.mesh.clone(),
+        LAPLACIAN,
+        scene.constraints,
+        &lse_deform::SolveOptions::default(),
+    )?;
     let x_star = match qr_reference(d.problem())? {
         Some(x) => x,
         None => {
-            d.precompute(&*FormulationChoice::new(Method::NullSpaceQr).build()?)?;
+            d.refactor_with(
+                &*FormulationChoice::new(Method::NullSpaceQr).build()?,
+                &lse_deform::resources::Resources::default(),
+            )?;
             d.solver_mut().set_refine(Some(Refine::Auto));
             d.solve_matrix()?
         }

@@ -7,7 +7,11 @@ use lse_deform::Mesh;
 use lse_deform::mesh::{MeshFormat, read_mesh_bytes};
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(loaded) = read_mesh_bytes(data, MeshFormat::Obj) {
+    if let Ok(loaded) = read_mesh_bytes(
+        data,
+        MeshFormat::Obj,
+        lse_deform::limits::MemoryBudget::default(),
+    ) {
         let m = loaded.mesh;
         assert!(Mesh::new(m.positions().to_vec(), m.faces().to_vec()).is_ok());
     }

@@ -48,7 +48,7 @@
 //! ```
 //! use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 //! use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
-//! use lse_deform::{NullSpaceQr, mesh::generate};
+//! use lse_deform::{SolveOptions, mesh::generate};
 //!
 //! let mesh = generate::grid(6, 6).unwrap();
 //! let mut constraints = ConstraintSet::new();
@@ -58,8 +58,8 @@
 //!     let q = mesh.positions()[42 + v];
 //!     constraints.push(Constraint::hard(ConstraintKind::Position { vertex: 42 + v, target: [q[0], q[1], 0.5] })).unwrap();
 //! }
-//! let mut arap = ArapDeformer::new(mesh, constraints, ArapEnergy::SpokesAndRims).unwrap();
-//! arap.precompute(&NullSpaceQr::default()).unwrap();
+//! let options = SolveOptions::default();
+//! let mut arap = ArapDeformer::new(mesh, constraints, ArapEnergy::SpokesAndRims, &options).unwrap();
 //! arap.initialize(ArapInit::Rest).unwrap();
 //! let report = arap.run(20, 0.0).unwrap();
 //! assert_eq!(report.iterations, 20);
@@ -80,6 +80,7 @@ use crate::formulation::{Formulation, Refine};
 use crate::mesh::Mesh;
 use crate::problem::{LseProblem, target_in_unit};
 use crate::report::{ArapReport, ArapStop, EnergyOperator, Report, first_non_finite};
+use crate::resources::Resources;
 use crate::solver::{LseSolver, SolveOptions};
 
 pub mod energy;
@@ -106,8 +107,8 @@ pub struct Step {
     pub global_s: f64,
 }
 
-/// ARAP on a mesh with constraints: set-up ([`ArapDeformer::new`]),
-/// precompute ([`ArapDeformer::precompute`]), initial guess
+/// ARAP on a mesh with constraints: set-up and precompute
+/// ([`ArapDeformer::new`]), initial guess
 /// ([`ArapDeformer::initialize`]), iterations ([`ArapDeformer::iterate`] or
 /// [`ArapDeformer::run`]).
 pub struct ArapDeformer {
@@ -155,6 +156,34 @@ impl ArapDeformer {
         mesh: Mesh,
         constraints: ConstraintSet,
         energy: ArapEnergy,
+        options: &SolveOptions,
+    ) -> Result<ArapDeformer, Error> {
+        ArapDeformer::set_up(mesh, constraints, energy, |problem, report| {
+            LseSolver::with_base_report(problem, report, options)
+        })
+    }
+
+    /// [`ArapDeformer::new`] with a formulation object under `resources`
+    /// ([`LseSolver::with_formulation`]).
+    pub fn with_formulation(
+        mesh: Mesh,
+        constraints: ConstraintSet,
+        energy: ArapEnergy,
+        formulation: &dyn Formulation,
+        resources: &Resources,
+    ) -> Result<ArapDeformer, Error> {
+        ArapDeformer::set_up(mesh, constraints, energy, |problem, report| {
+            LseSolver::factored(problem, report, formulation, resources)
+        })
+    }
+
+    /// The set-up of [`ArapDeformer::new`], then the precompute `factor`
+    /// makes of the problem and its base report.
+    fn set_up(
+        mesh: Mesh,
+        constraints: ConstraintSet,
+        energy: ArapEnergy,
+        factor: impl FnOnce(LseProblem, Report) -> Result<LseSolver, Error>,
     ) -> Result<ArapDeformer, Error> {
         let t = Instant::now();
         let n = mesh.n_vertices();
@@ -162,14 +191,9 @@ impl ArapDeformer {
         let triangles = ArapTriangles::new(&scaled.mesh, energy);
         // Soft weights as given: `a = 0` (the module documentation).
         let operator = EnergyOperator::Arap(energy);
-        let solver = scaled.solver(
-            &triangles.rows(),
-            &triangles.rest_rhs(),
-            operator,
-            0,
-            &mesh,
-            t,
-        )?;
+        let (rows, rhs) = (triangles.rows(), triangles.rest_rhs());
+        let (problem, base) = scaled.problem(&rows, &rhs, operator, 0, &mesh, t)?;
+        let solver = factor(problem, base)?;
         let x = Mat::from_fn(n, 3, |i, c| scaled.mesh.positions()[i][c]);
         let report = solver.report().clone();
         let (unit, unit_constraints) = (scaled.unit, scaled.constraints);
@@ -197,34 +221,38 @@ impl ArapDeformer {
 
     /// The global step's solver (in the problem's units: lengths divided
     /// by [`ArapDeformer::length_unit`]): its refinement,
-    /// prepared system and report of the last precompute. Read-only: the
-    /// precompute goes through [`ArapDeformer::precompute`] (which keeps
+    /// prepared system and report of the last precompute. Read-only: a
+    /// new precompute goes through [`ArapDeformer::refactor`] (which keeps
     /// the ARAP report) and targets through [`ArapDeformer::set_target`]
     /// (which keeps them in the mesh's units).
     pub fn solver(&self) -> &LseSolver {
         &self.solver
     }
 
-    /// Precompute: factors the global step's system with `formulation`,
-    /// once for all iterations.
-    pub fn precompute(&mut self, formulation: &dyn Formulation) -> Result<(), Error> {
-        let result = self.solver.precompute(formulation);
+    /// Precompute again: factors the global step's system with
+    /// `formulation` under `resources`, once for all iterations; on error
+    /// the previous factorisation stays.
+    pub fn refactor_with(
+        &mut self,
+        formulation: &dyn Formulation,
+        resources: &Resources,
+    ) -> Result<(), Error> {
+        self.solver.refactor_with(formulation, resources)?;
         self.report = self.solver.report().clone();
-        result
+        Ok(())
     }
 
-    /// Precompute with `options`: its formulation, refinement (the one
-    /// [`ArapDeformer::finish`] applies) and memory budget
-    /// ([`LseSolver::precompute_with`]).
-    pub fn precompute_with(&mut self, options: &SolveOptions) -> Result<(), Error> {
-        let result = self.solver.precompute_with(options);
+    /// Precompute again with `options`: its formulation, refinement (the
+    /// one [`ArapDeformer::finish`] applies) and resources
+    /// ([`LseSolver::refactor`]).
+    pub fn refactor(&mut self, options: &SolveOptions) -> Result<(), Error> {
+        self.solver.refactor(options)?;
         self.report = self.solver.report().clone();
-        result
+        Ok(())
     }
 
     /// Sets the initial guess (see [`ArapInit`]), fits its rotations and
-    /// clears the iteration history. [`ArapInit::Linear`] needs
-    /// [`ArapDeformer::precompute`] first.
+    /// clears the iteration history.
     ///
     /// Errors: [`NumericalError::NonFiniteEnergy`] when the initial guess's
     /// energy is not finite in the mesh's units.
@@ -367,7 +395,6 @@ impl ArapDeformer {
         if self.arap.iterations == 0 && self.init != ArapInit::Linear {
             return Ok(());
         }
-        self.prepared()?;
         let mut x = self.x.clone();
         let steps = self.solver.refine_solution(&mut x)?.steps;
         if self.first_non_finite_in_mesh_units(&x).is_none() && steps > 0 {
@@ -402,22 +429,10 @@ impl ArapDeformer {
         Ok(())
     }
 
-    /// An error unless the global step's system is precomputed.
-    fn prepared(&self) -> Result<(), Error> {
-        match self.solver.prepared() {
-            Some(_) => Ok(()),
-            None => Err(ProblemError::BadUpdate {
-                message: "ARAP iterations need precompute first".into(),
-            }
-            .into()),
-        }
-    }
-
     /// Global step: `C_E` from the current rotations, then the solve.
     /// `C_E` is written in place into the problem's right-hand side and
     /// the solution into the current positions: no buffer allocated.
     fn global_step(&mut self) -> Result<(), Error> {
-        self.prepared()?;
         let finite = self
             .triangles
             .rhs_into(&self.rotations, self.solver.energy_rhs_mut());
@@ -487,7 +502,7 @@ impl ArapDeformer {
     }
 
     fn max_constraint_residual(&self) -> f64 {
-        let skipped = self.solver.prepared().map(|s| s.skipped()).unwrap_or(&[]);
+        let skipped = self.solver.prepared().skipped();
         let problem = self.solver.problem();
         (0..problem.hard_constraints().len())
             .filter(|k| skipped.binary_search(k).is_err())

@@ -10,7 +10,7 @@ use lse_deform::compare::{self, CompareOptions, CompareRow};
 use lse_deform::error::ProblemError;
 use lse_deform::formulation::Refine;
 use lse_deform::options::DeformOptions;
-use lse_deform::{Deformer, Error, LaplacianKind, Method, QrKind, SpdKind};
+use lse_deform::{Error, LaplacianKind, Method, QrKind, SpdKind};
 
 use super::files::{check_distinct, mesh_and_constraints};
 use super::{
@@ -108,7 +108,7 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     let budget = options.resources.budget;
     let mesh = load(&a.mesh, budget)?;
     let (constraints, warnings) = constraints_with_warnings(&a.constraints, &mesh, false, budget)?;
-    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
+    let mut deformer = compare::reference_deformer(mesh, a.laplacian, constraints, budget)?;
     let bar =
         ProgressBar::with_draw_target(Some(configs.len() as u64 + 1), ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} ({elapsed})") {
@@ -116,7 +116,7 @@ pub fn compare(a: CompareArgs) -> Result<(), Error> {
     }
     show_after_a_second(&bar);
     bar.set_message("reference (nullspace-qr, refined)");
-    let reference = compare::reference(&mut deformer, budget)?;
+    let reference = compare::reference(&mut deformer)?;
     if let Some(e) = reference.forward_error_estimate.filter(|&e| e > 1e-12) {
         eprintln!(
             "warning: the reference solution (nullspace-qr, refined) has an estimated forward error of {e:.1e}: differences below it are not resolved"

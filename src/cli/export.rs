@@ -53,12 +53,15 @@ pub fn export_system(a: ExportArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh, budget)?;
     let constraints = constraints_for(&a.constraints, &mesh, false, budget)?;
     let options = a.method.options()?.solve;
-    let mut deformer = Deformer::new(mesh, a.laplacian, constraints)?;
-    deformer.precompute_with(&options)?;
+    let deformer = Deformer::new(mesh, a.laplacian, constraints, &options)?;
     // Staged: a failed write leaves no file of this export, and the files
     // of an earlier one as they were.
     let (files, meta) = super::staged(|| {
-        let files = export_problem(&a.output, deformer.problem(), deformer.solver().prepared())?;
+        let files = export_problem(
+            &a.output,
+            deformer.problem(),
+            Some(deformer.solver().prepared()),
+        )?;
         let meta = export_meta(&a.output, deformer.problem(), deformer.report())?;
         Ok((files, meta))
     })?;

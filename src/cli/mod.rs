@@ -9,7 +9,7 @@ use std::time::Duration;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use lse_deform::backend::FactorStorage;
-use lse_deform::constraints::{ConstraintSet, read_constraints_file_with};
+use lse_deform::constraints::{ConstraintSet, read_constraints_file};
 use lse_deform::error::{ProblemError, SolveOption};
 use lse_deform::formulation::Refine;
 use lse_deform::limits::{MemoryBudget, parse_bytes};
@@ -324,7 +324,7 @@ pub fn show_after_a_second(bar: &ProgressBar) {
 /// its notes and warnings.
 pub fn load(path: &Path, budget: MemoryBudget) -> Result<mesh::Mesh, Error> {
     let bar = phase(&format!("reading {}", path.display()));
-    let loaded = mesh::read_mesh_with(path, &Resources::with_budget(budget))?;
+    let loaded = mesh::read_mesh(path, budget)?;
     bar.finish_and_clear();
     for note in &loaded.notes {
         eprintln!("note: {note}");
@@ -389,7 +389,7 @@ pub fn constraints_with_warnings(
     budget: MemoryBudget,
 ) -> Result<(ConstraintSet, Vec<String>), Error> {
     let bar = phase(&format!("reading {}", path.display()));
-    let set = read_constraints_file_with(path, &Resources::with_budget(budget))?;
+    let set = read_constraints_file(path, budget)?;
     bar.finish_and_clear();
     let mut warnings = Vec::new();
     if let Some(detail) = set.mesh_mismatch(mesh) {

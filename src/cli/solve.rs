@@ -105,7 +105,7 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
         .transpose()?;
     let bar = phase("reading the matrices");
     let t = std::time::Instant::now();
-    let (ma, mc, mb, md) = mtx::read_system_with(&pa, &pc, &pb, &pd, &options.resources)?;
+    let (ma, mc, mb, md) = mtx::read_system(&pa, &pc, &pb, &pd, options.resources.budget)?;
     if let Some((meta, path)) = &meta {
         check_meta(
             meta,
@@ -126,9 +126,8 @@ pub fn solve(a: SolveArgs) -> Result<(), Error> {
         ..Report::default()
     };
     base.timings_s.setup = t.elapsed().as_secs_f64();
-    let mut solver = LseSolver::with_report(problem, base);
     bar.set_message(format!("precompute ({})", options.formulation.method));
-    solver.precompute_with(&options)?;
+    let mut solver = LseSolver::with_base_report(problem, base, &options)?;
     if a.condition {
         bar.set_message("condition estimate (Lanczos)");
         solver.estimate_condition()?;

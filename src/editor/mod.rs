@@ -300,14 +300,14 @@ pub fn run(options: EditOptions) -> Result<(), Error> {
             return Err(invalid(format!("{name} must be positive")));
         }
     }
-    let loaded = mesh::read_mesh(&options.mesh)?;
+    let loaded = mesh::read_mesh(&options.mesh, crate::limits::MemoryBudget::default())?;
     for note in &loaded.notes {
         eprintln!("note: {note}");
     }
     let mesh = loaded.mesh;
     let app = App::new(mesh, &options);
     if let Some(path) = &options.constraints {
-        let constraints = read_constraints_file(path)?;
+        let constraints = read_constraints_file(path, crate::limits::MemoryBudget::default())?;
         app.rebuild(Change::Constraints(constraints))?;
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()

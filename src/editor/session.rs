@@ -12,7 +12,7 @@ use serde_json::{Value, json};
 use crate::arap::ArapDeformer;
 use crate::choice::{Energy, Method, deserialize_word};
 use crate::constraints::ConstraintSet;
-use crate::deform::{Affine, Deformer};
+use crate::deform::{Affine, Deformer, GroupTargets};
 use crate::error::{Error, ProblemError};
 use crate::formulation::Refine;
 use crate::handle::HandleBasis;
@@ -200,10 +200,11 @@ pub enum Engine {
         /// A group outside the basis moved: frames are full solves.
         basis_stale: bool,
     },
-    /// ARAP: the deformer only computes targets ([`Deformer::transform_group`]).
+    /// ARAP: the groups' targets, moved as [`Deformer::transform_group`]
+    /// moves them.
     Arap {
         /// Targets of the groups.
-        targets: Box<Deformer>,
+        targets: GroupTargets,
         /// The iterations.
         arap: Box<ArapDeformer>,
     },
@@ -256,7 +257,7 @@ pub fn build(
         Energy::Laplacian => "set-up and precompute (factorisation)",
     });
     match request::prepare(mesh.clone(), constraints.clone(), &request)? {
-        Prepared::Arap(arap) => build_arap(*arap, settings, &options, t0),
+        Prepared::Arap(arap) => build_arap(*arap, settings, t0),
         Prepared::Linear(deformer) => build_linear(*deformer, &options, t0, stage),
     }
 }
@@ -264,17 +265,8 @@ pub fn build(
 /// [`build`] for ARAP (precomputed and initialised by the request layer):
 /// `arap_iterations_per_frame` iterations; `targets` computes the groups'
 /// targets.
-fn build_arap(
-    mut arap: ArapDeformer,
-    settings: &Settings,
-    options: &DeformOptions,
-    t0: Instant,
-) -> Result<Built, Error> {
-    let targets = Deformer::new(
-        arap.mesh().clone(),
-        options.laplacian,
-        arap.constraints().clone(),
-    )?;
+fn build_arap(mut arap: ArapDeformer, settings: &Settings, t0: Instant) -> Result<Built, Error> {
+    let targets = GroupTargets::new(arap.constraints().clone(), arap.length_unit());
     arap.iterate(settings.arap_iterations_per_frame)?;
     let report = arap.finish()?;
     let timings = json!({
@@ -286,7 +278,7 @@ fn build_arap(
     let positions = arap.positions();
     Ok(Built {
         engine: Engine::Arap {
-            targets: Box::new(targets),
+            targets,
             arap: Box::new(arap),
         },
         positions,
@@ -432,22 +424,22 @@ impl std::fmt::Display for FrameError {
 
 impl std::error::Error for FrameError {}
 
-/// Checks that the targets of group `name` (as `targets` set them) are
-/// finite in f32; if not, moves the group back to `previous` and says why.
+/// Checks that the targets of group `name` in `constraints` (as a
+/// transform by `m` set them) are finite in f32; if not, calls `revert`
+/// (which moves the group back) and says why.
 fn targets_in_f32(
-    targets: &mut Deformer,
+    constraints: &ConstraintSet,
     name: &str,
     m: &Affine,
-    previous: &Affine,
+    revert: impl FnOnce() -> Result<(), Error>,
 ) -> Result<(), FrameError> {
-    let constraints = targets.constraints();
     let far = constraints
         .group(name)
         .iter()
         .map(|&i| (i, constraints[i].kind.rhs()))
         .find(|(_, t)| t.iter().any(|&v| !(v as f32).is_finite()));
     if let Some((index, target)) = far {
-        targets.transform_group(name, previous)?;
+        revert()?;
         return Err(FrameError::NotRepresentable(format!(
             "transform of group '{name}' by {m:?}: constraint {index}'s target would be {target:?}, beyond the range of f32 (±3.4e38) in which positions are sent; nothing changed"
         )));
@@ -550,7 +542,10 @@ impl Session {
                 basis_stale,
             } => {
                 deformer.transform_group(name, m)?;
-                targets_in_f32(deformer, name, m, &previous)?;
+                let constraints = deformer.constraints().clone();
+                targets_in_f32(&constraints, name, m, || {
+                    deformer.transform_group(name, &previous)
+                })?;
                 // X₀ holds the other groups at rest: the basis is valid
                 // while every group outside it is at the identity.
                 let in_basis = |g: &str| {
@@ -589,7 +584,10 @@ impl Session {
             }
             Engine::Arap { targets, arap } => {
                 targets.transform_group(name, m)?;
-                targets_in_f32(targets, name, m, &previous)?;
+                let constraints = targets.constraints().clone();
+                targets_in_f32(&constraints, name, m, || {
+                    targets.transform_group(name, &previous).map(|_| ())
+                })?;
                 for i in targets.group_members(name)? {
                     arap.set_target(i, targets.constraints()[i].kind.rhs())?;
                 }

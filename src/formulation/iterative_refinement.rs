@@ -102,20 +102,6 @@ pub fn refine(
     refine_with_rounding(system, problem, x, mode, None)
 }
 
-/// Deprecated alias of [`refine_with_rounding`] (the "memory" is what
-/// earlier refinements measured of the factor's rounding), kept for one
-/// release.
-#[deprecated(note = "renamed refine_with_rounding")]
-pub fn refine_with_memory(
-    system: &mut dyn Prepared,
-    problem: &LseProblem,
-    x: &mut Mat<f64>,
-    mode: Refine,
-    rounding: Option<&mut FactorRounding>,
-) -> Result<Refinement, Error> {
-    refine_with_rounding(system, problem, x, mode, rounding)
-}
-
 /// [`refine`], remembering in `rounding` what this refinement measured
 /// about the factor's rounding, and, for the exact formulations under
 /// [`Refine::Auto`] or [`Refine::Until`] once a floor is known, stopping as

@@ -23,7 +23,6 @@ pub use crate::choice::Method;
 use crate::choice::Word;
 use crate::condition::ConditionEstimate;
 use crate::error::{Error, ProblemError, SolveOption};
-use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::resources::Resources;
 
@@ -36,8 +35,6 @@ mod record;
 mod util;
 
 pub use elimination::Elimination;
-#[allow(deprecated)]
-pub use iterative_refinement::refine_with_memory;
 pub use iterative_refinement::{
     AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, FactorRounding, REMEASURE_EVERY, Refine,
     RefineStop, Refinement, max_hard_residual, refine, refine_with_rounding,
@@ -119,17 +116,6 @@ pub trait Formulation: Send + Sync {
     /// threads and ordering).
     fn precompute(&self, problem: &LseProblem) -> Result<Precomputed, Error> {
         self.precompute_with(problem, &Resources::default())
-    }
-
-    /// [`Formulation::precompute_with`] a memory `budget` and each back
-    /// end's own threads and ordering.
-    #[deprecated(note = "use precompute_with(problem, &Resources::with_budget(budget))")]
-    fn precompute_within(
-        &self,
-        problem: &LseProblem,
-        budget: MemoryBudget,
-    ) -> Result<Precomputed, Error> {
-        self.precompute_with(problem, &Resources::with_budget(budget))
     }
 }
 

@@ -40,7 +40,6 @@ use crate::backend::FactorKind;
 use crate::backend::spd::{FaerLlt, SpdBackend, SpdFactor, SpdSymbolic};
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
 use crate::error::{Error, NumericalError, ProblemError};
-use crate::limits::MemoryBudget;
 use crate::problem::LseProblem;
 use crate::report::{MethodFacts, Warning, WarningKind, first_non_finite};
 use crate::resources::Resources;
@@ -228,18 +227,6 @@ impl PenaltySweep {
     /// The factor's size is checked against the default memory budget.
     pub fn new(problem: &LseProblem, spd: &dyn SpdBackend) -> Result<PenaltySweep, Error> {
         PenaltySweep::with_resources(problem, spd, &Resources::default())
-    }
-
-    /// [`PenaltySweep::with_resources`] a memory `budget`.
-    #[deprecated(
-        note = "use PenaltySweep::with_resources(problem, spd, &Resources::with_budget(budget))"
-    )]
-    pub fn within(
-        problem: &LseProblem,
-        spd: &dyn SpdBackend,
-        budget: MemoryBudget,
-    ) -> Result<PenaltySweep, Error> {
-        PenaltySweep::with_resources(problem, spd, &Resources::with_budget(budget))
     }
 
     /// [`PenaltySweep::new`] under `resources` (the budget, and the

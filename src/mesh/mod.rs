@@ -43,10 +43,8 @@ pub mod topology;
 pub use fingerprint::MeshSignature;
 pub use io::{
     LoadedMesh, MeshFormat, PlyEncoding, check_mesh_output, check_writable, read_mesh,
-    read_mesh_bytes, read_mesh_bytes_with, read_mesh_with, write_mesh,
+    read_mesh_bytes, write_mesh,
 };
-#[allow(deprecated)]
-pub use io::{read_mesh_bytes_within, read_mesh_within};
 pub use quality::Quality;
 pub use topology::Topology;
 

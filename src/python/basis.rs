@@ -181,15 +181,9 @@ pub(super) fn build(
         .extract()
         .map_err(|_| type_error(format!("{expected}, got {}", type_name(groups))))?;
     let (basis, stamp) = deformer.borrow().with_state(py, move |s| {
-        if s.deformer.solver().prepared().is_none() {
-            return Err(ProblemError::InvalidArgument {
-                message: "basis() called before precompute(): call precompute() first".into(),
-            }
-            .into());
-        }
         let stamp = s.changes.stamp();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        Ok((HandleBasis::new(&mut s.deformer, &names)?, stamp))
+        Ok((HandleBasis::new(s.deformer("basis()")?, &names)?, stamp))
     })?;
     Ok(PyHandleBasis {
         basis,
@@ -313,7 +307,7 @@ impl PyHandleBasis {
         let groups = self.basis.groups();
         self.deformer.bind(py).borrow().with_state(py, move |s| {
             for (name, map) in groups.iter().zip(m) {
-                s.deformer.check_transform(name, map)?;
+                s.deformer("evaluate()")?.check_transform(name, map)?;
             }
             Ok(())
         })
@@ -391,7 +385,9 @@ pub(super) fn solve_frame(
     refine: Option<Refine>,
     estimate: bool,
 ) -> Result<(Vec<[f64; 3]>, Vec<crate::report::Warning>), Error> {
-    let mode = refine.unwrap_or_else(|| s.deformer.solver().refine_mode());
+    let default_refine = s.options.refine;
+    let deformer = s.deformer("solve()")?;
+    let mode = refine.unwrap_or_else(|| deformer.solver().refine_mode());
     if !estimate && mode != Refine::EstimateOnly {
         return Err(ProblemError::InvalidArgument {
             message: format!(
@@ -401,17 +397,17 @@ pub(super) fn solve_frame(
         .into());
     }
     if refine.is_some() {
-        s.deformer.solver_mut().set_refine(refine);
+        deformer.solver_mut().set_refine(refine);
     }
     let result = if estimate {
-        s.deformer
+        deformer
             .solve()
             .map(|solution| (solution.positions, solution.report.warnings))
     } else {
-        s.deformer.solve_undiagnosed().map(|p| (p, Vec::new()))
+        deformer.solve_undiagnosed().map(|p| (p, Vec::new()))
     };
     if refine.is_some() {
-        s.deformer.solver_mut().set_refine(s.options.refine);
+        deformer.solver_mut().set_refine(default_refine);
     }
     result
 }

@@ -27,11 +27,10 @@ use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use serde_json::Value;
 
 use super::errors::{allocation_failed, input, type_error};
-use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file_with};
+use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
 use crate::error::{MeshError, ProblemError};
 use crate::limits::MemoryBudget;
 use crate::report::Report;
-use crate::resources::Resources;
 
 /// Which dtypes an array may have.
 #[derive(Clone, Copy, PartialEq)]
@@ -307,8 +306,7 @@ pub(crate) fn constraints(obj: &Bound<'_, PyAny>, budget: MemoryBudget) -> PyRes
             .call_method1("fspath", (obj,))?
             .extract()
             .map_err(|_| type_error("a constraints path must be a str or an os.PathLike of str"))?;
-        return read_constraints_file_with(path.as_ref(), &Resources::with_budget(budget))
-            .map_err(super::errors::to_py);
+        return read_constraints_file(path.as_ref(), budget).map_err(super::errors::to_py);
     }
     if let Some((b, bc)) = libigl_pair(obj)? {
         let vertices = indices(&b, "b", budget)?;

@@ -33,6 +33,7 @@ use crate::backend::spd::SpdKind;
 use crate::choice::{ArapEnergy, ArapInit, Energy, Method};
 use crate::compare::{self, CompareOptions, Configuration};
 use crate::constraints::ConstraintSet;
+use crate::deform::UnitScaled;
 use crate::error::{ProblemError, SolveOption};
 use crate::formulation::{Chosen, Refine, SpdChoice};
 use crate::laplacian::{self, LaplacianKind};
@@ -621,7 +622,8 @@ fn compare_rows<'py>(
         let mesh = mesh(py, V, F, budget)?;
         let set = constraints_for(constraints, &mesh, budget)?;
         let outcome = released(py, move || {
-            let mut deformer = Deformer::new(mesh, kind, set)?;
+            let mut deformer =
+                compare::reference_deformer(mesh, kind, set, options.resources.budget)?;
             compare::compare_configurations(&mut deformer, &configs, &options, &mut |_| {})
         });
         let (reference, rows) = objects.explain(py, outcome)?;
@@ -739,8 +741,7 @@ fn solve_lse<'py>(
         let (d, _) = convert::dense(D, "D", None, true, budget)?;
         let outcome = released(py, move || {
             let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref())?;
-            let mut solver = LseSolver::new(problem);
-            solver.precompute_with(&m)?;
+            let mut solver = LseSolver::new(problem, &m)?;
             let x = solver.solve()?;
             Ok((x, solver.report().clone()))
         });
@@ -754,10 +755,69 @@ fn solve_lse<'py>(
 
 /// What a `Deformer` holds behind its lock.
 struct DeformerState {
-    deformer: Deformer,
+    stage: Stage,
     options: SolveOptions,
     /// What a `HandleBasis` of this deformer must know (basis.rs).
     changes: basis::Changes,
+}
+
+/// A Python `Deformer` before and after its first `precompute()`: the
+/// library's [`Deformer`] is made factored, so the door keeps the set-up
+/// until then.
+enum Stage {
+    /// Checked, not yet factored.
+    SetUp {
+        mesh: Mesh,
+        kind: LaplacianKind,
+        constraints: ConstraintSet,
+    },
+    /// Factored.
+    Factored(Box<Deformer>),
+}
+
+impl DeformerState {
+    /// The factored deformer, or an error saying that `call` needs
+    /// `precompute()` first.
+    fn deformer(&mut self, call: &str) -> Result<&mut Deformer, Error> {
+        match &mut self.stage {
+            Stage::Factored(d) => Ok(d),
+            Stage::SetUp { .. } => Err(ProblemError::InvalidArgument {
+                message: format!("{call} needs a factorisation: call precompute() first"),
+            }
+            .into()),
+        }
+    }
+
+    /// `precompute()`: the first factors the set-up, later ones refactor
+    /// (on error the previous factorisation stays).
+    fn precompute(&mut self) -> Result<(), Error> {
+        match &mut self.stage {
+            Stage::Factored(d) => d.refactor(&self.options),
+            Stage::SetUp {
+                mesh,
+                kind,
+                constraints,
+            } => {
+                let d = Deformer::new(mesh.clone(), *kind, constraints.clone(), &self.options)?;
+                self.stage = Stage::Factored(Box::new(d));
+                Ok(())
+            }
+        }
+    }
+
+    /// The constraint indices of group `name`.
+    fn group(&self, name: &str) -> Result<Vec<usize>, Error> {
+        match &self.stage {
+            Stage::Factored(d) => d.group_members(name),
+            Stage::SetUp { constraints, .. } => match constraints.group(name) {
+                [] => Err(ProblemError::BadUpdate {
+                    message: format!("there is no constraint group '{name}'"),
+                }
+                .into()),
+                members => Ok(members.to_vec()),
+            },
+        }
+    }
 }
 
 /// A mesh with constraints, deformed again and again: `precompute()` once,
@@ -835,15 +895,18 @@ impl PyDeformer {
             let options = options.solve;
             let mesh = mesh(py, V, F, options.resources.budget)?;
             let set = constraints_for(constraints, &mesh, options.resources.budget)?;
-            let deformer = released(py, move || {
-                let mut deformer = Deformer::new(mesh, kind, set)?;
-                deformer.solver_mut().set_refine(options.refine);
-                Ok(deformer)
+            let stage = released(py, move || {
+                UnitScaled::new(&mesh, &set)?;
+                Ok(Stage::SetUp {
+                    mesh,
+                    kind,
+                    constraints: set,
+                })
             })?;
             Ok(PyDeformer {
                 budget: options.resources.budget,
                 state: Mutex::new(DeformerState {
-                    deformer,
+                    stage,
                     options,
                     changes: basis::Changes::default(),
                 }),
@@ -856,7 +919,7 @@ impl PyDeformer {
     fn precompute(&self, py: Python<'_>) -> PyResult<()> {
         self.with_state(py, |s| {
             s.changes.reconfigured("precompute()");
-            s.deformer.precompute_with(&s.options)
+            s.precompute()
         })
     }
 
@@ -883,7 +946,7 @@ impl PyDeformer {
             let updates: Vec<(usize, [f64; 3])> = indices.into_iter().zip(targets).collect();
             self.with_state(py, move |s| {
                 s.changes.reconfigured("set_targets()");
-                s.deformer.set_targets(&updates)
+                s.deformer("set_targets()")?.set_targets(&updates)
             })
         })
     }
@@ -901,7 +964,7 @@ impl PyDeformer {
     /// The constraint indices of group `name`, increasing.
     fn group(&self, py: Python<'_>, name: &str) -> PyResult<Vec<usize>> {
         let name = name.to_string();
-        self.with_state(py, move |s| s.deformer.group_members(&name))
+        self.with_state(py, move |s| s.group(&name))
     }
 
     /// Solve: the deformed positions (n × 3) for the current targets,
@@ -939,7 +1002,7 @@ impl PyDeformer {
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         guarded(|| {
-            let report = self.with_state(py, |s| Ok(s.deformer.report().clone()))?;
+            let report = self.with_state(py, |s| Ok(s.deformer("report")?.report().clone()))?;
             convert::report_dict(py, &report)
         })
     }
@@ -956,10 +1019,12 @@ impl PyDeformer {
         let affine = basis::affine(M, "M")?;
         let name = name.to_string();
         self.with_state(py, move |s| {
-            if !s.deformer.constraints().group(&name).is_empty() {
+            let deformer = s.deformer("transform_group()")?;
+            if !deformer.constraints().group(&name).is_empty() {
                 s.changes.transformed(&name);
             }
-            s.deformer.transform_group(&name, &affine)
+            s.deformer("transform_group()")?
+                .transform_group(&name, &affine)
         })
     }
 }

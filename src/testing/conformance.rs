@@ -1007,11 +1007,33 @@ fn check_solve(
 // ---------------------------------------------------------------------------
 // Through the method.
 
-/// A deformer for `mix`.
-fn deformer(mix: &ConstraintMix, kind: LaplacianKind) -> Result<Deformer, String> {
-    let set = ConstraintSet::from_vec(mix.constraints.clone()).map_err(|e| e.to_string())?;
-    Deformer::new(mix.mesh.clone(), kind, set)
+/// The constraints of `mix` as a set.
+fn constraint_set(mix: &ConstraintMix) -> Result<ConstraintSet, String> {
+    ConstraintSet::from_vec(mix.constraints.clone()).map_err(|e| e.to_string())
+}
+
+/// The assembled problem of `mix` (in its units), not factored.
+fn problem(mix: &ConstraintMix, kind: LaplacianKind) -> Result<LseProblem, String> {
+    Deformer::assemble(&mix.mesh, kind, &constraint_set(mix)?)
         .map_err(|e| format!("the case is not a problem: {e}"))
+}
+
+/// `mix` precomputed with `f` (the outer error: the case is not a
+/// problem; the inner: the precompute's).
+fn factored(
+    f: &dyn Formulation,
+    mix: &ConstraintMix,
+    kind: LaplacianKind,
+) -> Result<Result<Deformer, Error>, String> {
+    problem(mix, kind)?;
+    let set = constraint_set(mix)?;
+    Ok(Deformer::with_formulation(
+        mix.mesh.clone(),
+        kind,
+        set,
+        f,
+        &Resources::default(),
+    ))
 }
 
 /// `mix` precomputed with `f` and solved: `X` in the problem's units.
@@ -1020,8 +1042,7 @@ fn solved(
     mix: &ConstraintMix,
     kind: LaplacianKind,
 ) -> Result<(Deformer, Mat<f64>), String> {
-    let mut d = deformer(mix, kind)?;
-    d.precompute(f).map_err(|e| format!("precompute: {e}"))?;
+    let mut d = factored(f, mix, kind)?.map_err(|e| format!("precompute: {e}"))?;
     let x = d.solve_matrix().map_err(|e| format!("solve: {e}"))?;
     Ok((d, x))
 }
@@ -1147,8 +1168,8 @@ fn method_budget(
     mix: &ConstraintMix,
     kind: LaplacianKind,
 ) -> Result<(), String> {
-    let d = deformer(mix, kind)?;
-    match f.precompute_with(d.problem(), &Resources::with_budget(MemoryBudget::bytes(1))) {
+    let p = problem(mix, kind)?;
+    match f.precompute_with(&p, &Resources::with_budget(MemoryBudget::bytes(1))) {
         Err(Error::Problem(ProblemError::TooLarge { .. })) => Ok(()),
         Err(e) => Err(format!(
             "a precompute within one byte failed otherwise: {e}"
@@ -1164,8 +1185,7 @@ fn kkt_refusal(
     mix: &ConstraintMix,
     kind: LaplacianKind,
 ) -> Result<(), String> {
-    let mut d = deformer(mix, kind)?;
-    match d.precompute(f).and_then(|()| d.solve_matrix()) {
+    match factored(f, mix, kind)?.and_then(|mut d| d.solve_matrix()) {
         Err(Error::Numerical(e)) => ensure(!e.to_string().is_empty(), || "an empty message".into()),
         Err(e) => Err(format!(
             "dependent constraints {:?} refused, but not as a numerical error: {e}",
@@ -1186,10 +1206,8 @@ fn method_columns(
     mix: &ConstraintMix,
     kind: LaplacianKind,
 ) -> Result<(), String> {
-    let d = deformer(mix, kind)?;
-    let mut solver = LseSolver::new(d.problem().clone());
-    solver
-        .precompute(f)
+    let p = problem(mix, kind)?;
+    let mut solver = LseSolver::with_formulation(p.clone(), f, &Resources::default())
         .map_err(|e| format!("precompute: {e}"))?;
     let x = solver.solve().map_err(|e| format!("solve: {e}"))?;
     let widen = |m: &Mat<f64>| {
@@ -1199,7 +1217,7 @@ fn method_columns(
             _ => m[(i, 0)] + m[(i, 1)],
         })
     };
-    let (c, dd) = (widen(d.problem().c()), widen(d.problem().d()));
+    let (c, dd) = (widen(p.c()), widen(p.d()));
     let (wide, _) = solver
         .solve_columns(c.as_ref(), dd.as_ref(), Refine::Auto)
         .map_err(|e| format!("a solve of seven columns failed: {e}"))?;
@@ -1712,9 +1730,8 @@ fn interruption(
     kind: LaplacianKind,
     solves: bool,
 ) -> Result<(), String> {
-    let mut d = deformer(mix, kind)?;
     trap.arm(Phase::Factorize);
-    let outcome = trap.run(|| d.precompute(f));
+    let outcome = trap.run(|| factored(f, mix, kind))?.map(|_| ());
     ensure(trap.sprung(), || {
         "the back end was never asked to factor".into()
     })?;
@@ -1722,8 +1739,8 @@ fn interruption(
         format!("a precompute interrupted after the factorisation ended in {outcome:?}")
     })?;
     trap.arm(Phase::None);
-    d.precompute(f)
-        .map_err(|e| format!("precompute after an interruption: {e}"))?;
+    let mut d =
+        factored(f, mix, kind)?.map_err(|e| format!("precompute after an interruption: {e}"))?;
     let x = d
         .solve_matrix()
         .map_err(|e| format!("solve after an interrupted precompute: {e}"))?;

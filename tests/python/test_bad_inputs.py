@@ -153,7 +153,7 @@ def test_conflicting_hard_constraints_are_reported_not_raised():
 
 def test_deformer_misuse():
     d = lse_deform.Deformer(V, F, [{"type": "position", "vertex": int(v), "target": t.tolist(), "group": "g"} for v, t in zip(B_IDX, BC)])
-    with pytest.raises(InputError, match="before precompute"):
+    with pytest.raises(InputError, match=r"solve\(\) needs a factorisation: call precompute\(\) first"):
         d.solve()
     d.precompute()
     with pytest.raises(InputError, match="constraint 999 does not exist"):

@@ -64,5 +64,5 @@ def test_evaluate_refuses_the_maps_transform_group_refuses():
 def test_basis_before_precompute_says_so():
     V, F = bumpy_grid(n=6)
     d = lse_deform.Deformer(V, F, scene_items(V, handle=0.05))
-    with pytest.raises(InputError, match=r"basis\(\) called before precompute\(\)"):
+    with pytest.raises(InputError, match=r"basis\(\) needs a factorisation: call precompute\(\) first"):
         d.basis(["handle"])

@@ -34,7 +34,6 @@ use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef};
 use faer::{Mat, MatMut, MatRef};
 
 use crate::error::{Error, ProblemError};
-use crate::limits::MemoryBudget;
 use crate::resources::Resources;
 
 mod dense_householder;
@@ -182,17 +181,6 @@ pub trait QrBackend: Send + Sync {
         tolerance: RankTolerance,
     ) -> Result<Box<dyn ConstraintQr>, Error> {
         self.factor_with(b, tolerance, &Resources::default())
-    }
-
-    /// [`QrBackend::factor_with`] a memory `budget`.
-    #[deprecated(note = "use factor_with(b, tolerance, &Resources::with_budget(budget))")]
-    fn factor_within(
-        &self,
-        b: SparseRowMatRef<'_, usize, f64>,
-        tolerance: RankTolerance,
-        budget: MemoryBudget,
-    ) -> Result<Box<dyn ConstraintQr>, Error> {
-        self.factor_with(b, tolerance, &Resources::with_budget(budget))
     }
 }
 

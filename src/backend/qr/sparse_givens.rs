@@ -199,17 +199,6 @@ impl GivensQr {
         GivensQr::with_budget(b, tolerance, order, MemoryBudget::default())
     }
 
-    /// [`GivensQr::with_budget`].
-    #[deprecated(note = "use GivensQr::with_budget")]
-    pub fn within(
-        b: SparseRowMatRef<'_, usize, f64>,
-        tolerance: RankTolerance,
-        order: GivensRowOrder,
-        budget: MemoryBudget,
-    ) -> Result<GivensQr, Error> {
-        GivensQr::with_budget(b, tolerance, order, budget)
-    }
-
     /// [`GivensQr::new`] within a solve's memory `budget`.
     pub fn with_budget(
         b: SparseRowMatRef<'_, usize, f64>,

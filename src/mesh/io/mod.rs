@@ -74,7 +74,6 @@ use flate2::write::GzEncoder;
 use super::Mesh;
 use crate::error::{Error, MeshError};
 use crate::limits::{self, MemoryBudget};
-use crate::resources::Resources;
 
 use obj::read_obj;
 pub use obj::write_obj;
@@ -170,21 +169,6 @@ impl From<io::Error> for ReadError {
 
 const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 
-/// Reads a mesh, choosing the format from the extension (`.obj`, `.ply`,
-/// `.off`, each optionally followed by `.gz`; gzip is detected from the
-/// content). See the module documentation for what each reader accepts.
-/// Within the default memory budget ([`MemoryBudget::default`]); see
-/// [`read_mesh_within`].
-pub fn read_mesh(path: &Path) -> Result<LoadedMesh, Error> {
-    read_mesh_with(path, &Resources::default())
-}
-
-/// [`read_mesh_with`] a memory `budget`.
-#[deprecated(note = "use read_mesh_with(path, &Resources::with_budget(budget))")]
-pub fn read_mesh_within(path: &Path, budget: MemoryBudget) -> Result<LoadedMesh, Error> {
-    read_mesh_with(path, &Resources::with_budget(budget))
-}
-
 /// [`read_mesh`] within the budget of `resources` ([`crate::limits`]): a regular file whose
 /// size (× [`limits::GZIP_EXPANSION`] when compressed) would need more is
 /// refused before it is read; whatever the source (a pipe, a device,
@@ -193,8 +177,7 @@ pub fn read_mesh_within(path: &Path, budget: MemoryBudget) -> Result<LoadedMesh,
 /// refused ([`MeshError::TooLarge`], naming the budget and the bytes read),
 /// never parsed as the mesh its first part may be; the mesh assembled is
 /// checked as it grows.
-pub fn read_mesh_with(path: &Path, resources: &Resources) -> Result<LoadedMesh, Error> {
-    let budget = resources.budget;
+pub fn read_mesh(path: &Path, budget: MemoryBudget) -> Result<LoadedMesh, Error> {
     let (format, gzip_ext) = MeshFormat::from_path(path)?;
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     // Only a regular file's length is the number of bytes it will deliver
@@ -298,33 +281,14 @@ fn read_capped<R: BufRead>(
     .into())
 }
 
-/// Reads a mesh of the given format from bytes in memory (gzip-compressed
-/// data, recognised by its magic number, is decompressed first). Never
-/// panics, whatever the bytes. Within the default memory budget; see
-/// [`read_mesh_bytes_within`].
-pub fn read_mesh_bytes(bytes: &[u8], format: MeshFormat) -> Result<LoadedMesh, MeshError> {
-    read_mesh_bytes_with(bytes, format, &Resources::default())
-}
-
-/// [`read_mesh_bytes_with`] a memory `budget`.
-#[deprecated(note = "use read_mesh_bytes_with(bytes, format, &Resources::with_budget(budget))")]
-pub fn read_mesh_bytes_within(
+/// [`read_mesh_bytes`] within the budget of `resources`: what is
+/// decompressed is capped as [`read_mesh`] caps a stream, and refused
+/// beyond the cap.
+pub fn read_mesh_bytes(
     bytes: &[u8],
     format: MeshFormat,
     budget: MemoryBudget,
 ) -> Result<LoadedMesh, MeshError> {
-    read_mesh_bytes_with(bytes, format, &Resources::with_budget(budget))
-}
-
-/// [`read_mesh_bytes`] within the budget of `resources`: what is
-/// decompressed is capped as [`read_mesh_with`] caps a stream, and refused
-/// beyond the cap.
-pub fn read_mesh_bytes_with(
-    bytes: &[u8],
-    format: MeshFormat,
-    resources: &Resources,
-) -> Result<LoadedMesh, MeshError> {
-    let budget = resources.budget;
     let name = "the data";
     let result = if bytes.starts_with(&GZIP_MAGIC) {
         let decoder = BufReader::new(MultiGzDecoder::new(bytes));

@@ -425,21 +425,21 @@ mod tests {
             e.finish().unwrap()
         };
         let expected_positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-        let one = read_mesh_bytes(&gz(TRIANGLE), MeshFormat::Obj).unwrap();
+        let one = read_mesh_bytes(&gz(TRIANGLE), MeshFormat::Obj, MemoryBudget::default()).unwrap();
         assert_eq!(one.mesh.positions(), &expected_positions);
         assert_eq!(one.mesh.faces(), &[[0, 1, 2]]);
         // Two concatenated gzip members (as `cat a.gz b.gz` makes) are one
         // stream; the cut falls inside a line.
         let mut two = gz("v 0 0 0\nv 1 0 ");
         two.extend(gz("0\nv 0 1 0\nf 1 2 3\n"));
-        let two = read_mesh_bytes(&two, MeshFormat::Obj).unwrap();
+        let two = read_mesh_bytes(&two, MeshFormat::Obj, MemoryBudget::default()).unwrap();
         assert_eq!(two.mesh.positions(), &expected_positions);
         assert_eq!(two.mesh.faces(), &[[0, 1, 2]]);
         // A gzip stream cut short is a parse error, not a shorter mesh.
         let whole = gz(TRIANGLE);
         let cut = &whole[..whole.len() - 8];
         assert!(matches!(
-            read_mesh_bytes(cut, MeshFormat::Obj),
+            read_mesh_bytes(cut, MeshFormat::Obj, MemoryBudget::default()),
             Err(MeshError::Parse {
                 format: "OBJ",
                 line: None,
