@@ -35,7 +35,7 @@ use lse_deform::deform::Affine;
 use lse_deform::handle::HandleBasis;
 use lse_deform::mesh::{Mesh, generate, read_mesh};
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
+use lse_deform::{Deformer, LaplacianKind, formulation::NullSpaceQr};
 use rayon::prelude::*;
 
 fn mesh(file: &str, generated: usize) -> (String, Mesh) {

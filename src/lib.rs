@@ -86,16 +86,20 @@ pub mod sparse;
 #[cfg(feature = "proptest")]
 pub mod testing;
 
+// The crate root names the dozen things a deformation is written with;
+// everything else is reached through its module.
 pub use backend::{qr::QrKind, spd::SpdKind};
-pub use constraints::{Constraint, ConstraintKind, ConstraintSet};
-pub use deform::{Deformer, Solution};
-pub use error::{Error, Result};
-pub use formulation::{
-    Elimination, Formulation, FormulationChoice, Kkt, Method, NullSpaceQr, Penalty, PenaltySweep,
-};
+pub use choice::Method;
+pub use constraints::{Constraint, ConstraintSet};
+pub use deform::Deformer;
+pub use error::Error;
 pub use laplacian::LaplacianKind;
-pub use limits::MemoryBudget;
 pub use mesh::Mesh;
-pub use options::{ArapOptions, DeformOptions};
 pub use report::Report;
 pub use solver::{LseSolver, SolveOptions};
+
+/// The guide `docs/rust.md`, whose examples are compiled and run as
+/// doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../docs/rust.md")]
+pub struct RustGuide;

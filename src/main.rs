@@ -62,7 +62,7 @@ fn main() -> ExitCode {
     // every rank checks its own and all agree (a rank-1 mistake fails the
     // run on every rank), then every rank but 0 serves rank 0's MUMPS
     // commands until rank 0 ends the run, and exits with rank 0's code.
-    let start = lse_deform::MemoryBudget::from_environment()
+    let start = lse_deform::limits::MemoryBudget::from_environment()
         .map(|_| ())
         .map_err(|e| e.to_string());
     #[cfg(feature = "mumps")]

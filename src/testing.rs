@@ -31,7 +31,7 @@
 //!
 //! ```
 //! use lse_deform::testing::{constraint_mixes, dense_reference, relative_difference};
-//! use lse_deform::{ConstraintSet, Deformer, LaplacianKind, NullSpaceQr};
+//! use lse_deform::{ConstraintSet, Deformer, LaplacianKind, formulation::NullSpaceQr};
 //! use proptest::prelude::*;
 //!
 //! proptest!(ProptestConfig::with_cases(8), |(mix in constraint_mixes())| {

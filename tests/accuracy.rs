@@ -9,8 +9,8 @@ use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::formulation::{Refine, RefineStop};
 use lse_deform::testing::random_surface;
 use lse_deform::{
-    Deformer, Elimination, Formulation, FormulationChoice, Kkt, LaplacianKind, Mesh, Method,
-    NullSpaceQr, Penalty, QrKind,
+    Deformer, formulation::Elimination, formulation::Formulation, formulation::FormulationChoice, formulation::Kkt, LaplacianKind, Mesh, Method,
+    formulation::NullSpaceQr, formulation::Penalty, QrKind,
 };
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};

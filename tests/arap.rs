@@ -10,7 +10,7 @@ use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::mesh::generate;
 use lse_deform::testing::random_surface;
-use lse_deform::{Mesh, NullSpaceQr};
+use lse_deform::{Mesh, formulation::NullSpaceQr};
 use nalgebra::{Matrix3, Matrix4};
 use proptest::prelude::*;
 use rand::seq::SliceRandom;

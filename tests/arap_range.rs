@@ -11,7 +11,7 @@ use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit};
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::error::{Error, NumericalError};
 use lse_deform::testing::random_surface;
-use lse_deform::{Mesh, NullSpaceQr};
+use lse_deform::{Mesh, formulation::NullSpaceQr};
 
 mod common;
 use common::path_in;

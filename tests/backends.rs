@@ -20,7 +20,7 @@ use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::error::{NumericalError, ProblemError};
 use lse_deform::testing::conformance;
 use lse_deform::testing::{random_surface, relative_difference};
-use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
+use lse_deform::{Deformer, LaplacianKind, formulation::NullSpaceQr};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;

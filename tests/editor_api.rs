@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::mesh::{generate, write_mesh};
-use lse_deform::{Deformer, LaplacianKind, Mesh, NullSpaceQr};
+use lse_deform::{Deformer, LaplacianKind, Mesh, formulation::NullSpaceQr};
 use serde_json::Value;
 
 mod common;

@@ -18,7 +18,7 @@ use lse_deform::testing::{
     random_surface, relative_difference, with_soft,
 };
 use lse_deform::{
-    Deformer, Elimination, Kkt, LaplacianKind, Mesh, NullSpaceQr, Penalty, PenaltySweep,
+    Deformer, formulation::Elimination, formulation::Kkt, LaplacianKind, Mesh, formulation::NullSpaceQr, formulation::Penalty, formulation::PenaltySweep,
 };
 use proptest::prelude::*;
 use rand::SeedableRng;

@@ -11,7 +11,7 @@ use lse_deform::formulation::{Formulation, FormulationChoice, Method, Refine};
 use lse_deform::problem::LseProblem;
 use lse_deform::testing::{dense_reference, random_lse, relative_difference};
 use lse_deform::{
-    Constraint, ConstraintSet, Deformer, Kkt, LaplacianKind, LseSolver, NullSpaceQr, QrKind,
+    Constraint, ConstraintSet, Deformer, formulation::Kkt, LaplacianKind, LseSolver, formulation::NullSpaceQr, QrKind,
     SpdKind,
 };
 
@@ -75,7 +75,7 @@ fn kkt_penalty_and_elimination_solve_general_problems() {
     // Penalty: the hard rows hold to O(1/w²).
     let mut solver = LseSolver::with_formulation(
         lse.problem.clone(),
-        &lse_deform::Penalty::new(1e4),
+        &lse_deform::formulation::Penalty::new(1e4),
         &lse_deform::resources::Resources::default(),
     )
     .unwrap();
@@ -104,7 +104,7 @@ fn kkt_penalty_and_elimination_solve_general_problems() {
     let problem = LseProblem::from_parts(a.as_ref(), c.as_ref(), b.as_ref(), d.as_ref()).unwrap();
     let mut solver = LseSolver::with_formulation(
         problem,
-        &lse_deform::Elimination::default(),
+        &lse_deform::formulation::Elimination::default(),
         &lse_deform::resources::Resources::default(),
     )
     .unwrap();
@@ -217,7 +217,7 @@ fn a_singular_general_problem_names_the_free_unknown() {
     .unwrap();
     let formulations: Vec<Box<dyn Formulation>> = vec![
         Box::new(NullSpaceQr::default()),
-        Box::new(lse_deform::Penalty::new(10.0)),
+        Box::new(lse_deform::formulation::Penalty::new(10.0)),
         Box::new(Kkt::default()),
     ];
     for f in formulations {

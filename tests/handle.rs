@@ -9,7 +9,7 @@ use lse_deform::deform::Affine;
 use lse_deform::formulation::{Formulation, Refine};
 use lse_deform::handle::HandleBasis;
 use lse_deform::testing::{independent_constraints, random_surface, with_soft};
-use lse_deform::{Deformer, Elimination, Error, Kkt, LaplacianKind, Mesh, NullSpaceQr, Penalty};
+use lse_deform::{Deformer, formulation::Elimination, Error, formulation::Kkt, LaplacianKind, Mesh, formulation::NullSpaceQr, formulation::Penalty};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -166,14 +166,14 @@ fn handle_only_basis_on_a_grid_matches_every_formulation() {
     let p = mesh.positions().to_vec();
     let mut cs = Vec::new();
     for v in 0..13 {
-        let mut fixed = Constraint::hard(lse_deform::ConstraintKind::Position {
+        let mut fixed = Constraint::hard(lse_deform::constraints::ConstraintKind::Position {
             vertex: v,
             target: p[v],
         });
         fixed.group = Some("fixed".into());
         cs.push(fixed);
         let top = 12 * 13 + v;
-        let mut handle = Constraint::hard(lse_deform::ConstraintKind::Position {
+        let mut handle = Constraint::hard(lse_deform::constraints::ConstraintKind::Position {
             vertex: top,
             target: p[top],
         });
@@ -202,13 +202,13 @@ fn translation_moves_handle_vertices_exactly_and_fixed_ones_not_at_all() {
     let p = mesh.positions().to_vec();
     let mut cs = Vec::new();
     for v in 0..7 {
-        let mut c = Constraint::hard(lse_deform::ConstraintKind::Position {
+        let mut c = Constraint::hard(lse_deform::constraints::ConstraintKind::Position {
             vertex: v,
             target: p[v],
         });
         c.group = Some("fixed".into());
         cs.push(c);
-        let mut h = Constraint::hard(lse_deform::ConstraintKind::Position {
+        let mut h = Constraint::hard(lse_deform::constraints::ConstraintKind::Position {
             vertex: 42 + v,
             target: p[42 + v],
         });
@@ -246,7 +246,7 @@ fn translation_moves_handle_vertices_exactly_and_fixed_ones_not_at_all() {
 fn bad_requests_are_typed_errors() {
     let mesh = lse_deform::mesh::generate::grid(4, 4).unwrap();
     let p = mesh.positions().to_vec();
-    let mut c = Constraint::hard(lse_deform::ConstraintKind::Position {
+    let mut c = Constraint::hard(lse_deform::constraints::ConstraintKind::Position {
         vertex: 0,
         target: p[0],
     });

@@ -16,8 +16,8 @@ use lse_deform::constraints::parse_constraints;
 use lse_deform::error::{ConstraintError, Error, MeshError, NumericalError, ProblemError};
 use lse_deform::mesh::{MeshFormat, generate, read_mesh_bytes};
 use lse_deform::{
-    Constraint, ConstraintKind, ConstraintSet, Deformer, Formulation, FormulationChoice, Kkt,
-    LaplacianKind, Mesh, Method, NullSpaceQr, Penalty, QrKind,
+    Constraint, constraints::ConstraintKind, ConstraintSet, Deformer, formulation::Formulation, formulation::FormulationChoice, formulation::Kkt,
+    LaplacianKind, Mesh, Method, formulation::NullSpaceQr, formulation::Penalty, QrKind,
 };
 
 // ---------------------------------------------------------------------------

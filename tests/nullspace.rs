@@ -8,7 +8,7 @@ use lse_deform::testing::{
     T_VALUES, dense_reference, dependent_constraints as dependent, independent_constraints, jitter,
     laplacian_kinds as kinds, random_surface, relative_difference,
 };
-use lse_deform::{Deformer, LaplacianKind, Mesh, NullSpaceQr};
+use lse_deform::{Deformer, LaplacianKind, Mesh, formulation::NullSpaceQr};
 use proptest::prelude::*;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -225,7 +225,7 @@ proptest! {
 /// advising a constraint without "weight").
 #[test]
 fn no_hard_constraint_solves_like_the_other_methods() {
-    use lse_deform::{FormulationChoice, LseSolver, Method, QrKind};
+    use lse_deform::{formulation::FormulationChoice, LseSolver, Method, QrKind};
     let mesh = random_surface(4, 4, 1);
     let p = mesh.positions();
     let set = ConstraintSet::from_vec(

@@ -88,7 +88,7 @@ use lse_deform::testing::{
     laplacian_kinds,
 };
 use lse_deform::{
-    ConstraintSet, Deformer, FormulationChoice, LaplacianKind, LseSolver, Method, QrKind, Report,
+    ConstraintSet, Deformer, formulation::FormulationChoice, LaplacianKind, LseSolver, Method, QrKind, Report,
 };
 use proptest::prelude::*;
 

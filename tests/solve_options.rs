@@ -12,7 +12,7 @@ use lse_deform::handle::HandleBasis;
 use lse_deform::mesh::{Mesh, generate};
 use lse_deform::resources::Resources;
 use lse_deform::{
-    Deformer, FormulationChoice, LaplacianKind, MemoryBudget, Method, QrKind, SolveOptions,
+    Deformer, formulation::FormulationChoice, LaplacianKind, limits::MemoryBudget, Method, QrKind, SolveOptions,
 };
 
 /// A 10 × 10 grid: the bottom row fixed, the top row lifted as group

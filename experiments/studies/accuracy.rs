@@ -20,7 +20,7 @@ use lse_deform::backend::spd::FaerLlt;
 use lse_deform::formulation::{FORWARD_ERROR_WARNING, Refine};
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{
-    Deformer, Formulation, FormulationChoice, LaplacianKind, Method, NullSpaceQr, PenaltySweep,
+    Deformer, formulation::Formulation, formulation::FormulationChoice, LaplacianKind, Method, formulation::NullSpaceQr, formulation::PenaltySweep,
 };
 use serde::Serialize;
 

@@ -11,7 +11,7 @@ use std::time::Instant;
 use lse_deform::constraints::ConstraintKind;
 use lse_deform::mesh::Mesh;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
+use lse_deform::{Deformer, LaplacianKind, formulation::NullSpaceQr};
 
 use crate::harness::conflict_scene as conflicts;
 use crate::harness::context::AnyError;

@@ -16,7 +16,7 @@ use std::time::Instant;
 use lse_deform::mesh::generate::{self, GeneratedKind};
 use lse_deform::report::Timings;
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, LaplacianKind, NullSpaceQr};
+use lse_deform::{Deformer, LaplacianKind, formulation::NullSpaceQr};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;

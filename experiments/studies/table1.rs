@@ -21,7 +21,7 @@ use lse_deform::backend::spd::FaerLlt;
 use lse_deform::condition::ConditionEstimate;
 use lse_deform::formulation::{FORWARD_ERROR_WARNING, PenaltySweep, max_hard_residual};
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, Error, Formulation, FormulationChoice, LaplacianKind, Method};
+use lse_deform::{Deformer, Error, formulation::Formulation, formulation::FormulationChoice, LaplacianKind, Method};
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
@@ -979,7 +979,7 @@ where
 mod tests {
     use super::*;
     use lse_deform::mesh::generate;
-    use lse_deform::{Kkt, NullSpaceQr};
+    use lse_deform::{formulation::Kkt, formulation::NullSpaceQr};
 
     fn grid_problem() -> (Deformer, Mat<f64>) {
         let mesh = generate::grid(12, 12).unwrap();

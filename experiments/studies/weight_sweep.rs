@@ -4,7 +4,7 @@
 //! with relative, on-edge and on-face constraints, and the user's `-c`
 //! file on the `--mesh` files) and each relative penalty weight
 //! `W = 10⁻² … 10¹²` (hard rows entering with `W·s`, see
-//! [`lse_deform::Penalty`]):
+//! [`lse_deform::formulation::Penalty`]):
 //! - the error `‖X − X*‖/‖X*‖` of the penalty solution unrefined and with
 //!   multiplier refinement ([`Refine::Auto`]), against `X*`: the sparse QR
 //!   of the eliminated problem when every hard row is a position (its
@@ -37,7 +37,7 @@ use lse_deform::error::Error;
 use lse_deform::formulation::{Refine, max_hard_residual};
 use lse_deform::problem::LseProblem;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, FormulationChoice, LaplacianKind, Method};
+use lse_deform::{Deformer, formulation::FormulationChoice, LaplacianKind, Method};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;

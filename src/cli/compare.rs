@@ -58,7 +58,7 @@ pub struct CompareArgs {
     /// precompute), as for `deform` (default: LSE_MEMORY_LIMIT when set,
     /// else the smallest of the system's limits).
     #[arg(long, value_parser = super::memory_budget)]
-    memory_limit: Option<lse_deform::MemoryBudget>,
+    memory_limit: Option<lse_deform::limits::MemoryBudget>,
     #[command(flatten)]
     held: super::HeldArgs,
 }

@@ -20,7 +20,7 @@ pub struct InfoArgs {
 
 /// Runs `info`, as text or JSON.
 pub fn info(a: InfoArgs) -> Result<(), Error> {
-    let mesh = load(&a.mesh, lse_deform::MemoryBudget::default())?;
+    let mesh = load(&a.mesh, lse_deform::limits::MemoryBudget::default())?;
     let topo = Topology::of(&mesh);
     let q = Quality::of(&mesh);
     let (lo, hi) = mesh.bounding_box();

@@ -149,7 +149,7 @@ fn run(a: &RenderArgs) -> Result<(), RenderCommandError> {
         .collect();
     super::files::check_distinct(&inputs, &[("-o", a.output.as_path())])?;
     super::notes(mesh::check_writable(&a.output)?);
-    let original = super::load(&a.mesh, lse_deform::MemoryBudget::default())?;
+    let original = super::load(&a.mesh, lse_deform::limits::MemoryBudget::default())?;
     let deformed = a
         .deformed
         .as_deref()
@@ -217,7 +217,7 @@ fn check_arguments(a: &RenderArgs) -> Result<(), RenderCommandError> {
 
 /// Reads a mesh that must have the vertices of `original`.
 fn load_like(path: &Path, original: &Mesh) -> Result<Mesh, RenderCommandError> {
-    let mesh = super::load(path, lse_deform::MemoryBudget::default())?;
+    let mesh = super::load(path, lse_deform::limits::MemoryBudget::default())?;
     if mesh.n_vertices() != original.n_vertices() {
         return Err(RenderError::VertexCount {
             what: path.display().to_string(),
@@ -235,7 +235,7 @@ fn constraint_groups(
     path: &Path,
     mesh: &Mesh,
 ) -> Result<Vec<(String, Vec<usize>)>, RenderCommandError> {
-    let set = super::constraints_for(path, mesh, false, lse_deform::MemoryBudget::default())?;
+    let set = super::constraints_for(path, mesh, false, lse_deform::limits::MemoryBudget::default())?;
     let mut groups: Vec<(String, Vec<usize>)> = Vec::new();
     for c in set.as_slice() {
         let name = c.group.as_deref().unwrap_or("constrained");

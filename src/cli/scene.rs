@@ -79,7 +79,7 @@ pub fn scene(a: SceneArgs) -> Result<(), Error> {
         &[("-o", a.output.as_path())],
     )?;
     check_outputs(None, Some(&a.output))?;
-    let mesh = load(&a.mesh, lse_deform::MemoryBudget::default())?;
+    let mesh = load(&a.mesh, lse_deform::limits::MemoryBudget::default())?;
     let mut s = FixedAndHandle::paper_default(&mesh);
     if let Some(axis) = &a.axis {
         let dir: AxisDirection = axis.parse().map_err(|e: ParseAxisError| {

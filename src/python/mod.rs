@@ -186,7 +186,7 @@ fn own_choice(obj: &Bound<'_, PyAny>, keyword: &str, objects: &mut Objects) -> P
 
 impl Keywords<'_, '_> {
     /// The options they name over [`DeformOptions::default`], the
-    /// formulation checked ([`crate::FormulationChoice::build`]) before any
+    /// formulation checked ([`crate::formulation::FormulationChoice::build`]) before any
     /// work, with the back-end objects among them.
     fn options(self) -> PyResult<(DeformOptions, Objects)> {
         let mut options = DeformOptions::default();
