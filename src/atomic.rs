@@ -75,7 +75,7 @@ pub const TEMP_PREFIX_BYTES: usize = 32;
 /// the module documentation). On an error of `fill` or of the file system
 /// the temporary file is removed and `path` is left as it was; the error is
 /// returned (`E` is `io::Error` or any error that converts from it).
-pub fn write<T, E, F>(path: &Path, fill: F) -> Result<T, E>
+pub(crate) fn write<T, E, F>(path: &Path, fill: F) -> Result<T, E>
 where
     E: From<io::Error>,
     F: FnOnce(&mut BufWriter<File>) -> Result<T, E>,
@@ -132,7 +132,7 @@ fn open_in_place(target: &Path) -> io::Result<File> {
 /// `BrokenPipe`, saying so); a FIFO with one stays open for the write; an
 /// interrupted set of renames that `path` belongs to is finished. Returns
 /// what was done about such a set, as sentences to show; creates nothing.
-pub fn prepare(path: &Path) -> io::Result<Vec<String>> {
+pub(crate) fn prepare(path: &Path) -> io::Result<Vec<String>> {
     let target = resolve(path);
     let notes = journal::finish(&target)?.into_iter().collect();
     #[cfg(unix)]

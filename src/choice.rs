@@ -56,7 +56,7 @@ pub trait Word: Copy + PartialEq + Sized + 'static {
 
 /// Serialises a [`Word`] as its name (for `#[serde(serialize_with)]` and
 /// `Serialize` impls).
-pub fn serialize_word<T: Word, S: Serializer>(value: &T, s: S) -> Result<S::Ok, S::Error> {
+pub(crate) fn serialize_word<T: Word, S: Serializer>(value: &T, s: S) -> Result<S::Ok, S::Error> {
     s.serialize_str(value.name())
 }
 

@@ -167,7 +167,7 @@ pub fn reference(deformer: &mut Deformer) -> Result<Reference, Error> {
 
 /// `ΔX = max_i ‖X_i − X*_i‖₂ / scale` over the rows (scale: the length
 /// scale; a non-positive scale counts as the smallest positive double).
-pub fn delta_x(x: &Mat<f64>, reference: &Mat<f64>, scale: f64) -> f64 {
+pub(crate) fn delta_x(x: &Mat<f64>, reference: &Mat<f64>, scale: f64) -> f64 {
     let worst = (0..x.nrows())
         .map(|i| {
             (0..x.ncols())
@@ -180,7 +180,7 @@ pub fn delta_x(x: &Mat<f64>, reference: &Mat<f64>, scale: f64) -> f64 {
 }
 
 /// `ΔE = (E − E*) / E*`, or `E` when `E* = 0`.
-pub fn delta_e(energy: f64, reference: f64) -> f64 {
+pub(crate) fn delta_e(energy: f64, reference: f64) -> f64 {
     if reference > 0.0 {
         (energy - reference) / reference
     } else {

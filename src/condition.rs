@@ -140,7 +140,7 @@ pub struct LanczosResult {
 /// with full reorthogonalisation (classical Gram–Schmidt applied twice at
 /// every step), stopping at relative Ritz residual `tol` or after
 /// `max_iterations` steps (see the module documentation).
-pub fn lanczos_largest_magnitude(
+pub(crate) fn lanczos_largest_magnitude(
     op: &mut dyn SymmetricOperator,
     tol: f64,
     max_iterations: usize,

@@ -224,7 +224,7 @@ impl ConstraintKind {
     /// `true` if the row's coefficients sum to a nonzero value, i.e. the
     /// constraint pins the translation of the vertices' component
     /// (position, edge and face do; relative does not).
-    pub fn pins_translation(&self) -> bool {
+    pub(crate) fn pins_translation(&self) -> bool {
         !matches!(self, ConstraintKind::Relative { .. })
     }
 }
@@ -376,7 +376,7 @@ impl ConstraintSet {
 
     /// Records (or forgets) the mesh the constraints were made for; written
     /// by [`ConstraintSet::to_json`].
-    pub fn set_mesh(&mut self, mesh: Option<MeshSignature>) {
+    pub(crate) fn set_mesh(&mut self, mesh: Option<MeshSignature>) {
         self.mesh = mesh;
     }
 

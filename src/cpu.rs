@@ -26,7 +26,7 @@
 /// and Rust code compiled without AVX keeps nothing in the upper halves,
 /// so this never changes a result, only the speed of what follows.
 #[inline]
-pub fn clear_upper_vector_state() {
+pub(crate) fn clear_upper_vector_state() {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx") {

@@ -226,13 +226,13 @@ impl GroupTargets {
     }
 
     /// The constraints with their current targets.
-    pub(crate) fn constraints(&self) -> &ConstraintSet {
+    pub fn constraints(&self) -> &ConstraintSet {
         &self.constraints
     }
 
     /// [`Deformer::transform_group`] on the targets alone: returns the
     /// constraints it moved with their new targets (mesh units).
-    pub(crate) fn transform_group(
+    pub fn transform_group(
         &mut self,
         name: &str,
         m: &Affine,

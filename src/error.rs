@@ -56,7 +56,7 @@ pub enum Error {
 impl Error {
     /// `true` for errors caused by the input (mesh, constraints, files),
     /// `false` for numerical failures and an interruption.
-    pub fn is_input_error(&self) -> bool {
+    pub(crate) fn is_input_error(&self) -> bool {
         !matches!(self, Error::Numerical(_) | Error::Interrupted)
     }
 
@@ -594,7 +594,7 @@ pub enum SolveOption {
 
 impl SolveOption {
     /// The option in words.
-    pub fn describe(self) -> &'static str {
+    pub(crate) fn describe(self) -> &'static str {
         match self {
             SolveOption::Method => "method",
             SolveOption::Qr => "QR back end",

@@ -140,7 +140,7 @@ impl HandleBasis {
     /// `8 k (3 (l + m) + 6 n)` bytes. An upper estimate: the editor's peak
     /// on a 2,025-vertex grid was 0.93, 0.88 and 0.67 of it for 100, 256
     /// and 3,000 groups.
-    pub fn estimated_bytes(n: usize, l: usize, m: usize, groups: usize) -> u64 {
+    pub(crate) fn estimated_bytes(n: usize, l: usize, m: usize, groups: usize) -> u64 {
         let k = 3 + 4 * groups as u64;
         let per_column = 3 * (l as u64 + m as u64) + 6 * n as u64;
         k.saturating_mul(per_column).saturating_mul(8)
@@ -151,7 +151,7 @@ impl HandleBasis {
     /// factorisations count it): [`ProblemError::TooLarge`] with the
     /// estimate when it exceeds it (what [`HandleBasis::new`] checks
     /// first; a caller can check before its precompute).
-    pub fn check_memory(
+    pub(crate) fn check_memory(
         n: usize,
         l: usize,
         m: usize,

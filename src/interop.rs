@@ -51,7 +51,7 @@ fn csc_arrays(m: SparseColMatRef<'_, usize, f64>) -> (Vec<usize>, Vec<usize>, Ve
 }
 
 /// faer CSC → `sprs::CsMat` in CSC storage.
-pub fn faer_to_sprs(m: SparseColMatRef<'_, usize, f64>) -> CsMat<f64> {
+pub(crate) fn faer_to_sprs(m: SparseColMatRef<'_, usize, f64>) -> CsMat<f64> {
     let (ptr, idx, val) = csc_arrays(m);
     // Sorted unique indices within bounds by construction: cannot fail.
     CsMat::try_new_csc((m.nrows(), m.ncols()), ptr, idx, val)

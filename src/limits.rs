@@ -333,7 +333,11 @@ impl MemoryBudget {
     /// top of what the process holds now ([`resident_bytes`]): the budget
     /// is of the whole process, so what it already holds (the mesh, the
     /// problem, the matrices) counts too. `what` names `extra`.
-    pub fn check_on_top(self, extra: u64, what: impl FnOnce() -> String) -> Result<(), String> {
+    pub(crate) fn check_on_top(
+        self,
+        extra: u64,
+        what: impl FnOnce() -> String,
+    ) -> Result<(), String> {
         let resident = resident_bytes().unwrap_or(0);
         self.check(extra.saturating_add(resident), || {
             format!(
@@ -354,7 +358,7 @@ impl MemoryBudget {
 /// (faer's matrix-multiply kernel) aborts the process. Mapped is not
 /// resident: reserved but untouched pages count here, not in
 /// [`resident_bytes`]. `what` names `extra`.
-pub fn check_address_space(extra: u64, what: impl FnOnce() -> String) -> Result<(), String> {
+pub(crate) fn check_address_space(extra: u64, what: impl FnOnce() -> String) -> Result<(), String> {
     let Some(limit) = address_space_limit() else {
         return Ok(());
     };
@@ -377,13 +381,13 @@ pub fn check_address_space(extra: u64, what: impl FnOnce() -> String) -> Result<
 /// `/proc/self/status`), where the system says; what a check of memory
 /// still to be allocated adds to its estimate when the budget is of the
 /// whole process.
-pub fn resident_bytes() -> Option<u64> {
+pub(crate) fn resident_bytes() -> Option<u64> {
     status_bytes("VmRSS:")
 }
 
 /// Bytes of address space this process has mapped (`VmSize` of
 /// `/proc/self/status`), what the kernel holds against `RLIMIT_AS`.
-pub fn mapped_bytes() -> Option<u64> {
+pub(crate) fn mapped_bytes() -> Option<u64> {
     status_bytes("VmSize:")
 }
 
@@ -403,7 +407,7 @@ fn status_bytes(name: &str) -> Option<u64> {
 /// a device) reports no size and is capped only. The caller reads at most
 /// the cap plus one byte and refuses the read that reaches it
 /// ([`beyond_the_cap`]).
-pub fn file_read_cap(
+pub(crate) fn file_read_cap(
     file: &std::fs::File,
     name: &str,
     budget: MemoryBudget,
@@ -427,7 +431,7 @@ pub fn file_read_cap(
 /// The detail of a refusal of `name`, a stream that went on beyond `cap`,
 /// the bytes read (`after`: e.g. " after decompression"), the most that
 /// `budget` allows at `per_byte` bytes of memory (of `of`) per byte read.
-pub fn beyond_the_cap(
+pub(crate) fn beyond_the_cap(
     budget: MemoryBudget,
     name: &str,
     cap: u64,
@@ -454,7 +458,7 @@ fn smallest(limits: &[(Option<u64>, BudgetSource)]) -> MemoryBudget {
 }
 
 /// `MemAvailable` of `/proc/meminfo`, bytes (Linux only).
-pub fn available_memory() -> Option<u64> {
+pub(crate) fn available_memory() -> Option<u64> {
     parse_meminfo(&std::fs::read_to_string("/proc/meminfo").ok()?)
 }
 
@@ -469,7 +473,7 @@ fn parse_meminfo(info: &str) -> Option<u64> {
 /// `ulimit -v` sets), bytes, from `/proc/self/limits` (Linux only; read
 /// there rather than through `getrlimit` so the crate needs no `libc`);
 /// `None` when unlimited or unknown.
-pub fn address_space_limit() -> Option<u64> {
+pub(crate) fn address_space_limit() -> Option<u64> {
     parse_address_space(&std::fs::read_to_string("/proc/self/limits").ok()?)
 }
 
@@ -492,7 +496,7 @@ fn parse_address_space(limits: &str) -> Option<u64> {
 /// everything below it), as named in `/proc/self/cgroup`; `None` when
 /// there is no limit (`max`, or v1's near-`i64::MAX` "no limit") or no
 /// cgroup file (Linux only).
-pub fn cgroup_memory_limit() -> Option<u64> {
+pub(crate) fn cgroup_memory_limit() -> Option<u64> {
     let membership = std::fs::read_to_string("/proc/self/cgroup").ok()?;
     cgroup_limit_under(Path::new("/sys/fs/cgroup"), &membership)
 }
@@ -562,7 +566,7 @@ pub fn parse_bytes(s: &str) -> Option<u64> {
 }
 
 /// `1.5 GiB`, `300 MiB`, … for messages.
-pub fn format_bytes(bytes: u64) -> String {
+pub(crate) fn format_bytes(bytes: u64) -> String {
     format_bytes_to(bytes, 1)
 }
 
@@ -585,7 +589,7 @@ fn format_bytes_to(bytes: u64, decimals: usize) -> String {
 /// `a` and `b` as [`format_bytes`] writes them, with as many decimals (up
 /// to three) as it takes to tell them apart, and in bytes when three do
 /// not: an estimate just over a budget never reads as equal to it.
-pub fn format_apart(a: u64, b: u64) -> (String, String) {
+pub(crate) fn format_apart(a: u64, b: u64) -> (String, String) {
     for decimals in 1..=3 {
         let (x, y) = (format_bytes_to(a, decimals), format_bytes_to(b, decimals));
         if x != y || a == b {

@@ -71,7 +71,7 @@ impl MatrixFile {
     }
 
     /// The matrix as a sparse one (a dense file's zeros are not stored).
-    pub fn into_sparse(self) -> SparseColMat<usize, f64> {
+    pub(crate) fn into_sparse(self) -> SparseColMat<usize, f64> {
         match self {
             MatrixFile::Sparse(m) => m,
             MatrixFile::Dense(m) => {
@@ -96,7 +96,7 @@ impl MatrixFile {
 
     /// The matrix as a dense one; a sparse file is expanded after a check of
     /// `rows × cols × 8` bytes against the memory budget.
-    pub fn into_dense(self, path: &Path) -> Result<Mat<f64>, Error> {
+    pub(crate) fn into_dense(self, path: &Path) -> Result<Mat<f64>, Error> {
         self.into_dense_budgeted(path, MemoryBudget::default())
     }
 
@@ -150,7 +150,7 @@ pub struct MatrixHeader {
 impl MatrixHeader {
     /// The most nonzeros the matrix can have: the announced entries (twice
     /// for a symmetric file), or rows × cols for an array.
-    pub fn max_nonzeros(&self) -> u64 {
+    pub(crate) fn max_nonzeros(&self) -> u64 {
         match self.entries {
             Some(e) if self.symmetric => (e as u64).saturating_mul(2),
             Some(e) => e as u64,
@@ -189,13 +189,13 @@ struct Opened<'p, R: BufRead> {
 }
 
 /// Reads a Matrix Market file (see the module documentation).
-pub fn read_matrix(path: &Path) -> Result<MatrixFile, Error> {
+pub(crate) fn read_matrix(path: &Path) -> Result<MatrixFile, Error> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     read_matrix_from(BufReader::new(file), path)
 }
 
 /// [`read_matrix`] from any reader; `path` names it in errors.
-pub fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile, Error> {
+pub(crate) fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile, Error> {
     open(reader, path)?.read_entries(MemoryBudget::default())
 }
 

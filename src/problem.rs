@@ -258,7 +258,7 @@ impl LseProblem {
     /// Sets the target (or relative vector) of constraint `index`: the only
     /// change a dragged handle makes. The matrices are untouched, so a
     /// prepared system re-solves without refactoring.
-    pub fn set_rhs(&mut self, index: usize, value: [f64; 3]) -> Result<(), Error> {
+    pub(crate) fn set_rhs(&mut self, index: usize, value: [f64; 3]) -> Result<(), Error> {
         if index >= self.places.len() {
             return Err(ProblemError::BadUpdate {
                 message: format!(
@@ -394,12 +394,12 @@ impl LseProblem {
 
     /// `true` for a problem built by [`LseProblem::from_parts`] (no mesh:
     /// errors name unknowns, not vertices or components).
-    pub fn is_general(&self) -> bool {
+    pub(crate) fn is_general(&self) -> bool {
         self.general
     }
 
     /// `k`, the number of right-hand-side columns of `C` and `D`.
-    pub fn n_rhs(&self) -> usize {
+    pub(crate) fn n_rhs(&self) -> usize {
         self.c.ncols()
     }
 
@@ -429,7 +429,7 @@ impl LseProblem {
     }
 
     /// Number of Laplacian rows at the top of `A`.
-    pub fn n_laplacian_rows(&self) -> usize {
+    pub(crate) fn n_laplacian_rows(&self) -> usize {
         self.n_laplacian_rows
     }
 
@@ -440,7 +440,7 @@ impl LseProblem {
 
     /// Each soft row of `A`: its constraint, its weight as given and the
     /// weight the row carries.
-    pub fn soft_constraints(&self) -> &[SoftRow] {
+    pub(crate) fn soft_constraints(&self) -> &[SoftRow] {
         &self.soft
     }
 
@@ -460,7 +460,7 @@ impl LseProblem {
     /// underflow; the minimiser is unchanged). `‖AX − C‖` of the problem as
     /// given is that of [`LseProblem::a`] and [`LseProblem::c`] divided by
     /// it. 1 for a mesh's problem (docs/units.md §8).
-    pub fn a_scale(&self) -> f64 {
+    pub(crate) fn a_scale(&self) -> f64 {
         self.a_scale
     }
 
@@ -716,7 +716,7 @@ pub(crate) fn pivot_columns(rows: &mut [Vec<f64>], ncols: usize) -> Vec<bool> {
 /// not already pinned by a single-component constraint; a zero pivot column
 /// names the component. A coefficient sum counts as nonzero above
 /// `1e-12 × the row's coefficient norm`.
-pub fn check_pinned(
+pub(crate) fn check_pinned(
     component_of: &[usize],
     n_components: usize,
     constraints: &ConstraintSet,

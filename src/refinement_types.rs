@@ -42,7 +42,7 @@ impl Refine {
     /// Whether no correction is applied: [`Refine::EstimateOnly`], and
     /// [`Refine::Steps`]`(0)`, which is the same (zero steps; one
     /// correction computed for the estimate).
-    pub fn is_estimate_only(self) -> bool {
+    pub(crate) fn is_estimate_only(self) -> bool {
         self.max_steps() == 0
     }
 

@@ -31,7 +31,7 @@ impl<T> Default for Detected<T> {
 
 impl<T> Detected<T> {
     /// The method does not detect this (penalty).
-    pub fn not_detected() -> Self {
+    pub(crate) fn not_detected() -> Self {
         Detected(None)
     }
 
@@ -336,14 +336,14 @@ impl Report {
     /// `s`, the power of two the relative penalty weight is multiplied by:
     /// hard rows enter with weight `w s` (penalty formulation only; key
     /// `penalty_weight_unit`).
-    pub fn penalty_weight_unit(&self) -> Option<f64> {
+    pub(crate) fn penalty_weight_unit(&self) -> Option<f64> {
         self.method_facts.and_then(|f| f.penalty_weight_unit())
     }
 
     /// The power-of-two scale `s` of the multiplier rows and columns of the
     /// KKT matrix `[AᵀA sBᵀ; sB 0]` (KKT formulation only; key
     /// `kkt_multiplier_scale`).
-    pub fn kkt_multiplier_scale(&self) -> Option<f64> {
+    pub(crate) fn kkt_multiplier_scale(&self) -> Option<f64> {
         self.method_facts.and_then(|f| f.kkt_multiplier_scale())
     }
 
@@ -369,7 +369,7 @@ impl Report {
     /// describe another solution. `redundant` and `conflicting` keep the
     /// classification of the last diagnosed solve (the rows skipped are the
     /// factor's). [`crate::solver::LseSolver::diagnose`] fills them all.
-    pub fn clear_solution_diagnostics(&mut self, warnings: &[Warning]) {
+    pub(crate) fn clear_solution_diagnostics(&mut self, warnings: &[Warning]) {
         self.forward_error_estimate = None;
         self.refinement = None;
         self.max_constraint_residual = f64::NAN;
@@ -466,7 +466,7 @@ pub const CONFLICT_RELATIVE_TOLERANCE: f64 = 1e-8;
 /// Everything is computed in the problem's units and converted to the
 /// mesh's by `report.length_unit` (set by the caller; 1 for a problem given
 /// as matrices).
-pub fn fill_solution_diagnostics(
+pub(crate) fn fill_solution_diagnostics(
     report: &mut Report,
     problem: &crate::problem::LseProblem,
     x: &faer::Mat<f64>,
@@ -569,6 +569,6 @@ fn row_norm(problem: &crate::problem::LseProblem, k: usize) -> f64 {
 }
 
 /// The first vertex (row) with a non-finite coordinate in `x`, if any.
-pub fn first_non_finite(x: faer::MatRef<'_, f64>) -> Option<usize> {
+pub(crate) fn first_non_finite(x: faer::MatRef<'_, f64>) -> Option<usize> {
     (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !x[(i, c)].is_finite()))
 }

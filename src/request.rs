@@ -151,7 +151,7 @@ impl Request {
 
     /// Checks the options before any work, without building a back end:
     /// the formulation's ([`crate::formulation::FormulationChoice::validate`]).
-    pub fn validate(&self) -> Result<(), Error> {
+    pub(crate) fn validate(&self) -> Result<(), Error> {
         let solve = &self.options.solve;
         solve.formulation.validate(&solve.factor_storage)?;
         Ok(())
@@ -184,7 +184,7 @@ pub struct Outcome {
 
 /// Set-up and precompute of `request` on `mesh` with `constraints` (for
 /// ARAP also its initial guess), after [`Request::validate`].
-pub fn prepare(
+pub(crate) fn prepare(
     mesh: Mesh,
     constraints: ConstraintSet,
     request: &Request,
@@ -255,7 +255,7 @@ impl Outcome {
 
 /// [`Outcome::verdict`] of a strict request's `report` (also for the
 /// `solve` command's general problems).
-pub fn strict_verdict(report: &Report) -> Result<(), Error> {
+pub(crate) fn strict_verdict(report: &Report) -> Result<(), Error> {
     strict_conflicts(report)?;
     let estimate = report.forward_error_estimate.unwrap_or(0.0);
     if estimate.is_nan() || estimate > FORWARD_ERROR_WARNING {
@@ -272,7 +272,7 @@ pub fn strict_verdict(report: &Report) -> Result<(), Error> {
 
 /// A strict request's conflicts: the first conflicting hard constraint
 /// (with the count of the others) as [`ConstraintError::Conflicting`].
-pub fn strict_conflicts(report: &Report) -> Result<(), Error> {
+pub(crate) fn strict_conflicts(report: &Report) -> Result<(), Error> {
     if let Some(first) = report.conflicting.first() {
         let count = report.conflicting.len();
         let sentence = report

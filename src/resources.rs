@@ -48,7 +48,7 @@ impl Threads {
 
     /// The requested count (at most [`MAX_THREADS`], also for a `Count`
     /// built directly), `None` for the back end's own.
-    pub fn requested(self) -> Option<usize> {
+    pub(crate) fn requested(self) -> Option<usize> {
         match self {
             Threads::Own => None,
             Threads::Count(n) => Some(n.get().min(MAX_THREADS)),
@@ -195,7 +195,7 @@ impl Resources {
     /// Whether threads and ordering are each back end's own (what a run
     /// without options does; back ends then take their own path,
     /// unchanged).
-    pub fn back_ends_choose(&self) -> bool {
+    pub(crate) fn back_ends_choose(&self) -> bool {
         self.threads == Threads::Own && self.ordering == FillOrdering::Own
     }
 }

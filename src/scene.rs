@@ -141,7 +141,7 @@ impl FixedAndHandle {
 
     /// How high `p` is, bottom to top: its coordinate along the axis,
     /// negated when [`FixedAndHandle::descending`].
-    pub fn height(&self, p: [f64; 3]) -> f64 {
+    pub(crate) fn height(&self, p: [f64; 3]) -> f64 {
         if self.descending {
             -p[self.axis.index()]
         } else {

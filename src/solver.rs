@@ -280,7 +280,7 @@ impl LseSolver {
     }
 
     /// The refinement the next solve uses.
-    pub fn refine_mode(&self) -> Refine {
+    pub(crate) fn refine_mode(&self) -> Refine {
         match self.refine {
             Some(mode) => mode,
             None if !self.system.exact() => Refine::EstimateOnly,
@@ -420,7 +420,7 @@ impl LseSolver {
     /// `C` and `D` are left as they were; the refinement with that largest
     /// estimate becomes the one [`LseSolver::diagnose`] reports (for
     /// positions combined from these columns).
-    pub fn solve_columns(
+    pub(crate) fn solve_columns(
         &mut self,
         c: MatRef<'_, f64>,
         d: MatRef<'_, f64>,
@@ -501,7 +501,7 @@ impl LseSolver {
 
     /// Sets the right-hand side of constraint `index` (a 3-column problem):
     /// the matrices stay, the next solve reuses the factorisation.
-    pub fn set_rhs(&mut self, index: usize, value: [f64; 3]) -> Result<(), Error> {
+    pub(crate) fn set_rhs(&mut self, index: usize, value: [f64; 3]) -> Result<(), Error> {
         self.problem.set_rhs(index, value)
     }
 
@@ -737,7 +737,7 @@ pub fn refinement_warnings(r: &Refinement, method: Method) -> Vec<Warning> {
 /// null-space method (which is tested to `1e-10`, docs/formulations.md)
 /// only when another method was in use; for the penalty method also a
 /// larger weight.
-pub fn lost_accuracy_advice(method: Method, r: Option<&Refinement>) -> String {
+pub(crate) fn lost_accuracy_advice(method: Method, r: Option<&Refinement>) -> String {
     let mut ways = Vec::new();
     match r {
         None => ways.push("refine it with refinement `auto`"),

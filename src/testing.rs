@@ -509,7 +509,7 @@ pub fn scaled_meshes() -> impl Strategy<Value = Mesh> {
 
 /// Meshes with sliver triangles ([`generate::sliver_mesh`], about 100–400
 /// vertices): bad angles, large cotangent weights.
-pub fn sliver_meshes() -> impl Strategy<Value = Mesh> {
+pub(crate) fn sliver_meshes() -> impl Strategy<Value = Mesh> {
     (any::<u64>(), 10usize..20).prop_filter_map("sliver mesh parameters", |(seed, n)| {
         generate::sliver_mesh(n, seed).ok()
     })
@@ -622,7 +622,7 @@ pub enum Mixture {
 }
 
 /// The three mixtures, one in six independent-only.
-pub fn mixtures() -> impl Strategy<Value = Mixture> {
+pub(crate) fn mixtures() -> impl Strategy<Value = Mixture> {
     prop_oneof![
         1 => Just(Mixture::Independent),
         2 => Just(Mixture::Separated),
@@ -1159,7 +1159,7 @@ impl MixBuilder<'_> {
 /// tolerance ones with remainders from [`SKIPPED_REMAINDERS`] and
 /// [`KEPT_REMAINDERS`], as `mixture` allows — then `n_soft` soft
 /// positions.
-pub fn constructed_mix(
+pub(crate) fn constructed_mix(
     mesh: Mesh,
     count: usize,
     n_soft: usize,
@@ -1230,7 +1230,7 @@ pub fn constructed_mix(
 /// Meshes for [`constructed_mixes`]: random surfaces from 4 × 4 up to
 /// 16 × 16 cells (25–289 vertices) and sliver meshes ([`sliver_meshes`],
 /// about 100–400 vertices).
-pub fn constructed_meshes() -> impl Strategy<Value = Mesh> {
+pub(crate) fn constructed_meshes() -> impl Strategy<Value = Mesh> {
     prop_oneof![
         3 => (any::<u64>(), 4usize..9, 4usize..9).prop_map(|(s, nx, ny)| random_surface(nx, ny, s)),
         1 => (any::<u64>(), 9usize..17, 9usize..17).prop_map(|(s, nx, ny)| random_surface(nx, ny, s)),
@@ -1292,7 +1292,7 @@ type BasisRow = (usize, Vec<(usize, f64)>, Vec<f64>);
 ///   unit vector on one to three columns no other row touches (so the
 ///   remainder is exactly `ρ` relative): skipped for `ρ` in
 ///   [`SKIPPED_REMAINDERS`] or 0, kept for `ρ` in [`KEPT_REMAINDERS`].
-pub fn constructed_lse(
+pub(crate) fn constructed_lse(
     n: usize,
     rows: usize,
     k: usize,

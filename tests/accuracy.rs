@@ -9,8 +9,9 @@ use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::formulation::{Refine, RefineStop};
 use lse_deform::testing::random_surface;
 use lse_deform::{
-    Deformer, formulation::Elimination, formulation::Formulation, formulation::FormulationChoice, formulation::Kkt, LaplacianKind, Mesh, Method,
-    formulation::NullSpaceQr, formulation::Penalty, QrKind,
+    Deformer, LaplacianKind, Mesh, Method, QrKind, formulation::Elimination,
+    formulation::Formulation, formulation::FormulationChoice, formulation::Kkt,
+    formulation::NullSpaceQr, formulation::Penalty,
 };
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};

@@ -19,7 +19,7 @@ use lse_deform::resources::{FillOrdering, Resources, Threads};
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::solver::LseSolver;
 use lse_deform::testing::{random_lses, random_surface};
-use lse_deform::{Deformer, LaplacianKind, Method, formulation::NullSpaceQr, SolveOptions};
+use lse_deform::{Deformer, LaplacianKind, Method, SolveOptions, formulation::NullSpaceQr};
 use proptest::prelude::*;
 
 fn held(ordering: FillOrdering, threads: usize) -> Resources {

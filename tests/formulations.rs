@@ -18,7 +18,8 @@ use lse_deform::testing::{
     random_surface, relative_difference, with_soft,
 };
 use lse_deform::{
-    Deformer, formulation::Elimination, formulation::Kkt, LaplacianKind, Mesh, formulation::NullSpaceQr, formulation::Penalty, formulation::PenaltySweep,
+    Deformer, LaplacianKind, Mesh, formulation::Elimination, formulation::Kkt,
+    formulation::NullSpaceQr, formulation::Penalty, formulation::PenaltySweep,
 };
 use proptest::prelude::*;
 use rand::SeedableRng;

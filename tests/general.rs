@@ -11,8 +11,8 @@ use lse_deform::formulation::{Formulation, FormulationChoice, Method, Refine};
 use lse_deform::problem::LseProblem;
 use lse_deform::testing::{dense_reference, random_lse, relative_difference};
 use lse_deform::{
-    Constraint, ConstraintSet, Deformer, formulation::Kkt, LaplacianKind, LseSolver, formulation::NullSpaceQr, QrKind,
-    SpdKind,
+    Constraint, ConstraintSet, Deformer, LaplacianKind, LseSolver, QrKind, SpdKind,
+    formulation::Kkt, formulation::NullSpaceQr,
 };
 
 #[test]

@@ -9,7 +9,10 @@ use lse_deform::deform::Affine;
 use lse_deform::formulation::{Formulation, Refine};
 use lse_deform::handle::HandleBasis;
 use lse_deform::testing::{independent_constraints, random_surface, with_soft};
-use lse_deform::{Deformer, formulation::Elimination, Error, formulation::Kkt, LaplacianKind, Mesh, formulation::NullSpaceQr, formulation::Penalty};
+use lse_deform::{
+    Deformer, Error, LaplacianKind, Mesh, formulation::Elimination, formulation::Kkt,
+    formulation::NullSpaceQr, formulation::Penalty,
+};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -16,8 +16,9 @@ use lse_deform::constraints::parse_constraints;
 use lse_deform::error::{ConstraintError, Error, MeshError, NumericalError, ProblemError};
 use lse_deform::mesh::{MeshFormat, generate, read_mesh_bytes};
 use lse_deform::{
-    Constraint, constraints::ConstraintKind, ConstraintSet, Deformer, formulation::Formulation, formulation::FormulationChoice, formulation::Kkt,
-    LaplacianKind, Mesh, Method, formulation::NullSpaceQr, formulation::Penalty, QrKind,
+    Constraint, ConstraintSet, Deformer, LaplacianKind, Mesh, Method, QrKind,
+    constraints::ConstraintKind, formulation::Formulation, formulation::FormulationChoice,
+    formulation::Kkt, formulation::NullSpaceQr, formulation::Penalty,
 };
 
 // ---------------------------------------------------------------------------

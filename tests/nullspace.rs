@@ -225,7 +225,7 @@ proptest! {
 /// advising a constraint without "weight").
 #[test]
 fn no_hard_constraint_solves_like_the_other_methods() {
-    use lse_deform::{formulation::FormulationChoice, LseSolver, Method, QrKind};
+    use lse_deform::{LseSolver, Method, QrKind, formulation::FormulationChoice};
     let mesh = random_surface(4, 4, 1);
     let p = mesh.positions();
     let set = ConstraintSet::from_vec(

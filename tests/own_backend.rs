@@ -18,7 +18,7 @@ use lse_deform::formulation::{Chosen, FormulationChoice, PenaltySweep};
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::testing::conformance::{self, KitConfig};
 use lse_deform::testing::{random_surface, relative_difference};
-use lse_deform::{Deformer, LaplacianKind, Method, formulation::NullSpaceQr, QrKind};
+use lse_deform::{Deformer, LaplacianKind, Method, QrKind, formulation::NullSpaceQr};
 
 // ---------------------------------------------------------------------------
 // The back end.

@@ -88,7 +88,8 @@ use lse_deform::testing::{
     laplacian_kinds,
 };
 use lse_deform::{
-    ConstraintSet, Deformer, formulation::FormulationChoice, LaplacianKind, LseSolver, Method, QrKind, Report,
+    ConstraintSet, Deformer, LaplacianKind, LseSolver, Method, QrKind, Report,
+    formulation::FormulationChoice,
 };
 use proptest::prelude::*;
 

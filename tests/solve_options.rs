@@ -12,7 +12,8 @@ use lse_deform::handle::HandleBasis;
 use lse_deform::mesh::{Mesh, generate};
 use lse_deform::resources::Resources;
 use lse_deform::{
-    Deformer, formulation::FormulationChoice, LaplacianKind, limits::MemoryBudget, Method, QrKind, SolveOptions,
+    Deformer, LaplacianKind, Method, QrKind, SolveOptions, formulation::FormulationChoice,
+    limits::MemoryBudget,
 };
 
 /// A 10 × 10 grid: the bottom row fixed, the top row lifted as group

@@ -5,7 +5,7 @@
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, formulation::FormulationChoice, LaplacianKind, Method, Report};
+use lse_deform::{Deformer, LaplacianKind, Method, Report, formulation::FormulationChoice};
 
 use lse_deform::error::Error;
 

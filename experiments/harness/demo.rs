@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, LaplacianKind, formulation::NullSpaceQr, Report};
+use lse_deform::{Deformer, LaplacianKind, Report, formulation::NullSpaceQr};
 
 use crate::harness::context::AnyError;
 use crate::harness::plot::{

@@ -9,7 +9,9 @@ use lse_deform::backend::qr::QrKind;
 use lse_deform::backend::spd::{SpdBackend, SpdKind};
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
-use lse_deform::{Deformer, formulation::Formulation, LaplacianKind, Mesh, formulation::NullSpaceQr};
+use lse_deform::{
+    Deformer, LaplacianKind, Mesh, formulation::Formulation, formulation::NullSpaceQr,
+};
 
 use crate::harness::context::AnyError;
 use crate::harness::plot::Drawn;

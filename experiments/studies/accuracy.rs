@@ -20,7 +20,8 @@ use lse_deform::backend::spd::FaerLlt;
 use lse_deform::formulation::{FORWARD_ERROR_WARNING, Refine};
 use lse_deform::scene::FixedAndHandle;
 use lse_deform::{
-    Deformer, formulation::Formulation, formulation::FormulationChoice, LaplacianKind, Method, formulation::NullSpaceQr, formulation::PenaltySweep,
+    Deformer, LaplacianKind, Method, formulation::Formulation, formulation::FormulationChoice,
+    formulation::NullSpaceQr, formulation::PenaltySweep,
 };
 use serde::Serialize;
 

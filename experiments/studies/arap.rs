@@ -21,9 +21,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use faer::Mat;
-use lse_deform::formulation::NullSpaceQr;
 use lse_deform::arap::{ArapDeformer, ArapEnergy, ArapInit, ArapTriangles};
 use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
+use lse_deform::formulation::NullSpaceQr;
 use lse_deform::mesh::{Mesh, generate};
 use lse_deform::scene::{FixedAndHandle, MixedScene};
 use serde::{Deserialize, Serialize};

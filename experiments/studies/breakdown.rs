@@ -20,7 +20,7 @@ use lse_deform::backend::spd::SpdKind;
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{formulation::Formulation, formulation::FormulationChoice, Mesh, Method, Report};
+use lse_deform::{Mesh, Method, Report, formulation::Formulation, formulation::FormulationChoice};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;

@@ -27,7 +27,9 @@ use lse_deform::formulation::{Refine, max_hard_residual};
 use lse_deform::handle::HandleBasis;
 use lse_deform::mesh::Mesh;
 use lse_deform::scene::{FixedAndHandle, HANDLE_GROUP};
-use lse_deform::{Deformer, formulation::Formulation, formulation::FormulationChoice, LaplacianKind, Method};
+use lse_deform::{
+    Deformer, LaplacianKind, Method, formulation::Formulation, formulation::FormulationChoice,
+};
 use serde::Serialize;
 
 use python::PythonRows;

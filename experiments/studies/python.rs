@@ -19,7 +19,7 @@ use std::time::Instant;
 
 use lse_deform::mesh::write_mesh;
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, formulation::FormulationChoice, LaplacianKind, Method};
+use lse_deform::{Deformer, LaplacianKind, Method, formulation::FormulationChoice};
 use serde::{Deserialize, Serialize};
 
 use crate::harness::context::AnyError;

@@ -18,7 +18,10 @@ use std::time::Instant;
 use lse_deform::constraints::ConstraintSet;
 use lse_deform::report::Timings;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, formulation::Formulation, formulation::FormulationChoice, LaplacianKind, Method, Report};
+use lse_deform::{
+    Deformer, LaplacianKind, Method, Report, formulation::Formulation,
+    formulation::FormulationChoice,
+};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;

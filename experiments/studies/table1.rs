@@ -21,7 +21,10 @@ use lse_deform::backend::spd::FaerLlt;
 use lse_deform::condition::ConditionEstimate;
 use lse_deform::formulation::{FORWARD_ERROR_WARNING, PenaltySweep, max_hard_residual};
 use lse_deform::scene::FixedAndHandle;
-use lse_deform::{Deformer, Error, formulation::Formulation, formulation::FormulationChoice, LaplacianKind, Method};
+use lse_deform::{
+    Deformer, Error, LaplacianKind, Method, formulation::Formulation,
+    formulation::FormulationChoice,
+};
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;

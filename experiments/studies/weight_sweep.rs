@@ -37,7 +37,7 @@ use lse_deform::error::Error;
 use lse_deform::formulation::{Refine, max_hard_residual};
 use lse_deform::problem::LseProblem;
 use lse_deform::scene::{FixedAndHandle, MixedScene};
-use lse_deform::{Deformer, formulation::FormulationChoice, LaplacianKind, Method};
+use lse_deform::{Deformer, LaplacianKind, Method, formulation::FormulationChoice};
 use serde::Serialize;
 
 use crate::harness::context::AnyError;

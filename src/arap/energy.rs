@@ -83,7 +83,7 @@ fn dot(u: [f64; 3], v: [f64; 3]) -> f64 {
 }
 
 /// `R v`.
-pub fn mat_vec(r: &Mat3, v: [f64; 3]) -> [f64; 3] {
+pub(crate) fn mat_vec(r: &Mat3, v: [f64; 3]) -> [f64; 3] {
     [dot(r[0], v), dot(r[1], v), dot(r[2], v)]
 }
 
@@ -206,7 +206,7 @@ impl ArapTriangles {
 
     /// Covariance blocks per triangle: one (spokes-and-rims: every corner
     /// owns every edge) or three (spokes: one per corner).
-    pub fn blocks_per_triangle(&self) -> usize {
+    pub(crate) fn blocks_per_triangle(&self) -> usize {
         match self.energy {
             ArapEnergy::SpokesAndRims => 1,
             ArapEnergy::Spokes => 3,
@@ -314,7 +314,7 @@ impl ArapTriangles {
     }
 
     /// Number of energy rows, three per triangle.
-    pub fn n_rows(&self) -> usize {
+    pub(crate) fn n_rows(&self) -> usize {
         3 * self.faces.len()
     }
 
@@ -340,7 +340,7 @@ impl ArapTriangles {
     /// `C_E` for the rotations `r` (one per vertex), written into `c`
     /// (`n_rows × 3`, each column contiguous), in parallel over the
     /// triangles. Returns `false` if an entry is not finite.
-    pub fn rhs_into(&self, r: &[Mat3], c: MatMut<'_, f64>) -> bool {
+    pub(crate) fn rhs_into(&self, r: &[Mat3], c: MatMut<'_, f64>) -> bool {
         let (c0, rest) = c.split_at_col_mut(1);
         let (c1, c2) = rest.split_at_col_mut(1);
         fn column(m: MatMut<'_, f64>) -> &mut [f64] {
@@ -399,7 +399,7 @@ impl ArapTriangles {
 
     /// The rest rows' right-hand side `A_E P` (the rotations all identity,
     /// up to rounding).
-    pub fn rest_rhs(&self) -> Mat<f64> {
+    pub(crate) fn rest_rhs(&self) -> Mat<f64> {
         let n = self.n_vertices();
         let mut c = Mat::<f64>::zeros(self.n_rows(), 3);
         self.rhs_into(&vec![IDENTITY; n], c.as_mut());

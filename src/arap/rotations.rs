@@ -36,7 +36,7 @@ pub enum Fit {
 /// is negated (the best rotation, not the best reflection). Never returns
 /// a non-finite matrix: where `M` gives no unique answer (see [`Fit::Kept`])
 /// `previous` is returned.
-pub fn fit_rotation(m: &Mat3, previous: &Mat3) -> (Mat3, Fit) {
+pub(crate) fn fit_rotation(m: &Mat3, previous: &Mat3) -> (Mat3, Fit) {
     let scale = m.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
     if !(scale.is_finite() && scale > 0.0) {
         return (*previous, Fit::Kept);
@@ -118,7 +118,7 @@ fn frobenius(a: &Mat3) -> f64 {
 /// (see [`NEWTON_MIN_DET`]; `a` scaled to `max|a_ij| = 1`) and the
 /// iteration converges: the factor then has `det = +1`, i.e. it is the
 /// rotation maximising `tr(Rᵀ a)`.
-pub fn polar_newton(a: &Mat3) -> Option<Mat3> {
+pub(crate) fn polar_newton(a: &Mat3) -> Option<Mat3> {
     let det = det3(a);
     if det.is_nan() || det <= NEWTON_MIN_DET {
         return None;
@@ -155,7 +155,7 @@ pub fn polar_newton(a: &Mat3) -> Option<Mat3> {
 /// the covariance is well conditioned with a positive determinant (the
 /// common case, several times faster than the SVD), else by the SVD with
 /// its reflection fix and rank rule. Same result to rounding.
-pub fn fit_rotation_fast(m: &Mat3, previous: &Mat3) -> (Mat3, Fit) {
+pub(crate) fn fit_rotation_fast(m: &Mat3, previous: &Mat3) -> (Mat3, Fit) {
     let scale = m.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
     if scale.is_finite() && scale > 0.0 {
         let a: Mat3 = m.map(|row| row.map(|v| v / scale));

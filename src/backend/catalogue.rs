@@ -142,7 +142,7 @@ impl SpdKind {
     /// Errors: as [`SpdKind::backend`], and
     /// [`ProblemError::InvalidArgument`] for out-of-core storage with any
     /// back end but `Mumps`.
-    pub fn backend_with(
+    pub(crate) fn backend_with(
         self,
         storage: &FactorStorage,
     ) -> Result<Arc<dyn SpdBackend>, ProblemError> {
@@ -244,7 +244,7 @@ impl LdltKind {
 
     /// Whether this build has the back end (`Mumps` needs the cargo
     /// feature `mumps`).
-    pub fn in_this_build(self) -> bool {
+    pub(crate) fn in_this_build(self) -> bool {
         self != LdltKind::Mumps || cfg!(feature = "mumps")
     }
 
@@ -258,7 +258,7 @@ impl LdltKind {
 
     /// The back end keeping its factor in `storage` (out of core: `Mumps`
     /// only).
-    pub fn backend_with(
+    pub(crate) fn backend_with(
         self,
         storage: &FactorStorage,
     ) -> Result<Arc<dyn LdltBackend>, ProblemError> {

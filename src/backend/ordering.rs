@@ -89,7 +89,7 @@ impl FactorPlan {
 
     /// The report's word for a back end that used this plan's permutation
     /// (`own_method` names its own ordering when there was none given).
-    pub fn ordering_used(&self, own_method: &str) -> Cow<'static, str> {
+    pub(crate) fn ordering_used(&self, own_method: &str) -> Cow<'static, str> {
         match self.permutation {
             Some(_) => Cow::Borrowed(self.ordering),
             None => Cow::Owned(format!("own ({own_method})")),

@@ -91,7 +91,7 @@ fn listed<T: std::fmt::Display>(values: &[T]) -> String {
 }
 
 /// Runs `compare` and prints its table (and writes the rows as JSON).
-pub fn compare(a: CompareArgs) -> Result<(), Error> {
+pub(crate) fn compare(a: CompareArgs) -> Result<(), Error> {
     if let Some(json) = &a.json {
         let mut inputs = mesh_and_constraints(&a.mesh, &a.constraints).to_vec();
         inputs.extend(a.held.inputs());

@@ -112,7 +112,7 @@ impl EnergyArgs {
 
 /// Runs `deform`: Laplacian editing, or ARAP with `--energy arap`
 /// ([`lse_deform::request::deform`] decides and runs).
-pub fn deform(a: DeformArgs) -> Result<(), Error> {
+pub(crate) fn deform(a: DeformArgs) -> Result<(), Error> {
     let mut outputs = vec![("-o", a.output.as_path())];
     outputs.extend(a.report.as_deref().map(|r| ("--report", r)));
     let mut inputs = mesh_and_constraints(&a.mesh, &a.constraints).to_vec();

@@ -41,7 +41,7 @@ pub struct EditArgs {
 }
 
 /// Runs the editor's server until it is stopped.
-pub fn edit(a: EditArgs) -> Result<(), Error> {
+pub(crate) fn edit(a: EditArgs) -> Result<(), Error> {
     let seconds = |name: &str, s: f64| {
         if s.is_finite() && s > 0.0 && s <= 1e6 {
             Ok(Duration::from_secs_f64(s))

@@ -30,7 +30,7 @@ pub struct ExportArgs {
 }
 
 /// Runs `export-system`.
-pub fn export_system(a: ExportArgs) -> Result<(), Error> {
+pub(crate) fn export_system(a: ExportArgs) -> Result<(), Error> {
     // Fail fast: no file of the export may be an input, and the directory
     // (created now, as the export would) must take files, before the mesh
     // is read and the system factored.

@@ -60,7 +60,7 @@ fn identity(path: &Path) -> Option<Identity> {
 pub type Role<'a> = (&'a str, &'a Path);
 
 /// The inputs of the commands that read a mesh and a constraints file.
-pub fn mesh_and_constraints<'a>(mesh: &'a Path, constraints: &'a Path) -> [Role<'a>; 2] {
+pub(crate) fn mesh_and_constraints<'a>(mesh: &'a Path, constraints: &'a Path) -> [Role<'a>; 2] {
     [
         ("the input mesh", mesh),
         ("the constraints file given with -c", constraints),
@@ -71,7 +71,7 @@ pub fn mesh_and_constraints<'a>(mesh: &'a Path, constraints: &'a Path) -> [Role<
 /// that is one of the `inputs` or an earlier output. Inputs are described
 /// ("the constraints file given with -c"), outputs named by their flag
 /// ("--report"): "--report c.json is the constraints file given with -c".
-pub fn check_distinct(inputs: &[Role<'_>], outputs: &[Role<'_>]) -> Result<(), Error> {
+pub(crate) fn check_distinct(inputs: &[Role<'_>], outputs: &[Role<'_>]) -> Result<(), Error> {
     let ins: Vec<_> = inputs.iter().map(|&(_, p)| identity(p)).collect();
     let outs: Vec<_> = outputs.iter().map(|&(_, p)| identity(p)).collect();
     for (k, &(flag, path)) in outputs.iter().enumerate() {

@@ -23,7 +23,7 @@ pub struct GenerateArgs {
 }
 
 /// Runs `generate`: the mesh of the kind nearest the vertex count asked for.
-pub fn generate(a: GenerateArgs) -> Result<(), Error> {
+pub(crate) fn generate(a: GenerateArgs) -> Result<(), Error> {
     let kind = a.kind;
     super::notes(mesh::check_mesh_output(&a.output)?);
     let size = generate::size_for_vertices(kind, a.vertices)?;

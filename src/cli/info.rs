@@ -19,7 +19,7 @@ pub struct InfoArgs {
 }
 
 /// Runs `info`, as text or JSON.
-pub fn info(a: InfoArgs) -> Result<(), Error> {
+pub(crate) fn info(a: InfoArgs) -> Result<(), Error> {
     let mesh = load(&a.mesh, lse_deform::limits::MemoryBudget::default())?;
     let topo = Topology::of(&mesh);
     let q = Quality::of(&mesh);

@@ -112,7 +112,7 @@ pub struct HeldArgs {
 impl HeldArgs {
     /// `budget` with these threads and ordering (the ordering file read
     /// within `budget`).
-    pub fn resources(&self, budget: MemoryBudget) -> Result<Resources, Error> {
+    pub(crate) fn resources(&self, budget: MemoryBudget) -> Result<Resources, Error> {
         let ordering = match &self.ordering_file {
             Some(path) => lse_deform::resources::read_ordering_file(path, budget)?,
             None => self.ordering.map(FillOrdering::from).unwrap_or_default(),
@@ -126,7 +126,7 @@ impl HeldArgs {
 
     /// The ordering file as an input of the command (outputs never
     /// replace it).
-    pub fn inputs(&self) -> Vec<files::Role<'_>> {
+    pub(crate) fn inputs(&self) -> Vec<files::Role<'_>> {
         self.ordering_file
             .iter()
             .map(|p| ("the ordering file given with --ordering-file", p.as_path()))
@@ -167,12 +167,12 @@ fn factor_help() -> String {
 
 /// A help line naming the default, for an option left `None` when not
 /// given (so that the command can tell whether it was).
-pub fn with_default(help: &str, default: impl std::fmt::Display) -> String {
+pub(crate) fn with_default(help: &str, default: impl std::fmt::Display) -> String {
     format!("{help} [default: {default}]")
 }
 
 /// `--memory-limit`'s value: bytes as [`parse_bytes`] reads them.
-pub fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
+pub(crate) fn memory_budget(word: &str) -> Result<MemoryBudget, String> {
     parse_bytes(word).map(MemoryBudget::bytes).ok_or_else(|| {
         format!(
             "'{word}' is not a size (a positive number of bytes, optionally followed by one unit: {})",
@@ -185,7 +185,7 @@ impl MethodArgs {
     /// The options these flags name over [`DeformOptions::default`], the
     /// formulation checked (a penalty without weight, a back end missing
     /// from this build) before anything is read.
-    pub fn options(&self) -> Result<DeformOptions, Error> {
+    pub(crate) fn options(&self) -> Result<DeformOptions, Error> {
         let options = self.parse_checked()?;
         let request = Request {
             options: options.clone(),
@@ -203,7 +203,7 @@ impl MethodArgs {
 
     /// [`MethodArgs::options`] without the warnings (the caller words the
     /// request's own list).
-    pub fn parse_checked(&self) -> Result<DeformOptions, Error> {
+    pub(crate) fn parse_checked(&self) -> Result<DeformOptions, Error> {
         let options = self.parse()?;
         options
             .solve
@@ -235,14 +235,14 @@ impl MethodArgs {
     }
 
     /// The run's memory budget: `--memory-limit`, else the default.
-    pub fn budget(&self) -> MemoryBudget {
+    pub(crate) fn budget(&self) -> MemoryBudget {
         self.memory_limit.unwrap_or_default()
     }
 }
 
 /// A request's option that does not apply, in the command line's words:
 /// `--weight applies to --method penalty only; ignored with --method kkt`.
-pub fn inapplicable_words(i: &Inapplicable) -> String {
+pub(crate) fn inapplicable_words(i: &Inapplicable) -> String {
     let flag = match i.option {
         RequestOption::Laplacian => "--laplacian",
         RequestOption::ArapEnergy => "--arap-energy",
@@ -280,7 +280,7 @@ fn with_flag(e: ProblemError) -> Error {
 }
 
 /// Writes one line to stdout; a closed pipe ends the process quietly.
-pub fn emit(line: String) {
+pub(crate) fn emit(line: String) {
     use std::io::Write;
     let mut stdout = std::io::stdout().lock();
     if let Err(e) = writeln!(stdout, "{line}") {
@@ -296,7 +296,7 @@ pub fn emit(line: String) {
 /// (indicatif's stderr target hides itself otherwise) and only once the
 /// phase has lasted a second, so quick runs and pipes print nothing extra.
 /// Several phases can share it through `set_message`.
-pub fn phase(message: &str) -> ProgressBar {
+pub(crate) fn phase(message: &str) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
     if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
         bar.set_style(style);
@@ -307,7 +307,7 @@ pub fn phase(message: &str) -> ProgressBar {
 }
 
 /// Points `bar` at stderr one second from now unless it has finished.
-pub fn show_after_a_second(bar: &ProgressBar) {
+pub(crate) fn show_after_a_second(bar: &ProgressBar) {
     let weak = bar.downgrade();
     std::thread::spawn(move || {
         std::thread::sleep(Duration::from_secs(1));
@@ -322,7 +322,7 @@ pub fn show_after_a_second(bar: &ProgressBar) {
 
 /// Reads a mesh within the run's memory budget with a spinner, printing
 /// its notes and warnings.
-pub fn load(path: &Path, budget: MemoryBudget) -> Result<mesh::Mesh, Error> {
+pub(crate) fn load(path: &Path, budget: MemoryBudget) -> Result<mesh::Mesh, Error> {
     let bar = phase(&format!("reading {}", path.display()));
     let loaded = mesh::read_mesh(path, budget)?;
     bar.finish_and_clear();
@@ -337,20 +337,20 @@ pub fn load(path: &Path, budget: MemoryBudget) -> Result<mesh::Mesh, Error> {
 
 /// Writes `text` and a newline to `path` atomically: a failed write (a
 /// full disk) leaves a previous file as it was.
-pub fn write_text(path: &Path, text: String) -> Result<(), Error> {
+pub(crate) fn write_text(path: &Path, text: String) -> Result<(), Error> {
     lse_deform::atomic::write_bytes(path, (text + "\n").as_bytes()).map_err(|e| Error::io(path, e))
 }
 
 /// Runs `write` with its outputs staged ([`lse_deform::atomic::staged`]):
 /// they replace their files together when it succeeds, and none does when
 /// it fails.
-pub fn staged<T>(write: impl FnOnce() -> Result<T, Error>) -> Result<T, Error> {
+pub(crate) fn staged<T>(write: impl FnOnce() -> Result<T, Error>) -> Result<T, Error> {
     lse_deform::atomic::staged(write, |path, e| Error::io(path, e))
 }
 
 /// Fail fast: the output mesh (its format and its directory) and any other
 /// output file are checked before the input is read or anything is solved.
-pub fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result<(), Error> {
+pub(crate) fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result<(), Error> {
     if let Some(path) = mesh_out {
         notes(mesh::check_mesh_output(path)?);
     }
@@ -362,7 +362,7 @@ pub fn check_outputs(mesh_out: Option<&Path>, file_out: Option<&Path>) -> Result
 
 /// Prints the notes of an output check ([`mesh::check_writable`]: an
 /// interrupted earlier run's outputs put in order).
-pub fn notes(notes: Vec<String>) {
+pub(crate) fn notes(notes: Vec<String>) {
     for note in notes {
         eprintln!("note: {note}");
     }
@@ -371,7 +371,7 @@ pub fn notes(notes: Vec<String>) {
 /// Reads a constraints file for `mesh` within the run's memory budget: a
 /// `"mesh"` object in it that names another mesh is a warning, or with
 /// `strict` an error (exit code 2); then the vertex ranges are checked.
-pub fn constraints_for(
+pub(crate) fn constraints_for(
     path: &Path,
     mesh: &mesh::Mesh,
     strict: bool,
@@ -382,7 +382,7 @@ pub fn constraints_for(
 
 /// [`constraints_for`], also returning the warning it printed (a file made
 /// for another mesh), for the command's report.
-pub fn constraints_with_warnings(
+pub(crate) fn constraints_with_warnings(
     path: &Path,
     mesh: &mesh::Mesh,
     strict: bool,

@@ -105,7 +105,7 @@ const GROUP_COLOURS: [[u8; 3]; 6] = [
 
 /// Runs `render` and reports an error like the other commands (one line,
 /// causes with `--verbose`, exit code 2).
-pub fn main(args: RenderArgs, verbose: bool) -> u8 {
+pub(crate) fn main(args: RenderArgs, verbose: bool) -> u8 {
     match run(&args) {
         Ok(()) => 0,
         Err(e) => {
@@ -235,7 +235,12 @@ fn constraint_groups(
     path: &Path,
     mesh: &Mesh,
 ) -> Result<Vec<(String, Vec<usize>)>, RenderCommandError> {
-    let set = super::constraints_for(path, mesh, false, lse_deform::limits::MemoryBudget::default())?;
+    let set = super::constraints_for(
+        path,
+        mesh,
+        false,
+        lse_deform::limits::MemoryBudget::default(),
+    )?;
     let mut groups: Vec<(String, Vec<usize>)> = Vec::new();
     for c in set.as_slice() {
         let name = c.group.as_deref().unwrap_or("constrained");

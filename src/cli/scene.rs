@@ -73,7 +73,7 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
 }
 
 /// Runs `scene`.
-pub fn scene(a: SceneArgs) -> Result<(), Error> {
+pub(crate) fn scene(a: SceneArgs) -> Result<(), Error> {
     check_distinct(
         &[("the input mesh", a.mesh.as_path())],
         &[("-o", a.output.as_path())],

@@ -19,7 +19,7 @@ const SIGNALS: [libc::c_int; 3] = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
 /// and the thread pools start — and starts
 /// the thread that takes them. Does nothing off Unix, or when the mask
 /// cannot be set (the signals then end the process as before).
-pub fn install() {
+pub(crate) fn install() {
     #[cfg(unix)]
     {
         let Some(set) = signal_set() else { return };

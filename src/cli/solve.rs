@@ -68,7 +68,7 @@ fn matrix_path(
 }
 
 /// Runs `solve`.
-pub fn solve(a: SolveArgs) -> Result<(), Error> {
+pub(crate) fn solve(a: SolveArgs) -> Result<(), Error> {
     let path = |flag: &Option<PathBuf>, name: &str| matrix_path(flag, &a.dir, name);
     let (pa, pc, pb, pd) = (
         path(&a.a, "A.mtx")?,

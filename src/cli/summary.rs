@@ -13,7 +13,7 @@ use super::write_text;
 /// `--report` file are staged together ([`lse_deform::atomic::staged`]):
 /// either both replace their files or neither does. `input_warnings` were
 /// printed when the inputs were read; they go first into the report file.
-pub fn finish_report(
+pub(crate) fn finish_report(
     report: &Report,
     input_warnings: &[String],
     path: Option<&Path>,
@@ -38,12 +38,16 @@ pub fn finish_report(
 
 /// An input warning (the constraints file names another mesh:
 /// [`super::constraints_with_warnings`]) as the report's typed warning.
-pub fn mismatch_warning(text: &str) -> Warning {
+pub(crate) fn mismatch_warning(text: &str) -> Warning {
     Warning::new(WarningKind::ConstraintsMeshMismatch, text)
 }
 
 /// Writes `report` as JSON to `path`, `input_warnings` before its own.
-pub fn write_report(report: &Report, input_warnings: &[String], path: &Path) -> Result<(), Error> {
+pub(crate) fn write_report(
+    report: &Report,
+    input_warnings: &[String],
+    path: &Path,
+) -> Result<(), Error> {
     let json = if input_warnings.is_empty() {
         serde_json::to_string_pretty(report)
     } else {
@@ -57,7 +61,7 @@ pub fn write_report(report: &Report, input_warnings: &[String], path: &Path) -> 
 }
 
 /// The one-line summary of a deformation or solve on stderr.
-pub fn summary_line(report: &Report, unknowns: &str, constraints: &str) -> String {
+pub(crate) fn summary_line(report: &Report, unknowns: &str, constraints: &str) -> String {
     let t = &report.timings_s;
     let rank = report
         .rank

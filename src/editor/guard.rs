@@ -50,7 +50,7 @@ pub struct Guard {
 }
 
 /// 32 random bytes from the operating system, in hex.
-pub fn random_token() -> Result<String, String> {
+pub(crate) fn random_token() -> Result<String, String> {
     use rand::TryRngCore;
     let mut bytes = [0u8; 32];
     rand::rngs::OsRng
@@ -61,7 +61,7 @@ pub fn random_token() -> Result<String, String> {
 
 /// A token given by the user: 16 to 256 characters of `A-Z a-z 0-9 - . _
 /// ~` (they go in a URL unescaped).
-pub fn check_token(token: &str) -> Result<(), String> {
+pub(crate) fn check_token(token: &str) -> Result<(), String> {
     let ok = (16..=256).contains(&token.len())
         && token
             .bytes()
@@ -132,7 +132,7 @@ impl Guard {
     }
 
     /// Whether `host` (a `Host` header) names this server.
-    pub fn host_allowed(&self, host: &str) -> bool {
+    pub(crate) fn host_allowed(&self, host: &str) -> bool {
         let host = host.to_ascii_lowercase();
         if self.hosts.contains(&host) {
             return true;
@@ -149,7 +149,7 @@ impl Guard {
 
     /// Admits `request` (removing its `token` query parameter) or says why
     /// not.
-    pub fn admit(&self, request: &mut Request) -> Result<(), ApiError> {
+    pub(crate) fn admit(&self, request: &mut Request) -> Result<(), ApiError> {
         let host = self.checked_host(request)?;
         let method = request.method();
         let public = (method == Method::GET || method == Method::HEAD)
@@ -342,7 +342,7 @@ pub async fn check(State(guard): State<Guard>, mut request: Request, next: Next)
 
 /// An error answer without a JSON body (axum's 405 and the like) gets one:
 /// `{"error": message, "kind": …}`, its other headers kept.
-pub fn json_errors(response: Response, method: &Method, path: &str) -> Response {
+pub(crate) fn json_errors(response: Response, method: &Method, path: &str) -> Response {
     let status = response.status();
     if !(status.is_client_error() || status.is_server_error()) {
         return response;

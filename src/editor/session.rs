@@ -494,7 +494,7 @@ impl Session {
     }
 
     /// Installs a built engine for `constraints` and `settings`.
-    pub fn install(&mut self, constraints: ConstraintSet, settings: Settings, built: Built) {
+    pub(crate) fn install(&mut self, constraints: ConstraintSet, settings: Settings, built: Built) {
         self.constraints = constraints;
         self.settings = settings;
         self.engine = Some(built.engine);
@@ -510,7 +510,7 @@ impl Session {
     }
 
     /// Back to no constraints: the mesh at rest.
-    pub fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         self.constraints = ConstraintSet::new();
         self.engine = None;
         self.positions = self.mesh.positions().to_vec();
@@ -526,7 +526,11 @@ impl Session {
     /// and its seconds. A transform that would put a target of the group
     /// beyond f32 is refused ([`FrameError::NotRepresentable`]) and changes
     /// nothing.
-    pub fn transform(&mut self, name: &str, m: &Affine) -> Result<(FramePath, f64), FrameError> {
+    pub(crate) fn transform(
+        &mut self,
+        name: &str,
+        m: &Affine,
+    ) -> Result<(FramePath, f64), FrameError> {
         let iterations = self.settings.arap_iterations_per_frame;
         let engine = self.engine.as_mut().ok_or_else(|| {
             Error::from(ProblemError::BadUpdate {
@@ -607,7 +611,7 @@ impl Session {
 
     /// More ARAP iterations at the current targets (converging after a
     /// drag stops); nothing for the Laplacian energy.
-    pub fn iterate(&mut self, n: usize) -> Result<usize, Error> {
+    pub(crate) fn iterate(&mut self, n: usize) -> Result<usize, Error> {
         if let Some(Engine::Arap { arap, .. }) = &mut self.engine {
             arap.iterate(n)?;
             self.positions = arap.positions();

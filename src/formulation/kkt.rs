@@ -146,7 +146,7 @@ impl Kkt {
     /// ([`LdltKind::for_spd`]): `FaerAuto`, `FaerSimplicial`,
     /// `FaerSupernodal` or `Mumps` (in a build with it); `None` for the
     /// other kinds, which have no `LDLᵀ`.
-    pub fn for_spd(spd: SpdKind) -> Option<Kkt> {
+    pub(crate) fn for_spd(spd: SpdKind) -> Option<Kkt> {
         let backend = LdltKind::for_spd(spd)?.backend().ok()?;
         Some(Kkt::with_backend(backend))
     }

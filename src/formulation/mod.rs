@@ -267,7 +267,7 @@ impl<K: Word, B: ?Sized + NamedBackend> Chosen<K, B> {
     }
 
     /// The catalogue's word, for a built-in.
-    pub fn builtin(&self) -> Option<K> {
+    pub(crate) fn builtin(&self) -> Option<K> {
         match self {
             Chosen::Builtin(kind) => Some(*kind),
             Chosen::Own(_) => None,
@@ -376,7 +376,7 @@ impl FormulationChoice {
 
     /// The name of the back end that factors: the SPD back end's, or for
     /// `Kkt` the `LDLᵀ` back end's (the report's `factor_backend`).
-    pub fn factor_name(&self) -> BackendName {
+    pub(crate) fn factor_name(&self) -> BackendName {
         match (&self.method, &self.ldlt, &self.spd) {
             (Method::Kkt, Some(ldlt), _) => ldlt.name(),
             (Method::Kkt, None, Chosen::Builtin(spd)) => {
@@ -418,7 +418,7 @@ impl FormulationChoice {
     /// Errors: as [`FormulationChoice::build`], and
     /// [`ProblemError::InvalidArgument`] for out-of-core storage with
     /// another back end.
-    pub fn build_with(
+    pub(crate) fn build_with(
         &self,
         storage: &FactorStorage,
     ) -> Result<Box<dyn Formulation>, ProblemError> {

@@ -231,7 +231,7 @@ impl PenaltySweep {
 
     /// [`PenaltySweep::new`] under `resources` (the budget, and the
     /// ordering and threads of the one analysis and every factorisation).
-    pub fn with_resources(
+    pub(crate) fn with_resources(
         problem: &LseProblem,
         spd: &dyn SpdBackend,
         resources: &Resources,
@@ -263,7 +263,7 @@ impl PenaltySweep {
     }
 
     /// Entries of the full symmetric `AᵀA + w²BᵀB`.
-    pub fn full_nnz(&self) -> usize {
+    pub(crate) fn full_nnz(&self) -> usize {
         2 * self.pattern.row_idx().len() - self.pattern.ncols()
     }
 

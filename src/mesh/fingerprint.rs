@@ -75,7 +75,7 @@ impl MeshSignature {
 
     /// `None` when `self` (what a file says) describes `mesh`, otherwise a
     /// sentence saying what differs.
-    pub fn mismatch(&self, mesh: &Mesh) -> Option<String> {
+    pub(crate) fn mismatch(&self, mesh: &Mesh) -> Option<String> {
         let actual = MeshSignature::of(mesh);
         if *self == actual {
             return None;

@@ -41,7 +41,7 @@ fn bad(name: &'static str, message: impl Into<String>) -> MeshError {
 }
 
 /// Vertex count of an icosphere with `k` subdivisions: `10·4^k + 2`.
-pub fn icosphere_vertex_count(k: u32) -> Option<usize> {
+pub(crate) fn icosphere_vertex_count(k: u32) -> Option<usize> {
     4usize.checked_pow(k)?.checked_mul(10)?.checked_add(2)
 }
 
@@ -336,7 +336,7 @@ pub fn unsymmetric_grid(n: usize) -> Result<Mesh, MeshError> {
 }
 
 /// Vertex count of [`sliver_mesh`]`(n, _)`: `(n+1)² + ⌊n²/10⌋`.
-pub fn sliver_vertex_count(n: usize) -> Option<usize> {
+pub(crate) fn sliver_vertex_count(n: usize) -> Option<usize> {
     let sq = n.checked_add(1)?.checked_mul(n + 1)?;
     sq.checked_add(n.checked_mul(n)? / 10)
 }

@@ -261,7 +261,7 @@ impl Mesh {
 /// violation in this order: empty, non-finite coordinate, index out of range,
 /// repeated vertex, duplicate face, unreferenced vertex. (Faces of zero area
 /// are valid: see [`Mesh::degenerate_face`].)
-pub fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), MeshError> {
+pub(crate) fn validate(positions: &[[f64; 3]], faces: &[[usize; 3]]) -> Result<(), MeshError> {
     if positions.is_empty() || faces.is_empty() {
         return Err(MeshError::Empty {
             vertices: positions.len(),

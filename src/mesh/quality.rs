@@ -212,7 +212,7 @@ fn edge_vectors(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> ([[f64; 3]; 3], f64) {
 /// `2^round(log2 x)` for a finite `x > 0` (at most `2^1023`, the largest
 /// power of two a double holds), else 1: the exact unit that normalises a
 /// length of size `x` to `[0.7, 1.4]` (to `[0.7, 2]` above `2^1023`).
-pub fn power_of_two_unit(x: f64) -> f64 {
+pub(crate) fn power_of_two_unit(x: f64) -> f64 {
     if x > 0.0 && x.is_finite() {
         2f64.powi((x.log2().round() as i32).min(f64::MAX_EXP - 1))
     } else {
@@ -254,7 +254,7 @@ pub struct TriangleSize {
 /// the longest coordinate difference) is computed alike for a mesh in any
 /// unit, and a sliver of edges 1 and 1e308 has its area (5e307), not the
 /// 0 of a cross product of unit-scaled edges that underflows.
-pub fn triangle_size(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> TriangleSize {
+pub(crate) fn triangle_size(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> TriangleSize {
     let ([e1, e2, e3], h) = edge_vectors(a, b, c);
     let u = power_of_two_unit(max_abs(&[e1, e2, e3]));
     let l2 = [e1, e2, e3]
@@ -282,14 +282,14 @@ pub fn triangle_size(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> TriangleSize {
 
 /// Whether the triangle `abc` has clearly non-zero area, and its area
 /// ([`triangle_size`]).
-pub fn area_is_clearly_positive(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> (bool, f64) {
+pub(crate) fn area_is_clearly_positive(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> (bool, f64) {
     let size = triangle_size(a, b, c);
     (size.clearly_positive, size.area)
 }
 
 /// `‖a − b‖₂` without overflow or underflow of the squares (scaled by the
 /// largest coordinate difference).
-pub fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+pub(crate) fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     let d = sub(a, b);
     let m = d.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     if m == 0.0 || !m.is_finite() {

@@ -1033,7 +1033,7 @@ impl PyDeformer {
 /// re-exports it.
 #[pymodule]
 #[pyo3(name = "_native")]
-pub fn native_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+pub(crate) fn native_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add("InputError", py.get_type::<InputError>())?;
     m.add("NumericalError", py.get_type::<NumericalError>())?;

@@ -8,7 +8,12 @@ use super::{RenderError, check_size};
 /// PNG; the path must end in `.png` and its directory is created. Written
 /// atomically ([`crate::atomic`]): on an error a previous image is left as
 /// it was.
-pub fn write_png(path: &Path, width: u32, height: u32, bytes: &[u8]) -> Result<(), RenderError> {
+pub(crate) fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    bytes: &[u8],
+) -> Result<(), RenderError> {
     let err = |message: String| RenderError::Output {
         path: path.to_path_buf(),
         message,

@@ -210,7 +210,7 @@ impl View {
 
     /// The pixel position `(x, y)` (x right, y down, pixel centres at
     /// half-integers) and depth (larger is nearer) of a world point.
-    pub fn project(&self, p: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn project(&self, p: [f64; 3]) -> [f64; 3] {
         [
             (dot(p, self.basis[0]) - self.centre[0]) * self.scale + 0.5 * self.width as f64,
             0.5 * self.height as f64 - (dot(p, self.basis[1]) - self.centre[1]) * self.scale,

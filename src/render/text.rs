@@ -21,7 +21,7 @@ pub enum HAlign {
 }
 
 /// DejaVu Sans (regular), parsed once.
-pub fn font() -> Result<&'static FontRef<'static>, RenderError> {
+pub(crate) fn font() -> Result<&'static FontRef<'static>, RenderError> {
     static FONT: OnceLock<Result<FontRef<'static>, String>> = OnceLock::new();
     FONT.get_or_init(|| {
         FontRef::try_from_slice(dejavu::sans::regular()).map_err(|e| format!("DejaVu Sans: {e}"))
@@ -55,7 +55,7 @@ pub fn text_width(text: &str, size: f64) -> Result<f64, RenderError> {
 /// Calls `ink(x, y, coverage)` for every pixel of `text` in `font` at
 /// `scale` with the pen starting at `x0` on the baseline `y = baseline`
 /// (text-local coordinates, y down).
-pub fn glyph_coverage(
+pub(crate) fn glyph_coverage(
     font: &'static FontRef<'static>,
     scale: PxScale,
     text: &str,
@@ -93,7 +93,7 @@ pub fn glyph_coverage(
 /// Draws one line of `text` at `size` pixels in `colour` into `image`,
 /// vertically centred on `y` and anchored horizontally at `x` by `align`.
 /// Pixels outside the image are dropped.
-pub fn draw_text(
+pub(crate) fn draw_text(
     image: &mut Image,
     text: &str,
     size: f64,

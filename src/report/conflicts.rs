@@ -122,7 +122,7 @@ pub fn conflict_warnings(
 /// The warning of conflicting constraint `index`, its sentence made from
 /// its data: "constraint I conflicts with constraint(s) … and was dropped
 /// (residual R)", "earlier constraints" when `with` is empty.
-pub fn conflict_warning(index: usize, with: Vec<usize>, residual: f64) -> Warning {
+pub(crate) fn conflict_warning(index: usize, with: Vec<usize>, residual: f64) -> Warning {
     let named = match with.as_slice() {
         [] => "earlier constraints".to_string(),
         [one] => format!("constraint {one}"),

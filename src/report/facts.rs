@@ -29,7 +29,7 @@ pub enum MethodFacts {
 
 impl MethodFacts {
     /// The relative penalty weight `w` (penalty only).
-    pub fn penalty_weight(&self) -> Option<f64> {
+    pub(crate) fn penalty_weight(&self) -> Option<f64> {
         match *self {
             MethodFacts::Penalty { weight, .. } => Some(weight),
             _ => None,
@@ -37,7 +37,7 @@ impl MethodFacts {
     }
 
     /// The penalty weight's unit `s` (penalty only).
-    pub fn penalty_weight_unit(&self) -> Option<f64> {
+    pub(crate) fn penalty_weight_unit(&self) -> Option<f64> {
         match *self {
             MethodFacts::Penalty { weight_unit, .. } => Some(weight_unit),
             _ => None,
@@ -45,7 +45,7 @@ impl MethodFacts {
     }
 
     /// The KKT multiplier scale `s` (KKT only).
-    pub fn kkt_multiplier_scale(&self) -> Option<f64> {
+    pub(crate) fn kkt_multiplier_scale(&self) -> Option<f64> {
         match *self {
             MethodFacts::Kkt { multiplier_scale } => Some(multiplier_scale),
             _ => None,

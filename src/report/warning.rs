@@ -145,7 +145,7 @@ impl Warning {
     }
 
     /// The same warning, carrying the data it was made from.
-    pub fn about(self, subject: WarningSubject) -> Warning {
+    pub(crate) fn about(self, subject: WarningSubject) -> Warning {
         Warning {
             subject: Some(subject),
             ..self

@@ -76,7 +76,7 @@ pub fn read_ordering_file(path: &Path, budget: MemoryBudget) -> Result<FillOrder
 
 /// The indices of an ordering file's text ([module docs](self)), or what
 /// is wrong and on which line (1-based).
-pub fn parse_ordering(text: &str) -> Result<Vec<usize>, String> {
+pub(crate) fn parse_ordering(text: &str) -> Result<Vec<usize>, String> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut words: Vec<(usize, &str)> = Vec::new();
     for (i, line) in text.lines().enumerate() {

@@ -53,7 +53,7 @@ impl NormalPattern {
     }
 
     /// Entries of the full symmetric matrix (`2 nnz(tril) − n`).
-    pub fn full_nnz(&self) -> usize {
+    pub(crate) fn full_nnz(&self) -> usize {
         2 * self.lower.row_idx().len() - self.lower.ncols()
     }
 

@@ -147,7 +147,7 @@ pub(crate) struct MumpsSymbolic {
 impl MumpsSymbolic {
     /// A new instance with `SYM = sym` (out of core under `out_of_core`)
     /// that analyses `lower` with `params` (and `perm_in` when not empty).
-    pub fn analyse(
+    pub(crate) fn analyse(
         lower: SymbolicSparseColMatRef<'_, usize>,
         sym: i32,
         perm_in: Vec<i32>,
@@ -168,7 +168,11 @@ impl MumpsSymbolic {
     }
 
     /// Every rank checks MUMPS's estimate of its share against its budget.
-    pub fn check_every_rank(&self, budget: MemoryBudget, matrix: &str) -> Result<(), ProblemError> {
+    pub(crate) fn check_every_rank(
+        &self,
+        budget: MemoryBudget,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
         lock(&self.shared)
             .driver
             .check_memory(budget)

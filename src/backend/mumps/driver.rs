@@ -23,7 +23,10 @@ pub(crate) struct Driver {
 impl Driver {
     /// Starts an instance with `SYM = sym` on every rank, out of core under
     /// `out_of_core` when given.
-    pub fn create(sym: i32, out_of_core: Option<&std::path::Path>) -> Result<Driver, Failure> {
+    pub(crate) fn create(
+        sym: i32,
+        out_of_core: Option<&std::path::Path>,
+    ) -> Result<Driver, Failure> {
         let rt = runtime();
         if rt.rank != 0 {
             return Err(Failure::Rank(
@@ -82,7 +85,7 @@ impl Driver {
 
     /// Every rank checks its memory estimate against `budget` (or its own
     /// smaller budget).
-    pub fn check_memory(&self, budget: MemoryBudget) -> Result<(), Failure> {
+    pub(crate) fn check_memory(&self, budget: MemoryBudget) -> Result<(), Failure> {
         let rt = runtime();
         let _turn = rt.serial();
         let world = rt.world();
@@ -97,22 +100,22 @@ impl Driver {
     }
 
     /// Rank 0's struct (`INFOG`, the null-pivot list).
-    pub fn struc(&self) -> &Struc {
+    pub(crate) fn struc(&self) -> &Struc {
         &self.mumps().struc
     }
 
     /// Every rank's figures after the last job.
-    pub fn figures(&self) -> &[RankFigures] {
+    pub(crate) fn figures(&self) -> &[RankFigures] {
         &self.mumps().figures
     }
 
     /// Whether the factor is kept out of core.
-    pub fn out_of_core(&self) -> bool {
+    pub(crate) fn out_of_core(&self) -> bool {
         self.mumps().out_of_core()
     }
 
     /// Rank 0's scratch directory of the out-of-core factor, if any.
-    pub fn scratch_directory(&self) -> Option<&std::path::Path> {
+    pub(crate) fn scratch_directory(&self) -> Option<&std::path::Path> {
         self.mumps().scratch_directory()
     }
 }

@@ -28,7 +28,7 @@ unsafe impl Sync for Struc {}
 
 impl Struc {
     /// A zeroed struct (what the C examples start from before JOB = −1).
-    pub fn zeroed() -> Struc {
+    pub(crate) fn zeroed() -> Struc {
         // SAFETY: DMUMPS_STRUC_C is plain old data: integers, floats, raw
         // pointers and char arrays, for all of which zero is valid.
         Struc(Box::new(unsafe { std::mem::zeroed() }))
@@ -44,22 +44,22 @@ impl Struc {
     }
 
     /// `ICNTL(i)`, 1-based as in the manual.
-    pub fn set_icntl(&mut self, i: usize, value: i32) {
+    pub(crate) fn set_icntl(&mut self, i: usize, value: i32) {
         self.0.icntl[i - 1] = value;
     }
 
     /// `CNTL(i)`, 1-based.
-    pub fn set_cntl(&mut self, i: usize, value: f64) {
+    pub(crate) fn set_cntl(&mut self, i: usize, value: f64) {
         self.0.cntl[i - 1] = value;
     }
 
     /// `INFO(i)`, 1-based (this rank's).
-    pub fn info(&self, i: usize) -> i32 {
+    pub(crate) fn info(&self, i: usize) -> i32 {
         self.0.info[i - 1]
     }
 
     /// `INFOG(i)`, 1-based (the same on every rank).
-    pub fn infog(&self, i: usize) -> i32 {
+    pub(crate) fn infog(&self, i: usize) -> i32 {
         self.0.infog[i - 1]
     }
 }

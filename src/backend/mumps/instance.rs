@@ -136,11 +136,11 @@ impl Mumps {
     /// Collective: `JOB = −1` with `PAR = 1` (rank 0 works too), output
     /// silenced, and, out of core, this rank's scratch directory.
     /// This rank's scratch directory of the out-of-core factor, if any.
-    pub fn scratch_directory(&self) -> Option<&Path> {
+    pub(crate) fn scratch_directory(&self) -> Option<&Path> {
         self.scratch.as_ref().map(ScratchDir::path)
     }
 
-    pub fn create(world: &SimpleCommunicator, setup: &Setup) -> Result<Mumps, Failure> {
+    pub(crate) fn create(world: &SimpleCommunicator, setup: &Setup) -> Result<Mumps, Failure> {
         let rank = world.rank();
         let scratch = setup
             .out_of_core
@@ -202,7 +202,7 @@ impl Mumps {
     /// 0's `budget`, or a rank's own when that is smaller; out of core,
     /// also its estimate of its share of the factor (`INFO(24)` entries)
     /// against the space free in its scratch directory.
-    pub fn check_memory(
+    pub(crate) fn check_memory(
         &self,
         world: &SimpleCommunicator,
         budget: MemoryBudget,
@@ -243,12 +243,12 @@ impl Mumps {
     }
 
     /// Whether the factor is kept out of core.
-    pub fn out_of_core(&self) -> bool {
+    pub(crate) fn out_of_core(&self) -> bool {
         self.scratch.is_some()
     }
 
     /// Collective: `JOB = −2`, then the scratch directory goes.
-    pub fn destroy(mut self) {
+    pub(crate) fn destroy(mut self) {
         self.struc.call(-2);
     }
 }
@@ -281,7 +281,7 @@ fn write_c_string(target: &mut [std::os::raw::c_char], bytes: &[u8]) -> Result<(
 /// commands on its own instances until rank 0 says [`Command::Exit`], and
 /// returns that exit code. A failed step needs no action here: the
 /// collective step already told rank 0, which decides what comes next.
-pub(crate) fn serve(world: &SimpleCommunicator) -> u8 {
+pub fn serve(world: &SimpleCommunicator) -> u8 {
     let mut instances: HashMap<u64, Mumps> = HashMap::new();
     loop {
         let mut bytes = Vec::new();

@@ -64,7 +64,7 @@ pub struct MumpsFacts {
 impl MumpsFacts {
     /// The facts as the report's `mumps` section, keys in the order of the
     /// fields.
-    pub fn to_backend_facts(&self) -> BackendFacts {
+    pub(crate) fn to_backend_facts(&self) -> BackendFacts {
         BackendFacts::new(NAME)
             .with("ranks", self.ranks)
             .with(

@@ -66,7 +66,7 @@ static RUNTIME: OnceLock<Runtime> = OnceLock::new();
 static SERVED: AtomicBool = AtomicBool::new(false);
 
 /// Rank 0 records that the other ranks serve it.
-pub(crate) fn mark_served() {
+pub fn mark_served() {
     SERVED.store(true, AtomicOrdering::Relaxed);
 }
 
@@ -92,27 +92,27 @@ pub(crate) fn runtime() -> &'static Runtime {
 }
 
 /// Whether MPI was started in this process (by us).
-pub(crate) fn started() -> bool {
+pub fn started() -> bool {
     RUNTIME.get().is_some()
 }
 
 impl Runtime {
     /// The communicator of all ranks.
-    pub fn world(&self) -> SimpleCommunicator {
+    pub(crate) fn world(&self) -> SimpleCommunicator {
         SimpleCommunicator::world()
     }
 
     /// The lock of a collective conversation (poison is ignored: the
     /// guarded state is the other ranks' position, which a panic on this
     /// rank ends anyway by aborting the job).
-    pub fn serial(&self) -> MutexGuard<'_, ()> {
+    pub(crate) fn serial(&self) -> MutexGuard<'_, ()> {
         self.serial.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 
 /// Ends MPI in this process (`MPI_Finalize`), if it was started here; a
 /// second call does nothing.
-pub(crate) fn finalize() {
+pub fn finalize() {
     if let Some(runtime) = RUNTIME.get() {
         let universe = runtime
             .universe
@@ -125,7 +125,7 @@ pub(crate) fn finalize() {
 
 /// Makes a panic on any rank end every rank: the default message, then
 /// `MPI_Abort` (which `mpirun` turns into the end of the job).
-pub(crate) fn abort_all_on_panic() {
+pub fn abort_all_on_panic() {
     let default = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
         default(info);

@@ -45,7 +45,7 @@ pub(crate) struct ScratchDir(PathBuf);
 impl ScratchDir {
     /// Makes a new directory under `parent` for `rank`. The error names
     /// `parent` and gives the system's reason.
-    pub fn create(parent: &Path, rank: i32) -> Result<ScratchDir, String> {
+    pub(crate) fn create(parent: &Path, rank: i32) -> Result<ScratchDir, String> {
         let mut registry = live();
         for _ in 0..ATTEMPTS {
             let name = format!("lse-deform-rank{rank}-{:016x}", rand::random::<u64>());

@@ -30,7 +30,7 @@ pub(crate) struct Assembled {
 
 impl Assembled {
     /// The entries with row ≥ column of `lower`.
-    pub fn from_lower(
+    pub(crate) fn from_lower(
         lower: SymbolicSparseColMatRef<'_, usize>,
     ) -> Result<Assembled, NumericalError> {
         let n = lower.ncols();
@@ -100,7 +100,7 @@ const WORKSPACE_ERRORS: [i32; 7] = [-8, -9, -11, -14, -15, -17, -20];
 
 impl Session {
     /// `JOB = 1` on `matrix` with `params` (and `perm_in` when not empty).
-    pub fn analyse(
+    pub(crate) fn analyse(
         mut driver: Driver,
         matrix: Assembled,
         perm_in: Vec<i32>,
@@ -186,13 +186,13 @@ impl Session {
     }
 
     /// Sets `CNTL` entries for the factorisations from now on.
-    pub fn set_factorisation_cntl(&mut self, cntl: Vec<(usize, f64)>) {
+    pub(crate) fn set_factorisation_cntl(&mut self, cntl: Vec<(usize, f64)>) {
         self.factorisation_cntl = cntl;
     }
 
     /// The null pivots (`PIVNUL_LIST`, 0-based) and the number of negative
     /// pivots (`INFOG(12)`) of the current factor.
-    pub fn detected_pivots(&self) -> DetectedPivots {
+    pub(crate) fn detected_pivots(&self) -> DetectedPivots {
         let struc = self.driver.struc();
         let count = struc.infog(28).max(0) as usize;
         let list = struc.0.pivnul_list;

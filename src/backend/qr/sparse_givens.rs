@@ -200,7 +200,7 @@ impl GivensQr {
     }
 
     /// [`GivensQr::new`] within a solve's memory `budget`.
-    pub fn with_budget(
+    pub(crate) fn with_budget(
         b: SparseRowMatRef<'_, usize, f64>,
         tolerance: RankTolerance,
         order: GivensRowOrder,

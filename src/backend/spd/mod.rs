@@ -54,7 +54,7 @@ pub const BREAKDOWN_RATIO: f64 = 1000.0 * f64::EPSILON;
 /// of what the process holds ([`MemoryBudget::check_on_top`]): `matrix`
 /// names the matrix for the message. The back end's workspace is not
 /// counted (faer's back ends count theirs in their own check).
-pub fn check_factor_size(
+pub(crate) fn check_factor_size(
     factor_nnz: usize,
     dim: usize,
     matrix: &str,
