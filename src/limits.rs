@@ -3,9 +3,8 @@
 //!
 //! One [`MemoryBudget`] bounds a whole run: reading the inputs (the bytes
 //! read, decompressed and assembled into a mesh) and the solve's
-//! precompute alike. The readers take it as a parameter (their `_within`
-//! variants; the plain ones use the default) and a solve takes it with its
-//! options (`SolveOptions`). The default ([`MemoryBudget::default`]) is
+//! precompute alike. The readers take it as their last argument and a
+//! solve takes it with its options (`SolveOptions`). The default ([`MemoryBudget::default`]) is
 //! `LSE_MEMORY_LIMIT` when set (bytes, with an optional `K`, `M`, `G` or
 //! `T` suffix, powers of 1024; anything else, an empty value included, is
 //! a [`MemoryLimitError`] from [`MemoryBudget::from_environment`]),
@@ -208,7 +207,7 @@ impl BudgetSource {
 /// otherwise unlimited (the module documentation).
 /// [`MemoryBudget::from_environment`] is the same but reports a malformed
 /// `LSE_MEMORY_LIMIT`. [`MemoryBudget::bytes`] sets one for a call,
-/// whatever the environment says; the readers' `_within` variants
+/// whatever the environment says; the readers
 /// ([`crate::mesh::read_mesh`],
 /// [`crate::constraints::read_constraints_file`],
 /// [`crate::mtx::read_system`]) take it, so one budget can bound a

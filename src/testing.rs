@@ -31,13 +31,13 @@
 //!
 //! ```
 //! use lse_deform::testing::{constraint_mixes, dense_reference, relative_difference};
-//! use lse_deform::{ConstraintSet, Deformer, LaplacianKind, formulation::NullSpaceQr};
+//! use lse_deform::{ConstraintSet, Deformer, LaplacianKind, SolveOptions};
 //! use proptest::prelude::*;
 //!
 //! proptest!(ProptestConfig::with_cases(8), |(mix in constraint_mixes())| {
 //!     let set = ConstraintSet::from_vec(mix.constraints.clone()).unwrap();
-//!     let mut d = Deformer::new(mix.mesh.clone(), LaplacianKind::Cotangent, set).unwrap();
-//!     d.precompute(&NullSpaceQr::default()).unwrap();
+//!     let options = SolveOptions::default();
+//!     let mut d = Deformer::new(mix.mesh.clone(), LaplacianKind::Cotangent, set, &options).unwrap();
 //!     let x = d.solve_matrix().unwrap();
 //!     // Rank and dependent constraints as constructed.
 //!     prop_assert_eq!(d.report().rank, Some(mix.rank));
