@@ -160,7 +160,7 @@ impl Request {
 
 /// A precomputed deformation: the Laplacian energy's deformer, or ARAP's
 /// (initialised, before its iterations).
-pub enum Prepared {
+pub enum Factored {
     /// The Laplacian energy.
     Linear(Box<Deformer>),
     /// ARAP.
@@ -188,18 +188,18 @@ pub(crate) fn prepare(
     mesh: Mesh,
     constraints: ConstraintSet,
     request: &Request,
-) -> Result<Prepared, Error> {
+) -> Result<Factored, Error> {
     request.validate()?;
     let o = &request.options;
     match o.energy {
         Energy::Arap => {
             let mut arap = ArapDeformer::new(mesh, constraints, request.arap.energy, &o.solve)?;
             arap.initialize(request.arap.init)?;
-            Ok(Prepared::Arap(Box::new(arap)))
+            Ok(Factored::Arap(Box::new(arap)))
         }
         Energy::Laplacian => {
             let deformer = Deformer::new(mesh, o.laplacian, constraints, &o.solve)?;
-            Ok(Prepared::Linear(Box::new(deformer)))
+            Ok(Factored::Linear(Box::new(deformer)))
         }
     }
 }
@@ -210,7 +210,7 @@ pub(crate) fn prepare(
 pub fn deform(mesh: Mesh, constraints: ConstraintSet, request: &Request) -> Result<Outcome, Error> {
     let strict = request.options.strict;
     match prepare(mesh, constraints, request)? {
-        Prepared::Linear(mut deformer) => {
+        Factored::Linear(mut deformer) => {
             if request.condition {
                 deformer.solver_mut().estimate_condition()?;
             }
@@ -223,7 +223,7 @@ pub fn deform(mesh: Mesh, constraints: ConstraintSet, request: &Request) -> Resu
                 strict,
             })
         }
-        Prepared::Arap(mut arap) => {
+        Factored::Arap(mut arap) => {
             let history = arap.run(request.arap.iterations, request.arap.tolerance)?;
             Ok(Outcome {
                 mesh: arap.mesh().clone(),

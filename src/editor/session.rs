@@ -21,7 +21,7 @@ use crate::mesh::Mesh;
 use crate::options::{
     DeformOptions, INTERACTIVE_ARAP_ITERATIONS_PER_FRAME, SUGGESTED_PENALTY_WEIGHT,
 };
-use crate::request::{self, Prepared, Request};
+use crate::request::{self, Factored, Request};
 use crate::resources::{OrderingWord, Threads};
 use crate::solver::SolveOptions;
 
@@ -257,8 +257,8 @@ pub fn build(
         Energy::Laplacian => "set-up and precompute (factorisation)",
     });
     match request::prepare(mesh.clone(), constraints.clone(), &request)? {
-        Prepared::Arap(arap) => build_arap(*arap, settings, t0),
-        Prepared::Linear(deformer) => build_linear(*deformer, &options, t0, stage),
+        Factored::Arap(arap) => build_arap(*arap, settings, t0),
+        Factored::Linear(deformer) => build_linear(*deformer, &options, t0, stage),
     }
 }
 
