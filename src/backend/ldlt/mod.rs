@@ -27,7 +27,7 @@
 use faer::MatMut;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
-pub use crate::backend::catalogue::LdltKind;
+pub use crate::backend::kinds::LdltKind;
 use crate::backend::spd::check_factor_size;
 use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};

@@ -28,12 +28,10 @@
 //! are well separated from the tolerance; each module documents where they
 //! can differ near it.
 
-use std::sync::Arc;
-
 use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef};
 use faer::{Mat, MatMut, MatRef};
 
-use crate::error::{Error, ProblemError};
+use crate::error::Error;
 use crate::limits::MemoryBudget;
 use crate::resources::Resources;
 
@@ -47,70 +45,12 @@ mod sparse_givens;
 #[cfg(feature = "suitesparse")]
 mod spqr;
 
+pub use crate::backend::kinds::QrKind;
 pub use dense_householder::DenseHouseholder;
 pub use graph_rows::HUB_DEGREE;
 pub use sparse_givens::{GivensQr, GivensRowOrder, SparseGivens};
 #[cfg(feature = "suitesparse")]
 pub use spqr::{Spqr, SpqrQr};
-
-/// A QR back end, as a typed choice ([`QrKind::backend`] makes it;
-/// `FromStr` reads the CLI's and Python's names, [`QrKind::name`] gives
-/// them back).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum QrKind {
-    /// [`DenseHouseholder`]: the paper's method per independent block.
-    DenseHouseholder,
-    /// [`SparseGivens`]: row-by-row Givens on the whole sparse `Bᵀ`.
-    SparseGivens,
-    /// SuiteSparseQR (cargo feature `suitesparse`).
-    Spqr,
-}
-
-impl QrKind {
-    /// Every kind, in the order they are listed to users.
-    pub const ALL: [QrKind; 3] = [QrKind::DenseHouseholder, QrKind::SparseGivens, QrKind::Spqr];
-
-    /// The name the CLI and Python use.
-    pub fn name(self) -> &'static str {
-        match self {
-            QrKind::DenseHouseholder => "dense-householder",
-            QrKind::SparseGivens => "sparse-givens",
-            QrKind::Spqr => "spqr",
-        }
-    }
-
-    /// Whether this build has the back end (`Spqr` needs the cargo feature
-    /// `suitesparse`).
-    pub fn in_this_build(self) -> bool {
-        self != QrKind::Spqr || cfg!(feature = "suitesparse")
-    }
-
-    /// The kinds of this build, in [`QrKind::ALL`]'s order.
-    pub fn available() -> Vec<QrKind> {
-        QrKind::ALL
-            .into_iter()
-            .filter(|k| k.in_this_build())
-            .collect()
-    }
-
-    /// The back end.
-    ///
-    /// Errors: [`ProblemError::InvalidArgument`] for `Spqr` in a build
-    /// without the `suitesparse` feature (the message says how to enable
-    /// it).
-    pub fn backend(self) -> Result<Arc<dyn QrBackend>, ProblemError> {
-        match self {
-            QrKind::DenseHouseholder => Ok(Arc::new(DenseHouseholder)),
-            QrKind::SparseGivens => Ok(Arc::new(SparseGivens::default())),
-            #[cfg(feature = "suitesparse")]
-            QrKind::Spqr => Ok(Arc::new(Spqr)),
-            #[cfg(not(feature = "suitesparse"))]
-            QrKind::Spqr => Err(ProblemError::InvalidArgument {
-                message: "the QR back end 'spqr' (SuiteSparseQR) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
-            }),
-        }
-    }
-}
 
 /// The rank-detection tolerance `η`: constraint `j` is skipped when the norm
 /// of what remains of it after projecting out the earlier kept constraints
@@ -138,21 +78,6 @@ impl Default for RankTolerance {
     }
 }
 
-impl crate::choice::Word for QrKind {
-    const WHAT: &'static str = "QR back end";
-    fn all() -> &'static [Self] {
-        &QrKind::ALL
-    }
-    fn name(self) -> &'static str {
-        QrKind::name(self)
-    }
-    fn listed() -> Vec<Self> {
-        QrKind::available()
-    }
-}
-
-crate::choice::word_traits!(QrKind);
-
 /// A QR factorisation method for `Bᵀ`: the crate's own ([`QrKind`]'s
 /// catalogue) or one brought from outside (docs/backends.md,
 /// `lse_deform::testing::conformance::qr`).
@@ -163,10 +88,11 @@ pub trait QrBackend: Send + Sync {
 
     /// Factors `Bᵀ` for the hard-constraint matrix `b` (m × n, one row per
     /// constraint, in priority order), refusing with
-    /// [`ProblemError::TooLarge`] a factor whose estimated storage exceeds
-    /// the budget of `resources`. The rows keep their priority order (rank
-    /// detection depends on it), so the resources' fill-reducing ordering
-    /// is not a QR's to take; the crate's QR back ends run on one thread.
+    /// [`ProblemError::TooLarge`](crate::error::ProblemError::TooLarge) a
+    /// factor whose estimated storage exceeds the budget of `resources`.
+    /// The rows keep their priority order (rank detection depends on it),
+    /// so the resources' fill-reducing ordering is not a QR's to take; the
+    /// crate's QR back ends run on one thread.
     fn factor_with(
         &self,
         b: SparseRowMatRef<'_, usize, f64>,

@@ -15,7 +15,7 @@
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{MatMut, MatRef};
 
-pub use crate::backend::catalogue::SpdKind;
+pub use crate::backend::kinds::SpdKind;
 use crate::backend::ordering::{FactorPlan, PlanUsed};
 use crate::backend::{BackendFacts, BackendName};
 use crate::error::{NumericalError, ProblemError};
