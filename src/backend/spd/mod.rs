@@ -32,8 +32,6 @@ mod triangular;
 
 #[cfg(feature = "suitesparse")]
 pub use cholmod::Cholmod;
-#[cfg(feature = "suitesparse")]
-pub(crate) use cholmod::metis as cholmod_metis;
 pub(crate) use factor_size::factor_size;
 pub use faer_llt::FaerLlt;
 pub use nalgebra::NalgebraCsc;
