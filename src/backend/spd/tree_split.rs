@@ -309,3 +309,67 @@ impl Tree {
         (bins, loads)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+    use faer::sparse::linalg::SupernodalThreshold;
+
+    use super::super::triangular::tests::{Factor, factor, faer_solve, gather, rhs};
+    use super::super::triangular::{Passes, passes, wide_passes};
+    use super::TreeSplit;
+
+    /// The solve split over the elimination tree on two threads
+    /// ([`TreeSplit`]) against faer's, with both lane widths.
+    #[test]
+    fn split_solves_match_faers_solve() {
+        let f = factor(48, SupernodalThreshold::FORCE_SUPERNODAL);
+        let split = TreeSplit::with_min_values(&f.symbolic, 0).expect("a grid's tree splits");
+        let check = |k: usize, solve: &dyn Fn(&Mat<f64>) -> Mat<f64>| {
+            let b = rhs(f.symbolic.nrows(), k);
+            let got = solve(&b);
+            let want = faer_solve(&f, &b);
+            assert!(
+                (&got - &want).norm_max() <= 1e-12 * want.norm_max(),
+                "k = {k}"
+            );
+        };
+        for k in [1, 3, 4] {
+            check(k, &|b| split_solve(&f, &split, passes(), b));
+        }
+        for k in [1, 5, 7, 8] {
+            check(k, &|b| split_solve(&f, &split, wide_passes(), b));
+        }
+    }
+
+    /// `b` solved by `split` with `passes`, back in the original order
+    /// (unused lanes checked to stay zero).
+    fn split_solve<const W: usize>(
+        f: &Factor,
+        split: &TreeSplit,
+        passes: Passes<W>,
+        b: &Mat<f64>,
+    ) -> Mat<f64> {
+        let n = b.nrows();
+        let mut w = gather::<W>(f, b);
+        let (mut w2, mut s, mut s2) = (vec![[0.0; W]; n], Vec::new(), Vec::new());
+        let buffers = ((&mut w[..], &mut s), (&mut w2[..], &mut s2));
+        split.solve(
+            passes,
+            &f.symbolic,
+            &f.rows_layout,
+            &f.inv_diag,
+            buffers.0,
+            buffers.1,
+        );
+        let mut x = Mat::zeros(n, b.ncols());
+        for (i, lane) in w.iter().enumerate() {
+            let dst = f.perm.as_ref().map_or(i, |p| p[i]);
+            for c in 0..b.ncols() {
+                x[(dst, c)] = lane[c];
+            }
+            assert!(lane[b.ncols()..].iter().all(|&v| v == 0.0));
+        }
+        x
+    }
+}

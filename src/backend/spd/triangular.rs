@@ -757,7 +757,9 @@ fn backward_supernode<const W: usize, V: LaneOps<W>>(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
+    //! Also what `tree_split`'s tests factor, solve and compare with.
+
     use super::*;
     use faer::Mat;
     use faer::dyn_stack::{MemBuffer, MemStack};
@@ -793,15 +795,16 @@ mod tests {
     /// A factor of [`spd_lower`]`(k, 0.5)`: the symbolic factor, faer's
     /// column-major values, the values in our row layout, `1 / L_ii`, and
     /// the permutation.
-    struct Factor {
-        symbolic: faer::sparse::linalg::cholesky::SymbolicCholesky<usize>,
+    pub(in crate::backend::spd) struct Factor {
+        pub(in crate::backend::spd) symbolic:
+            faer::sparse::linalg::cholesky::SymbolicCholesky<usize>,
         values: Vec<f64>,
-        rows_layout: Vec<f64>,
-        inv_diag: Vec<f64>,
-        perm: Option<Vec<usize>>,
+        pub(in crate::backend::spd) rows_layout: Vec<f64>,
+        pub(in crate::backend::spd) inv_diag: Vec<f64>,
+        pub(in crate::backend::spd) perm: Option<Vec<usize>>,
     }
 
-    fn factor(k: usize, threshold: SupernodalThreshold) -> Factor {
+    pub(in crate::backend::spd) fn factor(k: usize, threshold: SupernodalThreshold) -> Factor {
         let lower = spd_lower(k, 0.5);
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: threshold,
@@ -846,7 +849,7 @@ mod tests {
     }
 
     /// faer's own solve of `L Lᵀ X = B` (on the column-major values).
-    fn faer_solve(f: &Factor, b: &Mat<f64>) -> Mat<f64> {
+    pub(in crate::backend::spd) fn faer_solve(f: &Factor, b: &Mat<f64>) -> Mat<f64> {
         let mut expected = b.clone();
         let llt = faer::sparse::linalg::cholesky::LltRef::new(&f.symbolic, &f.values);
         let mut mem = MemBuffer::new(
@@ -863,12 +866,15 @@ mod tests {
     }
 
     /// A right-hand side with `k` columns and `n` rows.
-    fn rhs(n: usize, k: usize) -> Mat<f64> {
+    pub(in crate::backend::spd) fn rhs(n: usize, k: usize) -> Mat<f64> {
         Mat::<f64>::from_fn(n, k, |i, c| ((i * 7 + c * 13) % 17) as f64 - 8.0)
     }
 
     /// `b` gathered into lanes of `W` in the factor's order.
-    fn gather<const W: usize>(f: &Factor, b: &Mat<f64>) -> Vec<[f64; W]> {
+    pub(in crate::backend::spd) fn gather<const W: usize>(
+        f: &Factor,
+        b: &Mat<f64>,
+    ) -> Vec<[f64; W]> {
         let mut w = vec![[0.0; W]; b.nrows()];
         for (i, lane) in w.iter_mut().enumerate() {
             let src = f.perm.as_ref().map_or(i, |p| p[i]);
@@ -913,62 +919,6 @@ mod tests {
             );
             compare(&f, &w, &faer_solve(&f, &b));
         }
-    }
-
-    /// The solve split over the elimination tree on two threads
-    /// ([`super::super::tree_split::TreeSplit`]) against faer's, with both
-    /// lane widths.
-    #[test]
-    fn split_solves_match_faers_solve() {
-        use super::super::tree_split::TreeSplit;
-        let f = factor(48, SupernodalThreshold::FORCE_SUPERNODAL);
-        let split = TreeSplit::with_min_values(&f.symbolic, 0).expect("a grid's tree splits");
-        let check = |k: usize, solve: &dyn Fn(&Mat<f64>) -> Mat<f64>| {
-            let b = rhs(f.symbolic.nrows(), k);
-            let got = solve(&b);
-            let want = faer_solve(&f, &b);
-            assert!(
-                (&got - &want).norm_max() <= 1e-12 * want.norm_max(),
-                "k = {k}"
-            );
-        };
-        for k in [1, 3, 4] {
-            check(k, &|b| split_solve(&f, &split, passes(), b));
-        }
-        for k in [1, 5, 7, 8] {
-            check(k, &|b| split_solve(&f, &split, wide_passes(), b));
-        }
-    }
-
-    /// `b` solved by `split` with `passes`, back in the original order
-    /// (unused lanes checked to stay zero).
-    fn split_solve<const W: usize>(
-        f: &Factor,
-        split: &super::super::tree_split::TreeSplit,
-        passes: Passes<W>,
-        b: &Mat<f64>,
-    ) -> Mat<f64> {
-        let n = b.nrows();
-        let mut w = gather::<W>(f, b);
-        let (mut w2, mut s, mut s2) = (vec![[0.0; W]; n], Vec::new(), Vec::new());
-        let buffers = ((&mut w[..], &mut s), (&mut w2[..], &mut s2));
-        split.solve(
-            passes,
-            &f.symbolic,
-            &f.rows_layout,
-            &f.inv_diag,
-            buffers.0,
-            buffers.1,
-        );
-        let mut x = Mat::zeros(n, b.ncols());
-        for (i, lane) in w.iter().enumerate() {
-            let dst = f.perm.as_ref().map_or(i, |p| p[i]);
-            for c in 0..b.ncols() {
-                x[(dst, c)] = lane[c];
-            }
-            assert!(lane[b.ncols()..].iter().all(|&v| v == 0.0));
-        }
-        x
     }
 
     #[test]
