@@ -7,12 +7,14 @@ use serde::{Serialize, Serializer};
 use crate::backend::{BackendName, FactorKind};
 use crate::choice::{ArapEnergy, ArapInit, Method};
 use crate::laplacian::LaplacianKind;
+use crate::problem::LseProblem;
 
 mod conflicts;
 mod facts;
 mod warning;
 mod wire;
-pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources, conflict_warnings};
+use conflicts::conflict_warning;
+pub use conflicts::{CONFLICT_WARNINGS_SHOWN, ConflictSources};
 pub use facts::MethodFacts;
 pub use warning::{Warning, WarningKind, WarningSubject};
 
@@ -571,4 +573,34 @@ fn row_norm(problem: &crate::problem::LseProblem, k: usize) -> f64 {
 /// The first vertex (row) with a non-finite coordinate in `x`, if any.
 pub(crate) fn first_non_finite(x: faer::MatRef<'_, f64>) -> Option<usize> {
     (0..x.nrows()).find(|&i| (0..x.ncols()).any(|c| !x[(i, c)].is_finite()))
+}
+
+/// The warnings of `report`'s conflicting constraints: one per conflict for
+/// the first [`CONFLICT_WARNINGS_SHOWN`], naming the index, the residual
+/// (in the report's units) and the earlier constraints it contradicts where
+/// `sources` finds them, then one counting the rest.
+pub(crate) fn conflict_warnings(
+    report: &Report,
+    problem: &LseProblem,
+    sources: &mut ConflictSources,
+) -> Vec<Warning> {
+    let mut out = Vec::new();
+    for c in report.conflicting.iter().take(CONFLICT_WARNINGS_SHOWN) {
+        let with = sources.of(problem, c.index).unwrap_or_default().to_vec();
+        out.push(conflict_warning(c.index, with, c.residual));
+    }
+    let more = report
+        .conflicting
+        .len()
+        .saturating_sub(CONFLICT_WARNINGS_SHOWN);
+    if more > 0 {
+        out.push(Warning::new(
+            WarningKind::MoreConflictingConstraints,
+            format!(
+                "… and {more} more conflicting constraints were dropped ({} in all; every one is listed in the report's \"conflicting\")",
+                report.conflicting.len()
+            ),
+        ));
+    }
+    out
 }

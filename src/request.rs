@@ -151,7 +151,7 @@ impl Request {
 
     /// Checks the options before any work, without building a back end:
     /// the formulation's ([`crate::formulation::FormulationChoice::validate`]).
-    pub(crate) fn validate(&self) -> Result<(), Error> {
+    pub fn validate(&self) -> Result<(), Error> {
         let solve = &self.options.solve;
         solve.formulation.validate(&solve.factor_storage)?;
         Ok(())

@@ -11,13 +11,13 @@
 //! to every back end, and one thread count.
 
 use std::num::NonZeroUsize;
-use std::sync::Arc;
 
-use crate::choice::Word;
 use crate::limits::MemoryBudget;
 
+mod fill_ordering;
 pub mod ordering_file;
 
+pub use fill_ordering::{FillOrdering, OrderingWord};
 pub use ordering_file::read_ordering_file;
 
 /// The most threads a count may ask for. faer sizes a factorisation's
@@ -81,94 +81,6 @@ impl std::str::FromStr for Threads {
                     "threads: expected own or a positive count up to {MAX_THREADS}, got {word:?}"
                 )
             })
-    }
-}
-
-/// The fill-reducing ordering of a sparse factorisation: which unknown is
-/// eliminated when. Fill (the factor's entries) and the factorisation's
-/// cost depend on it, so two back ends compared on their own orderings
-/// compare orderings as much as factorisations.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Hash)]
-pub enum FillOrdering {
-    /// Each back end's own: AMD for faer, nalgebra and CHOLMOD (each its
-    /// own implementation), MUMPS's automatic choice (`ICNTL(7) = 7`).
-    #[default]
-    Own,
-    /// Approximate minimum degree (faer's implementation), computed once
-    /// on the matrix factored and given to every back end.
-    Amd,
-    /// METIS nested dissection (through CHOLMOD's `cholmod_l_metis`:
-    /// builds with the feature `suitesparse` only), computed once and
-    /// given to every back end.
-    Metis,
-    /// The unknowns in their own order (no reordering).
-    Natural,
-    /// A permutation of the problem's unknowns: entry `i` is the unknown
-    /// eliminated `i`-th. A factored matrix over a subset of the unknowns
-    /// (the null-space method's free unknowns, elimination's free
-    /// vertices) is eliminated in the order this induces on the subset.
-    Given(Arc<[usize]>),
-}
-
-/// The words of the orderings other than [`FillOrdering::Given`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum OrderingWord {
-    /// [`FillOrdering::Own`].
-    Own,
-    /// [`FillOrdering::Amd`].
-    Amd,
-    /// [`FillOrdering::Metis`].
-    Metis,
-    /// [`FillOrdering::Natural`].
-    Natural,
-}
-
-impl Word for OrderingWord {
-    const WHAT: &'static str = "ordering";
-
-    fn all() -> &'static [OrderingWord] {
-        &[
-            OrderingWord::Own,
-            OrderingWord::Amd,
-            OrderingWord::Metis,
-            OrderingWord::Natural,
-        ]
-    }
-
-    fn name(self) -> &'static str {
-        match self {
-            OrderingWord::Own => "own",
-            OrderingWord::Amd => "amd",
-            OrderingWord::Metis => "metis",
-            OrderingWord::Natural => "natural",
-        }
-    }
-}
-
-crate::choice::word_traits!(OrderingWord);
-
-impl From<OrderingWord> for FillOrdering {
-    fn from(word: OrderingWord) -> FillOrdering {
-        match word {
-            OrderingWord::Own => FillOrdering::Own,
-            OrderingWord::Amd => FillOrdering::Amd,
-            OrderingWord::Metis => FillOrdering::Metis,
-            OrderingWord::Natural => FillOrdering::Natural,
-        }
-    }
-}
-
-impl FillOrdering {
-    /// The word of the report and the CLI: `own`, `amd`, `metis`,
-    /// `natural` or `given`.
-    pub fn name(&self) -> &'static str {
-        match self {
-            FillOrdering::Own => "own",
-            FillOrdering::Amd => "amd",
-            FillOrdering::Metis => "metis",
-            FillOrdering::Natural => "natural",
-            FillOrdering::Given(_) => "given",
-        }
     }
 }
 

@@ -1,9 +1,13 @@
 //! The catalogue of the crate's own back ends: [`SpdKind`] and
 //! [`LdltKind`] (with [`crate::backend::qr::QrKind`]) name the built-in
 //! back ends that the CLI, Python and the editor parse from words, and
-//! make them, with the settings only a built-in has ([`FactorStorage`]:
-//! MUMPS's out-of-core directory). A back end from outside this crate is
-//! not in the catalogue: it implements the seam's traits
+//! the catalogue makes them ([`SpdKind::backend`], [`LdltKind::backend`],
+//! [`QrKind::backend`]), with the settings only a built-in has
+//! ([`FactorStorage`]: MUMPS's out-of-core directory). The kinds
+//! themselves are defined below the seams (`backend/kinds.rs`), so that
+//! the back ends name themselves by them; the catalogue sits above the
+//! seams and no back end imports it. A back end from outside this crate
+//! is not in the catalogue: it implements the seam's traits
 //! ([`crate::backend::spd::SpdBackend`], [`crate::backend::ldlt::LdltBackend`],
 //! [`crate::backend::qr::QrBackend`]) and names itself
 //! (docs/backends.md).
@@ -11,7 +15,13 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
+pub use crate::backend::kinds::{LdltKind, SpdKind};
+
+use crate::backend::kinds::QrKind;
 use crate::backend::ldlt::{FaerLdlt, LdltBackend};
+#[cfg(feature = "suitesparse")]
+use crate::backend::qr::Spqr;
+use crate::backend::qr::{DenseHouseholder, QrBackend, SparseGivens};
 use crate::backend::spd::{FaerLlt, NalgebraCsc, SpdBackend};
 use crate::error::ProblemError;
 
@@ -69,65 +79,7 @@ impl FactorStorage {
     }
 }
 
-/// An SPD back end, as a typed choice ([`SpdKind::backend`] makes it;
-/// `FromStr` reads the CLI's and Python's names, [`SpdKind::name`] gives
-/// them back).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SpdKind {
-    /// faer's supernodal Cholesky.
-    FaerSupernodal,
-    /// faer's simplicial (column by column) Cholesky.
-    FaerSimplicial,
-    /// faer's choice between the two, from the symbolic factor's density.
-    FaerAuto,
-    /// nalgebra-sparse's CSC Cholesky.
-    Nalgebra,
-    /// SuiteSparse CHOLMOD (cargo feature `suitesparse`).
-    Cholmod,
-    /// MUMPS's multifrontal Cholesky, on one rank or many (cargo feature
-    /// `mumps`).
-    Mumps,
-}
-
 impl SpdKind {
-    /// Every kind, in the order they are listed to users.
-    pub const ALL: [SpdKind; 6] = [
-        SpdKind::FaerSupernodal,
-        SpdKind::FaerSimplicial,
-        SpdKind::FaerAuto,
-        SpdKind::Nalgebra,
-        SpdKind::Cholmod,
-        SpdKind::Mumps,
-    ];
-
-    /// The name the CLI and Python use.
-    pub fn name(self) -> &'static str {
-        match self {
-            SpdKind::FaerSupernodal => "faer-supernodal",
-            SpdKind::FaerSimplicial => "faer-simplicial",
-            SpdKind::FaerAuto => "faer-auto",
-            SpdKind::Nalgebra => "nalgebra",
-            SpdKind::Cholmod => "cholmod",
-            SpdKind::Mumps => "mumps",
-        }
-    }
-
-    /// Whether this build has the back end (`Cholmod` needs the cargo
-    /// feature `suitesparse`, `Mumps` the feature `mumps`).
-    pub fn in_this_build(self) -> bool {
-        let missing = (self == SpdKind::Cholmod && !cfg!(feature = "suitesparse"))
-            || (self == SpdKind::Mumps && !cfg!(feature = "mumps"));
-        !missing
-    }
-
-    /// The kinds of this build, in [`SpdKind::ALL`]'s order.
-    pub fn available() -> Vec<SpdKind> {
-        SpdKind::ALL
-            .into_iter()
-            .filter(|k| k.in_this_build())
-            .collect()
-    }
-
     /// The back end.
     ///
     /// Errors: [`ProblemError::InvalidArgument`] for `Cholmod` in a build
@@ -176,78 +128,7 @@ impl SpdKind {
 #[cfg(not(feature = "mumps"))]
 pub(crate) const MUMPS_MISSING: &str = "the back end 'mumps' (MUMPS over MPI) is not in this build: rebuild with `--features mumps` (needs the system packages libmumps-ptscotch-dev, libmumps-headers-dev, libopenmpi-dev, openmpi-bin and libclang-dev)";
 
-impl crate::choice::Word for SpdKind {
-    const WHAT: &'static str = "SPD back end";
-    fn all() -> &'static [Self] {
-        &SpdKind::ALL
-    }
-    fn name(self) -> &'static str {
-        SpdKind::name(self)
-    }
-    fn listed() -> Vec<Self> {
-        SpdKind::available()
-    }
-}
-
-crate::choice::word_traits!(SpdKind);
-
-/// An `LDLᵀ` back end, as a typed choice ([`LdltKind::backend`] makes
-/// it); serialised in reports as its word.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
-pub enum LdltKind {
-    /// faer's choice between the two below, from the symbolic factor's
-    /// density.
-    #[default]
-    FaerAuto,
-    /// faer's simplicial (column by column) `LDLᵀ`.
-    FaerSimplicial,
-    /// faer's supernodal `LDLᵀ` (dense blocks of columns).
-    FaerSupernodal,
-    /// MUMPS's multifrontal `LDLᵀ` in the given order, on one rank or many
-    /// (cargo feature `mumps`).
-    Mumps,
-}
-
 impl LdltKind {
-    /// Every kind, in the order they are listed to users.
-    pub const ALL: [LdltKind; 4] = [
-        LdltKind::FaerAuto,
-        LdltKind::FaerSimplicial,
-        LdltKind::FaerSupernodal,
-        LdltKind::Mumps,
-    ];
-
-    /// The word in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            LdltKind::FaerAuto => "faer-ldlt-auto",
-            LdltKind::FaerSimplicial => "faer-ldlt-simplicial",
-            LdltKind::FaerSupernodal => "faer-ldlt-supernodal",
-            LdltKind::Mumps => "mumps-ldlt",
-        }
-    }
-
-    /// The `LDLᵀ` variant an SPD back-end choice selects (the CLI's and
-    /// Python's `spd` for the KKT method): faer's automatic, simplicial or
-    /// supernodal factorisation for the faer kinds; `None` for the others,
-    /// which have no `LDLᵀ`.
-    pub fn for_spd(spd: crate::backend::spd::SpdKind) -> Option<LdltKind> {
-        use crate::backend::spd::SpdKind;
-        match spd {
-            SpdKind::FaerAuto => Some(LdltKind::FaerAuto),
-            SpdKind::FaerSimplicial => Some(LdltKind::FaerSimplicial),
-            SpdKind::FaerSupernodal => Some(LdltKind::FaerSupernodal),
-            SpdKind::Mumps => Some(LdltKind::Mumps),
-            SpdKind::Nalgebra | SpdKind::Cholmod => None,
-        }
-    }
-
-    /// Whether this build has the back end (`Mumps` needs the cargo
-    /// feature `mumps`).
-    pub(crate) fn in_this_build(self) -> bool {
-        self != LdltKind::Mumps || cfg!(feature = "mumps")
-    }
-
     /// The back end, keeping its factor in core.
     ///
     /// Errors: [`ProblemError::InvalidArgument`] for `Mumps` in a build
@@ -279,14 +160,22 @@ impl LdltKind {
     }
 }
 
-impl crate::choice::Word for LdltKind {
-    const WHAT: &'static str = "LDLT back end";
-    fn all() -> &'static [Self] {
-        &LdltKind::ALL
-    }
-    fn name(self) -> &'static str {
-        LdltKind::name(self)
+impl QrKind {
+    /// The back end.
+    ///
+    /// Errors: [`ProblemError::InvalidArgument`] for `Spqr` in a build
+    /// without the `suitesparse` feature (the message says how to enable
+    /// it).
+    pub fn backend(self) -> Result<Arc<dyn QrBackend>, ProblemError> {
+        match self {
+            QrKind::DenseHouseholder => Ok(Arc::new(DenseHouseholder)),
+            QrKind::SparseGivens => Ok(Arc::new(SparseGivens::default())),
+            #[cfg(feature = "suitesparse")]
+            QrKind::Spqr => Ok(Arc::new(Spqr)),
+            #[cfg(not(feature = "suitesparse"))]
+            QrKind::Spqr => Err(ProblemError::InvalidArgument {
+                message: "the QR back end 'spqr' (SuiteSparseQR) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
+            }),
+        }
     }
 }
-
-crate::choice::word_traits!(LdltKind);

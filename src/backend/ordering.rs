@@ -147,7 +147,7 @@ fn amd_permutation(lower: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usiz
 fn metis_permutation(
     lower: SymbolicSparseColMatRef<'_, usize>,
 ) -> Result<Vec<usize>, ProblemError> {
-    crate::backend::spd::cholmod_metis(lower)
+    crate::backend::suitesparse::metis(lower)
         .map_err(|e| invalid(format!("the METIS ordering failed: {e}")))
 }
 

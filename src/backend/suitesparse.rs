@@ -1,8 +1,12 @@
 //! Shared plumbing for the SuiteSparse back ends (feature `suitesparse`):
-//! an owned `cholmod_common`.
+//! an owned `cholmod_common`, `cholmod_sparse` headers over our arrays, and
+//! METIS's ordering through CHOLMOD ([`metis`], which the ordering module
+//! computes a plan with: here, below both it and the CHOLMOD back end, so
+//! that the ordering imports no back end).
 
 use std::mem::MaybeUninit;
 
+use faer::sparse::SymbolicSparseColMatRef;
 use suitesparse_sys as ss;
 
 use crate::error::NumericalError;
@@ -94,4 +98,73 @@ pub(crate) fn sparse_header(
     a.sorted = 1;
     a.packed = 1;
     a
+}
+
+/// Lower triangle in CHOLMOD's 64-bit CSC layout (owned arrays).
+pub(crate) struct LowerCsc {
+    n: usize,
+    p: Vec<Long>,
+    i: Vec<Long>,
+    /// The values (the lower triangle's entries, in order).
+    pub(crate) x: Vec<f64>,
+}
+
+impl LowerCsc {
+    /// Copies the lower triangle (rows ≥ column) of `pattern`, with `values`
+    /// when given (else zeros).
+    pub(crate) fn new(
+        pattern: SymbolicSparseColMatRef<'_, usize>,
+        values: Option<&[f64]>,
+    ) -> LowerCsc {
+        let n = pattern.ncols();
+        let mut p = Vec::with_capacity(n + 1);
+        let mut i = Vec::new();
+        let mut x = Vec::new();
+        p.push(0);
+        for j in 0..n {
+            for q in pattern.col_range(j) {
+                let r = pattern.row_idx()[q];
+                if r >= j {
+                    i.push(r as Long);
+                    x.push(values.map_or(0.0, |v| v[q]));
+                }
+            }
+            p.push(i.len() as Long);
+        }
+        LowerCsc { n, p, i, x }
+    }
+
+    /// A `cholmod_sparse` header over the arrays (valid while `self` is
+    /// borrowed; CHOLMOD only reads it).
+    pub(crate) fn header(&mut self) -> ss::cholmod_sparse {
+        sparse_header(self.n, self.n, &mut self.p, &mut self.i, &mut self.x, -1)
+    }
+}
+
+/// METIS's nested-dissection ordering of the pattern `lower` through
+/// `cholmod_l_metis` (postordered), `perm[i]` eliminated `i`-th.
+pub(crate) fn metis(lower: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, String> {
+    let mut csc = LowerCsc::new(lower, None);
+    let mut common = Common::new().map_err(|e| e.to_string())?;
+    let mut header = csc.header();
+    let mut perm: Vec<Long> = vec![0; lower.nrows()];
+    // SAFETY: `header` describes arrays owned by `csc`; `perm` has n
+    // entries; no subset is given.
+    let ok = unsafe {
+        ss::cholmod_l_metis(
+            &mut header,
+            std::ptr::null_mut(),
+            0,
+            1,
+            perm.as_mut_ptr(),
+            common.ptr(),
+        )
+    };
+    if ok == 0 {
+        return Err(format!(
+            "cholmod_l_metis failed (status {})",
+            common.status()
+        ));
+    }
+    Ok(perm.into_iter().map(|p| p as usize).collect())
 }

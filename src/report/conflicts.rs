@@ -18,11 +18,12 @@ use std::collections::HashMap;
 use faer::Mat;
 use faer::linalg::solvers::SolveLstsq;
 
-use super::{Report, Warning, WarningKind, WarningSubject};
+use super::{Warning, WarningKind, WarningSubject};
 use crate::problem::{LseProblem, RowPlace};
 
 /// How many conflicting constraints the warnings name one by one; the rest
-/// are counted in one more warning (all are in [`Report::conflicting`]).
+/// are counted in one more warning (all are in
+/// [`Report::conflicting`](crate::report::Report::conflicting)).
 pub const CONFLICT_WARNINGS_SHOWN: usize = 10;
 
 /// The most kept rows a search for the sources of a conflict looks at.
@@ -87,36 +88,6 @@ impl ConflictSources {
         }
         self.found.get(&index).and_then(|s| s.as_deref())
     }
-}
-
-/// The warnings of `report`'s conflicting constraints: one per conflict for
-/// the first [`CONFLICT_WARNINGS_SHOWN`], naming the index, the residual
-/// (in the report's units) and the earlier constraints it contradicts where
-/// `sources` finds them, then one counting the rest.
-pub fn conflict_warnings(
-    report: &Report,
-    problem: &LseProblem,
-    sources: &mut ConflictSources,
-) -> Vec<Warning> {
-    let mut out = Vec::new();
-    for c in report.conflicting.iter().take(CONFLICT_WARNINGS_SHOWN) {
-        let with = sources.of(problem, c.index).unwrap_or_default().to_vec();
-        out.push(conflict_warning(c.index, with, c.residual));
-    }
-    let more = report
-        .conflicting
-        .len()
-        .saturating_sub(CONFLICT_WARNINGS_SHOWN);
-    if more > 0 {
-        out.push(Warning::new(
-            WarningKind::MoreConflictingConstraints,
-            format!(
-                "… and {more} more conflicting constraints were dropped ({} in all; every one is listed in the report's \"conflicting\")",
-                report.conflicting.len()
-            ),
-        ));
-    }
-    out
 }
 
 /// The warning of conflicting constraint `index`, its sentence made from

@@ -29,7 +29,7 @@ use super::driver::Driver;
 use super::instance::Params;
 use super::session::DetectedPivots;
 use super::session::{Assembled, Factorisation, Session, Shared, lock};
-use super::{numerical, too_large};
+use super::shared::{numerical, too_large};
 use crate::backend::openblas::{self, ThreadsFor};
 use crate::backend::ordering::{FactorPlan, PlanUsed};
 use crate::backend::spd::{SpdBackend, SpdFactor, SpdKind, SpdSymbolic};
@@ -46,11 +46,12 @@ pub struct MumpsLlt {
 impl MumpsLlt {
     /// In core (`None`) or with the factor in files under `out_of_core`,
     /// which every rank checks it can use (bad input when one cannot:
-    /// [`super::check_out_of_core`]). Refused as bad input where this
-    /// process cannot drive MUMPS ([`super::check_driving_rank`]).
+    /// [`super::shared::check_out_of_core`]). Refused as bad input where
+    /// this process cannot drive MUMPS
+    /// ([`super::shared::check_driving_rank`]).
     pub fn new(out_of_core: Option<PathBuf>) -> Result<MumpsLlt, ProblemError> {
-        super::check_driving_rank()?;
-        super::check_out_of_core(out_of_core.as_deref())?;
+        super::shared::check_driving_rank()?;
+        super::shared::check_out_of_core(out_of_core.as_deref())?;
         Ok(MumpsLlt { out_of_core })
     }
 }

@@ -39,9 +39,9 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::cholesky::MumpsSymbolic;
 use super::instance::Params;
-use super::numerical;
 use super::session::DetectedPivots;
 use super::session::{Factorisation, lock};
+use super::shared::numerical;
 use crate::backend::ldlt::{
     LdltBackend, LdltFactor, LdltKind, LdltSymbolic, PivotFault, PivotRule,
 };
@@ -87,11 +87,12 @@ pub struct MumpsLdlt {
 impl MumpsLdlt {
     /// In core (`None`) or with the factor in files under `out_of_core`,
     /// which every rank checks it can use (bad input when one cannot:
-    /// [`super::check_out_of_core`]). Refused as bad input where this
-    /// process cannot drive MUMPS ([`super::check_driving_rank`]).
+    /// [`super::shared::check_out_of_core`]). Refused as bad input where
+    /// this process cannot drive MUMPS
+    /// ([`super::shared::check_driving_rank`]).
     pub fn new(out_of_core: Option<PathBuf>) -> Result<MumpsLdlt, ProblemError> {
-        super::check_driving_rank()?;
-        super::check_out_of_core(out_of_core.as_deref())?;
+        super::shared::check_driving_rank()?;
+        super::shared::check_out_of_core(out_of_core.as_deref())?;
         Ok(MumpsLdlt { out_of_core })
     }
 }

@@ -15,7 +15,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 use super::driver::Driver;
 use super::instance::{Failure, Params};
-use super::{MumpsFacts, failure_message, numerical};
+use super::shared::{MumpsFacts, failure_message, numerical};
 use crate::error::NumericalError;
 
 /// The lower triangle of a symmetric matrix as MUMPS's centralised
@@ -329,7 +329,7 @@ fn solve_error(failure: Failure, scratch: Option<&std::path::Path>) -> Numerical
         None => format!("solving with the factor: {message}"),
     };
     NumericalError::Backend {
-        backend: super::NAME.into(),
+        backend: super::shared::NAME.into(),
         message,
     }
 }

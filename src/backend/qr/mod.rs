@@ -28,209 +28,21 @@
 //! are well separated from the tolerance; each module documents where they
 //! can differ near it.
 
-use std::sync::Arc;
-
-use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef};
-use faer::{Mat, MatMut, MatRef};
-
-use crate::error::{Error, ProblemError};
-use crate::resources::Resources;
-
 mod dense_householder;
 mod distinct_rows;
 mod fill;
 mod givens_merge;
 mod graph_rows;
+mod seam;
 mod sparse_columns;
 mod sparse_givens;
 #[cfg(feature = "suitesparse")]
 mod spqr;
 
+pub use crate::backend::kinds::QrKind;
 pub use dense_householder::DenseHouseholder;
 pub use graph_rows::HUB_DEGREE;
+pub use seam::{ConstraintQr, QrBackend, RankTolerance, particular_solution};
 pub use sparse_givens::{GivensQr, GivensRowOrder, SparseGivens};
 #[cfg(feature = "suitesparse")]
 pub use spqr::{Spqr, SpqrQr};
-
-/// A QR back end, as a typed choice ([`QrKind::backend`] makes it;
-/// `FromStr` reads the CLI's and Python's names, [`QrKind::name`] gives
-/// them back).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum QrKind {
-    /// [`DenseHouseholder`]: the paper's method per independent block.
-    DenseHouseholder,
-    /// [`SparseGivens`]: row-by-row Givens on the whole sparse `Bᵀ`.
-    SparseGivens,
-    /// SuiteSparseQR (cargo feature `suitesparse`).
-    Spqr,
-}
-
-impl QrKind {
-    /// Every kind, in the order they are listed to users.
-    pub const ALL: [QrKind; 3] = [QrKind::DenseHouseholder, QrKind::SparseGivens, QrKind::Spqr];
-
-    /// The name the CLI and Python use.
-    pub fn name(self) -> &'static str {
-        match self {
-            QrKind::DenseHouseholder => "dense-householder",
-            QrKind::SparseGivens => "sparse-givens",
-            QrKind::Spqr => "spqr",
-        }
-    }
-
-    /// Whether this build has the back end (`Spqr` needs the cargo feature
-    /// `suitesparse`).
-    pub fn in_this_build(self) -> bool {
-        self != QrKind::Spqr || cfg!(feature = "suitesparse")
-    }
-
-    /// The kinds of this build, in [`QrKind::ALL`]'s order.
-    pub fn available() -> Vec<QrKind> {
-        QrKind::ALL
-            .into_iter()
-            .filter(|k| k.in_this_build())
-            .collect()
-    }
-
-    /// The back end.
-    ///
-    /// Errors: [`ProblemError::InvalidArgument`] for `Spqr` in a build
-    /// without the `suitesparse` feature (the message says how to enable
-    /// it).
-    pub fn backend(self) -> Result<Arc<dyn QrBackend>, ProblemError> {
-        match self {
-            QrKind::DenseHouseholder => Ok(Arc::new(DenseHouseholder)),
-            QrKind::SparseGivens => Ok(Arc::new(SparseGivens::default())),
-            #[cfg(feature = "suitesparse")]
-            QrKind::Spqr => Ok(Arc::new(Spqr)),
-            #[cfg(not(feature = "suitesparse"))]
-            QrKind::Spqr => Err(ProblemError::InvalidArgument {
-                message: "the QR back end 'spqr' (SuiteSparseQR) is not in this build: rebuild with `--features suitesparse` (needs the system packages libsuitesparse-dev and libclang-dev)".into(),
-            }),
-        }
-    }
-}
-
-/// The rank-detection tolerance `η`: constraint `j` is skipped when the norm
-/// of what remains of it after projecting out the earlier kept constraints
-/// is `≤ η ‖b_j‖₂`.
-///
-/// Default `η = 1e-10`. Justification: rounding leaves a truly dependent
-/// constraint a remainder of about `k ε ‖b_j‖` after `k` reflections, i.e.
-/// below `1e-12 ‖b_j‖` for blocks of up to ~10⁴ constraints, so `η` sits two
-/// orders above that noise; SPQR's default `20 (m+n) ε max‖b‖` sits right
-/// at it, which keeps near-dependent constraints as independent. Keeping a
-/// constraint whose new information is below `1e-10` relative would put a
-/// diagonal `< 1e-10 ‖b_j‖` into `R1` and amplify its target by up to `10¹⁰`
-/// into the solution; constraint coefficients (edge parameters, barycentric
-/// coordinates from picking) rarely carry more than ten correct digits, so a
-/// difference below that is indistinguishable from redundancy.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RankTolerance {
-    /// `η`, relative to each constraint's coefficient norm.
-    pub relative: f64,
-}
-
-impl Default for RankTolerance {
-    fn default() -> Self {
-        RankTolerance { relative: 1e-10 }
-    }
-}
-
-impl crate::choice::Word for QrKind {
-    const WHAT: &'static str = "QR back end";
-    fn all() -> &'static [Self] {
-        &QrKind::ALL
-    }
-    fn name(self) -> &'static str {
-        QrKind::name(self)
-    }
-    fn listed() -> Vec<Self> {
-        QrKind::available()
-    }
-}
-
-crate::choice::word_traits!(QrKind);
-
-/// A QR factorisation method for `Bᵀ`: the crate's own ([`QrKind`]'s
-/// catalogue) or one brought from outside (docs/backends.md,
-/// `lse_deform::testing::conformance::qr`).
-pub trait QrBackend: Send + Sync {
-    /// The back end's name in reports and `compare` rows (a built-in's
-    /// word; an outside back end chooses its own).
-    fn name(&self) -> crate::backend::BackendName;
-
-    /// Factors `Bᵀ` for the hard-constraint matrix `b` (m × n, one row per
-    /// constraint, in priority order), refusing with
-    /// [`ProblemError::TooLarge`] a factor whose estimated storage exceeds
-    /// the budget of `resources`. The rows keep their priority order (rank
-    /// detection depends on it), so the resources' fill-reducing ordering
-    /// is not a QR's to take; the crate's QR back ends run on one thread.
-    fn factor_with(
-        &self,
-        b: SparseRowMatRef<'_, usize, f64>,
-        tolerance: RankTolerance,
-        resources: &Resources,
-    ) -> Result<Box<dyn ConstraintQr>, Error>;
-
-    /// [`QrBackend::factor_with`] the default resources
-    /// ([`Resources::default`]).
-    fn factor(
-        &self,
-        b: SparseRowMatRef<'_, usize, f64>,
-        tolerance: RankTolerance,
-    ) -> Result<Box<dyn ConstraintQr>, Error> {
-        self.factor_with(b, tolerance, &Resources::default())
-    }
-}
-
-/// A factorisation `Bᵀ = Q R` kept in implicit form.
-///
-/// Coordinates: `x = Q [y; z]` with `y ∈ ℝ^r` (the constrained directions,
-/// fixed by `R1ᵀ y = d_kept`) and `z ∈ ℝ^{n−r}` (the free directions, the
-/// unknowns of the reduced least-squares problem). All operands have three
-/// columns (x, y, z coordinates) or more.
-pub trait ConstraintQr: Send + Sync {
-    /// `n`, the number of unknowns (columns of `B`).
-    fn n(&self) -> usize;
-
-    /// The numerical rank `r` of `B`.
-    fn rank(&self) -> usize;
-
-    /// The kept rows of `B`, in the order of `y` (length `r`).
-    fn kept(&self) -> &[usize];
-
-    /// The skipped (dependent) rows of `B`, increasing.
-    fn skipped(&self) -> &[usize];
-
-    /// Solves `R1ᵀ y = D_kept` where `d` holds all `m` rows of `D`.
-    fn solve_r1t(&self, d: MatRef<'_, f64>, y: MatMut<'_, f64>);
-
-    /// `x = Q [y; z]` (`x`: n × k, `y`: r × k, `z`: (n−r) × k).
-    fn apply_q(&self, y: MatRef<'_, f64>, z: MatRef<'_, f64>, x: MatMut<'_, f64>);
-
-    /// `[y; z] = Qᵀ x`.
-    fn apply_qt(&self, x: MatRef<'_, f64>, y: MatMut<'_, f64>, z: MatMut<'_, f64>);
-
-    /// `A Q2` (l × (n−r)) for a sparse `A` (l × n), sorted rows.
-    fn mul_a_q2(&self, a: SparseColMatRef<'_, usize, f64>) -> SparseColMat<usize, f64>;
-
-    /// The mesh unknown most associated with free direction `k` (for error
-    /// messages that name a vertex).
-    fn free_unknown(&self, k: usize) -> usize;
-
-    /// Stored entries of the implicit `Q` and of `R`.
-    fn storage_nnz(&self) -> usize;
-}
-
-/// `y = R1⁻ᵀ d` and then `x = Q [y; 0]`: the minimum-norm solution of
-/// `B_kept x = d_kept` (convenience used by tests and formulations).
-pub fn particular_solution(qr: &dyn ConstraintQr, d: MatRef<'_, f64>) -> (Mat<f64>, Mat<f64>) {
-    let k = d.ncols();
-    let mut y = Mat::zeros(qr.rank(), k);
-    qr.solve_r1t(d, y.as_mut());
-    let z = Mat::zeros(qr.n() - qr.rank(), k);
-    let mut x = Mat::zeros(qr.n(), k);
-    qr.apply_q(y.as_ref(), z.as_ref(), x.as_mut());
-    (y, x)
-}

@@ -32,7 +32,7 @@ use suitesparse_sys as ss;
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
 use crate::backend::openblas::{self, ThreadsFor};
 use crate::backend::ordering::{FactorPlan, PlanUsed};
-use crate::backend::suitesparse::{Common, Long, sparse_header};
+use crate::backend::suitesparse::{Common, Long, LowerCsc};
 use crate::error::NumericalError;
 use crate::resources::Threads;
 
@@ -155,43 +155,6 @@ impl Factor {
     }
 }
 
-/// Lower triangle in CHOLMOD's 64-bit CSC layout (owned arrays).
-struct LowerCsc {
-    n: usize,
-    p: Vec<Long>,
-    i: Vec<Long>,
-    x: Vec<f64>,
-}
-
-impl LowerCsc {
-    /// Copies the lower triangle (rows ≥ column) of `pattern`, with `values`
-    /// when given (else zeros).
-    fn new(pattern: SymbolicSparseColMatRef<'_, usize>, values: Option<&[f64]>) -> LowerCsc {
-        let n = pattern.ncols();
-        let mut p = Vec::with_capacity(n + 1);
-        let mut i = Vec::new();
-        let mut x = Vec::new();
-        p.push(0);
-        for j in 0..n {
-            for q in pattern.col_range(j) {
-                let r = pattern.row_idx()[q];
-                if r >= j {
-                    i.push(r as Long);
-                    x.push(values.map_or(0.0, |v| v[q]));
-                }
-            }
-            p.push(i.len() as Long);
-        }
-        LowerCsc { n, p, i, x }
-    }
-
-    /// A `cholmod_sparse` header over the arrays (valid while `self` is
-    /// borrowed; CHOLMOD only reads it).
-    fn header(&mut self) -> ss::cholmod_sparse {
-        sparse_header(self.n, self.n, &mut self.p, &mut self.i, &mut self.x, -1)
-    }
-}
-
 /// Settings shared by analysis and factorisation.
 fn configure(common: &mut Common) {
     let c = common.get_mut();
@@ -282,34 +245,6 @@ fn analyze_with(
         threads: plan.threads.requested(),
         ordering: plan.ordering_used("amd"),
     }))
-}
-
-/// METIS's nested-dissection ordering of the pattern `lower` through
-/// `cholmod_l_metis` (postordered), `perm[i]` eliminated `i`-th.
-pub(crate) fn metis(lower: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usize>, String> {
-    let mut csc = LowerCsc::new(lower, None);
-    let mut common = Common::new().map_err(|e| e.to_string())?;
-    let mut header = csc.header();
-    let mut perm: Vec<Long> = vec![0; lower.nrows()];
-    // SAFETY: `header` describes arrays owned by `csc`; `perm` has n
-    // entries; no subset is given.
-    let ok = unsafe {
-        ss::cholmod_l_metis(
-            &mut header,
-            ptr::null_mut(),
-            0,
-            1,
-            perm.as_mut_ptr(),
-            common.ptr(),
-        )
-    };
-    if ok == 0 {
-        return Err(format!(
-            "cholmod_l_metis failed (status {})",
-            common.status()
-        ));
-    }
-    Ok(perm.into_iter().map(|p| p as usize).collect())
 }
 
 struct CholmodSymbolic {

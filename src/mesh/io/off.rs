@@ -3,7 +3,7 @@
 
 use std::io::{self, BufRead, Write};
 
-use super::{
+use super::shared::{
     Builder, LineReader, LoadedMesh, ReadError, check_declared_counts, parse_error, parse_f64,
     parse_i64, show, strip_comment, tokens,
 };
@@ -353,7 +353,7 @@ pub fn write_off<W: Write>(mesh: &Mesh, mut w: W) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::io::unwrap_io;
+    use crate::mesh::io::shared::unwrap_io;
 
     /// Reads `text` as a file of known size (the size check applies).
     fn off(text: &str) -> Result<LoadedMesh, MeshError> {

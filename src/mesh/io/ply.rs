@@ -8,7 +8,7 @@ use ply_rs_bw::ply::{
     ElementDef, Encoding, Header, PropertyAccess, PropertyAccessResult, PropertyType, ScalarType,
 };
 
-use super::{Builder, LoadedMesh, ReadError, check_declared_counts, tokens};
+use super::shared::{Builder, LoadedMesh, ReadError, check_declared_counts, tokens};
 use crate::error::MeshError;
 use crate::limits::MemoryBudget;
 use crate::mesh::Mesh;
@@ -537,7 +537,7 @@ pub fn write_ply<W: Write>(mesh: &Mesh, mut w: W, encoding: PlyEncoding) -> io::
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::io::unwrap_io;
+    use crate::mesh::io::shared::unwrap_io;
 
     fn ply(bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
         unwrap_io(read_ply(bytes, MemoryBudget::unlimited()))
