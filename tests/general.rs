@@ -317,15 +317,14 @@ fn grid_deformer() -> Deformer {
         .in_group("handle"),
     )
     .unwrap();
-    let d = Deformer::with_formulation(
+    Deformer::with_formulation(
         mesh,
         LaplacianKind::Cotangent,
         set,
         &NullSpaceQr::default(),
         &lse_deform::resources::Resources::default(),
     )
-    .unwrap();
-    d
+    .unwrap()
 }
 
 #[test]
