@@ -23,7 +23,7 @@
 //!   `cli/`) are another crate and left out, and so is `lib.rs`, the root,
 //!   which only declares and re-exports. The layering of the README
 //!   (imports point down) needs at least: no circle (but for the edges
-//!   still open in issue 43, listed in `OPEN_CIRCLE_EDGES`), the catalogue
+//!   still open, listed in `OPEN_CIRCLE_EDGES`), the catalogue
 //!   of built-in back ends above the seams it names, and the ordering
 //!   module calling no back end.
 //! - `experiments/`: the nodes are `harness::NAME` (the harness's
@@ -947,7 +947,7 @@ fn the_harness_imports_no_study() {
     }
 }
 
-/// The edges that still close circles (issue 43) in files being changed
+/// The edges that still close circles, in files being changed
 /// elsewhere, each the child-to-parent edge of a `mod.rs` (or `a.rs`) that
 /// defines what its children use and re-exports them; the fix is to move
 /// those shared items into a leaf child re-exported by the parent.
@@ -1003,7 +1003,7 @@ fn library_files_form_no_import_circle() {
         }
     }
     if let Some(text) = describe_circles(&g) {
-        panic!("{text}(the edges of OPEN_CIRCLE_EDGES, open in issue 43, left out)");
+        panic!("{text}(the edges of OPEN_CIRCLE_EDGES, still open, left out)");
     }
     assert!(
         gone.is_empty(),
