@@ -966,8 +966,6 @@ const OPEN_CIRCLE_EDGES: &[(&str, &str)] = &[
     ("formulation::null_space", "formulation"),
     ("formulation::penalty", "formulation"),
     ("formulation::record", "formulation"),
-    // Triangle (laplacian/mod.rs).
-    ("laplacian::intrinsic_delaunay", "laplacian"),
     // PyDeformer, DeformerState (python/mod.rs).
     ("python::basis", "python"),
     // RenderError, check_size (render/mod.rs).

@@ -19,7 +19,7 @@
 use crate::error::MeshError;
 use crate::mesh::Mesh;
 
-use super::Triangle;
+use super::triangle::Triangle;
 
 /// No twin: a boundary half-edge.
 const NONE: usize = usize::MAX;
