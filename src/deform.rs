@@ -193,20 +193,31 @@ fn set_up(
     constraints: ConstraintSet,
     factor: impl FnOnce(LseProblem, Report) -> Result<LseSolver, Error>,
 ) -> Result<Deformer, Error> {
+    let (unit, problem, report) = assembled(&mesh, laplacian, &constraints)?;
+    let solver = factor(problem, report)?;
+    Ok(Deformer {
+        mesh,
+        targets: GroupTargets::new(constraints, unit),
+        solver,
+    })
+}
+
+/// The set-up phase: the length unit, the assembled problem in its units
+/// and the report its solver's reports start from.
+fn assembled(
+    mesh: &Mesh,
+    laplacian: LaplacianKind,
+    constraints: &ConstraintSet,
+) -> Result<(f64, LseProblem, Report), Error> {
     let t = Instant::now();
-    let scaled = UnitScaled::new(&mesh, &constraints)?;
+    let scaled = UnitScaled::new(mesh, constraints)?;
     let l = laplacian::laplacian(&scaled.mesh, laplacian)?;
     crate::interrupt::check()?;
     let delta = laplacian::apply(&l, scaled.mesh.positions());
     let operator = EnergyOperator::Laplacian(laplacian);
     let power = laplacian.inverse_length_power();
-    let (problem, report) = scaled.problem(&l, &delta, operator, power, &mesh, t)?;
-    let solver = factor(problem, report)?;
-    Ok(Deformer {
-        mesh,
-        targets: GroupTargets::new(constraints, scaled.unit),
-        solver,
-    })
+    let (problem, report) = scaled.problem(&l, &delta, operator, power, mesh, t)?;
+    Ok((scaled.unit, problem, report))
 }
 
 impl GroupTargets {
@@ -327,13 +338,7 @@ impl Deformer {
         laplacian: LaplacianKind,
         constraints: &ConstraintSet,
     ) -> Result<LseProblem, Error> {
-        let t = Instant::now();
-        let scaled = UnitScaled::new(mesh, constraints)?;
-        let l = laplacian::laplacian(&scaled.mesh, laplacian)?;
-        let delta = laplacian::apply(&l, scaled.mesh.positions());
-        let operator = EnergyOperator::Laplacian(laplacian);
-        let power = laplacian.inverse_length_power();
-        Ok(scaled.problem(&l, &delta, operator, power, mesh, t)?.0)
+        Ok(assembled(mesh, laplacian, constraints)?.1)
     }
 
     /// Set-up and precompute phases: checks the constraints against the
