@@ -22,8 +22,7 @@
 //!   without a circle holds for each build. The binary's files (`main.rs`,
 //!   `cli/`) are another crate and left out, and so is `lib.rs`, the root,
 //!   which only declares and re-exports. The layering of the README
-//!   (imports point down) needs at least: no circle (but for the edges
-//!   still open, listed in `OPEN_CIRCLE_EDGES`), the catalogue
+//!   (imports point down) needs at least: no circle, the catalogue
 //!   of built-in back ends above the seams it names, and the ordering
 //!   module calling no back end.
 //! - `experiments/`: the nodes are `harness::NAME` (the harness's
@@ -947,39 +946,9 @@ fn the_harness_imports_no_study() {
     }
 }
 
-/// The edges that still close circles, in files being changed
-/// elsewhere, each the child-to-parent edge of a `mod.rs` (or `a.rs`) that
-/// defines what its children use and re-exports them; the fix is to move
-/// those shared items into a leaf child re-exported by the parent.
-/// [`library_files_form_no_import_circle`] leaves them out, and fails when
-/// one no longer exists: delete its line once its circle is broken.
-const OPEN_CIRCLE_EDGES: &[(&str, &str)] = &[
-    // Constraint, ConstraintKind, ConstraintSet (constraints.rs).
-    ("constraints::parse", "constraints"),
-    // ApiError, error_json, status_kind, status_message (editor/mod.rs).
-    ("editor::conn", "editor"),
-    ("editor::guard", "editor"),
-    // Formulation, Prepared (formulation/mod.rs).
-    ("formulation::elimination", "formulation"),
-    ("formulation::iterative_refinement", "formulation"),
-    ("formulation::kkt", "formulation"),
-    ("formulation::null_space", "formulation"),
-    ("formulation::penalty", "formulation"),
-    ("formulation::record", "formulation"),
-    // PyDeformer, DeformerState (python/mod.rs).
-    ("python::basis", "python"),
-    // RenderError, check_size (render/mod.rs).
-    ("render::colour", "render"),
-    ("render::compose", "render"),
-    ("render::frame", "render"),
-    ("render::output", "render"),
-    ("render::raster", "render"),
-    ("render::text", "render"),
-];
-
 #[test]
 fn library_files_form_no_import_circle() {
-    let mut g = library_graph();
+    let g = library_graph();
     assert!(
         [
             "mesh",
@@ -994,19 +963,9 @@ fn library_files_form_no_import_circle() {
         "the library's files were not found: {:?}",
         g.keys()
     );
-    let mut gone = Vec::new();
-    for &(from, to) in OPEN_CIRCLE_EDGES {
-        if !g.get_mut(from).is_some_and(|targets| targets.remove(to)) {
-            gone.push(format!("{from} -> {to}"));
-        }
-    }
     if let Some(text) = describe_circles(&g) {
-        panic!("{text}(the edges of OPEN_CIRCLE_EDGES, still open, left out)");
+        panic!("{text}");
     }
-    assert!(
-        gone.is_empty(),
-        "these edges of OPEN_CIRCLE_EDGES no longer exist: delete them there: {gone:?}"
-    );
 }
 
 #[test]

@@ -198,9 +198,9 @@ fn automatic_error_as_json(buf: &[u8]) -> Option<Vec<u8>> {
             super::guard::MAX_URI_BYTES
         ),
         StatusCode::REQUEST_HEADER_FIELDS_TOO_LARGE => "the request head is too large".to_string(),
-        other => super::status_message(other),
+        other => super::api_error::status_message(other),
     };
-    let body = super::error_json(super::status_kind(status), &message);
+    let body = super::api_error::error_json(super::api_error::status_kind(status), &message);
     let mut out = String::with_capacity(head.len() + body.len() + 64);
     out.push_str(status_line);
     out.push_str("\r\n");

@@ -363,9 +363,10 @@ pub(crate) fn json_errors(response: Response, method: &Method, path: &str) -> Re
             .unwrap_or_default();
         format!("{method} is not allowed on {path} (allowed: {allowed})")
     } else {
-        super::status_message(status)
+        super::api_error::status_message(status)
     };
-    let mut answer = ApiError::new(status, super::status_kind(status), message).into_response();
+    let mut answer =
+        ApiError::new(status, super::api_error::status_kind(status), message).into_response();
     for (name, value) in &parts.headers {
         if name != header::CONTENT_TYPE && name != header::CONTENT_LENGTH {
             answer.headers_mut().insert(name.clone(), value.clone());

@@ -55,6 +55,7 @@
 //! when no basis describes the positions (ARAP, no movable group, a group
 //! outside the basis moved); 413 beyond the memory budget.
 
+mod api_error;
 pub mod conn;
 pub mod guard;
 pub mod in_process;
@@ -70,7 +71,7 @@ use axum::Router;
 use axum::body::{Body, Bytes, HttpBody};
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Query, Request, State};
-use axum::http::{HeaderValue, StatusCode, header};
+use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post, put};
 use serde::Deserialize;
@@ -79,9 +80,11 @@ use serde_json::{Map, Value, json};
 use crate::choice::Word;
 use crate::constraints::{ConstraintSet, parse_constraints, read_constraints_file};
 use crate::deform::Affine;
-use crate::error::{ConstraintError, Error, MeshError, ParseWordError, ProblemError};
+use crate::error::{Error, ParseWordError, ProblemError};
 use crate::handle::HandleBasis;
 use crate::mesh::{self, Mesh};
+pub use api_error::ApiError;
+use api_error::{ApiResult, bad};
 use session::Engine;
 pub use session::{FrameError, Session, Settings};
 
@@ -172,113 +175,6 @@ struct Progress {
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
-
-/// An API error: a status and `{"error": message, "kind": word}`.
-#[derive(Debug)]
-pub struct ApiError {
-    status: StatusCode,
-    kind: &'static str,
-    message: String,
-    /// 401: say `WWW-Authenticate: Bearer`.
-    www_authenticate: bool,
-}
-
-impl ApiError {
-    fn new(status: StatusCode, kind: &'static str, message: String) -> ApiError {
-        ApiError {
-            status,
-            kind,
-            message,
-            www_authenticate: false,
-        }
-    }
-}
-
-/// `{"error": message, "kind": kind}`.
-fn error_json(kind: &str, message: &str) -> String {
-    json!({"error": message, "kind": kind}).to_string()
-}
-
-/// The `kind` of an error answer with `status` when nothing more precise
-/// is known.
-fn status_kind(status: StatusCode) -> &'static str {
-    match status.as_u16() {
-        400 => "bad-request",
-        401 => "unauthorized",
-        403 => "forbidden",
-        404 => "not-found",
-        405 => "method-not-allowed",
-        408 => "timeout",
-        413 => "too-large",
-        414 => "uri-too-long",
-        415 => "unsupported-media-type",
-        422 => "unprocessable",
-        431 => "head-too-large",
-        500..=599 => "internal",
-        _ => "error",
-    }
-}
-
-/// A message for an error answer that has none.
-fn status_message(status: StatusCode) -> String {
-    status.canonical_reason().map_or_else(
-        || format!("HTTP status {}", status.as_u16()),
-        |r| r.to_lowercase(),
-    )
-}
-
-impl IntoResponse for ApiError {
-    fn into_response(self) -> Response {
-        let mut response = (
-            self.status,
-            [(header::CONTENT_TYPE, "application/json")],
-            error_json(self.kind, &self.message),
-        )
-            .into_response();
-        if self.www_authenticate {
-            response
-                .headers_mut()
-                .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
-        }
-        response
-    }
-}
-
-impl From<Error> for ApiError {
-    fn from(e: Error) -> Self {
-        let (status, kind) = match e {
-            Error::Numerical(_) => (StatusCode::UNPROCESSABLE_ENTITY, "numerical"),
-            // Beyond the memory budget or the editor's caps: refused
-            // before the work, nothing changed.
-            Error::Problem(ProblemError::TooLarge { .. })
-            | Error::Constraint(ConstraintError::TooLarge { .. })
-            | Error::Mesh(MeshError::TooLarge { .. }) => {
-                (StatusCode::PAYLOAD_TOO_LARGE, "too-large")
-            }
-            _ => (StatusCode::BAD_REQUEST, "bad-request"),
-        };
-        ApiError::new(status, kind, e.to_string())
-    }
-}
-
-impl From<FrameError> for ApiError {
-    fn from(e: FrameError) -> Self {
-        match e {
-            FrameError::Engine(e) => e.into(),
-            e @ FrameError::NotRepresentable(_) => ApiError::new(
-                StatusCode::UNPROCESSABLE_ENTITY,
-                "not-representable",
-                e.to_string(),
-            ),
-        }
-    }
-}
-
-fn bad(message: impl Into<String>) -> ApiError {
-    ApiError::new(StatusCode::BAD_REQUEST, "bad-request", message.into())
-}
-
-type ApiResult<T> = Result<T, ApiError>;
 
 /// Reads the mesh (and constraints), binds, prints `listening on
 /// http://HOST:PORT/?token=T` as the first line on stdout and serves until

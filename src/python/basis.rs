@@ -18,21 +18,20 @@
 //! change for it: evaluate ignores where transform_group last put its
 //! groups (a group missing from the dict is at its rest pose). Every
 //! mutating entry point of the Python `Deformer` records itself in
-//! [`Changes`] under the Deformer's lock, whether it succeeds or not (a
+//! [`Changes`](super::state::Changes) under the Deformer's lock, whether it succeeds or not (a
 //! transform_group only when the group exists), and `evaluate` checks the
 //! record under the same lock before reading the basis; a per-call
 //! `solve(refine=...)` changes nothing that stays. Conservative: a
 //! set_targets to the same values, or a group transformed and put back,
 //! still makes the basis refuse.
 
-use std::collections::HashMap;
-
 use numpy::{PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyMapping, PyString};
 
+use super::convert;
 use super::errors::{guarded, input, released, to_py, type_error};
-use super::{DeformerState, PyDeformer, convert};
+use super::state::{DeformerState, PyDeformer, Stamp};
 use crate::deform::Affine;
 use crate::error::{Error, ProblemError};
 use crate::formulation::Refine;
@@ -75,69 +74,6 @@ pub(super) fn affine(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Affine> {
         )));
     }
     Ok([0, 1, 2].map(|r| [0, 1, 2, 3].map(|c| m[(r, c)])))
-}
-
-/// When a basis was built, in [`Changes`]' clocks.
-#[derive(Debug, Clone, Copy)]
-struct Stamp {
-    epoch: u64,
-    clock: u64,
-}
-
-/// The changes of a Python `Deformer` a basis must know of (module
-/// documentation): an epoch that every reconfiguration advances, and per
-/// group the time of its last `transform_group` on a clock of their own.
-#[derive(Debug, Default)]
-pub(super) struct Changes {
-    epoch: u64,
-    /// The call that advanced the epoch last.
-    last: &'static str,
-    clock: u64,
-    moved: HashMap<String, u64>,
-}
-
-impl Changes {
-    /// `call` (a `precompute()` or `set_targets()`) is about to change
-    /// the factor or targets: every basis built before is stale.
-    pub(super) fn reconfigured(&mut self, call: &'static str) {
-        self.epoch += 1;
-        self.last = call;
-    }
-
-    /// `transform_group(group, …)` is about to move `group`'s targets: a
-    /// basis built before is stale unless `group` is one of its groups.
-    pub(super) fn transformed(&mut self, group: &str) {
-        self.clock += 1;
-        match self.moved.get_mut(group) {
-            Some(t) => *t = self.clock,
-            None => {
-                self.moved.insert(group.to_string(), self.clock);
-            }
-        }
-    }
-
-    fn stamp(&self) -> Stamp {
-        Stamp {
-            epoch: self.epoch,
-            clock: self.clock,
-        }
-    }
-
-    /// What changed since `stamp` for a basis of `groups`, if anything.
-    fn since(&self, stamp: Stamp, groups: &[String]) -> Option<String> {
-        if self.epoch != stamp.epoch {
-            return Some(format!("{} was called since", self.last));
-        }
-        if self.clock == stamp.clock {
-            return None;
-        }
-        self.moved
-            .iter()
-            .filter(|&(g, &t)| t > stamp.clock && !groups.contains(g))
-            .map(|(g, _)| g)
-            .min()
-            .map(|g| format!("transform_group('{g}') moved a group outside the basis since"))
-    }
 }
 
 /// The affine response of some constraint groups of a Deformer:

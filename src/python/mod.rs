@@ -20,13 +20,15 @@ mod basis;
 mod convert;
 mod errors;
 mod own_backend;
+mod state;
 
 use std::ffi::CString;
 use std::sync::{Arc, Mutex};
 
-use pyo3::exceptions::{PyRuntimeError, PyRuntimeWarning, PyUserWarning};
+use pyo3::exceptions::{PyRuntimeWarning, PyUserWarning};
 use pyo3::prelude::*;
 
+use crate::LseSolver;
 use crate::backend::FactorStorage;
 use crate::backend::qr::QrKind;
 use crate::backend::spd::SpdKind;
@@ -44,13 +46,13 @@ use crate::problem::LseProblem;
 use crate::report::Report;
 use crate::request::{self, Given, Request, RequestOption};
 use crate::resources::{FillOrdering, OrderingWord, Resources, Threads};
-use crate::{Deformer, Error, LseSolver, SolveOptions};
 
 use errors::{
     InputError, NumericalError, guarded, input, input_type_error_class, released, to_py,
     too_large_error_class, type_error,
 };
 use own_backend::{Objects, PyBackend};
+use state::{Changes, DeformerState, PyDeformer, Stage};
 
 /// A library error about an option, with the option's keyword argument
 /// (`weight=`) in front.
@@ -753,107 +755,6 @@ fn solve_lse<'py>(
     })
 }
 
-/// What a `Deformer` holds behind its lock.
-struct DeformerState {
-    stage: Stage,
-    options: SolveOptions,
-    /// What a `HandleBasis` of this deformer must know (basis.rs).
-    changes: basis::Changes,
-}
-
-/// A Python `Deformer` before and after its first `precompute()`: the
-/// library's [`Deformer`] is made factored, so the door keeps the set-up
-/// until then.
-enum Stage {
-    /// Checked, not yet factored.
-    SetUp {
-        mesh: Mesh,
-        kind: LaplacianKind,
-        constraints: ConstraintSet,
-    },
-    /// Factored.
-    Factored(Box<Deformer>),
-}
-
-impl DeformerState {
-    /// The factored deformer, or an error saying that `call` needs
-    /// `precompute()` first.
-    fn deformer(&mut self, call: &str) -> Result<&mut Deformer, Error> {
-        match &mut self.stage {
-            Stage::Factored(d) => Ok(d),
-            Stage::SetUp { .. } => Err(ProblemError::InvalidArgument {
-                message: format!("{call} needs a factorisation: call precompute() first"),
-            }
-            .into()),
-        }
-    }
-
-    /// `precompute()`: the first factors the set-up, later ones refactor
-    /// (on error the previous factorisation stays).
-    fn precompute(&mut self) -> Result<(), Error> {
-        match &mut self.stage {
-            Stage::Factored(d) => d.refactor(&self.options),
-            Stage::SetUp {
-                mesh,
-                kind,
-                constraints,
-            } => {
-                let d = Deformer::new(mesh.clone(), *kind, constraints.clone(), &self.options)?;
-                self.stage = Stage::Factored(Box::new(d));
-                Ok(())
-            }
-        }
-    }
-
-    /// The constraint indices of group `name`.
-    fn group(&self, name: &str) -> Result<Vec<usize>, Error> {
-        match &self.stage {
-            Stage::Factored(d) => d.group_members(name),
-            Stage::SetUp { constraints, .. } => match constraints.group(name) {
-                [] => Err(ProblemError::BadUpdate {
-                    message: format!("there is no constraint group '{name}'"),
-                }
-                .into()),
-                members => Ok(members.to_vec()),
-            },
-        }
-    }
-}
-
-/// A mesh with constraints, deformed again and again: `precompute()` once,
-/// then `set_targets` / `transform_group` and `solve()` per frame, reusing
-/// the factorisation.
-#[pyclass(name = "Deformer", module = "lse_deform", subclass)]
-struct PyDeformer {
-    state: Mutex<DeformerState>,
-    /// The memory budget of `memory_limit=`, for the arrays later calls
-    /// convert (the solve options in the state hold it too).
-    budget: MemoryBudget,
-    /// The back-end objects of `factor=`, to explain errors.
-    objects: Objects,
-}
-
-impl PyDeformer {
-    /// Runs `f` on the state with the GIL released.
-    fn with_state<T: Send>(
-        &self,
-        py: Python<'_>,
-        f: impl FnOnce(&mut DeformerState) -> Result<T, Error> + Send,
-    ) -> PyResult<T> {
-        let state = &self.state;
-        let result = released(py, move || match state.lock() {
-            Ok(mut guard) => f(&mut guard).map(Ok),
-            Err(_) => Ok(Err(())),
-        });
-        let result = self.objects.explain(py, result)?;
-        result.map_err(|()| {
-            PyRuntimeError::new_err(
-                "this Deformer is unusable after an internal error in an earlier call",
-            )
-        })
-    }
-}
-
 #[pymethods]
 impl PyDeformer {
     /// Set-up: validates the mesh and constraints, builds the Laplacian and
@@ -908,7 +809,7 @@ impl PyDeformer {
                 state: Mutex::new(DeformerState {
                     stage,
                     options,
-                    changes: basis::Changes::default(),
+                    changes: Changes::default(),
                 }),
                 objects,
             })
