@@ -199,12 +199,6 @@ pub fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile,
     open(reader, path)?.read_entries(MemoryBudget::default())
 }
 
-/// The header and size line of a Matrix Market file, without its entries.
-pub fn read_header(path: &Path) -> Result<MatrixHeader, Error> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    Ok(open(BufReader::new(file), path)?.header)
-}
-
 /// Reads the header and the size line: the banner ([`parse_banner`]) and
 /// the sizes ([`parse_size_line`]); then allows the rest of the file the
 /// bytes its entries may take.

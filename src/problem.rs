@@ -372,7 +372,7 @@ impl LseProblem {
     /// Sets the length unit of absolute constraint tolerances (see
     /// [`LseProblem::length_scale`]); non-finite or non-positive values are
     /// ignored.
-    pub fn with_length_scale(mut self, scale: f64) -> LseProblem {
+    pub(crate) fn with_length_scale(mut self, scale: f64) -> LseProblem {
         if scale.is_finite() && scale > 0.0 {
             self.length_scale = scale;
         }
@@ -385,7 +385,7 @@ impl LseProblem {
     /// what `export-system` records in `meta.json`, so that a problem read
     /// back from files is ordered for KKT exactly as the mesh problem was.
     /// Ignored when `rows > l`.
-    pub fn with_laplacian_rows(mut self, rows: usize) -> LseProblem {
+    pub(crate) fn with_laplacian_rows(mut self, rows: usize) -> LseProblem {
         if rows <= self.a.nrows() {
             self.n_laplacian_rows = rows;
         }

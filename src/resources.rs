@@ -97,7 +97,7 @@ pub struct Resources {
 
 impl Resources {
     /// `budget`, with each back end's own threads and ordering.
-    pub fn with_budget(budget: MemoryBudget) -> Resources {
+    pub(crate) fn with_budget(budget: MemoryBudget) -> Resources {
         Resources {
             budget,
             ..Resources::default()

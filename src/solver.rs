@@ -274,11 +274,6 @@ impl LseSolver {
         self.rounding = FactorRounding::default();
     }
 
-    /// What refinements have measured about the current factor so far.
-    pub fn factor_rounding(&self) -> &FactorRounding {
-        &self.rounding
-    }
-
     /// The refinement the next solve uses.
     pub(crate) fn refine_mode(&self) -> Refine {
         match self.refine {
@@ -687,7 +682,7 @@ fn solve_with_rhs(
 /// The warnings a refinement outcome calls for: an estimated forward error
 /// above [`FORWARD_ERROR_WARNING`], and conflicting hard constraints found
 /// by the method of multipliers.
-pub fn refinement_warnings(r: &Refinement, method: Method) -> Vec<Warning> {
+pub(crate) fn refinement_warnings(r: &Refinement, method: Method) -> Vec<Warning> {
     let mut out = Vec::new();
     if r.stop_reason == RefineStop::ConflictingConstraints {
         out.push(Warning::new(
@@ -797,5 +792,45 @@ fn name_free_unknown(e: Error, problem: &LseProblem) -> Error {
         }
         .into(),
         other => other,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::refinement_warnings;
+    use crate::choice::Method;
+    use crate::formulation::{Refine, RefineStop, Refinement};
+
+    #[test]
+    fn refinement_warnings_have_their_codes() {
+        let r = |mode, stop_reason| Refinement {
+            mode,
+            stop_reason,
+            steps: 2,
+            forward_error_estimate: 1e-3,
+            ..Refinement::default()
+        };
+        let kinds = |r: &Refinement| -> Vec<&str> {
+            refinement_warnings(r, Method::Penalty)
+                .iter()
+                .map(|w| w.code())
+                .collect()
+        };
+        assert_eq!(
+            kinds(&r(Refine::EstimateOnly, RefineStop::Off)),
+            ["lost-accuracy-unrefined"]
+        );
+        assert_eq!(
+            kinds(&r(Refine::Steps(2), RefineStop::StepLimit)),
+            ["lost-accuracy-step-limit"]
+        );
+        assert_eq!(
+            kinds(&r(Refine::Auto, RefineStop::Stagnated)),
+            ["lost-accuracy"]
+        );
+        assert_eq!(
+            kinds(&r(Refine::Auto, RefineStop::ConflictingConstraints)),
+            ["refinement-stalled"]
+        );
     }
 }

@@ -10,20 +10,15 @@
 //! (docs/backends.md §8).
 
 use std::sync::Arc;
-use std::time::Instant;
 
 use faer::Mat;
 use faer::sparse::{SparseColMat, SparseRowMat, Triplet};
 use lse_deform::backend::qr::{self, ConstraintQr, QrBackend, QrKind, RankTolerance};
 use lse_deform::backend::spd::{self, SpdBackend, SpdKind};
-use lse_deform::constraints::{Constraint, ConstraintKind, ConstraintSet};
 use lse_deform::error::{NumericalError, ProblemError};
 use lse_deform::testing::conformance;
-use lse_deform::testing::{random_surface, relative_difference};
+use lse_deform::testing::relative_difference;
 use lse_deform::{Deformer, LaplacianKind, formulation::NullSpaceQr};
-use rand::SeedableRng;
-use rand::seq::SliceRandom;
-use rand_chacha::ChaCha8Rng;
 
 /// Every QR back end in this build.
 fn qr_backends() -> Vec<Arc<dyn QrBackend>> {
@@ -266,131 +261,6 @@ fn kinds_know_every_name() {
             .all(|k| message.contains(k.name())),
         "{message}"
     );
-}
-
-/// Timings on a 35k-vertex surface (run with
-/// `cargo test --release --test backends -- --ignored --nocapture`):
-/// 7,000 separate positions plus 300 others; and 2,000 relative constraints
-/// linking a connected region.
-#[test]
-#[ignore]
-fn timing_large() {
-    let mesh = random_surface(186, 186, 5);
-    let n = mesh.n_vertices();
-    let p = mesh.positions().to_vec();
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let mut cs: Vec<Constraint> = Vec::new();
-    let mut verts: Vec<usize> = (0..n).collect();
-    verts.shuffle(&mut rng);
-    for &v in &verts[..7000] {
-        cs.push(Constraint::hard(ConstraintKind::Position {
-            vertex: v,
-            target: p[v],
-        }));
-    }
-    for k in 0..300 {
-        let (a, b) = (verts[7000 + 2 * k], verts[7001 + 2 * k]);
-        cs.push(Constraint::hard(ConstraintKind::Edge {
-            vertices: [a, b],
-            t: 0.3,
-            target: p[a],
-        }));
-    }
-    report("7000 positions + 300 edges", &mesh, cs);
-
-    // A connected region: the grid rows 20..45 × columns 20..60 (~1000
-    // vertices); relative constraints along its grid edges (cycles included:
-    // dependent ones get skipped), plus one position pinning everything.
-    let side = 187;
-    let mut rel = vec![Constraint::hard(ConstraintKind::Position {
-        vertex: 0,
-        target: p[0],
-    })];
-    'outer: for j in 20..45 {
-        for i in 20..60 {
-            let a = j * side + i;
-            for b in [a + 1, a + side] {
-                rel.push(Constraint::hard(ConstraintKind::Relative {
-                    vertices: [a, b],
-                    vector: [0, 1, 2].map(|c| p[a][c] - p[b][c]),
-                }));
-                if rel.len() > 2000 {
-                    break 'outer;
-                }
-            }
-        }
-    }
-    report("2000 relative constraints in a region", &mesh, rel.clone());
-    // The same constraints in a random priority order (R's fill follows it).
-    let (first, rest) = rel.split_at_mut(1);
-    let _ = first;
-    rest.shuffle(&mut rng);
-    report("the same, shuffled priority", &mesh, rel);
-    // A star: 2000 vertices each tied to one anchor by a relative constraint.
-    let anchor = 100 * side + 100;
-    let mut star = vec![Constraint::hard(ConstraintKind::Position {
-        vertex: anchor,
-        target: p[anchor],
-    })];
-    for &v in verts.iter().filter(|&&v| v != anchor).take(2000) {
-        star.push(Constraint::hard(ConstraintKind::Relative {
-            vertices: [v, anchor],
-            vector: [0, 1, 2].map(|c| p[v][c] - p[anchor][c]),
-        }));
-    }
-    report("2000 relative constraints to one anchor", &mesh, star);
-}
-
-fn report(label: &str, mesh: &lse_deform::Mesh, cs: Vec<Constraint>) {
-    let d = Deformer::new(
-        mesh.clone(),
-        LaplacianKind::Cotangent,
-        ConstraintSet::from_vec(cs).unwrap(),
-        &lse_deform::SolveOptions::default(),
-    )
-    .unwrap();
-    let b = d.problem().b();
-    let a = d.problem().a();
-    println!("{label}: n = {}, m = {}", b.ncols(), b.nrows());
-    for backend in qr_backends() {
-        let t = Instant::now();
-        let f = backend
-            .factor(b.as_ref(), RankTolerance::default())
-            .unwrap();
-        let t_qr = t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let aq2 = f.mul_a_q2(a.as_ref());
-        let t_aq2 = t.elapsed().as_secs_f64();
-        println!(
-            "  {:18} rank {:5}  QR {:8.2} ms  AQ2 {:8.2} ms  nnz(AQ2) {:9}  stored {:9}",
-            backend.name(),
-            f.rank(),
-            t_qr * 1e3,
-            t_aq2 * 1e3,
-            aq2.val().len(),
-            f.storage_nnz()
-        );
-    }
-    for order in [
-        qr::GivensRowOrder::LeadingConstraint,
-        qr::GivensRowOrder::Natural,
-    ] {
-        let t = Instant::now();
-        let f = qr::GivensQr::new(b.as_ref(), RankTolerance::default(), order).unwrap();
-        let t_qr = t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let aq2 = f.mul_a_q2(a.as_ref());
-        let t_aq2 = t.elapsed().as_secs_f64();
-        println!(
-            "  givens {:?}: QR {:8.2} ms, rotations {}, nnz(R) {}, AQ2 {:8.2} ms nnz {}",
-            order,
-            t_qr * 1e3,
-            f.n_rotations(),
-            f.r_nnz(),
-            t_aq2 * 1e3,
-            aq2.val().len()
-        );
-    }
 }
 
 /// A breadth-first chain of relative constraints (the paper's Fig. 9

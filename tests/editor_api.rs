@@ -1424,7 +1424,9 @@ fn the_basis_route_reproduces_the_positions_and_needs_the_token() {
     let h = u32::from_le_bytes(body[0..4].try_into().unwrap()) as u64;
     assert_eq!(
         body.len() as u64,
-        4 + h + lse_deform::editor::basis_response_bytes(n, 1)
+        // One RGBA32F texel (16 bytes) per vertex for X₀ and one for the
+        // group: docs/editor.md §6.
+        4 + h + 16 * n as u64 * 2
     );
     let report = json(&request(c, "GET", "/api/report", b"").1);
     assert_eq!(head["generation"], report["editor"]["generation"]);

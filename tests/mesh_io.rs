@@ -225,38 +225,6 @@ fn truncated_or_corrupt_gzip_is_an_error() {
     }
 }
 
-#[test]
-fn format_from_path() {
-    let f = |p: &str| MeshFormat::from_path(Path::new(p));
-    assert_eq!(f("a/b/c.obj").unwrap(), (MeshFormat::Obj, false));
-    assert_eq!(f("c.PLY").unwrap(), (MeshFormat::Ply, false));
-    assert_eq!(f("c.off.gz").unwrap(), (MeshFormat::Off, true));
-    assert_eq!(f("x.y.Obj.GZ").unwrap(), (MeshFormat::Obj, true));
-    assert_eq!(
-        f("mesh.stl").unwrap_err(),
-        MeshError::UnsupportedFormat {
-            extension: ".stl".into()
-        }
-    );
-    assert_eq!(
-        f("mesh.stl.gz").unwrap_err(),
-        MeshError::UnsupportedFormat {
-            extension: ".stl.gz".into()
-        }
-    );
-    assert!(matches!(
-        f("noextension").unwrap_err(),
-        MeshError::UnsupportedFormat { .. }
-    ));
-    let e = read_mesh(
-        Path::new("/nonexistent/dir/m.obj"),
-        lse_deform::limits::MemoryBudget::default(),
-    )
-    .unwrap_err();
-    assert!(matches!(e, Error::Io { .. }), "{e}");
-    assert!(e.to_string().contains("/nonexistent/dir/m.obj"));
-}
-
 // ---------------------------------------------------------------------------
 // hand-written files
 
@@ -1133,4 +1101,15 @@ fn a_degenerate_face_near_the_range_of_doubles_is_named_with_its_true_area() {
     let faces = vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
     let mesh = Mesh::new(positions, faces).unwrap();
     assert_eq!(mesh.degenerate_face(), None);
+}
+
+#[test]
+fn a_missing_mesh_file_is_an_io_error_naming_it() {
+    let e = read_mesh(
+        Path::new("/nonexistent/dir/m.obj"),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap_err();
+    assert!(matches!(e, Error::Io { .. }), "{e}");
+    assert!(e.to_string().contains("/nonexistent/dir/m.obj"));
 }

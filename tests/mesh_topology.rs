@@ -469,7 +469,7 @@ fn kinds_by_name_and_size_selection() {
     for kind in GeneratedKind::ALL {
         let parsed: GeneratedKind = kind.to_string().parse().unwrap();
         assert_eq!(parsed, kind);
-        let m = generate::by_name(kind.name(), 2, 1).unwrap();
+        let m = generate::generate(kind.name().parse().unwrap(), 2, 1).unwrap();
         assert_eq!(Some(m.n_vertices()), kind.vertex_count(2));
         // The chosen size is the closest.
         for target in [0usize, 10, 1000, 5000, 123_456] {

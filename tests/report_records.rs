@@ -11,9 +11,7 @@ use lse_deform::condition::ConditionMethod;
 use lse_deform::constraints::read_constraints_file;
 use lse_deform::formulation::{Formulation, Kkt, NullSpaceQr, Penalty, Refine};
 use lse_deform::mesh::read_mesh;
-use lse_deform::refinement_types::{RefineStop, Refinement};
 use lse_deform::report::{MethodFacts, WarningKind};
-use lse_deform::solver::refinement_warnings;
 use lse_deform::{Deformer, LaplacianKind, Method};
 
 fn deformer() -> Deformer {
@@ -91,39 +89,6 @@ fn factor_backend_and_its_alias_spd_backend_agree() {
     assert_eq!(d.report().spd_backend(), d.report().factor_backend);
     assert!(report["kkt_multiplier_scale"].is_number());
     assert!(report["penalty_weight"].is_null());
-}
-
-#[test]
-fn refinement_warnings_have_their_codes() {
-    let r = |mode, stop_reason| Refinement {
-        mode,
-        stop_reason,
-        steps: 2,
-        forward_error_estimate: 1e-3,
-        ..Refinement::default()
-    };
-    let kinds = |r: &Refinement| -> Vec<&str> {
-        refinement_warnings(r, Method::Penalty)
-            .iter()
-            .map(|w| w.code())
-            .collect()
-    };
-    assert_eq!(
-        kinds(&r(Refine::EstimateOnly, RefineStop::Off)),
-        ["lost-accuracy-unrefined"]
-    );
-    assert_eq!(
-        kinds(&r(Refine::Steps(2), RefineStop::StepLimit)),
-        ["lost-accuracy-step-limit"]
-    );
-    assert_eq!(
-        kinds(&r(Refine::Auto, RefineStop::Stagnated)),
-        ["lost-accuracy"]
-    );
-    assert_eq!(
-        kinds(&r(Refine::Auto, RefineStop::ConflictingConstraints)),
-        ["refinement-stalled"]
-    );
 }
 
 #[test]

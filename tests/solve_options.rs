@@ -44,7 +44,10 @@ fn positions_scene() -> (Mesh, ConstraintSet) {
 /// 64 bytes: less than any factor of the scene needs.
 fn tiny(formulation: FormulationChoice) -> SolveOptions {
     SolveOptions {
-        resources: Resources::with_budget(MemoryBudget::bytes(64)),
+        resources: Resources {
+            budget: MemoryBudget::bytes(64),
+            ..Resources::default()
+        },
         ..SolveOptions::new(formulation)
     }
 }
@@ -126,7 +129,10 @@ fn a_tiny_budget_is_refused_per_solve_and_the_default_succeeds_in_the_same_proce
         // The refused deformer takes a budget that fits and then succeeds.
         small
             .refactor(&SolveOptions {
-                resources: Resources::with_budget(MemoryBudget::unlimited()),
+                resources: Resources {
+                    budget: MemoryBudget::unlimited(),
+                    ..Resources::default()
+                },
                 ..SolveOptions::new(formulation)
             })
             .unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -167,7 +173,10 @@ fn the_response_basis_uses_the_precomputes_budget_or_the_one_given() {
     .unwrap();
     HandleBasis::new(&mut d, &["top"]).unwrap();
     // Less than 7 columns of 121 vertices.
-    let tiny = Resources::with_budget(MemoryBudget::bytes(4096));
+    let tiny = Resources {
+        budget: MemoryBudget::bytes(4096),
+        ..Resources::default()
+    };
     let e = HandleBasis::with_resources(&mut d, &["top"], &tiny).unwrap_err();
     let detail = too_large(Err(e));
     assert!(
@@ -210,7 +219,10 @@ fn an_invalid_formulation_is_refused_before_the_solver_changes() {
     .unwrap();
     let before = d.report().clone();
     let no_weight = SolveOptions {
-        resources: Resources::with_budget(MemoryBudget::bytes(64)),
+        resources: Resources {
+            budget: MemoryBudget::bytes(64),
+            ..Resources::default()
+        },
         ..SolveOptions::new(FormulationChoice::new(Method::Penalty))
     };
     match d.refactor(&no_weight) {

@@ -217,7 +217,7 @@ impl ArapTriangles {
     /// [`CovarianceBlock`] of the positions `x` (n × 3) into `blocks`
     /// (resized to `#triangles × blocks_per_triangle`, reused between
     /// calls). Each edge vector is formed once per triangle.
-    pub fn covariance_blocks_into(&self, x: &Mat<f64>, blocks: &mut Vec<CovarianceBlock>) {
+    pub(crate) fn covariance_blocks_into(&self, x: &Mat<f64>, blocks: &mut Vec<CovarianceBlock>) {
         let per = self.blocks_per_triangle();
         blocks.resize(per * self.faces.len(), CovarianceBlock::default());
         let cols = [x.col_as_slice(0), x.col_as_slice(1), x.col_as_slice(2)];
@@ -262,7 +262,11 @@ impl ArapTriangles {
     /// Vertex `i`'s covariance `M_i` (see [`ArapTriangles::covariance`])
     /// and `Σ c_k ‖x_k‖²` over its edges, summed from `blocks`
     /// ([`ArapTriangles::covariance_blocks_into`]).
-    pub fn vertex_covariance(&self, i: usize, blocks: &[CovarianceBlock]) -> CovarianceBlock {
+    pub(crate) fn vertex_covariance(
+        &self,
+        i: usize,
+        blocks: &[CovarianceBlock],
+    ) -> CovarianceBlock {
         let per = self.blocks_per_triangle();
         let mut sum = CovarianceBlock::default();
         for &(t, corner) in &self.corners[self.corner_ptr[i]..self.corner_ptr[i + 1]] {
@@ -296,7 +300,7 @@ impl ArapTriangles {
     /// `Σ c_k ‖x_k − R p_k‖² = Σ c_k ‖x_k‖² − 2 tr(Rᵀ M_i) + Σ c_k ‖p_k‖²`.
     /// Rounding: `~ε (Σ |c_k| (‖x_k‖² + ‖p_k‖²))`, absolute; the tests
     /// compare it with [`ArapTriangles::vertex_energy`] (the direct sum).
-    pub fn vertex_energy_from(&self, i: usize, m: &CovarianceBlock, r: &Mat3) -> f64 {
+    pub(crate) fn vertex_energy_from(&self, i: usize, m: &CovarianceBlock, r: &Mat3) -> f64 {
         let trace: f64 = (0..3)
             .map(|a| (0..3).map(|b| r[a][b] * m.cross[a][b]).sum::<f64>())
             .sum();
@@ -440,7 +444,8 @@ impl ArapTriangles {
     }
 
     /// Vertex `i`'s part of `E`: `Σ c_k ‖x_k − R p_k‖²` over its edges.
-    pub fn vertex_energy(&self, i: usize, x: &Mat<f64>, r: &Mat3) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn vertex_energy(&self, i: usize, x: &Mat<f64>, r: &Mat3) -> f64 {
         let mut e = 0.0;
         for &(t, corner) in &self.corners[self.corner_ptr[i]..self.corner_ptr[i + 1]] {
             for k in 0..3 {
@@ -452,5 +457,57 @@ impl ArapTriangles {
             }
         }
         e
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::{ArapEnergy, ArapTriangles};
+    use crate::testing::random_surface;
+
+    /// The local step's fused covariance blocks and energy-from-covariance
+    /// against the per-vertex direct sums, both energies, on a bent random
+    /// surface with random rotations.
+    #[test]
+    fn covariance_blocks_and_energy_from_covariance_match_the_direct_sums() {
+        let (nx, ny) = (6, 7);
+        let mesh = random_surface(nx, ny, 5);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let x = Mat::from_fn(mesh.n_vertices(), 3, |i, c| {
+            mesh.positions()[i][c] * 1.3 + rng.random_range(-0.1..0.1)
+        });
+        for energy in [ArapEnergy::SpokesAndRims, ArapEnergy::Spokes] {
+            let t = ArapTriangles::new(&mesh, energy);
+            let mut blocks = Vec::new();
+            t.covariance_blocks_into(&x, &mut blocks);
+            for i in 0..mesh.n_vertices() {
+                let m = t.vertex_covariance(i, &blocks);
+                let direct = t.covariance(i, &x);
+                let gap = m
+                    .cross
+                    .iter()
+                    .flatten()
+                    .zip(direct.iter().flatten())
+                    .map(|(u, v)| (u - v).abs())
+                    .fold(0.0, f64::max);
+                assert!(gap <= 1e-13, "{energy:?} vertex {i}: {gap:e}");
+                let q = nalgebra::UnitQuaternion::from_euler_angles(
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-1.5..1.5),
+                    rng.random_range(-3.0..3.0),
+                );
+                let r = q.to_rotation_matrix();
+                let r: [[f64; 3]; 3] = std::array::from_fn(|a| std::array::from_fn(|b| r[(a, b)]));
+                let (e1, e2) = (t.vertex_energy_from(i, &m, &r), t.vertex_energy(i, &x, &r));
+                assert!(
+                    (e1 - e2).abs() <= 1e-12 * (1.0 + e2.abs()),
+                    "{energy:?} vertex {i}: {e1} vs {e2}"
+                );
+            }
+        }
     }
 }

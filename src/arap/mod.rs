@@ -556,12 +556,6 @@ impl ArapDeformer {
             .collect()
     }
 
-    /// Current positions as an n × 3 matrix in the problem's units: the
-    /// mesh's divided by [`ArapDeformer::length_unit`].
-    pub fn positions_matrix(&self) -> &Mat<f64> {
-        &self.x
-    }
-
     /// The length the problem's lengths are divided by: the mesh's mean
     /// edge length ([`Mesh::length_unit`]).
     pub fn length_unit(&self) -> f64 {

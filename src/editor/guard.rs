@@ -126,11 +126,6 @@ impl Guard {
         }
     }
 
-    /// The allowed `Host` values.
-    pub fn hosts(&self) -> &[String] {
-        &self.hosts
-    }
-
     /// Whether `host` (a `Host` header) names this server.
     pub(crate) fn host_allowed(&self, host: &str) -> bool {
         let host = host.to_ascii_lowercase();

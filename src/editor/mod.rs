@@ -632,7 +632,7 @@ async fn get_positions(
 /// Bytes of the `GET /api/basis` body for `n` vertices and `groups`
 /// groups besides its JSON head: `16 n (1 + groups)` (one RGBA32F texel
 /// for `X₀` and one per group for `R_g`), held once while it is built.
-pub fn basis_response_bytes(n: usize, groups: usize) -> u64 {
+pub(crate) fn basis_response_bytes(n: usize, groups: usize) -> u64 {
     16u64
         .saturating_mul(n as u64)
         .saturating_mul(1 + groups as u64)

@@ -108,7 +108,7 @@ pub fn refine(
 /// soon as the error left is predicted to be at that floor
 /// ([`RefineStop::Predicted`], docs/refinement.md §6). `rounding` must
 /// belong to `system`'s factor (reset it at every precompute).
-pub fn refine_with_rounding(
+pub(crate) fn refine_with_rounding(
     system: &mut dyn Prepared,
     problem: &LseProblem,
     x: &mut Mat<f64>,

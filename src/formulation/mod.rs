@@ -31,9 +31,10 @@ mod record;
 mod util;
 
 pub use elimination::Elimination;
+pub(crate) use iterative_refinement::refine_with_rounding;
 pub use iterative_refinement::{
     AUTO_MAX_STEPS, CONVERGED_ULPS, FORWARD_ERROR_WARNING, FactorRounding, REMEASURE_EVERY, Refine,
-    RefineStop, Refinement, max_hard_residual, refine, refine_with_rounding,
+    RefineStop, Refinement, max_hard_residual, refine,
 };
 pub use kkt::{KKT_BACKWARD_ERROR_TOLERANCE, KKT_PIVOT_TOLERANCE, Kkt, kkt_ordering};
 pub use null_space::NullSpaceQr;

@@ -32,7 +32,7 @@ mod triangle;
 
 use triangle::Triangle;
 
-pub use intrinsic_delaunay::IntrinsicTriangulation;
+pub(crate) use intrinsic_delaunay::IntrinsicTriangulation;
 
 /// Which Laplacian to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -50,7 +50,7 @@ pub enum LaplacianKind {
     /// Cotangent weights over mixed Voronoi areas computed on the intrinsic
     /// Delaunay triangulation of the surface (Bobenko & Springborn 2007;
     /// Sharp & Crane 2020): edge flips until every edge is Delaunay, so all
-    /// weights are non-negative. See [`IntrinsicTriangulation`].
+    /// weights are non-negative (`laplacian/intrinsic_delaunay.rs`).
     #[serde(rename = "intrinsic-delaunay")]
     IntrinsicDelaunay,
 }

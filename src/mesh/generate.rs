@@ -242,7 +242,7 @@ pub fn grid(nx: usize, ny: usize) -> Result<Mesh, MeshError> {
 }
 
 /// Vertex count of [`unsymmetric_grid`]`(n)`: `n(n+1) + (2n+1)²`.
-pub fn unsymmetric_grid_vertex_count(n: usize) -> Option<usize> {
+pub(crate) fn unsymmetric_grid_vertex_count(n: usize) -> Option<usize> {
     let right = n.checked_mul(2)?.checked_add(1)?;
     n.checked_mul(n + 1)?.checked_add(right.checked_mul(right)?)
 }
@@ -557,15 +557,6 @@ pub fn generate(kind: GeneratedKind, size: usize, seed: u64) -> Result<Mesh, Mes
         GeneratedKind::UnsymmetricGrid => unsymmetric_grid(size),
         GeneratedKind::Sliver => sliver_mesh(size, seed),
     }
-}
-
-/// [`generate`] with the kind given by name (see [`GeneratedKind`]'s
-/// `FromStr`).
-pub fn by_name(kind: &str, size: usize, seed: u64) -> Result<Mesh, MeshError> {
-    let kind = kind
-        .parse()
-        .map_err(|e: crate::error::ParseWordError| bad("kind", e.to_string()))?;
-    generate(kind, size, seed)
 }
 
 /// The size parameter of `kind` whose vertex count is closest to

@@ -177,18 +177,6 @@ fn norm_sq(a: [f64; 3]) -> f64 {
     a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
 }
 
-/// Area of the triangle `abc` (NaN if a coordinate is NaN).
-pub fn triangle_area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    0.5 * norm_sq(cross(sub(b, a), sub(c, a))).sqrt()
-}
-
-/// Squared length of the longest edge of `abc`.
-pub fn longest_edge_sq(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    norm_sq(sub(b, a))
-        .max(norm_sq(sub(c, b)))
-        .max(norm_sq(sub(a, c)))
-}
-
 /// The largest absolute component of `vectors`.
 fn max_abs(vectors: &[[f64; 3]]) -> f64 {
     vectors.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()))

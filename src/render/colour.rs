@@ -99,7 +99,7 @@ pub fn distances(a: &[[f64; 3]], b: &[[f64; 3]], what: &str) -> Result<Vec<f64>,
 
 /// A number for a legend: three significant digits, exponent form outside
 /// `[0.01, 1000)`.
-pub fn format_value(v: f64) -> String {
+pub(crate) fn format_value(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
         "0".into()

@@ -23,12 +23,12 @@ pub mod output;
 pub mod raster;
 pub mod text;
 
-pub use colour::{ColourScale, LEGEND_HEIGHT, Legend, distances, format_value, viridis};
+pub use colour::{ColourScale, LEGEND_HEIGHT, Legend, distances, viridis};
 pub use compose::{Layout, Panel, compose, render_side_by_side};
 pub(crate) use error::check_size;
 pub use error::{MAX_SIDE, RenderError};
 pub use frame::auto_camera;
 pub use raster::{
     AUTO_EDGE_PIXELS, Camera, Colouring, Edges, Ghost, Image, RenderMesh, RenderStats, Style, View,
-    render, render_with_ghost, render_with_stats,
+    render, render_with_ghost,
 };

@@ -394,7 +394,7 @@ pub fn render(mesh: &RenderMesh<'_>, view: &View, style: &Style) -> Result<Image
 }
 
 /// [`render`], also returning what was drawn.
-pub fn render_with_stats(
+pub(crate) fn render_with_stats(
     mesh: &RenderMesh<'_>,
     view: &View,
     style: &Style,

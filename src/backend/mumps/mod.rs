@@ -32,7 +32,7 @@ mod shared;
 
 pub use cholesky::MumpsLlt;
 pub use ldlt::MumpsLdlt;
-pub use ranks::launched_by_mpirun;
+pub(crate) use ranks::launched_by_mpirun;
 pub use scratch::remove_all as remove_scratch;
 pub use shared::MumpsFacts;
 pub(crate) use shared::check_driving_rank;

@@ -40,7 +40,7 @@ const LAUNCHER_VARIABLES: [&str; 4] = [
 const POLL_INTERVAL: Duration = Duration::from_millis(1);
 
 /// Whether a launcher such as `mpirun` started this process.
-pub fn launched_by_mpirun() -> bool {
+pub(crate) fn launched_by_mpirun() -> bool {
     LAUNCHER_VARIABLES
         .iter()
         .any(|v| std::env::var_os(v).is_some())
@@ -66,7 +66,7 @@ static RUNTIME: OnceLock<Runtime> = OnceLock::new();
 static SERVED: AtomicBool = AtomicBool::new(false);
 
 /// Rank 0 records that the other ranks serve it.
-pub fn mark_served() {
+pub(crate) fn mark_served() {
     SERVED.store(true, AtomicOrdering::Relaxed);
 }
 
@@ -112,7 +112,7 @@ impl Runtime {
 
 /// Ends MPI in this process (`MPI_Finalize`), if it was started here; a
 /// second call does nothing.
-pub fn finalize() {
+pub(crate) fn finalize() {
     if let Some(runtime) = RUNTIME.get() {
         let universe = runtime
             .universe
@@ -125,7 +125,7 @@ pub fn finalize() {
 
 /// Makes a panic on any rank end every rank: the default message, then
 /// `MPI_Abort` (which `mpirun` turns into the end of the job).
-pub fn abort_all_on_panic() {
+pub(crate) fn abort_all_on_panic() {
     let default = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
         default(info);

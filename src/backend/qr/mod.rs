@@ -42,7 +42,9 @@ mod spqr;
 pub use crate::backend::kinds::QrKind;
 pub use dense_householder::DenseHouseholder;
 pub use graph_rows::HUB_DEGREE;
-pub use seam::{ConstraintQr, QrBackend, RankTolerance, particular_solution};
+#[cfg(any(test, feature = "proptest"))]
+pub(crate) use seam::particular_solution;
+pub use seam::{ConstraintQr, QrBackend, RankTolerance};
 pub use sparse_givens::{GivensQr, GivensRowOrder, SparseGivens};
 #[cfg(feature = "suitesparse")]
 pub use spqr::{Spqr, SpqrQr};

@@ -5,7 +5,7 @@
 //! pre-passes import it, it imports none of them.
 
 use faer::sparse::{SparseColMat, SparseColMatRef, SparseRowMatRef};
-use faer::{Mat, MatMut, MatRef};
+use faer::{MatMut, MatRef};
 
 use crate::error::Error;
 use crate::resources::Resources;
@@ -109,13 +109,17 @@ pub trait ConstraintQr: Send + Sync {
 }
 
 /// `y = R1⁻ᵀ d` and then `x = Q [y; 0]`: the minimum-norm solution of
-/// `B_kept x = d_kept` (convenience used by tests and formulations).
-pub fn particular_solution(qr: &dyn ConstraintQr, d: MatRef<'_, f64>) -> (Mat<f64>, Mat<f64>) {
+/// `B_kept x = d_kept` (for the tests and the conformance kit).
+#[cfg(any(test, feature = "proptest"))]
+pub(crate) fn particular_solution(
+    qr: &dyn ConstraintQr,
+    d: MatRef<'_, f64>,
+) -> (faer::Mat<f64>, faer::Mat<f64>) {
     let k = d.ncols();
-    let mut y = Mat::zeros(qr.rank(), k);
+    let mut y = faer::Mat::zeros(qr.rank(), k);
     qr.solve_r1t(d, y.as_mut());
-    let z = Mat::zeros(qr.n() - qr.rank(), k);
-    let mut x = Mat::zeros(qr.n(), k);
+    let z = faer::Mat::zeros(qr.n() - qr.rank(), k);
+    let mut x = faer::Mat::zeros(qr.n(), k);
     qr.apply_q(y.as_ref(), z.as_ref(), x.as_mut());
     (y, x)
 }

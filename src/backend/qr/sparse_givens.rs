@@ -100,12 +100,7 @@ pub struct SparseGivens {
     pub order: GivensRowOrder,
 }
 
-impl SparseGivens {
-    /// The back end with the given row order.
-    pub fn with_order(order: GivensRowOrder) -> SparseGivens {
-        SparseGivens { order }
-    }
-}
+impl SparseGivens {}
 
 impl QrBackend for SparseGivens {
     fn name(&self) -> crate::backend::BackendName {
@@ -262,11 +257,6 @@ impl GivensQr {
     /// Number of stored rotations.
     pub fn n_rotations(&self) -> usize {
         self.rotations.len()
-    }
-
-    /// Stored entries of `R` (kept rows, dead columns included).
-    pub fn r_nnz(&self) -> usize {
-        self.r_val.len()
     }
 }
 

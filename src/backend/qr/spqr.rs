@@ -596,11 +596,6 @@ impl SpqrQr {
         }
     }
 
-    /// Number of Householder vectors.
-    pub fn n_householder(&self) -> usize {
-        self.tau.len()
-    }
-
     /// `w ← H_h w` on all columns of `w` (permuted coordinates).
     fn reflect(&self, h: usize, w: &mut Mat<f64>) {
         let range = self.h_ptr[h]..self.h_ptr[h + 1];

@@ -26,7 +26,7 @@ pub enum MeshFormat {
 impl MeshFormat {
     /// The format named by a path's extension, case-insensitively, and
     /// whether the extension says gzip (`.obj.gz` gives `(Obj, true)`).
-    pub fn from_path(path: &Path) -> Result<(MeshFormat, bool), MeshError> {
+    pub(crate) fn from_path(path: &Path) -> Result<(MeshFormat, bool), MeshError> {
         let name = path
             .file_name()
             .map(|n| n.to_string_lossy().to_ascii_lowercase())
@@ -404,5 +404,38 @@ pub(super) fn unwrap_io(result: Result<LoadedMesh, ReadError>) -> Result<LoadedM
         Ok(loaded) => Ok(loaded),
         Err(ReadError::Mesh(e)) => Err(e),
         Err(ReadError::Io(e)) => panic!("unexpected I/O error: {e}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::MeshFormat;
+    use crate::error::MeshError;
+
+    #[test]
+    fn format_from_path() {
+        let f = |p: &str| MeshFormat::from_path(Path::new(p));
+        assert_eq!(f("a/b/c.obj").unwrap(), (MeshFormat::Obj, false));
+        assert_eq!(f("c.PLY").unwrap(), (MeshFormat::Ply, false));
+        assert_eq!(f("c.off.gz").unwrap(), (MeshFormat::Off, true));
+        assert_eq!(f("x.y.Obj.GZ").unwrap(), (MeshFormat::Obj, true));
+        assert_eq!(
+            f("mesh.stl").unwrap_err(),
+            MeshError::UnsupportedFormat {
+                extension: ".stl".into()
+            }
+        );
+        assert_eq!(
+            f("mesh.stl.gz").unwrap_err(),
+            MeshError::UnsupportedFormat {
+                extension: ".stl.gz".into()
+            }
+        );
+        assert!(matches!(
+            f("noextension").unwrap_err(),
+            MeshError::UnsupportedFormat { .. }
+        ));
     }
 }
