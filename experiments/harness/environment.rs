@@ -270,26 +270,60 @@ fn mirrored_features() -> Vec<&'static str> {
 }
 
 /// Builds the `lse-deform` command-line tool (release, default features
-/// plus this build's `suitesparse` and `mumps`) and returns its path.
+/// plus this build's `suitesparse` and `mumps`) and returns its path, as
+/// cargo reports it (`--message-format json`: the `executable` of the
+/// binary's `compiler-artifact` message), so that it is found wherever
+/// cargo's target directory is (`CARGO_TARGET_DIR`, `build.target-dir`).
 pub fn cli_binary() -> Result<PathBuf, String> {
     let root = workspace_root();
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let features = mirrored_features();
     let mut command = child(cargo);
-    command.args(["build", "--release", "--bin", "lse-deform"]);
+    command.args([
+        "build",
+        "--release",
+        "--bin",
+        "lse-deform",
+        "--message-format",
+        "json-render-diagnostics",
+    ]);
     if !features.is_empty() {
         command.args(["--features", &features.join(",")]);
     }
-    run(
-        command.current_dir(&root),
-        "`cargo build --release --bin lse-deform`",
-    )?;
-    let exe = root.join("target").join("release").join("lse-deform");
-    if exe.is_file() {
-        Ok(exe)
-    } else {
-        Err("`cargo build` left no target/release/lse-deform".into())
+    let what = "`cargo build --release --bin lse-deform`";
+    let out = command
+        .current_dir(&root)
+        .output()
+        .map_err(|e| format!("{what}: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("{what} failed: {}", last_line(&out.stderr)));
     }
+    match built_executable(&out.stdout, "lse-deform") {
+        Some(exe) if exe.is_file() => Ok(exe),
+        Some(exe) => Err(format!(
+            "{what} named {} but left no file there",
+            exe.display()
+        )),
+        None => Err(format!(
+            "{what} reported no executable of the binary lse-deform"
+        )),
+    }
+}
+
+/// The `executable` of the `compiler-artifact` message of the binary
+/// target `name` among cargo's JSON messages `stdout` (one per line).
+fn built_executable(stdout: &[u8], name: &str) -> Option<PathBuf> {
+    String::from_utf8_lossy(stdout).lines().find_map(|line| {
+        let message: serde_json::Value = serde_json::from_str(line).ok()?;
+        let is_binary = message["reason"] == "compiler-artifact"
+            && message["target"]["name"] == name
+            && message["target"]["kind"]
+                .as_array()
+                .is_some_and(|kinds| kinds.iter().any(|k| k == "bin"));
+        is_binary
+            .then(|| message["executable"].as_str().map(PathBuf::from))
+            .flatten()
+    })
 }
 
 /// `mpirun` on `PATH`, or why not.
@@ -331,5 +365,27 @@ mod tests {
         let why = failure(&out);
         assert!(why.starts_with("the reason ("), "{why}");
         assert!(why.contains('3'), "{why}");
+    }
+
+    /// The binary's path is what cargo says, wherever its target directory
+    /// is: the executable of the `bin` artifact named `lse-deform`, not of
+    /// the library of that name, and nothing from other messages.
+    #[test]
+    fn the_binary_is_where_cargo_says_it_built_it() {
+        let stdout = concat!(
+            r#"{"reason":"compiler-artifact","target":{"name":"lse-deform","kind":["lib"]},"executable":null}"#,
+            "\n",
+            r#"{"reason":"compiler-artifact","target":{"name":"lse-deform","kind":["bin"]},"executable":"elsewhere/cargo-target/release/lse-deform"}"#,
+            "\n",
+            r#"{"reason":"build-finished","success":true}"#,
+            "\n",
+        );
+        assert_eq!(
+            built_executable(stdout.as_bytes(), "lse-deform"),
+            Some(PathBuf::from("elsewhere/cargo-target/release/lse-deform"))
+        );
+        assert_eq!(built_executable(b"not json\n", "lse-deform"), None);
+        let lib_only = r#"{"reason":"compiler-artifact","target":{"name":"lse-deform","kind":["lib"]},"executable":null}"#;
+        assert_eq!(built_executable(lib_only.as_bytes(), "lse-deform"), None);
     }
 }

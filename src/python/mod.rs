@@ -264,10 +264,15 @@ fn parse_threads(threads: Option<&Bound<'_, PyAny>>) -> PyResult<Threads> {
             .parse()
             .map_err(|e: String| input(format!("threads=: {e}")));
     }
-    if !t.is_instance_of::<pyo3::types::PyInt>() {
-        return Err(type_error(EXPECTED));
-    }
-    t.extract::<usize>()
+    // An integer is anything with `__index__` (`operator.index`): Python's
+    // int and numpy's integer scalars alike, not a float.
+    let index = t
+        .py()
+        .import("operator")?
+        .call_method1("index", (t,))
+        .map_err(|_| type_error(EXPECTED))?;
+    index
+        .extract::<usize>()
         .ok()
         .and_then(Threads::count)
         .ok_or_else(|| input(format!("threads=: {EXPECTED}")))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import lse_deform
-from lse_deform import InputError
+from lse_deform import InputError, InputTypeError
 from conftest import bumpy_grid, fixed_and_handle
 
 
@@ -111,3 +111,20 @@ def test_threads_and_ordering_are_held_and_reported(scene):
         ordering="amd", threads=1, condition=False, repeat=1,
     )
     assert [(row["ordering"], row["threads"]) for row in rows] == [("amd", 1)]
+
+
+def test_numpy_integers_are_integers_wherever_ints_are(scene):
+    """A numpy integer scalar is an int to every integer keyword (threads=
+    refused np.int64(2) as a type error on aa82d57); a float, or a bool,
+    stays a type error, and numpy's 0 a value error like Python's 0."""
+    V, F, items = scene
+    _, expected = lse_deform.deform(V, F, items, threads=2, factor="faer-simplicial", refine=2)
+    for kind in (np.int64, np.int32, np.uint8):
+        _, r = lse_deform.deform(V, F, items, threads=kind(2), factor="faer-simplicial", refine=kind(2))
+        assert r["threads"] == expected["threads"] == 2, kind
+        assert r["refinement"]["steps"] == expected["refinement"]["steps"], kind
+    for bad in (2.0, np.float64(2.0), True):
+        with pytest.raises(InputTypeError):
+            lse_deform.deform(V, F, items, threads=bad)
+    with pytest.raises(InputError, match="threads="):
+        lse_deform.deform(V, F, items, threads=np.int64(0))
