@@ -5,7 +5,7 @@
 //! editor) parse words into these types; inside the library only the types
 //! travel. The report serialises them back as the same words.
 
-use serde::{Deserialize, Deserializer, Serializer};
+use serde::Serializer;
 
 use crate::error::ParseWordError;
 
@@ -63,13 +63,14 @@ pub(crate) fn serialize_word<T: Word, S: Serializer>(value: &T, s: S) -> Result<
 /// Deserialises any `FromStr` choice from its word (for
 /// `#[serde(deserialize_with)]`): the parse error, with the accepted
 /// words, becomes the deserialisation error.
-pub fn deserialize_word<'de, T, D>(d: D) -> Result<T, D::Error>
+#[cfg(feature = "editor")]
+pub(crate) fn deserialize_word<'de, T, D>(d: D) -> Result<T, D::Error>
 where
     T: std::str::FromStr,
     T::Err: std::fmt::Display,
-    D: Deserializer<'de>,
+    D: serde::Deserializer<'de>,
 {
-    let word = String::deserialize(d)?;
+    let word = <String as serde::Deserialize>::deserialize(d)?;
     word.parse().map_err(serde::de::Error::custom)
 }
 

@@ -536,7 +536,7 @@ pub struct ConstraintMix {
 /// [`ConstraintMix`]es on [`meshes`]: 3–11 independent constraints of all
 /// four kinds, 0–5 dependent ones (each redundant or conflicting at
 /// random), 0–3 soft ones.
-pub(crate) fn constraint_mixes() -> impl Strategy<Value = ConstraintMix> {
+pub fn constraint_mixes() -> impl Strategy<Value = ConstraintMix> {
     (meshes(), any::<u64>(), 3usize..12, 0usize..6, 0usize..4).prop_map(
         |(mesh, seed, n_base, n_added, n_soft)| {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);

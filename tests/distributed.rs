@@ -645,7 +645,10 @@ fn a_signal_during_an_out_of_core_factorisation_leaves_the_directory_as_it_was()
             std::thread::sleep(Duration::from_millis(50));
         }
         assert_eq!(entries(&ooc), before, "{ranks} rank(s), kill {signal}");
-        assert!(!Path::new(&out).exists());
+        assert!(
+            !Path::new(&out).exists(),
+            "{ranks} rank(s), kill {signal}: the output was written"
+        );
     }
 }
 

@@ -131,6 +131,12 @@ impl LdltKind {
             SpdKind::Nalgebra | SpdKind::Cholmod => None,
         }
     }
+
+    /// Whether this build has the back end (`Mumps` needs the cargo
+    /// feature `mumps`).
+    pub(crate) fn in_this_build(self) -> bool {
+        self != LdltKind::Mumps || cfg!(feature = "mumps")
+    }
 }
 
 impl crate::choice::Word for LdltKind {

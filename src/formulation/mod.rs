@@ -56,19 +56,35 @@ fn not_an_ldlt(spd: &dyn std::fmt::Display) -> ProblemError {
 }
 
 /// [`FormulationChoice::validate`] of an SPD choice: in this build, and
-/// able to keep its factor in `storage`. A built-in is checked by making
-/// it (cheap: its constructor checks what it needs, such as MUMPS's
-/// driving rank and out-of-core directory, and allocates nothing).
+/// able to keep its factor in `storage`; MUMPS driven from this process.
 fn check_spd(spd: &SpdChoice, storage: &FactorStorage) -> Result<(), ProblemError> {
     match spd {
-        Chosen::Builtin(kind) => kind.backend_with(storage).map(drop),
+        // Not in the build: the catalogue's refusal (nothing is built).
+        Chosen::Builtin(kind) if !kind.in_this_build() => kind.backend_with(storage).map(drop),
+        Chosen::Builtin(SpdKind::Mumps) => mumps_drivable(),
+        Chosen::Builtin(kind) => storage.refuse_out_of_core(kind.name()),
         Chosen::Own(backend) => storage.refuse_out_of_core(&backend.name()),
     }
 }
 
 /// [`check_spd`] for an `LDLᵀ` variant.
 fn check_ldlt(kind: LdltKind, storage: &FactorStorage) -> Result<(), ProblemError> {
-    kind.backend_with(storage).map(drop)
+    match kind {
+        LdltKind::Mumps if !kind.in_this_build() => kind.backend_with(storage).map(drop),
+        LdltKind::Mumps => mumps_drivable(),
+        _ => storage.refuse_out_of_core(kind.name()),
+    }
+}
+
+/// Whether this process can drive MUMPS (rank 0 of ranks that serve it).
+#[cfg(feature = "mumps")]
+fn mumps_drivable() -> Result<(), ProblemError> {
+    crate::backend::mumps::check_driving_rank()
+}
+
+#[cfg(not(feature = "mumps"))]
+fn mumps_drivable() -> Result<(), ProblemError> {
+    Ok(())
 }
 
 /// The QR back end of a default formulation: sparse Givens rotations.

@@ -35,6 +35,7 @@ pub use ldlt::MumpsLdlt;
 pub(crate) use ranks::launched_by_mpirun;
 pub use scratch::remove_all as remove_scratch;
 pub use shared::MumpsFacts;
+pub(crate) use shared::check_driving_rank;
 
 /// What a process launched by `mpirun` is, once its ranks agreed on how
 /// the run starts ([`serve_if_worker`]).
