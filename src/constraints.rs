@@ -74,7 +74,7 @@ pub fn read_constraints_file(
 ) -> Result<ConstraintSet, Error> {
     use std::io::{BufRead, BufReader, Read};
     let io = |e| Error::io(path, e);
-    let file = std::fs::File::open(path).map_err(io)?;
+    let file = crate::input::open_input(path).map_err(io)?;
     let per_byte = crate::limits::CONSTRAINT_BYTES_PER_FILE_BYTE;
     let name = path.display().to_string();
     let cap = crate::limits::file_read_cap(&file, &name, budget, per_byte)

@@ -64,6 +64,7 @@ pub mod error;
 pub mod export;
 pub mod formulation;
 pub mod handle;
+pub mod input;
 pub mod interop;
 pub mod interrupt;
 pub mod laplacian;

@@ -190,7 +190,7 @@ struct Opened<'p, R: BufRead> {
 
 /// Reads a Matrix Market file (see the module documentation).
 pub(crate) fn read_matrix(path: &Path) -> Result<MatrixFile, Error> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::input::open_input(path).map_err(|e| Error::io(path, e))?;
     read_matrix_from(BufReader::new(file), path)
 }
 
@@ -387,7 +387,7 @@ pub fn read_system(
     budget: MemoryBudget,
 ) -> Result<SystemMatrices, Error> {
     fn open_file(path: &Path) -> Result<Opened<'_, BufReader<File>>, Error> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let file = crate::input::open_input(path).map_err(|e| Error::io(path, e))?;
         open(BufReader::new(file), path)
     }
     let (fa, fc, fb, fd) = (open_file(a)?, open_file(c)?, open_file(b)?, open_file(d)?);

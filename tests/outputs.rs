@@ -494,6 +494,72 @@ mod pipes {
         assert!(Path::new(&report).exists());
     }
 
+    /// An input FIFO (the mesh, `-c`, `--ordering-file`) that no process
+    /// writes is refused once `lse_deform::input::FIFO_WRITER_WAIT` has
+    /// passed, exit 2 naming it; a mesh and constraints file whose writers
+    /// come are read as the files are, the same output byte for byte.
+    /// (Before: the run blocked in `open` forever.)
+    #[test]
+    fn an_input_fifo_is_read_when_written_and_refused_when_not() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let (mesh, scene) = grid_and_scene(d);
+        let (in_mesh, in_scene, in_order) = (p(d, "in.obj"), p(d, "in.json"), p(d, "order.txt"));
+        for fifo in [&in_mesh, &in_scene, &in_order] {
+            mkfifo(fifo);
+        }
+        let out = p(d, "out.obj");
+        let unwritten: [&[&str]; 3] = [
+            &["deform", &in_mesh, "-c", &scene, "-o", &out],
+            &["deform", &mesh, "-c", &in_scene, "-o", &out],
+            &[
+                "deform",
+                &mesh,
+                "-c",
+                &scene,
+                "-o",
+                &out,
+                "--ordering-file",
+                &in_order,
+            ],
+        ];
+        for (args, name) in unwritten.iter().zip(["in.obj", "in.json", "order.txt"]) {
+            let (status, err) = wait(spawn(args));
+            assert_eq!(status.code(), Some(2), "{name}: {err}");
+            assert!(
+                err.contains(name) && err.contains("no process wrote to within 5 s"),
+                "{name}: {err}"
+            );
+            assert!(!Path::new(&out).exists(), "{name}");
+        }
+        let reference = p(d, "reference.obj");
+        let o = run(&["deform", &mesh, "-c", &scene, "-o", &reference]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let writers: Vec<_> = [
+            (in_mesh.clone(), mesh.clone()),
+            (in_scene.clone(), scene.clone()),
+        ]
+        .into_iter()
+        .map(|(fifo, file)| {
+            std::thread::spawn(move || {
+                let bytes = std::fs::read(file).unwrap();
+                std::thread::sleep(Duration::from_millis(200));
+                let mut w = OpenOptions::new().write(true).open(fifo).unwrap();
+                std::io::Write::write_all(&mut w, &bytes).unwrap();
+            })
+        })
+        .collect();
+        let (status, err) = wait(spawn(&["deform", &in_mesh, "-c", &in_scene, "-o", &out]));
+        for w in writers {
+            w.join().unwrap();
+        }
+        assert!(status.success(), "{err}");
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            std::fs::read(&reference).unwrap()
+        );
+    }
+
     /// A FIFO as `-o` or `--report` that no process reads is refused
     /// before any work (exit 2, before the missing mesh is even looked
     /// at), naming the FIFO. (Before: the run waited for a reader forever.)

@@ -49,7 +49,7 @@ fn invalid(message: String) -> Error {
 /// as [`FillOrdering::Given`].
 pub fn read_ordering_file(path: &Path, budget: MemoryBudget) -> Result<FillOrdering, Error> {
     let io = |e| Error::io(path, e);
-    let file = std::fs::File::open(path).map_err(io)?;
+    let file = crate::input::open_input(path).map_err(io)?;
     let per_byte = ORDERING_BYTES_PER_FILE_BYTE;
     let name = format!("the ordering file {}", path.display());
     let cap = crate::limits::file_read_cap(&file, &name, budget, per_byte)

@@ -64,7 +64,6 @@ mod off;
 mod ply;
 mod shared;
 
-use std::fs::File;
 use std::io::{self, BufRead, BufReader, Write};
 use std::path::Path;
 
@@ -97,7 +96,7 @@ const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
 /// checked as it grows.
 pub fn read_mesh(path: &Path, budget: MemoryBudget) -> Result<LoadedMesh, Error> {
     let (format, gzip_ext) = MeshFormat::from_path(path)?;
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::input::open_input(path).map_err(|e| Error::io(path, e))?;
     // Only a regular file's length is the number of bytes it will deliver
     // (a pipe reports 0).
     let size = file
