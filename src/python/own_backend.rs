@@ -6,8 +6,12 @@
 //!
 //! The protocol (docs/python.md §"Your own factorisation"):
 //!
-//! - `obj.name`: a non-empty `str`, not a word of the catalogue; read once,
-//!   when the object is given. It is the back end's name in the report
+//! - `obj.name`: a non-empty `str`, not a word of the catalogue of any seam
+//!   (SPD, `LDLᵀ` or QR) in any letter case, without surrounding white
+//!   space and without control or invisible format characters (a zero-width
+//!   space): a name that reads as a built-in's is refused
+//!   ([`backend_name`]). Read once, when the object is given; an exception
+//!   its getter raises is the error of that call. It is the back end's name in the report
 //!   (`factor_backend`) and in `compare` rows.
 //! - `obj.analyze(lower)`: `lower` is a `scipy.sparse.csc_matrix` (n × n,
 //!   sorted row indices, diagonal included) holding the pattern of the
@@ -55,6 +59,8 @@ use pyo3::sync::MutexExt;
 use super::convert;
 use super::errors::{input, type_error};
 use crate::backend::BackendName;
+use crate::backend::ldlt::LdltKind;
+use crate::backend::qr::QrKind;
 use crate::backend::spd::{SpdBackend, SpdFactor, SpdKind, SpdSymbolic};
 use crate::error::NumericalError;
 
@@ -201,11 +207,12 @@ impl PyBackend {
     /// that is not a non-empty `str`, or a name of the catalogue.
     pub(crate) fn from_object(obj: &Bound<'_, PyAny>, keyword: &str) -> PyResult<PyBackend> {
         let class = obj.get_type().name()?.to_string();
-        let missing: Vec<&str> = MEMBERS
-            .iter()
-            .copied()
-            .filter(|m| !has_member(obj, m))
-            .collect();
+        let mut missing = Vec::new();
+        for m in MEMBERS {
+            if !has_member(obj, m)? {
+                missing.push(m);
+            }
+        }
         let expected = "a word of the catalogue or an object with an attribute name and methods analyze(lower), factorize(lower) and solve(rhs) (docs/python.md)";
         if missing.len() == MEMBERS.len() {
             return Err(type_error(format!(
@@ -231,11 +238,14 @@ impl PyBackend {
     }
 }
 
-/// Whether `obj` has `member`: the attribute `name`, or a callable.
-fn has_member(obj: &Bound<'_, PyAny>, member: &str) -> bool {
+/// Whether `obj` has `member`: the attribute `name`, or a callable. Only
+/// an `AttributeError` means it has not; any other exception (a property
+/// that raises, `KeyboardInterrupt`) is the caller's error.
+fn has_member(obj: &Bound<'_, PyAny>, member: &str) -> PyResult<bool> {
     match obj.getattr(member) {
-        Ok(m) => member == "name" || m.is_callable(),
-        Err(_) => false,
+        Ok(m) => Ok(member == "name" || m.is_callable()),
+        Err(e) if e.is_instance_of::<pyo3::exceptions::PyAttributeError>(obj.py()) => Ok(false),
+        Err(e) => Err(e),
     }
 }
 
@@ -258,12 +268,34 @@ fn backend_name(obj: &Bound<'_, PyAny>, keyword: &str, class: &str) -> PyResult<
             "{keyword}=: the {class} object's name is empty: give it a name for reports and compare rows"
         )));
     }
-    if name.parse::<SpdKind>().is_ok() {
+    if name.trim() != name || name.chars().any(is_invisible) {
         return Err(input(format!(
-            "{keyword}=: the {class} object's name '{name}' is a back end of the catalogue: give it a name of its own"
+            "{keyword}=: the {class} object's name {name:?} has surrounding white space or an invisible character: give it a name that reads as what it is"
+        )));
+    }
+    let word = name.to_lowercase();
+    if word.parse::<SpdKind>().is_ok()
+        || word.parse::<LdltKind>().is_ok()
+        || word.parse::<QrKind>().is_ok()
+    {
+        return Err(input(format!(
+            "{keyword}=: the {class} object's name '{name}' is a back end of the catalogue (in any letter case): give it a name of its own"
         )));
     }
     Ok(name)
+}
+
+/// A control character, or an invisible format character a name could
+/// hide behind: soft hyphen, Mongolian vowel separator, zero-width space,
+/// joiners and direction marks (U+200B–U+200F), the bidirectional
+/// embeddings (U+202A–U+202E), word joiner and invisible operators
+/// (U+2060–U+2064), the byte-order mark (U+FEFF).
+fn is_invisible(c: char) -> bool {
+    c.is_control()
+        || matches!(
+            c,
+            '\u{ad}' | '\u{180e}' | '\u{200b}'..='\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2060}'..='\u{2064}' | '\u{feff}'
+        )
 }
 
 impl Shared {
@@ -353,7 +385,11 @@ impl Shared {
         if r.is_none() {
             return Ok(None);
         }
-        if has_member(&r, "solve") {
+        let solves = has_member(&r, "solve").map_err(|e| {
+            let what = format!("returned a factor object whose solve could not be read ({e})");
+            self.fail(py, "factorize(lower)", what, Cause::Raised(e))
+        })?;
+        if solves {
             return Ok(Some(r.unbind()));
         }
         let kind = r.get_type().name().map(|n| n.to_string());

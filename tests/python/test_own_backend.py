@@ -341,8 +341,20 @@ class Named(SpluSolver):
         (Named(3), InputError, "name must be a str, got a int"),
         (Named(""), InputError, "name is empty"),
         (Named("faer-auto"), InputError, "is a back end of the catalogue"),
+        # Words of the other seams, another letter case, and look-alikes
+        # (all accepted on aa82d57).
+        (Named("mumps-ldlt"), InputError, "is a back end of the catalogue"),
+        (Named("faer-ldlt-auto"), InputError, "is a back end of the catalogue"),
+        (Named("sparse-givens"), InputError, "is a back end of the catalogue"),
+        (Named("FAER-AUTO"), InputError, "is a back end of the catalogue"),
+        (Named("faer-auto "), InputError, "surrounding white space or an invisible character"),
+        (Named("faer-auto\u200b"), InputError, "surrounding white space or an invisible character"),
+        (Named("my\tsolver"), InputError, "surrounding white space or an invisible character"),
     ],
-    ids=["object", "name-int", "name-empty", "name-builtin"],
+    ids=[
+        "object", "name-int", "name-empty", "name-builtin", "name-ldlt", "name-ldlt-auto",
+        "name-qr", "name-upper-case", "name-trailing-space", "name-zero-width", "name-tab",
+    ],
 )
 def test_not_a_back_end_is_refused_before_any_work(obj, cls, words):
     V, F, c = scene()
@@ -354,3 +366,34 @@ def test_factor_and_spd_both_given_with_an_object_is_an_input_error():
     V, F, c = scene()
     with pytest.raises(InputError, match="factor= .* and spd="):
         lse_deform.deform(V, F, c, factor=SpluSolver(), spd="faer-auto")
+
+
+class RaisingName(SpluSolver):
+    """A back end whose name property raises `error`."""
+
+    def __init__(self, error):
+        super().__init__()
+        self.error = error
+
+    @property
+    def name(self):
+        raise self.error
+
+
+def test_a_name_that_raises_is_that_error_not_a_missing_attribute():
+    """A `name` getter that raises is the caller's error as raised (on
+    aa82d57: "has no attribute 'name'", and a KeyboardInterrupt raised
+    there was swallowed the same way)."""
+    V, F, c = scene()
+    with pytest.raises(ValueError, match="no name today"):
+        lse_deform.deform(V, F, c, factor=RaisingName(ValueError("no name today")))
+    with pytest.raises(KeyboardInterrupt):
+        lse_deform.deform(V, F, c, factor=RaisingName(KeyboardInterrupt()))
+
+
+def test_a_name_of_its_own_is_accepted():
+    """The refusals above leave ordinary names alone: one with a hyphen,
+    capitals and a digit is the report's factor_backend as given."""
+    V, F, c = scene()
+    _, report = lse_deform.deform(V, F, c, factor=Named("My-SPLU-2"))
+    assert report["factor_backend"] == "My-SPLU-2"
