@@ -252,6 +252,16 @@ pub enum MeshError {
     },
 }
 
+/// At most the first 80 characters of `text` (from a user's file), with
+/// `…` where it was cut: what an error quotes of an input, so that a
+/// 20 MB word makes a one-line message, not a 20 MB one.
+pub(crate) fn excerpt(text: &str) -> String {
+    match text.char_indices().nth(80) {
+        Some((i, _)) => format!("{}…", &text[..i]),
+        None => text.to_string(),
+    }
+}
+
 /// A length or an area for a message: `{:e}`, or "beyond the largest
 /// double" when it is infinite.
 fn show_magnitude(x: f64) -> String {

@@ -260,7 +260,7 @@ fn parse_banner(header: &str) -> Result<Banner, String> {
     if fields.len() != 5 || fields[0] != "%%matrixmarket" || fields[1] != "matrix" {
         return Err(format!(
             "expected the header '%%MatrixMarket matrix FORMAT FIELD SYMMETRY', found '{}'",
-            truncate(header)
+            crate::error::excerpt(header)
         ));
     }
     let sparse = match fields[2] {
@@ -320,7 +320,7 @@ fn parse_size_line(size: &str, banner: &Banner) -> Result<MatrixHeader, String> 
             } else {
                 "rows cols"
             },
-            truncate(size)
+            crate::error::excerpt(size)
         )
     })?;
     if dims.len() != if sparse { 3 } else { 2 } {
@@ -453,13 +453,6 @@ pub fn read_system(
     Ok((ma, mc, mb, md))
 }
 
-fn truncate(s: &str) -> String {
-    match s.char_indices().nth(80) {
-        Some((i, _)) => format!("{}…", &s[..i]),
-        None => s.to_string(),
-    }
-}
-
 /// Non-negative integers separated by whitespace, or `None`.
 fn parse_counts(s: &str) -> Option<Vec<usize>> {
     s.split_whitespace()
@@ -534,7 +527,7 @@ fn parse_entry(
             "expected '{}', found {} item(s): '{}'",
             if pattern { "row col" } else { "row col value" },
             tokens.len(),
-            truncate(text)
+            crate::error::excerpt(text)
         ));
     }
     let index = |t: &str, what: &str, max: usize| -> Result<usize, String> {
@@ -542,7 +535,7 @@ fn parse_entry(
             Ok(i) if (1..=max).contains(&i) => Ok(i - 1),
             _ => Err(format!(
                 "{what} index '{}' is not in 1..={max}",
-                truncate(t)
+                crate::error::excerpt(t)
             )),
         }
     };
@@ -649,8 +642,11 @@ fn read_array(
 fn parse_value(t: &str) -> Result<f64, String> {
     match t.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        Ok(_) => Err(format!("value '{}' is not finite", truncate(t))),
-        Err(_) => Err(format!("'{}' is not a number", truncate(t))),
+        Ok(_) => Err(format!(
+            "value '{}' is not finite",
+            crate::error::excerpt(t)
+        )),
+        Err(_) => Err(format!("'{}' is not a number", crate::error::excerpt(t))),
     }
 }
 

@@ -95,7 +95,10 @@ pub(crate) fn parse_ordering(text: &str) -> Result<Vec<usize>, String> {
         .iter()
         .map(|&(line, word)| {
             word.parse::<usize>().map_err(|_| {
-                format!("line {line}: {word:?} is not an index (a non-negative integer)")
+                format!(
+                    "line {line}: {:?} is not an index (a non-negative integer)",
+                    crate::error::excerpt(word)
+                )
             })
         })
         .collect()
@@ -131,7 +134,8 @@ fn strip_brackets(words: &mut Vec<(usize, &str)>) -> Result<(), String> {
     }
     match words.iter().find(|(_, w)| w.contains(['[', ']'])) {
         Some((line, word)) => Err(format!(
-            "line {line}: {word:?} is not an index (brackets only around the whole list)"
+            "line {line}: {:?} is not an index (brackets only around the whole list)",
+            crate::error::excerpt(word)
         )),
         None => Ok(()),
     }
@@ -167,6 +171,18 @@ mod tests {
         assert!(e.contains("[1]"), "{e}");
         assert!(parse_ordering("# nothing\n").is_err());
         assert!(parse_ordering("[]").is_err());
+    }
+
+    /// A huge word is quoted by its first 80 characters and `…`: a 20 MB
+    /// word gave a 20 MB one-line error on aa82d57.
+    #[test]
+    fn a_huge_word_is_quoted_by_its_beginning() {
+        let word = "x".repeat(20 << 20);
+        let e = parse_ordering(&format!("0 {word} 2")).unwrap_err();
+        assert!(e.len() < 200, "{} bytes", e.len());
+        assert!(e.contains(&format!("\"{}…\"", "x".repeat(80))), "{e}");
+        let e = parse_ordering(&format!("0 [{word}] 2")).unwrap_err();
+        assert!(e.len() < 200 && e.contains("brackets"), "{} bytes", e.len());
     }
 
     #[test]
