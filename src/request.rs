@@ -45,6 +45,9 @@ pub enum RequestOption {
     Weight,
     /// The QR back end (the null-space method only).
     Qr,
+    /// The condition estimate (the Laplacian energy only: ARAP's matrix
+    /// is the cotangent Laplacian's, estimated with `--energy laplacian`).
+    Condition,
 }
 
 /// Which options a door was given (a default is not "given"): what
@@ -100,7 +103,8 @@ pub struct Request {
 
 impl Request {
     /// The options given that this request does not use, in a fixed order
-    /// (the ARAP options, the Laplacian, the weight, the QR back end).
+    /// (the ARAP options, the Laplacian, the condition estimate, the
+    /// weight, the QR back end).
     pub fn inapplicable(&self) -> Vec<Inapplicable> {
         let o = &self.options;
         let g = &self.given;
@@ -121,13 +125,23 @@ impl Request {
                     });
                 }
             }
-        } else if g.laplacian {
-            out.push(Inapplicable {
-                option: RequestOption::Laplacian,
-                applies_to: ("energy", "laplacian"),
-                chosen: ("energy", Energy::Arap.to_string()),
-                note: Some("cotangent weights"),
-            });
+        } else {
+            if g.laplacian {
+                out.push(Inapplicable {
+                    option: RequestOption::Laplacian,
+                    applies_to: ("energy", "laplacian"),
+                    chosen: ("energy", Energy::Arap.to_string()),
+                    note: Some("cotangent weights"),
+                });
+            }
+            if self.condition {
+                out.push(Inapplicable {
+                    option: RequestOption::Condition,
+                    applies_to: ("energy", "laplacian"),
+                    chosen: ("energy", Energy::Arap.to_string()),
+                    note: None,
+                });
+            }
         }
         let method = o.solve.formulation.method;
         if o.solve.formulation.weight.is_some() && method != Method::Penalty {

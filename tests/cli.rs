@@ -735,7 +735,8 @@ fn a_conflict_warns_once_and_with_strict_exits_2() {
 /// Options the chosen method or energy does not use are said to be
 /// ignored, never silently: `--weight` without penalty, `--qr` with a
 /// method other than nullspace-qr, the ARAP options without `--energy
-/// arap`, `--laplacian` with it; the run itself goes on and is the same as
+/// arap`, `--laplacian` and `--condition` with it (`--condition` was
+/// ignored silently on aa82d57); the run itself goes on and is the same as
 /// without them. Options that apply draw no such warning.
 #[test]
 fn options_that_do_not_apply_are_warned_about() {
@@ -777,6 +778,10 @@ fn options_that_do_not_apply_are_warned_about() {
         (
             &["--energy", "arap", "--laplacian", "uniform"][..],
             "--laplacian applies to --energy laplacian only",
+        ),
+        (
+            &["--energy", "arap", "--condition"][..],
+            "--condition applies to --energy laplacian only; ignored with --energy arap",
         ),
     ] {
         let (err, written) = deform(extra);

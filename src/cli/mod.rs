@@ -251,6 +251,7 @@ pub(crate) fn inapplicable_words(i: &Inapplicable) -> String {
         RequestOption::ArapInit => "--arap-init",
         RequestOption::Weight => "--weight",
         RequestOption::Qr => "--qr",
+        RequestOption::Condition => "--condition",
     };
     let note = i.note.map(|n| format!(" ({n})")).unwrap_or_default();
     format!(

@@ -467,6 +467,7 @@ fn warn_inapplicable(py: Python<'_>, request: &Request) -> PyResult<()> {
             RequestOption::ArapInit => "arap_init",
             RequestOption::Weight => "weight",
             RequestOption::Qr => "qr",
+            RequestOption::Condition => "condition",
         };
         let note = i.note.map(|n| format!(" ({n})")).unwrap_or_default();
         warn::<PyRuntimeWarning>(
