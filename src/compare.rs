@@ -394,7 +394,8 @@ pub fn compare(
 /// weights are not used). `progress` is told each configuration before it
 /// runs.
 ///
-/// Errors: [`ProblemError::InvalidArgument`] for an empty list; the
+/// Errors: [`ProblemError::InvalidArgument`] for an empty list or a given
+/// ordering that is not a permutation of the problem's unknowns; the
 /// reference's errors; an interruption. A configuration's own failure is
 /// its row's status.
 pub fn compare_configurations(
@@ -409,6 +410,12 @@ pub fn compare_configurations(
         }
         .into());
     }
+    // An ordering of the wrong unknowns is the comparison's input error
+    // (as for deform), not every row's.
+    options
+        .resources
+        .ordering
+        .check_unknowns(deformer.problem().n())?;
     let reference = reference(deformer)?;
     let mut rows = Vec::with_capacity(configs.len());
     for config in configs {

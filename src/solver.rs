@@ -153,6 +153,7 @@ fn factor(
     resources: &Resources,
 ) -> Result<Factored, Error> {
     crate::interrupt::check()?;
+    resources.ordering.check_unknowns(problem.n())?;
     let Precomputed { system, record } = formulation
         .precompute_with(problem, resources)
         .map_err(|e| name_free_unknown(e, problem))?;

@@ -1234,3 +1234,93 @@ fn an_ordering_file_is_given_to_the_back_end() {
             .starts_with("# the identity")
     );
 }
+
+/// Every door refuses an ordering file that is not a permutation of the
+/// mesh's vertices the same way, exit 2 naming it: `compare` too (on
+/// aa82d57 it exited 0 with every row "error (input)"), and every method
+/// when every vertex is fixed, so that nothing is factored (on aa82d57
+/// nullspace-qr and eliminate accepted a wrong-length ordering there,
+/// kkt and penalty refused it).
+#[test]
+fn an_ordering_of_the_wrong_unknowns_is_refused_by_every_door_and_method() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (mesh, scene) = grid_and_default_scene(d, 900);
+    let n = read_mesh(
+        Path::new(&mesh),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh
+    .n_vertices();
+    let short = path_in(d, "short.txt");
+    let words: Vec<String> = (0..n - 1).map(|i| i.to_string()).collect();
+    std::fs::write(&short, words.join("\n")).unwrap();
+    let json = path_in(d, "rows.json");
+    let o = run(&[
+        "compare",
+        &mesh,
+        "-c",
+        &scene,
+        "--methods",
+        "nullspace-qr,kkt",
+        "--repeat",
+        "1",
+        "--no-condition",
+        "--json",
+        &json,
+        "--ordering-file",
+        &short,
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(&format!("the problem has {n} unknowns")),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!Path::new(&json).exists());
+    // Every vertex fixed where it is.
+    let fixed = path_in(d, "fixed.json");
+    let m = read_mesh(
+        Path::new(&mesh),
+        lse_deform::limits::MemoryBudget::default(),
+    )
+    .unwrap()
+    .mesh;
+    let items: Vec<serde_json::Value> = m
+        .positions()
+        .iter()
+        .enumerate()
+        .map(|(v, p)| serde_json::json!({"type": "position", "vertex": v, "target": p}))
+        .collect();
+    std::fs::write(
+        &fixed,
+        serde_json::json!({ "constraints": items }).to_string(),
+    )
+    .unwrap();
+    let out = path_in(d, "out.obj");
+    for method in ["nullspace-qr", "eliminate", "kkt", "penalty"] {
+        let mut args = vec![
+            "deform",
+            &mesh,
+            "-c",
+            &fixed,
+            "-o",
+            &out,
+            "--method",
+            method,
+            "--ordering-file",
+            &short,
+        ];
+        if method == "penalty" {
+            args.extend(["--weight", "1e4"]);
+        }
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(2), "{method}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("the problem has {n} unknowns")),
+            "{method}: {}",
+            stderr(&o)
+        );
+    }
+}

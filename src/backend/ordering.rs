@@ -63,7 +63,10 @@ impl FactorPlan {
             FillOrdering::Natural => Some((0..n).collect()),
             FillOrdering::Amd => Some(amd_permutation(lower)?),
             FillOrdering::Metis => Some(metis_permutation(lower)?),
-            FillOrdering::Given(order) => Some(induced(order, n_original, n, original_of)?),
+            FillOrdering::Given(order) => {
+                ordering.check_unknowns(n_original)?;
+                Some(induced(order, n_original, n, original_of))
+            }
         };
         Ok(FactorPlan {
             permutation: permutation.map(Arc::from),
@@ -160,32 +163,22 @@ fn metis_permutation(
     ))
 }
 
-/// The order `order` (a permutation of `0..n_original`) induces on the
-/// `n` unknowns of a matrix whose unknown `k` is `original_of(k)`.
+/// The order `order` (a permutation of `0..n_original`, checked by
+/// [`FillOrdering::check_unknowns`]) induces on the `n` unknowns of a
+/// matrix whose unknown `k` is `original_of(k)`.
 fn induced(
     order: &[usize],
     n_original: usize,
     n: usize,
     original_of: &dyn Fn(usize) -> usize,
-) -> Result<Vec<usize>, ProblemError> {
-    if order.len() != n_original {
-        return Err(invalid(format!(
-            "the given ordering has {} entries; the problem has {n_original} unknowns",
-            order.len()
-        )));
-    }
+) -> Vec<usize> {
     let mut position = vec![usize::MAX; n_original];
     for (i, &unknown) in order.iter().enumerate() {
-        if unknown >= n_original || position[unknown] != usize::MAX {
-            return Err(invalid(format!(
-                "the given ordering is not a permutation of 0..{n_original}: entry {i} is {unknown}"
-            )));
-        }
         position[unknown] = i;
     }
     let mut local: Vec<usize> = (0..n).collect();
     local.sort_by_key(|&k| position[original_of(k)]);
-    Ok(local)
+    local
 }
 
 /// The inverse of `perm` (`inverse[perm[i]] = i`).

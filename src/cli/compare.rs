@@ -116,24 +116,22 @@ pub(crate) fn compare(a: CompareArgs) -> Result<(), Error> {
     }
     show_after_a_second(&bar);
     bar.set_message("reference (nullspace-qr, refined)");
-    let reference = compare::reference(&mut deformer)?;
+    let configs: Vec<compare::Configuration> = configs
+        .into_iter()
+        .map(compare::Configuration::new)
+        .collect();
+    // The bar moves on as each configuration starts (the reference, then
+    // each row before it, is done) and once more at the end.
+    let (reference, mut rows) =
+        compare::compare_configurations(&mut deformer, &configs, &options, &mut |config| {
+            bar.inc(1);
+            bar.set_message(config.label.clone());
+        })?;
+    bar.inc(1);
     if let Some(e) = reference.forward_error_estimate.filter(|&e| e > 1e-12) {
         eprintln!(
             "warning: the reference solution (nullspace-qr, refined) has an estimated forward error of {e:.1e}: differences below it are not resolved"
         );
-    }
-    bar.inc(1);
-    let mut rows = Vec::new();
-    for choice in configs {
-        let config = compare::Configuration::new(choice);
-        bar.set_message(config.label.clone());
-        rows.push(compare::run_one(
-            &mut deformer,
-            &config,
-            &options,
-            &reference,
-        ));
-        bar.inc(1);
     }
     bar.finish_and_clear();
     print_compare_table(&rows);

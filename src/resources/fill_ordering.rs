@@ -7,6 +7,7 @@
 use std::sync::Arc;
 
 use crate::choice::Word;
+use crate::error::ProblemError;
 
 /// The fill-reducing ordering of a sparse factorisation: which unknown is
 /// eliminated when. Fill (the factor's entries) and the factorisation's
@@ -93,5 +94,31 @@ impl FillOrdering {
             FillOrdering::Natural => "natural",
             FillOrdering::Given(_) => "given",
         }
+    }
+
+    /// A given ordering checked against a problem of `n` unknowns: `n`
+    /// entries, each of `0..n` once. Checked before any precompute, so
+    /// that every method refuses the same orderings, also one that factors
+    /// nothing (every unknown fixed). The other orderings pass.
+    pub(crate) fn check_unknowns(&self, n: usize) -> Result<(), ProblemError> {
+        let FillOrdering::Given(order) = self else {
+            return Ok(());
+        };
+        let invalid = |message| ProblemError::InvalidArgument { message };
+        if order.len() != n {
+            return Err(invalid(format!(
+                "the given ordering has {} entries; the problem has {n} unknowns",
+                order.len()
+            )));
+        }
+        let mut seen = vec![false; n];
+        for (i, &unknown) in order.iter().enumerate() {
+            if unknown >= n || std::mem::replace(&mut seen[unknown], true) {
+                return Err(invalid(format!(
+                    "the given ordering is not a permutation of 0..{n}: entry {i} is {unknown}"
+                )));
+            }
+        }
+        Ok(())
     }
 }
