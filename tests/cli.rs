@@ -1246,13 +1246,13 @@ fn an_ordering_of_the_wrong_unknowns_is_refused_by_every_door_and_method() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (mesh, scene) = grid_and_default_scene(d, 900);
-    let n = read_mesh(
+    let m = read_mesh(
         Path::new(&mesh),
         lse_deform::limits::MemoryBudget::default(),
     )
     .unwrap()
-    .mesh
-    .n_vertices();
+    .mesh;
+    let n = m.n_vertices();
     let short = path_in(d, "short.txt");
     let words: Vec<String> = (0..n - 1).map(|i| i.to_string()).collect();
     std::fs::write(&short, words.join("\n")).unwrap();
@@ -1281,12 +1281,6 @@ fn an_ordering_of_the_wrong_unknowns_is_refused_by_every_door_and_method() {
     assert!(!Path::new(&json).exists());
     // Every vertex fixed where it is.
     let fixed = path_in(d, "fixed.json");
-    let m = read_mesh(
-        Path::new(&mesh),
-        lse_deform::limits::MemoryBudget::default(),
-    )
-    .unwrap()
-    .mesh;
     let items: Vec<serde_json::Value> = m
         .positions()
         .iter()
