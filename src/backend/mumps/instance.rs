@@ -141,11 +141,11 @@ impl Mumps {
     }
 
     pub(crate) fn create(world: &SimpleCommunicator, setup: &Setup) -> Result<Mumps, Failure> {
-        let rank = world.rank();
+        let job = scratch_job(world);
         let scratch = setup
             .out_of_core
             .as_ref()
-            .map(|parent| ScratchDir::create(path_of(parent), rank));
+            .map(|parent| ScratchDir::create(path_of(parent), job));
         let local = match &scratch {
             Some(Err(e)) => Err(e.clone()),
             _ => Ok(()),
@@ -326,8 +326,18 @@ pub fn serve(world: &SimpleCommunicator) -> u8 {
 /// in it ([`scratch::probe`]); the first rank that cannot says why, on
 /// every rank.
 pub(crate) fn probe_directory(world: &SimpleCommunicator, dir: &[u8]) -> Result<(), Failure> {
-    let local = scratch::probe(path_of(dir), world.rank());
+    let local = scratch::probe(path_of(dir), scratch_job(world));
     agree(world, local).map_err(Failure::Directory)
+}
+
+/// Collective: this rank's place in the job whose scratch directories are
+/// made now (one token, drawn by rank 0, names them all).
+fn scratch_job(world: &SimpleCommunicator) -> scratch::Job {
+    scratch::Job {
+        token: ranks::shared_random(world),
+        rank: world.rank(),
+        ranks: world.size(),
+    }
 }
 
 /// Rank 0: sends `command` to the other ranks (nothing to do alone).

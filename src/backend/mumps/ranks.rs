@@ -158,6 +158,19 @@ pub(crate) fn broadcast_from_root(world: &SimpleCommunicator, bytes: &mut Vec<u8
     }
 }
 
+/// Collective: a random number drawn by rank 0, the same on every rank.
+pub(crate) fn shared_random(world: &SimpleCommunicator) -> u32 {
+    let mut bytes = if world.rank() == 0 {
+        rand::random::<u32>().to_le_bytes().to_vec()
+    } else {
+        Vec::new()
+    };
+    broadcast_from_root(world, &mut bytes);
+    let mut word = [0u8; 4];
+    word.iter_mut().zip(&bytes).for_each(|(w, b)| *w = *b);
+    u32::from_le_bytes(word)
+}
+
 /// Collective: every rank passes its own outcome of a step; all return
 /// `Ok` when every rank succeeded, otherwise the same error on every rank:
 /// the message of the lowest failing rank, naming that rank.
