@@ -24,7 +24,8 @@
 //!
 //! A read is whole or refused. A regular file's size is checked against
 //! the budget first, at [`ORDERING_BYTES_PER_FILE_BYTE`] per byte (its
-//! text, and at most one 8-byte index per two bytes of it); a stream (a
+//! text, and at most one 8-byte index per two bytes of it) on top of what
+//! the process already holds; a stream (a
 //! pipe, a device) is read up to the size that allows, and one that
 //! reaches it is refused, whatever its first part holds.
 
@@ -38,7 +39,10 @@ use crate::limits::MemoryBudget;
 
 /// Bytes of memory per byte of an ordering file: the text (1) and the
 /// indices (8 bytes per index; an index with its separator takes at least
-/// two bytes of text, so at most 4 per byte).
+/// two bytes of text, so at most 4 per byte). The reader holds nothing
+/// else that grows with the file: the indices are counted first and
+/// written into one allocation of exactly that many
+/// ([`parse_ordering`]).
 pub const ORDERING_BYTES_PER_FILE_BYTE: u64 = 5;
 
 fn invalid(message: String) -> Error {
@@ -52,8 +56,22 @@ pub fn read_ordering_file(path: &Path, budget: MemoryBudget) -> Result<FillOrder
     let file = crate::input::open_input(path).map_err(io)?;
     let per_byte = ORDERING_BYTES_PER_FILE_BYTE;
     let name = format!("the ordering file {}", path.display());
-    let cap = crate::limits::file_read_cap(&file, &name, budget, per_byte)
-        .map_err(|detail| ProblemError::TooLarge { detail })?;
+    let too_large = |detail| ProblemError::TooLarge { detail };
+    let cap = crate::limits::file_read_cap(&file, &name, budget, per_byte).map_err(too_large)?;
+    if let Some(size) = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len())
+    {
+        // What the process already holds counts too (the budget is of the
+        // whole run).
+        budget
+            .check_on_top(size.saturating_mul(per_byte), || {
+                format!("{name} ({}) would need", crate::limits::format_bytes(size))
+            })
+            .map_err(too_large)?;
+    }
     let mut bytes = Vec::new();
     file.take(cap.saturating_add(1))
         .read_to_end(&mut bytes)
@@ -71,74 +89,84 @@ pub fn read_ordering_file(path: &Path, budget: MemoryBudget) -> Result<FillOrder
     })?;
     let order = parse_ordering(&text)
         .map_err(|message| invalid(format!("the ordering file {}: {message}", path.display())))?;
-    Ok(FillOrdering::Given(Arc::from(order)))
+    Ok(FillOrdering::Given(order))
+}
+
+/// The words of an ordering file's text with their lines (1-based):
+/// separated by whitespace and commas, `#` comments removed.
+fn words(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines().enumerate().flat_map(|(i, line)| {
+        let code = line.split('#').next().unwrap_or("");
+        code.split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|w| !w.is_empty())
+            .map(move |w| (i + 1, w))
+    })
 }
 
 /// The indices of an ordering file's text ([module docs](self)), or what
-/// is wrong and on which line (1-based).
-pub(crate) fn parse_ordering(text: &str) -> Result<Vec<usize>, String> {
+/// is wrong and on which line (1-based). Two passes over the text: the
+/// first counts the words, the second parses them into one allocation of
+/// that length (8 bytes per word, beside the text; nothing per word
+/// besides).
+pub(crate) fn parse_ordering(text: &str) -> Result<Arc<[usize]>, String> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut words: Vec<(usize, &str)> = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let code = line.split('#').next().unwrap_or("");
-        words.extend(
-            code.split(|c: char| c.is_whitespace() || c == ',')
-                .filter(|w| !w.is_empty())
-                .map(|w| (i + 1, w)),
-        );
+    let count = words(text).count();
+    let bracketed = words(text).next().is_some_and(|(_, w)| w.starts_with('['));
+    let mut order: Arc<[usize]> = std::iter::repeat_n(0, count).collect();
+    let slots = Arc::get_mut(&mut order).ok_or("the ordering is shared")?;
+    let mut filled = 0;
+    for (place, (line, word)) in words(text).enumerate() {
+        let Some(word) = unbracketed(word, line, bracketed, place, count)? else {
+            continue;
+        };
+        slots[filled] = word.parse::<usize>().map_err(|_| {
+            format!(
+                "line {line}: {:?} is not an index (a non-negative integer)",
+                crate::error::excerpt(word)
+            )
+        })?;
+        filled += 1;
     }
-    strip_brackets(&mut words)?;
-    if words.is_empty() {
+    if filled == 0 {
         return Err("no index: an ordering lists every unknown once".into());
     }
-    words
-        .iter()
-        .map(|&(line, word)| {
-            word.parse::<usize>().map_err(|_| {
-                format!(
-                    "line {line}: {:?} is not an index (a non-negative integer)",
-                    crate::error::excerpt(word)
-                )
-            })
-        })
-        .collect()
+    Ok(if filled == count {
+        order
+    } else {
+        Arc::from(&order[..filled])
+    })
 }
 
-/// Removes one pair of brackets around the whole list (a JSON array),
-/// written apart from or against the first and last entries; a bracket
-/// anywhere else is an error naming its line.
-fn strip_brackets(words: &mut Vec<(usize, &str)>) -> Result<(), String> {
-    let opens = words.first().is_some_and(|(_, w)| w.starts_with('['));
-    if opens {
-        let (line, first) = words[0];
-        match first.strip_prefix('[').filter(|rest| !rest.is_empty()) {
-            Some(rest) => words[0] = (line, rest),
-            None => {
-                words.remove(0);
-            }
-        }
-        let closes = words.last().is_some_and(|(_, w)| w.ends_with(']'));
-        if !closes {
-            return Err(format!(
-                "line {line}: a list that opens with '[' must close with ']' after its last index"
-            ));
-        }
-        let last = words.len() - 1;
-        let (line, word) = words[last];
-        match word.strip_suffix(']').filter(|rest| !rest.is_empty()) {
-            Some(rest) => words[last] = (line, rest),
-            None => {
-                words.pop();
-            }
-        }
+/// The word at `place` of `count` with one pair of brackets around the
+/// whole list removed (a JSON array; `bracketed`: the first word opens
+/// with `[`), written apart from (`None`: nothing is left) or against the
+/// first and last entries; a bracket anywhere else is an error naming its
+/// line.
+fn unbracketed(
+    word: &str,
+    line: usize,
+    bracketed: bool,
+    place: usize,
+    count: usize,
+) -> Result<Option<&str>, String> {
+    let mut rest = word;
+    if bracketed && place == 0 {
+        rest = &rest[1..];
     }
-    match words.iter().find(|(_, w)| w.contains(['[', ']'])) {
-        Some((line, word)) => Err(format!(
+    if bracketed && place + 1 == count {
+        rest = rest.strip_suffix(']').ok_or_else(|| {
+            format!(
+                "line {line}: a list that opens with '[' must close with ']' after its last index"
+            )
+        })?;
+    }
+    if rest.contains(['[', ']']) {
+        return Err(format!(
             "line {line}: {:?} is not an index (brackets only around the whole list)",
             crate::error::excerpt(word)
-        )),
-        None => Ok(()),
+        ));
     }
+    Ok(Some(rest).filter(|r| !r.is_empty()))
 }
 
 #[cfg(test)]
@@ -155,7 +183,11 @@ mod tests {
             "[ 3,0,\n 2 , 1 ]\n",
             "\u{feff}# from METIS\n3 0  # first two\n2\t1\n",
         ] {
-            assert_eq!(parse_ordering(text), Ok(expected.clone()), "{text:?}");
+            assert_eq!(
+                parse_ordering(text).map(|o| o.to_vec()),
+                Ok(expected.clone()),
+                "{text:?}"
+            );
         }
     }
 
