@@ -230,7 +230,7 @@ mod tests {
             matches!(refused, Error::Problem(ProblemError::TooLarge { .. })),
             "{refused}"
         );
-        let read = read_ordering_file(&path, MemoryBudget::bytes(1 << 20)).unwrap();
+        let read = read_ordering_file(&path, MemoryBudget::bytes(1 << 30)).unwrap();
         match read {
             FillOrdering::Given(order) => assert_eq!(&order[..], &(0..1000).collect::<Vec<_>>()),
             other => panic!("{other:?}"),
