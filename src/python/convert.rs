@@ -197,31 +197,42 @@ pub(crate) fn rows3(
     Ok(out)
 }
 
-/// An integer array's entries in row-major order with its (rows, columns)
-/// shape, widened to `i128` so that int64 and uint64 read alike.
-fn index_entries(
-    obj: &Bound<'_, PyAny>,
+/// An integer array as int64 or uint64 (numpy's conversion, no copy when
+/// it is one already) with its (rows, columns) shape.
+fn index_array<'py>(
+    obj: &Bound<'py, PyAny>,
     name: &str,
     columns: Option<usize>,
     column_ok: bool,
-    budget: MemoryBudget,
-) -> PyResult<((usize, usize), Vec<i128>)> {
+) -> PyResult<(Bound<'py, PyUntypedArray>, (usize, usize))> {
     let array = numeric_array(obj, name, Kind::Index)?;
     let shape = shape_2d(&array, name, columns, column_ok)?;
+    Ok((array, shape))
+}
+
+/// `f(k, v)` for the entries of an [`index_array`] in row-major order (`k`
+/// the entry's place in that order), widened to `i128` so that int64 and
+/// uint64 read alike; stops at `f`'s first error. Reads the array in place:
+/// no copy of the entries is made here (the caller keeps what it needs).
+fn for_each_index(
+    array: &Bound<'_, PyUntypedArray>,
+    mut f: impl FnMut(usize, i128) -> PyResult<()>,
+) -> PyResult<()> {
     let unsigned = array.dtype().kind() == b'u';
-    let mut values: Vec<i128> = vec_for(shape.0.saturating_mul(shape.1), budget, || {
-        format!("the {} × {} index array {name}", shape.0, shape.1)
-    })?;
     macro_rules! read {
         ($t:ty) => {{
             if array.ndim() == 1 {
                 let typed = array.cast::<PyArray1<$t>>()?.readonly();
-                values.extend(typed.as_array().iter().map(|&v| v as i128));
+                for (k, &v) in typed.as_array().iter().enumerate() {
+                    f(k, v as i128)?;
+                }
             } else {
                 let typed = array.cast::<PyArray2<$t>>()?.readonly();
                 // `iter` walks in logical (row-major) order whatever the
                 // memory order.
-                values.extend(typed.as_array().iter().map(|&v| v as i128));
+                for (k, &v) in typed.as_array().iter().enumerate() {
+                    f(k, v as i128)?;
+                }
             }
         }};
     }
@@ -230,7 +241,7 @@ fn index_entries(
     } else {
         read!(i64)
     }
-    Ok((shape, values))
+    Ok(())
 }
 
 /// A non-negative index as `usize`, or `None`.
@@ -246,25 +257,27 @@ pub(crate) fn faces(
     n_vertices: usize,
     budget: MemoryBudget,
 ) -> PyResult<Vec<[usize; 3]>> {
-    let ((rows, _), values) = index_entries(obj, "F", Some(3), false, budget)?;
+    let (array, (rows, _)) = index_array(obj, "F", Some(3), false)?;
     let mut faces = vec_for(rows, budget, || format!("the {rows} faces of F"))?;
-    for (face, chunk) in values.chunks_exact(3).enumerate() {
-        let mut f = [0usize; 3];
-        for (slot, &v) in f.iter_mut().zip(chunk) {
-            *slot = as_index(v).ok_or_else(|| {
-                super::errors::to_py(
-                    MeshError::IndexOutOfRange {
-                        face,
-                        index: i64::try_from(v).unwrap_or(i64::MIN),
-                        vertex_count: n_vertices,
-                        line: None,
-                    }
-                    .into(),
-                )
-            })?;
+    let mut f = [0usize; 3];
+    for_each_index(&array, |k, v| {
+        let (face, corner) = (k / 3, k % 3);
+        f[corner] = as_index(v).ok_or_else(|| {
+            super::errors::to_py(
+                MeshError::IndexOutOfRange {
+                    face,
+                    index: i64::try_from(v).unwrap_or(i64::MIN),
+                    vertex_count: n_vertices,
+                    line: None,
+                }
+                .into(),
+            )
+        })?;
+        if corner == 2 {
+            faces.push(f);
         }
-        faces.push(f);
-    }
+        Ok(())
+    })?;
     Ok(faces)
 }
 
@@ -274,22 +287,52 @@ pub(crate) fn indices(
     name: &str,
     budget: MemoryBudget,
 ) -> PyResult<Vec<usize>> {
-    let ((_, cols), values) = index_entries(obj, name, None, true, budget)?;
+    indices_with_copies(obj, name, budget, 1)
+}
+
+/// `ordering=`'s sequence of indices as the shared permutation
+/// [`FillOrdering::Given`](crate::resources::FillOrdering) holds: the
+/// vector [`indices`] reads and the shared copy made of it exist at once,
+/// so the budget counts both (8 bytes per entry each).
+pub(crate) fn ordering(
+    obj: &Bound<'_, PyAny>,
+    budget: MemoryBudget,
+) -> PyResult<std::sync::Arc<[usize]>> {
+    Ok(indices_with_copies(obj, "ordering", budget, 2)?.into())
+}
+
+/// [`indices`], with room for `copies` copies of the result counted
+/// against the budget (those the caller makes while this one lives).
+fn indices_with_copies(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    budget: MemoryBudget,
+    copies: usize,
+) -> PyResult<Vec<usize>> {
+    let (array, (rows, cols)) = index_array(obj, name, None, true)?;
     if cols != 1 {
         return Err(input(format!(
             "{name} must be a 1-D array of indices (or k × 1), got {cols} columns"
         )));
     }
-    let mut out = vec_for(values.len(), budget, || {
-        format!("the {} indices of {name}", values.len())
-    })?;
-    for (i, &v) in values.iter().enumerate() {
+    let what = || match copies {
+        1 => format!("the {rows} indices of {name}"),
+        c => format!("the {rows} indices of {name} ({c} copies at once)"),
+    };
+    check_budget(
+        &what,
+        bytes_of(rows, 8).saturating_mul(copies as u64),
+        budget,
+    )?;
+    let mut out = vec_for(rows, budget, what)?;
+    for_each_index(&array, |i, v| {
         out.push(as_index(v).ok_or_else(|| {
             input(format!(
                 "{name}[{i}] = {v} is not an index (indices are 0-based and ≥ 0)"
             ))
         })?);
-    }
+        Ok(())
+    })?;
     Ok(out)
 }
 

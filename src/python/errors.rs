@@ -20,12 +20,13 @@
 //! during a call raises `KeyboardInterrupt` (a `BaseException`, as Python
 //! raises it everywhere) at the library's next check ([`released`],
 //! [`crate::interrupt`]: after the numeric factorisation under way, if
-//! any).
+//! any); and so is a back-end object's own `KeyboardInterrupt` or
+//! `SystemExit` ([`stop_with`]), raised as it is by the call that called
+//! the object.
 
 use std::any::Any;
-use std::cell::Cell;
+use std::cell::RefCell;
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::rc::Rc;
 
 use pyo3::exceptions::{
     PyArithmeticError, PyKeyboardInterrupt, PyMemoryError, PyRuntimeError, PyTypeError,
@@ -208,24 +209,31 @@ pub(crate) fn guarded<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
 /// [`crate::interrupt::CONSULT_INTERVAL`]); the first exception a handler
 /// raises (`KeyboardInterrupt` for Ctrl-C) stops `f` at its next check and
 /// is raised here, whatever `f` returned. Python runs handlers on the main
-/// thread only: a call made from another thread is not interrupted.
+/// thread only: a call made from another thread is not interrupted by
+/// Ctrl-C. A back-end object's `KeyboardInterrupt` or `SystemExit`
+/// (own_backend.rs) stops the call the same way through [`stop_with`]: on
+/// the thread whose call it is, whichever thread that is.
 pub(crate) fn released<T, F>(py: Python<'_>, f: F) -> PyResult<T>
 where
     T: Send,
     F: FnOnce() -> Result<T, Error> + Send,
 {
     let (outcome, signalled) = py.detach(|| {
-        let signalled = Rc::new(Cell::new(None::<PyErr>));
-        let slot = signalled.clone();
-        let stop = move || match Python::attach(|py| py.check_signals()) {
-            Ok(()) => false,
-            Err(e) => {
-                slot.set(Some(e));
-                true
+        let _slot = StopSlot::push();
+        let stop = || {
+            if stopping() {
+                return true;
+            }
+            match Python::attach(|py| py.check_signals()) {
+                Ok(()) => false,
+                Err(e) => {
+                    stop_with(e);
+                    true
+                }
             }
         };
         let outcome = crate::interrupt::with_hook(stop, || catch_unwind(AssertUnwindSafe(f)));
-        (outcome, signalled.take())
+        (outcome, StopSlot::take())
     });
     if let Some(e) = signalled {
         return Err(e);
@@ -234,4 +242,64 @@ where
         Ok(result) => result.map_err(to_py),
         Err(payload) => Err(panic_to_py(payload)),
     }
+}
+
+thread_local! {
+    /// One slot per [`released`] call under way on this thread, innermost
+    /// last (an object's method may call the library again): the exception
+    /// that stops that call, once there is one.
+    static STOP: RefCell<Vec<Option<PyErr>>> = const { RefCell::new(Vec::new()) };
+}
+
+/// The slot of one [`released`] call, popped when the call ends (also by
+/// a panic).
+struct StopSlot;
+
+impl StopSlot {
+    fn push() -> StopSlot {
+        STOP.with(|s| s.borrow_mut().push(None));
+        StopSlot
+    }
+
+    /// The exception of the innermost call, taken.
+    fn take() -> Option<PyErr> {
+        STOP.with(|s| s.borrow_mut().last_mut().and_then(Option::take))
+    }
+}
+
+impl Drop for StopSlot {
+    fn drop(&mut self) {
+        STOP.with(|s| s.borrow_mut().pop());
+    }
+}
+
+/// Stops the innermost [`released`] call of this thread with `e` (its
+/// first such exception is kept): the library's next interruption check
+/// fails, and the call raises `e` whatever the library returned. `false`
+/// when this thread runs no such call (the caller then reports `e`
+/// itself).
+pub(crate) fn stop_with(e: PyErr) -> bool {
+    STOP.with(|s| match s.borrow_mut().last_mut() {
+        Some(slot) => {
+            if slot.is_none() {
+                *slot = Some(e);
+            }
+            true
+        }
+        None => false,
+    })
+}
+
+/// Whether the innermost [`released`] call of this thread is being
+/// stopped ([`stop_with`]).
+pub(crate) fn stopping() -> bool {
+    STOP.with(|s| s.borrow().last().is_some_and(Option::is_some))
+}
+
+/// Whether `e` stops a call rather than failing it: a `BaseException`
+/// that is not an `Exception` (`KeyboardInterrupt`, `SystemExit`,
+/// `GeneratorExit`), which Python code does not catch with
+/// `except Exception` either.
+pub(crate) fn is_stop(py: Python<'_>, e: &PyErr) -> bool {
+    !e.is_instance_of::<pyo3::exceptions::PyException>(py)
 }

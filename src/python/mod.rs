@@ -288,8 +288,7 @@ fn parse_ordering(
     if let Ok(word) = o.extract::<String>() {
         return Ok(option_word::<OrderingWord>(&word)?.into());
     }
-    let order = convert::indices(o, "ordering", budget)?;
-    Ok(FillOrdering::Given(order.into()))
+    Ok(FillOrdering::Given(convert::ordering(o, budget)?))
 }
 
 /// The `memory_limit` keyword: `None` (the default budget:
@@ -676,15 +675,32 @@ fn factor_list(
             "factor= (with objects) and spd= (its old name) were both given: give one",
         ));
     }
-    let choice = |f: &Bound<'_, PyAny>| match f.extract::<String>() {
-        Ok(w) => word::<SpdKind>("factor", &w).map(Into::into),
-        Err(_) => own_choice(f, "factor", objects),
-    };
-    factor
-        .iter()
-        .map(choice)
-        .collect::<PyResult<Vec<_>>>()
-        .map(Some)
+    // Each object once, and each object's name once: two rows under one
+    // label could not be told apart (and one object's rows would share
+    // its state).
+    let mut seen: Vec<(usize, *mut pyo3::ffi::PyObject, String)> = Vec::new();
+    let mut choices = Vec::with_capacity(factor.len());
+    for (i, f) in factor.iter().enumerate() {
+        if let Ok(w) = f.extract::<String>() {
+            choices.push(word::<SpdKind>("factor", &w)?.into());
+            continue;
+        }
+        if let Some((j, _, _)) = seen.iter().find(|(_, p, _)| *p == f.as_ptr()) {
+            return Err(input(format!(
+                "factor=[{i}] is the object of factor=[{j}] again: give each back-end object once (its rows would share one label)"
+            )));
+        }
+        let choice = own_choice(f, "factor", objects)?;
+        let name = choice.name().to_string();
+        if let Some((j, _, _)) = seen.iter().find(|(_, _, n)| *n == name) {
+            return Err(input(format!(
+                "factor=[{i}]'s name '{name}' is the name of factor=[{j}]: give each back-end object a name of its own (the name labels its rows)"
+            )));
+        }
+        seen.push((i, f.as_ptr(), name));
+        choices.push(choice);
+    }
+    Ok(Some(choices))
 }
 
 /// The Laplacian of `(V, F)` as a `scipy.sparse.csc_matrix` (n × n; the
@@ -818,6 +834,7 @@ impl PyDeformer {
                     changes: Changes::default(),
                 }),
                 objects,
+                owner: Default::default(),
             })
         })
     }

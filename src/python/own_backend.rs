@@ -33,16 +33,22 @@
 //! values, after `analyze` again when another pattern was analysed since —
 //! and the report counts it (`SpdFactor::refactorizations`). Calls into
 //! one object are serialised (a lock per object, taken without holding the
-//! GIL while waiting).
+//! GIL while waiting) and do not nest: a call back into the object from
+//! inside one of its own methods (on the thread that holds its lock, which
+//! would wait for itself) is refused at once — an `InputError` at the
+//! entry point when the object is given again, else the failure of the
+//! inner call's back end, an `InputError` there too.
 //!
 //! Errors: an object missing a member is an `InputError` naming it when it
 //! is given (`InputTypeError` when it has none: not a back end at all).
 //! During the work, an exception raised by the object becomes a
 //! [`NumericalError::Backend`] naming the object and the method; at the
 //! entry point ([`Objects::explain`]) it is raised as `NumericalError`
-//! with the object's exception as `__cause__` (a `KeyboardInterrupt` or
-//! another `BaseException` that is not an `Exception` is raised as it
-//! is). A return value of the wrong kind (not a float64 ndarray of shape
+//! with the object's exception as `__cause__`. A `KeyboardInterrupt`,
+//! `SystemExit` or another `BaseException` that is not an `Exception`
+//! stops the call instead (in `compare` too: no row is made of it): it is
+//! raised as it is, by the call of the thread that called the object, and
+//! the object is not called again by that call. A return value of the wrong kind (not a float64 ndarray of shape
 //! (n, k), a `factorize` result without `solve`) is an `InputError` (a
 //! malformed object); a non-finite value in a solution a `NumericalError`.
 
@@ -52,12 +58,12 @@ use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use faer::MatMut;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use numpy::{PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyException, PyKeyboardInterrupt};
+
 use pyo3::prelude::*;
 use pyo3::sync::MutexExt;
 
 use super::convert;
-use super::errors::{input, type_error};
+use super::errors::{input, is_stop, stop_with, stopping, type_error};
 use crate::backend::BackendName;
 use crate::backend::ldlt::LdltKind;
 use crate::backend::qr::QrKind;
@@ -72,7 +78,11 @@ const MEMBERS: [&str; 4] = ["name", "analyze", "factorize", "solve"];
 enum Cause {
     /// The object raised this exception.
     Raised(PyErr),
-    /// The object returned something the protocol does not allow.
+    /// The object raised an exception that stops the call
+    /// ([`stop_with`]), which the entry point raises.
+    Stopped,
+    /// The object returned something the protocol does not allow, or
+    /// was misused (called back from inside its own method).
     Malformed,
 }
 
@@ -97,8 +107,41 @@ struct Current {
 struct Held {
     /// Locked for every call into the object.
     current: Mutex<Current>,
+    /// The thread that holds `current` ([`this_thread`]; 0: none): a
+    /// call back into the object from inside one of its methods comes
+    /// from that thread, and waiting for the lock would wait for itself.
+    owner: AtomicU64,
     /// The ids of its analyses and factorisations.
     ids: AtomicU64,
+}
+
+/// A token of the calling thread, unique in the process (from 1; a
+/// thread's token is never reused).
+pub(crate) fn this_thread() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    thread_local! {
+        static TOKEN: u64 = NEXT.fetch_add(1, Ordering::Relaxed);
+    }
+    TOKEN.with(|t| *t)
+}
+
+/// `held.current` locked by this thread, `owner` set while it is.
+struct Entered<'a> {
+    current: MutexGuard<'a, Current>,
+    owner: &'a AtomicU64,
+}
+
+impl Drop for Entered<'_> {
+    fn drop(&mut self) {
+        self.owner.store(0, Ordering::Release);
+    }
+}
+
+impl Held {
+    /// Whether this thread is inside a call into the object.
+    fn entered_here(&self) -> bool {
+        self.owner.load(Ordering::Acquire) == this_thread()
+    }
 }
 
 /// The state of every object that has a back end alive, by its address
@@ -173,20 +216,30 @@ impl Objects {
             return Err(err);
         };
         Err(match failure.cause {
-            Cause::Raised(e) if !e.is_instance_of::<PyException>(py) => {
-                if e.is_instance_of::<PyKeyboardInterrupt>(py) {
-                    // The interrupt [`Shared::call`] re-armed was not
-                    // consumed by the library's check: consume it here.
-                    let _ = py.check_signals();
-                }
-                e
-            }
+            // Raised by [`released`](super::errors::released) already;
+            // this is the fallback.
+            Cause::Stopped => err,
+            Cause::Raised(e) if is_stop(py, &e) => e,
             Cause::Raised(e) => {
                 err.set_cause(py, Some(e));
                 err
             }
             Cause::Malformed => input(text),
         })
+    }
+}
+
+/// `str(value)`, or a placeholder when that raises (an exception that
+/// stops the call — a signal handler's — stops it: [`stop_with`]).
+fn text_of(value: &Bound<'_, PyAny>) -> String {
+    match value.str() {
+        Ok(s) => s.to_string_lossy().into_owned(),
+        Err(e) => {
+            if is_stop(value.py(), &e) {
+                stop_with(e);
+            }
+            "(its message could not be read)".into()
+        }
     }
 }
 
@@ -226,16 +279,31 @@ impl PyBackend {
             )));
         }
         let name = backend_name(obj, keyword, &class)?;
+        let held = held_by(obj);
+        if held.entered_here() {
+            return Err(input(format!(
+                "{keyword}=: {}",
+                reentry_message(&name, &class)
+            )));
+        }
         Ok(PyBackend {
             shared: Arc::new(Shared {
                 object: obj.clone().unbind(),
                 name,
                 class,
-                held: held_by(obj),
+                held,
                 failure: Mutex::default(),
             }),
         })
     }
+}
+
+/// Why a call back into the object `name` (of class `class`) from inside
+/// one of its own methods is refused.
+fn reentry_message(name: &str, class: &str) -> String {
+    format!(
+        "the back-end object '{name}' (a {class}) was called back from inside one of its own methods: it is busy with the call that called it (calls into one object are serialised and do not nest); give the inner call another object"
+    )
 }
 
 /// Whether `obj` has `member`: the attribute `name`, or a callable. Only
@@ -299,6 +367,25 @@ fn is_invisible(c: char) -> bool {
 }
 
 impl Shared {
+    /// The object's state locked for a call into it (waiting, without
+    /// the GIL, while another thread is in one).
+    ///
+    /// Errors: a call from inside one of the object's own methods on this
+    /// thread (the lock is this thread's already: waiting would never
+    /// end) — malformed use, an `InputError` at the entry point.
+    fn enter<'a>(&'a self, py: Python<'_>) -> Result<Entered<'a>, NumericalError> {
+        if self.held.entered_here() {
+            let what = reentry_message(&self.name, &self.class);
+            return Err(self.fail_as(py, what, Cause::Malformed));
+        }
+        let current = lock(py, &self.held.current);
+        self.held.owner.store(this_thread(), Ordering::Release);
+        Ok(Entered {
+            current,
+            owner: &self.held.owner,
+        })
+    }
+
     fn next_id(&self) -> u64 {
         // From 1: 0 is "none" in [`Current`].
         self.held.ids.fetch_add(1, Ordering::Relaxed) + 1
@@ -307,7 +394,12 @@ impl Shared {
     /// A failure of `method` (its call as `call`, e.g. `solve(rhs)`),
     /// kept for [`Objects::explain`], as the library's error.
     fn fail(&self, py: Python<'_>, call: &str, what: String, cause: Cause) -> NumericalError {
-        let message = format!("{}.{call} {what}", self.class);
+        self.fail_as(py, format!("{}.{call} {what}", self.class), cause)
+    }
+
+    /// A failure with the message `message`, kept as [`Shared::fail`]
+    /// keeps it.
+    fn fail_as(&self, py: Python<'_>, message: String, cause: Cause) -> NumericalError {
         *lock(py, &self.failure) = Some(Failure {
             message: message.clone(),
             cause,
@@ -319,9 +411,12 @@ impl Shared {
     }
 
     /// `target.method(arg)` (`call` names it for messages); an exception
-    /// becomes [`Shared::fail`]'s error. A `KeyboardInterrupt` raised in
-    /// the object is re-armed, so that the library's next interruption
-    /// check stops the call as Ctrl-C elsewhere would.
+    /// becomes [`Shared::fail`]'s error. A `KeyboardInterrupt`,
+    /// `SystemExit` or other non-`Exception` raised in the object stops
+    /// the library call under way on this thread ([`stop_with`]: its next
+    /// interruption check fails and the call raises that exception, in
+    /// this thread only); once a call is being stopped, the object is not
+    /// called again.
     fn call<'py>(
         &self,
         py: Python<'py>,
@@ -330,17 +425,18 @@ impl Shared {
         call: &str,
         arg: Bound<'py, PyAny>,
     ) -> Result<Bound<'py, PyAny>, NumericalError> {
+        if stopping() {
+            let what = "was not called: the call is being interrupted".to_string();
+            return Err(self.fail(py, call, what, Cause::Stopped));
+        }
         target.call_method1(method, (arg,)).map_err(|e| {
-            if e.is_instance_of::<PyKeyboardInterrupt>(py) {
-                // SAFETY: callable from any thread holding the GIL.
-                unsafe { pyo3::ffi::PyErr_SetInterrupt() };
+            let kind = e.get_type(py).name();
+            let kind = kind.map(|n| n.to_string_lossy().into_owned());
+            let kind = kind.unwrap_or_else(|_| "an exception".into());
+            let what = format!("raised {kind}: {}", text_of(e.value(py)));
+            if is_stop(py, &e) && stop_with(e.clone_ref(py)) {
+                return self.fail(py, call, what, Cause::Stopped);
             }
-            let kind = e
-                .get_type(py)
-                .name()
-                .map(|n| n.to_string())
-                .unwrap_or_else(|_| "an exception".into());
-            let what = format!("raised {kind}: {}", e.value(py));
             self.fail(py, call, what, Cause::Raised(e))
         })
     }
@@ -516,8 +612,8 @@ impl SpdBackend for PyBackend {
         let pattern = Arc::new(Pattern::of(lower));
         let id = self.shared.next_id();
         Python::attach(|py| {
-            let mut current = lock(py, &self.shared.held.current);
-            self.shared.analyze(py, &mut current, id, &pattern)
+            let mut entered = self.shared.enter(py)?;
+            self.shared.analyze(py, &mut entered.current, id, &pattern)
         })?;
         Ok(Box::new(PySymbolic {
             shared: Arc::clone(&self.shared),
@@ -542,10 +638,10 @@ impl SpdSymbolic for PySymbolic {
         let values = self.pattern.values(lower);
         let id = self.shared.next_id();
         let own = Python::attach(|py| {
-            let mut current = lock(py, &self.shared.held.current);
+            let mut entered = self.shared.enter(py)?;
             let analysis = (self.id, self.pattern.as_ref());
             self.shared
-                .factorize(py, &mut current, analysis, id, &values)
+                .factorize(py, &mut entered.current, analysis, id, &values)
         })?;
         Ok(Box::new(PyFactor {
             shared: Arc::clone(&self.shared),
@@ -614,8 +710,8 @@ impl SpdFactor for PyFactor {
     fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
         let shared = Arc::clone(&self.shared);
         Python::attach(|py| {
-            let mut current = lock(py, &shared.held.current);
-            let solver = self.solver(py, &mut current)?;
+            let mut entered = shared.enter(py)?;
+            let solver = self.solver(py, &mut entered.current)?;
             let arg = convert::matrix_to_numpy(py, rhs.as_ref(), false);
             let x = shared.call(py, &solver, "solve", "solve(rhs)", arg)?;
             shared.read_solution(py, "solve(rhs)", &x, rhs.as_mut())

@@ -6,12 +6,13 @@
 
 use std::collections::HashMap;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
-use super::errors::released;
-use super::own_backend::Objects;
+use super::errors::{input, released};
+use super::own_backend::{Objects, this_thread};
 use crate::constraints::ConstraintSet;
 use crate::error::{Error, ProblemError};
 use crate::laplacian::LaplacianKind;
@@ -160,18 +161,45 @@ pub(super) struct PyDeformer {
     pub(super) budget: MemoryBudget,
     /// The back-end objects of `factor=`, to explain errors.
     pub(super) objects: Objects,
+    /// The thread inside a call on this Deformer ([`this_thread`]; 0:
+    /// none), which a back-end object's method may call back.
+    pub(super) owner: AtomicU64,
+}
+
+/// Clears [`PyDeformer::owner`] when the call holding the lock ends.
+struct Owned<'a>(&'a AtomicU64);
+
+impl Drop for Owned<'_> {
+    fn drop(&mut self) {
+        self.0.store(0, Ordering::Release);
+    }
 }
 
 impl PyDeformer {
     /// Runs `f` on the state with the GIL released.
+    ///
+    /// Errors: `InputError` for a call from inside a call on this
+    /// Deformer on the same thread (a back-end object's method that calls
+    /// it back): the state's lock is this thread's already, and waiting
+    /// for it would never end.
     pub(super) fn with_state<T: Send>(
         &self,
         py: Python<'_>,
         f: impl FnOnce(&mut DeformerState) -> Result<T, Error> + Send,
     ) -> PyResult<T> {
-        let state = &self.state;
+        let me = this_thread();
+        if self.owner.load(Ordering::Acquire) == me {
+            return Err(input(
+                "this Deformer was called back from inside one of its own calls (a back-end object's method called it while the Deformer was calling the object): its calls are serialised and do not nest",
+            ));
+        }
+        let (state, owner) = (&self.state, &self.owner);
         let result = released(py, move || match state.lock() {
-            Ok(mut guard) => f(&mut guard).map(Ok),
+            Ok(mut guard) => {
+                owner.store(me, Ordering::Release);
+                let _owned = Owned(owner);
+                f(&mut guard).map(Ok)
+            }
             Err(_) => Ok(Err(())),
         });
         let result = self.objects.explain(py, result)?;
