@@ -15,6 +15,8 @@ use std::num::NonZeroUsize;
 use crate::limits::MemoryBudget;
 
 mod fill_ordering;
+#[cfg(not(feature = "suitesparse"))]
+pub(crate) use fill_ordering::METIS_NOT_IN_BUILD;
 pub mod ordering_file;
 
 pub use fill_ordering::{FillOrdering, OrderingWord};

@@ -493,6 +493,12 @@ fn malformed_requests_get_400_with_a_message_and_change_nothing() {
             "colamd",
         ),
         (
+            "PUT",
+            "/api/settings",
+            br#"{"ordering": "amd", "threads": 1, "ordering": "natural"}"#.to_vec(),
+            "\"ordering\" is repeated",
+        ),
+        (
             "POST",
             "/api/iterate",
             br#"{"iterations": -1}"#.to_vec(),
@@ -563,6 +569,37 @@ fn settings_hold_the_ordering_and_the_threads() {
     let settings = &held["editor"]["settings"];
     assert_eq!(settings["ordering"], "natural", "{settings}");
     assert_eq!(settings["threads"], 1, "{settings}");
+}
+
+/// Found in the latest round of faults: with no constraints the editor
+/// stored `{"ordering": "metis"}` in a build without METIS, and every
+/// later `PUT /api/constraints` failed until the ordering was reset. Now
+/// the setting is refused when given (400, naming the feature) and the
+/// constraints that follow are factored; with METIS it is kept and used.
+#[test]
+fn an_ordering_this_build_lacks_is_refused_when_given_not_later() {
+    let server = start(1 << 20);
+    let c = &server.client;
+    let (status, body) = request(c, "PUT", "/api/constraints", br#"{"constraints": []}"#);
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let (status, body) = request(c, "PUT", "/api/settings", br#"{"ordering": "metis"}"#);
+    let with_metis = cfg!(feature = "suitesparse");
+    assert_eq!(
+        status,
+        if with_metis { 200 } else { 400 },
+        "{}",
+        String::from_utf8_lossy(&body)
+    );
+    if !with_metis {
+        let message = json(&body)["error"].as_str().unwrap().to_string();
+        assert!(message.contains("suitesparse"), "{message}");
+    }
+    let scene = server.constraints.to_json();
+    let (status, body) = request(c, "PUT", "/api/constraints", scene.as_bytes());
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+    let expected = if with_metis { "metis" } else { "own" };
+    let ordering = json(&body)["ordering"].as_str().unwrap().to_string();
+    assert!(ordering.starts_with(expected), "{ordering}");
 }
 
 #[test]

@@ -158,9 +158,7 @@ fn metis_permutation(
 fn metis_permutation(
     _lower: SymbolicSparseColMatRef<'_, usize>,
 ) -> Result<Vec<usize>, ProblemError> {
-    Err(invalid(
-        "the METIS ordering is not in this build (it comes with the feature suitesparse)".into(),
-    ))
+    Err(invalid(crate::resources::METIS_NOT_IN_BUILD.into()))
 }
 
 /// The order `order` (a permutation of `0..n_original`, checked by

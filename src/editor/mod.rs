@@ -60,6 +60,7 @@ pub mod conn;
 pub mod guard;
 pub mod in_process;
 pub mod session;
+mod unique_json;
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -464,7 +465,9 @@ async fn put_constraints(State(app): State<App>, request: Request) -> ApiResult<
 async fn put_settings(State(app): State<App>, request: Request) -> ApiResult<axum::Json<Value>> {
     let bytes = read_body(&app, request).await?;
     let report = blocking(move || {
-        let Value::Object(fields) = json_body(&bytes)? else {
+        // A repeated field is refused, as in a constraints file (a `Value`
+        // keeps the last).
+        let unique_json::UniqueKeys(Value::Object(fields)) = json_body(&bytes)? else {
             return Err(bad("settings: expected a JSON object"));
         };
         Ok(app.rebuild(Change::Settings(fields))?)

@@ -166,10 +166,13 @@ impl Settings {
         serde_json::from_value(current).map_err(|e| invalid(format!("settings: {e}")))
     }
 
-    /// Checks what the types do not: the formulation can be built, and the
-    /// iteration count.
+    /// Checks what the types do not: the formulation can be built, the
+    /// ordering is in this build, and the iteration count.
     pub fn check(&self) -> Result<(), Error> {
-        self.options()?;
+        let options = self.options()?;
+        // Kept while there are no constraints: refused now, not at the
+        // first change that factors.
+        options.solve.resources.ordering.check_in_build()?;
         // Checked whatever the method: a weight kept for a later switch to
         // `penalty` must already be one.
         if !(self.weight.is_finite() && self.weight > 0.0) {

@@ -35,6 +35,11 @@ pub enum FillOrdering {
     Given(Arc<[usize]>),
 }
 
+/// Why [`FillOrdering::Metis`] fails in a build without the feature
+/// `suitesparse`.
+pub(crate) const METIS_NOT_IN_BUILD: &str =
+    "the METIS ordering is not in this build (it comes with the feature suitesparse)";
+
 /// The words of the orderings other than [`FillOrdering::Given`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OrderingWord {
@@ -94,6 +99,20 @@ impl FillOrdering {
             FillOrdering::Natural => "natural",
             FillOrdering::Given(_) => "given",
         }
+    }
+
+    /// `Err` when this build cannot compute the ordering: METIS comes with
+    /// the feature `suitesparse` ([`METIS_NOT_IN_BUILD`]). For a door that
+    /// keeps an ordering before anything is factored (the editor's
+    /// settings), so that it is refused when it is given, not at the next
+    /// factorisation.
+    pub(crate) fn check_in_build(&self) -> Result<(), ProblemError> {
+        if *self == FillOrdering::Metis && !cfg!(feature = "suitesparse") {
+            return Err(ProblemError::InvalidArgument {
+                message: METIS_NOT_IN_BUILD.into(),
+            });
+        }
+        Ok(())
     }
 
     /// A given ordering checked against a problem of `n` unknowns: `n`
