@@ -241,10 +241,14 @@ impl PenaltySweep {
         let normal_matrix_s = t.elapsed().as_secs_f64();
 
         crate::interrupt::check()?;
-        let (symbolic, analysed) =
-            analyze_under(spd, pattern.as_ref(), resources, &|k| k, problem.n())?;
+        let (symbolic, analysed) = analyze_under(
+            spd,
+            pattern.as_ref(),
+            resources,
+            (&|k| k, problem.n()),
+            "AᵀA + w²BᵀB",
+        )?;
         let symbolic_s = analysed.symbolic_s;
-        symbolic.check_budget(resources.budget, pattern.ncols(), "AᵀA + w²BᵀB")?;
         let ata_lower = faer::sparse::SparseColMatRef::new(pattern.as_ref(), &ata);
         let max_diagonal = (0..pattern.ncols())
             .map(|j| lower_diag(ata_lower, j))

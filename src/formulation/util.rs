@@ -140,13 +140,18 @@ impl Analysed {
 /// otherwise the plan ([`FactorPlan::new`]: the ordering computed once,
 /// on this matrix, timed apart) through [`SpdBackend::analyze_planned`].
 /// The matrix's unknown `k` is the problem's `original_of(k)`, of
-/// `n_original` (for a given ordering).
+/// `n_original` (for a given ordering). The factor's size is then checked
+/// against the memory budget
+/// ([`crate::backend::spd::SpdSymbolic::check_budget`], `matrix` names
+/// the matrix for its message) within the symbolic phase's time: a back
+/// end may size its factor first and build its pattern only once the
+/// budget admits it (nalgebra's).
 pub(crate) fn analyze_under(
     spd: &dyn SpdBackend,
     lower: SymbolicSparseColMatRef<'_, usize>,
     resources: &Resources,
-    original_of: &dyn Fn(usize) -> usize,
-    n_original: usize,
+    (original_of, n_original): (&dyn Fn(usize) -> usize, usize),
+    matrix: &str,
 ) -> Result<(Box<dyn SpdSymbolic>, Analysed), Error> {
     let t = Instant::now();
     let plan = if resources.back_ends_choose() {
@@ -171,6 +176,7 @@ pub(crate) fn analyze_under(
         None => spd.analyze(lower)?,
         Some(plan) => spd.analyze_planned(lower, plan)?,
     };
+    symbolic.check_budget(resources.budget, lower.ncols(), matrix)?;
     let analysed = Analysed {
         ordering_s,
         symbolic_s: t.elapsed().as_secs_f64(),
@@ -203,10 +209,14 @@ pub(crate) fn factor_normal_matrix(
     record.sizes.normal = Some(pattern.full_nnz());
 
     let original_of = |k: usize| vertex_of(k).unwrap_or(k);
-    let (symbolic, analysed) =
-        analyze_under(spd, normal.symbolic(), resources, &original_of, n_vertices)?;
+    let (symbolic, analysed) = analyze_under(
+        spd,
+        normal.symbolic(),
+        resources,
+        (&original_of, n_vertices),
+        matrix,
+    )?;
     analysed.record(record);
-    symbolic.check_budget(resources.budget, normal.ncols(), matrix)?;
 
     // The numeric factorisation is one back-end call: not interruptible
     // inside (crate::interrupt), checked before and after.

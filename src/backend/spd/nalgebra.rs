@@ -42,11 +42,13 @@ use faer::{MatMut, Par, Side};
 use nalgebra::DMatrix;
 use nalgebra_sparse::factorization::{CholeskyError, CscCholesky, CscSymbolicCholesky};
 use nalgebra_sparse::pattern::SparsityPattern;
+use std::sync::OnceLock;
 
 use super::faer_llt::failing_column;
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
 use crate::backend::ordering::{AmdFailure, FactorPlan, PlanUsed, amd_order, inverse};
-use crate::error::NumericalError;
+use crate::error::{NumericalError, ProblemError};
+use crate::limits::MemoryBudget;
 use crate::resources::Threads;
 
 const NAME: &str = "nalgebra";
@@ -157,26 +159,164 @@ impl NalgebraCsc {
                 map[p][usize::from(mirror)] = place;
             }
         }
+        drop(entries);
         for c in 0..n {
             offsets[c + 1] += offsets[c];
         }
-        let pattern =
-            SparsityPattern::try_from_offsets_and_indices(n, n, offsets.clone(), indices.clone())
-                .map_err(|e| backend_error(format!("permuted pattern: {e}")))?;
-        let symbolic = CscSymbolicCholesky::factor(pattern);
-        let factor_nnz = symbolic.l_pattern().nnz();
+        let pattern = SparsityPattern::try_from_offsets_and_indices(n, n, offsets, indices)
+            .map_err(|e| backend_error(format!("permuted pattern: {e}")))?;
+        // The pattern of L is sized here, in O(nnz(A)) memory, and built
+        // only once the budget admits it (`check_budget`).
+        let column_counts = factor_column_counts(pattern.major_offsets(), pattern.minor_indices());
+        let factor_nnz = column_counts.iter().sum();
         Ok(Box::new(NalgebraSymbolic {
             n,
             fwd,
-            offsets,
-            indices,
+            pattern,
             map,
             lower_nnz: col_ptr[n],
-            symbolic,
+            symbolic: OnceLock::new(),
             factor_nnz,
             ordering: plan.ordering_used("amd"),
         }))
     }
+}
+
+/// The number of entries of each column of the Cholesky factor `L` (the
+/// diagonal included) of a symmetric matrix with the full (both
+/// triangles), sorted, square CSC pattern `col_ptr`/`rows` in which every
+/// diagonal entry is present: `nnz(L) = Σ` of them, before `L` exists.
+///
+/// Gilbert, Ng and Peyton's algorithm ("An efficient algorithm to compute
+/// row and column counts for sparse Cholesky factorization", SIAM J.
+/// Matrix Anal. Appl. 15 (1994); CSparse's `cs_counts`, Davis, *Direct
+/// Methods for Sparse Linear Systems*, §4.5): the elimination tree by
+/// Liu's algorithm with path compression, its postorder, then for each
+/// column `j` in postorder and each `i > j` of its pattern, whether `j` is
+/// a leaf of row `i`'s subtree, found with the first descendants and a
+/// disjoint-set forest of least common ancestors. Entry `L_ij` is nonzero
+/// exactly when `j` lies in that subtree, so the counts are exact (no
+/// numerical cancellation is assumed, as in every symbolic factorisation,
+/// nalgebra's included). Time `O(nnz(A) α(n))`, memory `O(n)` besides
+/// the counts.
+pub(crate) fn factor_column_counts(col_ptr: &[usize], rows: &[usize]) -> Vec<usize> {
+    const NONE: usize = usize::MAX;
+    let n = col_ptr.len().saturating_sub(1);
+    let column = |j: usize| rows[col_ptr[j]..col_ptr[j + 1]].iter().copied();
+    let parent = elimination_tree(n, column);
+    let post = postorder(&parent);
+    // first[j]: the first postorder index of j's subtree; delta[j] ends
+    // as j's count minus its children's.
+    let mut first = vec![NONE; n];
+    let mut delta = vec![0isize; n];
+    for (k, &j) in post.iter().enumerate() {
+        delta[j] = isize::from(first[j] == NONE);
+        let mut a = j;
+        while a != NONE && first[a] == NONE {
+            first[a] = k;
+            a = parent[a];
+        }
+    }
+    let mut max_first = vec![NONE; n];
+    let mut prev_leaf = vec![NONE; n];
+    let mut ancestor: Vec<usize> = (0..n).collect();
+    for &j in &post {
+        if parent[j] != NONE {
+            delta[parent[j]] -= 1;
+        }
+        for i in column(j).filter(|&i| i > j) {
+            // Is j a leaf of row i's subtree (its first descendant past
+            // the last leaf seen)?
+            if max_first[i] != NONE && first[j] <= max_first[i] {
+                continue;
+            }
+            max_first[i] = first[j];
+            let previous = std::mem::replace(&mut prev_leaf[i], j);
+            delta[j] += 1;
+            if previous != NONE {
+                // Not the first leaf: the least common ancestor of the
+                // previous leaf and j is counted twice.
+                let mut q = previous;
+                while q != ancestor[q] {
+                    q = ancestor[q];
+                }
+                let mut s = previous;
+                while s != q {
+                    let up = ancestor[s];
+                    ancestor[s] = q;
+                    s = up;
+                }
+                delta[q] -= 1;
+            }
+        }
+        if parent[j] != NONE {
+            ancestor[j] = parent[j];
+        }
+    }
+    // Children come before parents (parent[j] > j).
+    for j in 0..n {
+        if parent[j] != NONE {
+            delta[parent[j]] += delta[j];
+        }
+    }
+    delta.into_iter().map(|d| d.max(0).unsigned_abs()).collect()
+}
+
+/// The elimination tree of a symmetric matrix of dimension `n` whose
+/// column `k` has rows `column(k)` (Liu's algorithm with path
+/// compression, reading the entries above the diagonal): `parent[j]`, or
+/// `usize::MAX` for a root.
+fn elimination_tree<I: Iterator<Item = usize>>(
+    n: usize,
+    column: impl Fn(usize) -> I,
+) -> Vec<usize> {
+    const NONE: usize = usize::MAX;
+    let mut parent = vec![NONE; n];
+    let mut ancestor = vec![NONE; n];
+    for k in 0..n {
+        for mut i in column(k) {
+            while i != NONE && i < k {
+                let next = ancestor[i];
+                ancestor[i] = k;
+                if next == NONE {
+                    parent[i] = k;
+                }
+                i = next;
+            }
+        }
+    }
+    parent
+}
+
+/// A postorder of the forest `parent` (`usize::MAX` for a root): every
+/// node after its descendants, each subtree contiguous.
+fn postorder(parent: &[usize]) -> Vec<usize> {
+    const NONE: usize = usize::MAX;
+    let n = parent.len();
+    let mut head = vec![NONE; n];
+    let mut next = vec![NONE; n];
+    for j in (0..n).rev() {
+        if parent[j] != NONE {
+            next[j] = head[parent[j]];
+            head[parent[j]] = j;
+        }
+    }
+    let mut post = Vec::with_capacity(n);
+    let mut stack = Vec::new();
+    for root in (0..n).filter(|&j| parent[j] == NONE) {
+        stack.push(root);
+        while let Some(&p) = stack.last() {
+            let child = head[p];
+            if child == NONE {
+                stack.pop();
+                post.push(p);
+            } else {
+                head[p] = next[child];
+                stack.push(child);
+            }
+        }
+    }
+    post
 }
 
 struct NalgebraSymbolic {
@@ -184,22 +324,62 @@ struct NalgebraSymbolic {
     /// `fwd[k]`: original index of permuted unknown `k`.
     fwd: Vec<usize>,
     /// Permuted full pattern (CSC, sorted, diagonal present).
-    offsets: Vec<usize>,
-    indices: Vec<usize>,
+    pattern: SparsityPattern,
     /// Places of each input entry in the permuted full values.
     map: Vec<[usize; 2]>,
     /// Stored entries of the analysed input (`col_ptr[n]`).
     lower_nnz: usize,
-    symbolic: CscSymbolicCholesky,
+    /// nalgebra's symbolic factorisation (the pattern of `L`), built once
+    /// the budget admits it ([`SpdSymbolic::check_budget`]), or by the
+    /// first factorisation when nobody checked.
+    symbolic: OnceLock<CscSymbolicCholesky>,
+    /// `nnz(L)` as [`factor_column_counts`] predicts it (exactly what
+    /// nalgebra's `l_pattern().nnz()` will be).
     factor_nnz: usize,
     /// The report's word for the ordering used.
     ordering: std::borrow::Cow<'static, str>,
 }
 
 impl NalgebraSymbolic {
+    /// nalgebra's symbolic factorisation, built on first use.
+    fn symbolic_factor(&self) -> &CscSymbolicCholesky {
+        self.symbolic
+            .get_or_init(|| CscSymbolicCholesky::factor(self.pattern.clone()))
+    }
+
+    /// Bytes a factorisation still allocates, at its peak, with `p` the
+    /// permuted full pattern's entries and `l = nnz(L)`:
+    /// - nalgebra's symbolic factorisation, unless built already: its copy
+    ///   of the pattern (`8 (p + n + 1)`), the patterns of `L` and of `Lᵀ`
+    ///   (`8 (l + n + 1)` each), and the elimination tree and marks it
+    ///   works with (`16 n`);
+    /// - per factorisation: the copy of all that which `factor_numerical`
+    ///   consumes, the permuted values (`8 p`), the values of `L` (`8 l`),
+    ///   nalgebra's work vector, our diagonal and permutation (`24 n`).
+    ///
+    /// The failing-pivot re-run (faer's simplicial factor, `16 l` at most)
+    /// happens after nalgebra's failed factor and its copy are freed.
+    fn bytes_to_come(&self) -> u64 {
+        let (n, p, l) = (
+            self.n as u64,
+            self.pattern.nnz() as u64,
+            self.factor_nnz as u64,
+        );
+        let symbolic = (p + n + 1)
+            .saturating_add(l.saturating_add(n + 1).saturating_mul(2))
+            .saturating_add(2 * n)
+            .saturating_mul(8);
+        let factor =
+            symbolic.saturating_add(p.saturating_add(l).saturating_add(3 * n).saturating_mul(8));
+        match self.symbolic.get() {
+            Some(_) => factor,
+            None => factor.saturating_add(symbolic),
+        }
+    }
+
     /// The permuted full values of `lower`.
     fn permuted_values(&self, lower: SparseColMatRef<'_, usize, f64>) -> Vec<f64> {
-        let mut values = vec![0.0; self.indices.len()];
+        let mut values = vec![0.0; self.pattern.nnz()];
         for (&[a, b], &v) in self.map.iter().zip(lower.val()) {
             if a != usize::MAX {
                 values[a] = v;
@@ -215,6 +395,7 @@ impl NalgebraSymbolic {
     /// documentation): faer's simplicial `LLᵀ` on the same permuted matrix.
     fn failing_pivot(&self, values: &[f64]) -> Result<usize, NumericalError> {
         let n = self.n;
+        let (offsets, indices) = (self.pattern.major_offsets(), self.pattern.minor_indices());
         // Upper triangle of the permuted matrix: with the identity ordering
         // faer's symbolic analysis uses the matrix as given and reads only
         // its upper triangle, whatever `side` says.
@@ -222,8 +403,8 @@ impl NalgebraSymbolic {
         let mut row_idx = Vec::new();
         let mut vals = Vec::new();
         for c in 0..n {
-            let range = self.offsets[c]..self.offsets[c + 1];
-            for (&r, &v) in self.indices[range.clone()].iter().zip(&values[range]) {
+            let range = offsets[c]..offsets[c + 1];
+            for (&r, &v) in indices[range.clone()].iter().zip(&values[range]) {
                 if r <= c {
                     row_idx.push(r);
                     vals.push(v);
@@ -269,8 +450,8 @@ impl NalgebraSymbolic {
                 let mut worst = (0usize, f64::INFINITY);
                 for k in 0..n {
                     let l = l_values[cp[k]];
-                    let a = (self.offsets[k]..self.offsets[k + 1])
-                        .find(|&p| self.indices[p] == k)
+                    let a = (offsets[k]..offsets[k + 1])
+                        .find(|&p| indices[p] == k)
                         .map_or(0.0, |p| values[p]);
                     let ratio = l * l / a;
                     let better = ratio >= worst.1; // false for NaN
@@ -299,7 +480,8 @@ impl SpdSymbolic for NalgebraSymbolic {
             ));
         }
         let values = self.permuted_values(lower);
-        match CscCholesky::factor_numerical(self.symbolic.clone(), &values) {
+        let symbolic = self.symbolic_factor().clone();
+        match CscCholesky::factor_numerical(symbolic, &values) {
             Ok(chol) => {
                 let l = chol.l();
                 let (offsets, rows, lv) = (l.col_offsets(), l.row_indices(), l.values());
@@ -333,6 +515,30 @@ impl SpdSymbolic for NalgebraSymbolic {
 
     fn factor_nnz(&self) -> usize {
         self.factor_nnz
+    }
+
+    /// Refuses a factorisation whose storage, predicted from the column
+    /// counts before nalgebra allocates anything of `L`
+    /// ([`NalgebraSymbolic::bytes_to_come`]), would not fit in `budget` on
+    /// top of what the process holds ([`MemoryBudget::check_on_top`]);
+    /// when it fits, nalgebra's symbolic factorisation is built here.
+    fn check_budget(
+        &self,
+        budget: MemoryBudget,
+        dim: usize,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        let bytes = self.bytes_to_come();
+        budget
+            .check_on_top(bytes, || {
+                format!(
+                    "nalgebra's Cholesky factorisation of {matrix} ({dim} unknowns, {} entries of L after fill-in, predicted from the elimination tree): the pattern of L, its copy and the values would need",
+                    self.factor_nnz
+                )
+            })
+            .map_err(|detail| ProblemError::TooLarge { detail })?;
+        self.symbolic_factor();
+        Ok(())
     }
 
     fn plan_used(&self) -> PlanUsed {
@@ -378,5 +584,138 @@ impl SpdFactor for NalgebraFactor {
     fn bytes(&self) -> usize {
         let l = self.chol.l();
         l.nnz() * 16 + (l.ncols() + 1) * 8
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The full sorted pattern with the diagonal of the symmetric matrix
+    /// whose strictly lower entries are `edges` (either order, repeats
+    /// allowed).
+    fn full_pattern(n: usize, edges: &[(usize, usize)]) -> SparsityPattern {
+        let mut columns: Vec<Vec<usize>> = (0..n).map(|j| vec![j]).collect();
+        for &(a, b) in edges {
+            if a != b {
+                columns[a].push(b);
+                columns[b].push(a);
+            }
+        }
+        let mut offsets = vec![0];
+        let mut indices = Vec::new();
+        for mut c in columns {
+            c.sort_unstable();
+            c.dedup();
+            indices.extend(c);
+            offsets.push(indices.len());
+        }
+        SparsityPattern::try_from_offsets_and_indices(n, n, offsets, indices).unwrap()
+    }
+
+    /// The predicted counts against the columns of nalgebra's own `L`.
+    fn assert_counts_are_nalgebras(pattern: &SparsityPattern) {
+        let counts = factor_column_counts(pattern.major_offsets(), pattern.minor_indices());
+        let l = CscSymbolicCholesky::factor(pattern.clone());
+        let l = l.l_pattern();
+        let actual: Vec<usize> = (0..l.major_dim()).map(|j| l.lane(j).len()).collect();
+        assert_eq!(counts, actual);
+        assert_eq!(counts.iter().sum::<usize>(), l.nnz());
+    }
+
+    /// Fixed shapes: a path (no fill), an arrow pointing at the first
+    /// unknown (fills in completely), its reverse (no fill), two
+    /// components, a cycle, a dense matrix and the empty matrix.
+    #[test]
+    fn predicted_counts_are_nalgebras_on_fixed_patterns() {
+        let path: Vec<_> = (1..8).map(|i| (i, i - 1)).collect();
+        let arrow_first: Vec<_> = (1..8).map(|i| (i, 0)).collect();
+        let arrow_last: Vec<_> = (0..7).map(|i| (7, i)).collect();
+        let two = vec![(1, 0), (2, 0), (4, 3), (5, 3), (5, 4)];
+        let cycle: Vec<_> = (0..9).map(|i| ((i + 1) % 9, i)).collect();
+        let dense: Vec<_> = (0..6).flat_map(|i| (0..i).map(move |j| (i, j))).collect();
+        for (n, edges) in [
+            (8, path),
+            (8, arrow_first.clone()),
+            (8, arrow_last),
+            (6, two),
+            (9, cycle),
+            (6, dense),
+            (0, vec![]),
+        ] {
+            assert_counts_are_nalgebras(&full_pattern(n, &edges));
+        }
+        // The arrow at the first unknown fills L completely.
+        let p = full_pattern(8, &arrow_first);
+        let total: usize = factor_column_counts(p.major_offsets(), p.minor_indices())
+            .iter()
+            .sum();
+        assert_eq!(total, 8 * 9 / 2);
+    }
+
+    proptest! {
+        /// On random symmetric patterns (random graphs, so random
+        /// elimination trees and fill) the prediction is nalgebra's `L`
+        /// column by column.
+        #[test]
+        fn predicted_counts_are_nalgebras_on_random_patterns(
+            (n, edges) in (1usize..40).prop_flat_map(|n| {
+                (Just(n), proptest::collection::vec((0..n, 0..n), 0..(3 * n)))
+            })
+        ) {
+            assert_counts_are_nalgebras(&full_pattern(n, &edges));
+        }
+    }
+
+    /// A budget below the predicted factor is refused before nalgebra's
+    /// symbolic factorisation exists, and the message gives the
+    /// predicted `nnz(L)`; a sufficient one builds it, with that `nnz`.
+    #[test]
+    fn a_refused_budget_builds_no_pattern_of_l() {
+        // The arrow pointing at unknown 0, in the natural order: L is full.
+        let n = 300;
+        let mut col_ptr = vec![0usize];
+        let mut rows = Vec::new();
+        for j in 0..n {
+            rows.push(j);
+            if j == 0 {
+                rows.extend(1..n);
+            }
+            col_ptr.push(rows.len());
+        }
+        let lower = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows);
+        let plan = FactorPlan {
+            permutation: Some((0..n).collect::<Vec<_>>().into()),
+            ordering: "natural",
+            threads: Threads::Own,
+        };
+        let symbolic = NalgebraCsc.analyze_planned(lower.as_ref(), &plan).unwrap();
+        let full = n * (n + 1) / 2;
+        assert_eq!(symbolic.factor_nnz(), full);
+        let e = symbolic
+            .check_budget(MemoryBudget::bytes(1), n, "A")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(&format!("{full} entries of L")), "{e}");
+        assert!(e.contains("more than the memory budget"), "{e}");
+        symbolic
+            .check_budget(MemoryBudget::unlimited(), n, "A")
+            .unwrap();
+        let factor = symbolic.factorize(nalgebra_test_matrix(lower.as_ref()).as_ref());
+        assert_eq!(factor.unwrap().nnz(), full);
+    }
+
+    /// `lower` with a dominant diagonal (SPD).
+    fn nalgebra_test_matrix(lower: SymbolicSparseColMatRef<'_, usize>) -> SparseColMat<usize, f64> {
+        let n = lower.nrows();
+        let values: Vec<f64> = (0..n)
+            .flat_map(|j| {
+                lower
+                    .row_idx_of_col(j)
+                    .map(move |i| if i == j { n as f64 } else { -0.5 })
+            })
+            .collect();
+        SparseColMat::new(lower.to_owned().unwrap(), values)
     }
 }
