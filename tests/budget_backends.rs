@@ -85,3 +85,86 @@ fn nalgebra_refuses_a_fill_heavy_ordering_before_building_the_pattern_of_l() {
     }
     assert!(!Path::new(&out).exists());
 }
+
+/// faer's `LLᵀ` with a given ordering, found in the same round: faer's
+/// symbolic analysis builds the factor's structure, and with the natural
+/// ordering it held 1.5 GB (the icosphere of 164k vertices) before the
+/// check after it refused a budget of 320 MiB. Now `nnz(L)` is predicted
+/// from the elimination tree before that analysis, and the refusal says
+/// so.
+#[test]
+fn faer_refuses_a_fill_heavy_ordering_before_its_analysis() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = icosphere_and_scene(dir.path());
+    let out = p(dir.path(), "out.obj");
+    for factor in ["faer-supernodal", "faer-simplicial", "faer-auto"] {
+        let args = [
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--factor",
+            factor,
+            "--ordering",
+            "natural",
+            "--memory-limit",
+            "64M",
+        ];
+        let o = run(Some(1 << 30), &args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{factor}: {err}");
+        for words in [
+            "350635563 entries after fill-in, predicted from the elimination tree of the natural ordering",
+            "more than the memory budget of 64.0 MiB",
+        ] {
+            assert!(
+                err.contains(words),
+                "{factor}: expected '{words}' in: {err}"
+            );
+        }
+    }
+}
+
+/// The KKT method's `LDLᵀ` by faer, in the natural ordering: faer's
+/// symbolic analysis held 2.7 GB on the icosphere of 164k vertices before
+/// the check after it refused 320 MiB. Now the factor is predicted from
+/// the elimination tree of the order first.
+#[test]
+fn kkt_refuses_a_fill_heavy_ordering_before_its_analysis() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, scene) = icosphere_and_scene(dir.path());
+    let out = p(dir.path(), "out.obj");
+    for factor in ["faer-supernodal", "faer-simplicial"] {
+        let args = [
+            "deform",
+            &mesh,
+            "-c",
+            &scene,
+            "-o",
+            &out,
+            "--method",
+            "kkt",
+            "--factor",
+            factor,
+            "--ordering",
+            "natural",
+            "--memory-limit",
+            "64M",
+        ];
+        let o = run(Some(1 << 30), &args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{factor}: {err}");
+        for words in [
+            "the LDLᵀ factor of the KKT matrix",
+            "predicted from the elimination tree",
+            "more than the memory budget of 64.0 MiB",
+        ] {
+            assert!(
+                err.contains(words),
+                "{factor}: expected '{words}' in: {err}"
+            );
+        }
+    }
+}

@@ -460,6 +460,9 @@ impl Formulation for Kkt {
 
         crate::interrupt::check()?;
         let t = Instant::now();
+        let matrix = "the KKT matrix [AᵀA Bᵀ; B 0]";
+        self.ldlt
+            .check_order_budget(k_lower.symbolic(), &order, resources.budget, matrix)?;
         let symbolic = match resources.threads {
             Threads::Own => self.ldlt.analyze(k_lower.symbolic(), &order)?,
             threads => self
@@ -468,7 +471,7 @@ impl Formulation for Kkt {
         };
         record.timings.symbolic = t.elapsed().as_secs_f64();
         record.threads = symbolic.threads_used();
-        symbolic.check_budget(resources.budget, n + m, "the KKT matrix [AᵀA Bᵀ; B 0]")?;
+        symbolic.check_budget(resources.budget, n + m, matrix)?;
 
         crate::interrupt::check()?;
         let t = Instant::now();

@@ -174,7 +174,10 @@ pub(crate) fn analyze_under(
     let t = Instant::now();
     let symbolic = match &plan {
         None => spd.analyze(lower)?,
-        Some(plan) => spd.analyze_planned(lower, plan)?,
+        Some(plan) => {
+            spd.check_plan_budget(lower, plan, resources.budget, matrix)?;
+            spd.analyze_planned(lower, plan)?
+        }
     };
     symbolic.check_budget(resources.budget, lower.ncols(), matrix)?;
     let analysed = Analysed {

@@ -87,6 +87,22 @@ impl LdltBackend for FaerLdlt {
         self.analyze_on_threads(lower, order, Threads::Own)
     }
 
+    /// `nnz(L)` of `order` predicted from the elimination tree (the
+    /// pattern of `LDLᵀ` without pivoting is that of the Cholesky factor)
+    /// and its values, 8 bytes an entry, on top of what the process holds,
+    /// against `budget`, before faer's symbolic analysis builds the
+    /// factor's structure ([`crate::backend::spd::check_predicted_values`]).
+    fn check_order_budget(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        order: &[usize],
+        budget: MemoryBudget,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        let what = format!("the LDLᵀ factor of {matrix}");
+        crate::backend::spd::check_predicted_values(lower, order, budget, &what, "given")
+    }
+
     /// faer's `Par` for the numeric factorisation.
     fn analyze_on_threads(
         &self,

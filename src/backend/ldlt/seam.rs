@@ -43,6 +43,23 @@ pub trait LdltBackend: Send + Sync {
         let _ = threads;
         self.analyze(lower, order)
     }
+
+    /// Refuses, before [`LdltBackend::analyze`], an `order` whose factor
+    /// would not fit in `budget` when the analysis itself would allocate
+    /// the factor's structure (faer's does: with the natural ordering of
+    /// the KKT matrix it held several times the budget before the check
+    /// after it). `matrix` names the matrix for the message. By default
+    /// nothing is checked here ([`LdltSymbolic::check_budget`] remains).
+    fn check_order_budget(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        order: &[usize],
+        budget: MemoryBudget,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        let _ = (lower, order, budget, matrix);
+        Ok(())
+    }
 }
 
 /// The result of a symbolic analysis: factors any matrix with its pattern.

@@ -17,7 +17,7 @@ use faer::{MatMut, Par, Side};
 
 use crate::cpu::clear_upper_vector_state;
 
-use super::factor_size::factor_size;
+use super::factor_size::{check_predicted_values, factor_size};
 use super::tree_split::TreeSplit;
 use super::triangular::{
     LANES, Lane, Passes, SupernodalRows, WIDE_LANES, factor_diagonal, passes, solve_lanes,
@@ -98,6 +98,25 @@ impl SpdBackend for FaerLlt {
         plan: &FactorPlan,
     ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
         self.analyze_with(lower, plan)
+    }
+
+    /// With a given permutation, `nnz(L)` predicted from the elimination
+    /// tree ([`check_predicted_values`], `O(nnz(A))`) and its values (8
+    /// bytes an entry, what faer stores at least) on top of what the
+    /// process holds, against `budget`, before faer's symbolic analysis
+    /// builds the factor's structure. Faer's own AMD needs no such check.
+    fn check_plan_budget(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+        budget: MemoryBudget,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        let Some(fwd) = plan.permutation.as_deref() else {
+            return Ok(());
+        };
+        let what = format!("the Cholesky factor of {matrix}");
+        check_predicted_values(lower, fwd, budget, &what, plan.ordering)
     }
 }
 

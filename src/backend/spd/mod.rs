@@ -26,6 +26,7 @@ mod triangular;
 
 #[cfg(feature = "suitesparse")]
 pub use cholmod::Cholmod;
+pub(crate) use factor_size::check_predicted_values;
 pub(crate) use factor_size::factor_size;
 pub use faer_llt::FaerLlt;
 pub use nalgebra::NalgebraCsc;

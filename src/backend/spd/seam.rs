@@ -79,6 +79,24 @@ pub trait SpdBackend: Send + Sync {
     ) -> Result<Box<dyn SpdSymbolic>, NumericalError> {
         analyze_permuted(self, lower, plan)
     }
+
+    /// Refuses, before [`SpdBackend::analyze_planned`], a plan whose
+    /// factor would not fit in `budget` when the back end's analysis
+    /// itself would allocate the factor's pattern (faer's does: with a
+    /// fill-heavy ordering such as `natural` it held several times the
+    /// budget before the check after it). `matrix` names the matrix for
+    /// the message. By default nothing is checked here (the check after
+    /// the analysis, [`SpdSymbolic::check_budget`], remains).
+    fn check_plan_budget(
+        &self,
+        lower: SymbolicSparseColMatRef<'_, usize>,
+        plan: &FactorPlan,
+        budget: MemoryBudget,
+        matrix: &str,
+    ) -> Result<(), ProblemError> {
+        let _ = (lower, plan, budget, matrix);
+        Ok(())
+    }
 }
 
 /// The result of a symbolic analysis: factors any matrix with its pattern.
