@@ -48,13 +48,13 @@ fn set_threads(n: usize) -> bool {
 }
 
 /// The threads a call on OpenBLAS ran on when `requested` were asked
-/// for: those, when OpenBLAS is loaded (it was set to them), otherwise the
-/// count in effect (`None` without OpenBLAS).
+/// for: what OpenBLAS takes when set to them (it clamps a count to the
+/// maximum it was built for, `NUM_THREADS`, 64 in Debian's build: asked
+/// for 1024 it runs on 64), read back after setting them for a moment;
+/// with `None`, the count in effect; `None` without OpenBLAS.
 pub(crate) fn threads_used(requested: Option<usize>) -> Option<usize> {
-    match (requested, threads()) {
-        (Some(n), Some(_)) => Some(n),
-        (_, in_effect) => in_effect,
-    }
+    let _set = ThreadsFor::new(requested);
+    threads()
 }
 
 /// OpenBLAS on `n` threads until dropped (then back to the count before);
@@ -79,5 +79,38 @@ impl Drop for ThreadsFor {
         if let Some(n) = self.before {
             set_threads(n);
         }
+    }
+}
+
+#[cfg(all(test, feature = "suitesparse", target_os = "linux"))]
+mod tests {
+    use super::*;
+
+    /// OpenBLAS's own account of its maximum (`MAX_THREADS=` in
+    /// `openblas_get_config()`), read apart from the thread calls.
+    fn built_maximum() -> usize {
+        let f = lookup(b"openblas_get_config\0").expect("OpenBLAS is loaded with CHOLMOD");
+        // SAFETY: OpenBLAS's `char *openblas_get_config(void)`, a static
+        // NUL-terminated string.
+        let get: extern "C" fn() -> *const c_char = unsafe { std::mem::transmute(f) };
+        let config = unsafe { std::ffi::CStr::from_ptr(get()) }.to_string_lossy();
+        config
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix("MAX_THREADS="))
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no MAX_THREADS in {config:?}"))
+    }
+
+    /// Found in the latest round of faults: `--threads 1024` with cholmod
+    /// or mumps reported 1024 while OpenBLAS, built for 64, ran 64. The
+    /// count reported is what OpenBLAS takes, and the count in effect is
+    /// left as it was.
+    #[test]
+    fn a_count_beyond_openblass_maximum_is_reported_as_what_it_runs() {
+        let max = built_maximum();
+        let before = threads();
+        assert_eq!(threads_used(Some(1024)), Some(max.min(1024)));
+        assert_eq!(threads_used(Some(1)), Some(1));
+        assert_eq!(threads(), before);
     }
 }
