@@ -586,6 +586,53 @@ pub enum ProblemError {
     },
 }
 
+impl ProblemError {
+    /// [`ProblemError::TooLarge`] for an allocation of about `bytes` for
+    /// `what` that the allocator refused, naming the address-space limit
+    /// (`RLIMIT_AS`) and what the process has mapped when there is one:
+    /// what an allocation that scales with the input returns instead of
+    /// aborting (it is made with `try_reserve`, or through a faer
+    /// constructor that reports `OutOfMemory`).
+    pub(crate) fn allocation_failed(what: &str, bytes: u64) -> ProblemError {
+        use crate::limits::{address_space_limit, format_bytes, mapped_bytes};
+        let limit = match address_space_limit() {
+            Some(limit) => format!(
+                " under the address-space limit (RLIMIT_AS) of {}, with {} mapped",
+                format_bytes(limit),
+                format_bytes(mapped_bytes().unwrap_or(0))
+            ),
+            None => String::new(),
+        };
+        ProblemError::TooLarge {
+            detail: format!(
+                "{what}: allocating about {} failed{limit}",
+                format_bytes(bytes)
+            ),
+        }
+    }
+
+    /// The error of a faer sparse constructor (`try_new_from_triplets`,
+    /// `try_new_from_nonnegative_triplets`, …) building `what` of about
+    /// `bytes`: an allocation failure (`OutOfMemory`) is
+    /// [`ProblemError::allocation_failed`]; an index overflow or an entry
+    /// out of bounds is [`ProblemError::Dimensions`].
+    pub(crate) fn from_creation(
+        what: &str,
+        bytes: u64,
+        e: faer::sparse::CreationError,
+    ) -> ProblemError {
+        use faer::sparse::{CreationError, FaerError};
+        match e {
+            CreationError::Generic(FaerError::OutOfMemory) => {
+                ProblemError::allocation_failed(what, bytes)
+            }
+            other => ProblemError::Dimensions {
+                message: format!("{what}: {other:?}"),
+            },
+        }
+    }
+}
+
 /// The options of a solve, for errors that name the one at fault
 /// ([`ProblemError::InvalidOption`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -295,6 +295,9 @@ impl MemoryBudget {
     pub fn system() -> MemoryBudget {
         static SYSTEM: OnceLock<MemoryBudget> = OnceLock::new();
         *SYSTEM.get_or_init(|| {
+            if address_space_limit().is_some() {
+                cap_allocator_arenas();
+            }
             smallest(&[
                 (available_memory(), BudgetSource::Available),
                 (address_space_limit(), BudgetSource::AddressSpace),
@@ -338,15 +341,60 @@ impl MemoryBudget {
         what: impl FnOnce() -> String,
     ) -> Result<(), String> {
         let resident = resident_bytes().unwrap_or(0);
+        let what = std::cell::Cell::new(Some(what));
+        let name = || what.take().map(|w| w()).unwrap_or_default();
         self.check(extra.saturating_add(resident), || {
             format!(
                 "{} {} on top of the {} this process holds; together",
-                what(),
+                name(),
                 format_bytes(extra),
                 format_bytes(resident)
             )
-        })
+        })?;
+        // Under an address-space limit it is the mapped bytes that the
+        // kernel compares with the limit, and they exceed the resident
+        // ones (thread stacks, the allocator's reserved heaps, mapped
+        // files): the same `extra` must fit on top of them too.
+        check_address_space(extra, name)
     }
+}
+
+/// Limits glibc's `malloc` to one arena (`mallopt(M_ARENA_MAX, 1)`), once
+/// per process; `true` when it is (now or already) in force.
+///
+/// Why: glibc gives each thread that allocates an arena of its own, up to
+/// 8 × the number of cores, and reserves each one's heap as a 64 MiB
+/// mapping (`HEAP_MAX_SIZE`, twice the largest mmap threshold on 64-bit)
+/// at the thread's first allocation. Those pages are never touched, so
+/// they cost no memory, but every byte counts against `RLIMIT_AS`: on a
+/// 2-core machine 16 arenas reserve 1 GiB, more than the limits a user
+/// sets with `ulimit -v`, and they appear at a moment no estimate made
+/// before the work can see (a thread of rayon's pool allocating for the
+/// first time), so an ordinary infallible allocation then aborts the
+/// process. With one arena every thread allocates from the main heap,
+/// which grows (and counts) only as far as it is used, so the mapped size
+/// the budget checks against ([`check_address_space`]) is what the
+/// process really has. The cost is contention on one lock, which the
+/// factorisations hardly see (they allocate their scratch once per call).
+/// It is applied only under an address-space limit (where the arenas'
+/// reservation matters): by the command-line tool at start, before any
+/// thread, and by [`MemoryBudget::system`] when it first reads the
+/// limits (arenas made before then stay, and new threads share them).
+/// Elsewhere than glibc it does nothing and returns `false`.
+pub fn cap_allocator_arenas() -> bool {
+    static CAPPED: OnceLock<bool> = OnceLock::new();
+    *CAPPED.get_or_init(|| {
+        #[cfg(all(target_os = "linux", target_env = "gnu"))]
+        {
+            // SAFETY: mallopt only sets a parameter of the allocator; it
+            // is safe to call at any time, from any thread.
+            unsafe { libc::mallopt(libc::M_ARENA_MAX, 1) == 1 }
+        }
+        #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+        {
+            false
+        }
+    })
 }
 
 /// `Err(detail)` when mapping `extra` more bytes of address space, on top
@@ -472,7 +520,7 @@ fn parse_meminfo(info: &str) -> Option<u64> {
 /// `ulimit -v` sets), bytes, from `/proc/self/limits` (Linux only; read
 /// there rather than through `getrlimit` so the crate needs no `libc`);
 /// `None` when unlimited or unknown.
-pub(crate) fn address_space_limit() -> Option<u64> {
+pub fn address_space_limit() -> Option<u64> {
     parse_address_space(&std::fs::read_to_string("/proc/self/limits").ok()?)
 }
 

@@ -1,8 +1,9 @@
 //! The `lse-deform` command-line tool: parses the command line and
 //! dispatches to the command modules of `cli/`.
 //!
-//! Exit codes: 0 success, 2 bad input (mesh, constraints, arguments),
-//! 3 numerical failure. Errors are one line on stderr; `--verbose` adds the
+//! Exit codes: 0 success, 2 bad input (mesh, constraints, arguments) or
+//! a problem refused as too large for the memory budget, 3 numerical
+//! failure. Errors are one line on stderr; `--verbose` adds the
 //! chain of causes.
 
 use std::process::ExitCode;
@@ -54,9 +55,32 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    // First, before any thread starts: an interrupted run removes its
-    // temporary files and out-of-core scratch directories.
+    // Before any thread allocates: under an address-space limit, one
+    // malloc arena, so that the mapped size the memory budget checks is
+    // what the process really holds (`limits::cap_allocator_arenas`).
+    if lse_deform::limits::address_space_limit().is_some() {
+        lse_deform::limits::cap_allocator_arenas();
+    }
+    // A panic under memory pressure prints its message and skips the
+    // backtrace it could not allocate, instead of waiting forever for the
+    // backtrace lock (`cli::panics`); hooks installed later (MUMPS's
+    // abort of every rank) chain to it.
+    cli::panics::install();
+    // A limit too tight for a thread's stack is a refusal, not the panic
+    // of the first `thread::spawn` (the signal thread's, just below).
+    if let Err(message) = cli::panics::can_start_a_thread() {
+        eprintln!("error: {message}");
+        return ExitCode::from(2);
+    }
+    // First, before any other thread starts: an interrupted run removes
+    // its temporary files and out-of-core scratch directories.
     cli::signals::install();
+    // rayon's pool, started now so that a limit too tight for its threads
+    // is a refusal before any work, not a panic in the middle of it.
+    if let Err(message) = cli::panics::start_thread_pool() {
+        eprintln!("error: {message}");
+        return ExitCode::from(2);
+    }
     // A malformed LSE_MEMORY_LIMIT is bad input, before anything is read
     // (the default budget of every command comes from it); under `mpirun`
     // every rank checks its own and all agree (a rank-1 mistake fails the

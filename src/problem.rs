@@ -217,7 +217,7 @@ impl LseProblem {
         let n_lap = l.nrows();
         let (places, hard, soft) = split_rows(constraints, soft_scale)?;
         let (b, d) = assemble_hard(constraints, &hard, n);
-        let a = assemble_a(l, constraints, &soft);
+        let a = assemble_a(l, constraints, &soft)?;
         let mut c = Mat::<f64>::zeros(n_lap + soft.len(), 3);
         c.as_mut().submatrix_mut(0, 0, n_lap, 3).copy_from(delta);
         let mut problem = LseProblem {
@@ -923,9 +923,10 @@ fn assemble_a(
     l: &SparseColMat<usize, f64>,
     constraints: &ConstraintSet,
     soft: &[SoftRow],
-) -> SparseColMat<usize, f64> {
+) -> Result<SparseColMat<usize, f64>, ProblemError> {
+    const WHAT: &str = "the matrix A = [L; w B_soft]";
     let (n_lap, n) = (l.nrows(), l.ncols());
-    let mut soft_count = vec![0usize; n + 1];
+    let mut soft_count = zeroed::<usize>(WHAT, n + 1)?;
     for row in soft {
         for &(v, _) in constraints[row.index].kind.row().entries() {
             soft_count[v + 1] += 1;
@@ -934,9 +935,10 @@ fn assemble_a(
     for j in 0..n {
         soft_count[j + 1] += soft_count[j];
     }
-    let mut soft_rows = vec![0usize; soft_count[n]];
-    let mut soft_vals = vec![0.0; soft_count[n]];
-    let mut fill = soft_count.clone();
+    let mut soft_rows = zeroed::<usize>(WHAT, soft_count[n])?;
+    let mut soft_vals = zeroed::<f64>(WHAT, soft_count[n])?;
+    let mut fill = zeroed::<usize>(WHAT, n + 1)?;
+    fill.copy_from_slice(&soft_count);
     for (k, row) in soft.iter().enumerate() {
         for &(v, a) in constraints[row.index].kind.row().entries() {
             soft_rows[fill[v]] = n_lap + k;
@@ -946,10 +948,10 @@ fn assemble_a(
     }
     let (l_ptr, l_rows, l_val) = (l.symbolic().col_ptr(), l.symbolic().row_idx(), l.val());
     let nnz = l_rows.len() + soft_rows.len();
-    let mut a_ptr = Vec::with_capacity(n + 1);
+    let mut a_ptr = reserved::<usize>(WHAT, n + 1)?;
     a_ptr.push(0);
-    let mut a_rows = Vec::with_capacity(nnz);
-    let mut a_val = Vec::with_capacity(nnz);
+    let mut a_rows = reserved::<usize>(WHAT, nnz)?;
+    let mut a_val = reserved::<f64>(WHAT, nnz)?;
     for j in 0..n {
         a_rows.extend_from_slice(&l_rows[l_ptr[j]..l_ptr[j + 1]]);
         a_val.extend_from_slice(&l_val[l_ptr[j]..l_ptr[j + 1]]);
@@ -957,10 +959,32 @@ fn assemble_a(
         a_val.extend_from_slice(&soft_vals[soft_count[j]..soft_count[j + 1]]);
         a_ptr.push(a_rows.len());
     }
-    SparseColMat::new(
+    Ok(SparseColMat::new(
         SymbolicSparseColMat::new_checked(n_lap + soft.len(), n, a_ptr, None, a_rows),
         a_val,
-    )
+    ))
+}
+
+/// An empty vector with room for `len` values, or
+/// [`ProblemError::TooLarge`] naming `what` when the allocator refuses it:
+/// the fallible form of `Vec::with_capacity` for arrays that scale with
+/// the input, which the memory budget cannot see before they are made.
+pub(crate) fn reserved<T>(what: &str, len: usize) -> Result<Vec<T>, ProblemError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| {
+        ProblemError::allocation_failed(
+            what,
+            (len as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+        )
+    })?;
+    Ok(v)
+}
+
+/// `len` default values (zeros), fallibly as [`reserved`].
+pub(crate) fn zeroed<T: Default + Clone>(what: &str, len: usize) -> Result<Vec<T>, ProblemError> {
+    let mut v = reserved(what, len)?;
+    v.resize(len, T::default());
+    Ok(v)
 }
 
 #[cfg(test)]
@@ -1056,7 +1080,7 @@ mod tests {
             weight: 4.0,
             row_weight: 4.0,
         }];
-        let a = assemble_a(&l, &set, &soft);
+        let a = assemble_a(&l, &set, &soft).unwrap();
         assert_eq!((a.nrows(), a.ncols()), (4, 3));
         assert_eq!(a.symbolic().col_ptr(), [0, 2, 4, 5]);
         assert_eq!(a.symbolic().row_idx(), [0, 3, 1, 3, 2]);

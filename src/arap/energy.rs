@@ -44,6 +44,7 @@ use rayon::prelude::*;
 
 use super::rotations::{IDENTITY, Mat3, fit_rotation_fast};
 use crate::cpu::clear_upper_vector_state;
+use crate::error::ProblemError;
 use crate::mesh::Mesh;
 
 pub use crate::choice::ArapEnergy;
@@ -324,8 +325,20 @@ impl ArapTriangles {
 
     /// `A_E` (3 × #triangles rows, n columns): rows `3t..3t+3` are
     /// `√(K A_t) G_t`.
-    pub fn rows(&self) -> SparseColMat<usize, f64> {
-        let mut triplets = Vec::with_capacity(9 * self.faces.len());
+    ///
+    /// An allocation that fails (under a memory or address-space limit) is
+    /// [`ProblemError::TooLarge`], with the bytes it asked for.
+    pub fn rows(&self) -> Result<SparseColMat<usize, f64>, ProblemError> {
+        const WHAT: &str = "the ARAP energy rows";
+        let entries = 9 * self.faces.len();
+        // A triplet is two indices and a value; the matrix built from them
+        // holds an index and a value per entry, and a column pointer per
+        // vertex.
+        let bytes = (entries as u64).saturating_mul(24 + 16) + 8 * self.n_vertices() as u64;
+        let mut triplets = Vec::new();
+        triplets
+            .try_reserve_exact(entries)
+            .map_err(|_| ProblemError::allocation_failed(WHAT, bytes))?;
         for (t, f) in self.faces.iter().enumerate() {
             let s = self.row_scale[t];
             if s == 0.0 {
@@ -337,8 +350,10 @@ impl ArapTriangles {
                 }
             }
         }
+        // Rows `3t..3t+3` and a face's vertices are in range and unique per
+        // (row, vertex): only an allocation can fail here.
         SparseColMat::try_new_from_triplets(self.n_rows(), self.n_vertices(), &triplets)
-            .expect("triangle rows are in range and unique per (row, vertex)")
+            .map_err(|e| ProblemError::from_creation(WHAT, bytes, e))
     }
 
     /// `C_E` for the rotations `r` (one per vertex), written into `c`
@@ -465,6 +480,33 @@ mod tests {
     use faer::Mat;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    /// The rows' constructor reports an allocation failure as the typed
+    /// refusal (exit 2) with the bytes asked for, where it panicked before.
+    #[test]
+    fn an_allocation_failure_of_the_rows_is_a_refusal() {
+        use crate::error::ProblemError;
+        use faer::sparse::{CreationError, FaerError};
+        let e = ProblemError::from_creation(
+            "the ARAP energy rows",
+            3 << 30,
+            CreationError::Generic(FaerError::OutOfMemory),
+        );
+        match &e {
+            ProblemError::TooLarge { detail } => {
+                assert!(detail.contains("the ARAP energy rows"), "{detail}");
+                assert!(detail.contains("GiB"), "{detail}");
+            }
+            other => panic!("not TooLarge: {other:?}"),
+        }
+        assert_eq!(crate::Error::from(e).exit_code(), 2);
+        let bounds = ProblemError::from_creation(
+            "the ARAP energy rows",
+            0,
+            CreationError::OutOfBounds { row: 7, col: 1 },
+        );
+        assert!(matches!(bounds, ProblemError::Dimensions { .. }));
+    }
 
     use super::{ArapEnergy, ArapTriangles};
     use crate::testing::random_surface;

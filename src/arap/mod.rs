@@ -191,7 +191,7 @@ impl ArapDeformer {
         let triangles = ArapTriangles::new(&scaled.mesh, energy);
         // Soft weights as given: `a = 0` (the module documentation).
         let operator = EnergyOperator::Arap(energy);
-        let (rows, rhs) = (triangles.rows(), triangles.rest_rhs());
+        let (rows, rhs) = (triangles.rows()?, triangles.rest_rhs());
         let (problem, base) = scaled.problem(&rows, &rhs, operator, 0, &mesh, t)?;
         let solver = factor(problem, base)?;
         let x = Mat::from_fn(n, 3, |i, c| scaled.mesh.positions()[i][c]);

@@ -35,6 +35,7 @@ pub mod export;
 pub mod files;
 pub mod generate;
 pub mod info;
+pub mod panics;
 pub mod render;
 pub mod scene;
 pub mod signals;
