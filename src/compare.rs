@@ -295,7 +295,7 @@ impl CompareRow {
 /// Runs `config` on `deformer`'s problem and measures it against
 /// `reference`. An error of the configuration (a breakdown, a refused
 /// constraint kind) is its row's status, not an error of the comparison.
-pub fn run_one(
+pub(crate) fn run_one(
     deformer: &mut Deformer,
     config: &Configuration,
     options: &CompareOptions,

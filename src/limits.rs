@@ -295,9 +295,6 @@ impl MemoryBudget {
     pub fn system() -> MemoryBudget {
         static SYSTEM: OnceLock<MemoryBudget> = OnceLock::new();
         *SYSTEM.get_or_init(|| {
-            if address_space_limit().is_some() {
-                cap_allocator_arenas();
-            }
             smallest(&[
                 (available_memory(), BudgetSource::Available),
                 (address_space_limit(), BudgetSource::AddressSpace),
@@ -359,8 +356,9 @@ impl MemoryBudget {
     }
 }
 
-/// Limits glibc's `malloc` to one arena (`mallopt(M_ARENA_MAX, 1)`), once
-/// per process; `true` when it is (now or already) in force.
+/// Under an address-space limit (`RLIMIT_AS`), limits glibc's `malloc` to
+/// one arena (`mallopt(M_ARENA_MAX, 1)`), once per process; `true` when
+/// it is (now or already) in force. Without such a limit it does nothing.
 ///
 /// Why: glibc gives each thread that allocates an arena of its own, up to
 /// 8 × the number of cores, and reserves each one's heap as a 64 MiB
@@ -377,13 +375,17 @@ impl MemoryBudget {
 /// process really has. The cost is contention on one lock, which the
 /// factorisations hardly see (they allocate their scratch once per call).
 /// It is applied only under an address-space limit (where the arenas'
-/// reservation matters): by the command-line tool at start, before any
-/// thread, and by [`MemoryBudget::system`] when it first reads the
-/// limits (arenas made before then stay, and new threads share them).
-/// Elsewhere than glibc it does nothing and returns `false`.
+/// reservation matters), and only when a door asks: the command-line tool
+/// at start, before any thread, and the Python module when it is loaded
+/// (arenas made before then stay, and new threads share them); the
+/// library itself changes no allocator setting. Elsewhere than glibc it
+/// does nothing and returns `false`.
 pub fn cap_allocator_arenas() -> bool {
     static CAPPED: OnceLock<bool> = OnceLock::new();
     *CAPPED.get_or_init(|| {
+        if address_space_limit().is_none() {
+            return false;
+        }
         #[cfg(all(target_os = "linux", target_env = "gnu"))]
         {
             // SAFETY: mallopt only sets a parameter of the allocator; it

@@ -58,9 +58,7 @@ fn main() -> ExitCode {
     // Before any thread allocates: under an address-space limit, one
     // malloc arena, so that the mapped size the memory budget checks is
     // what the process really holds (`limits::cap_allocator_arenas`).
-    if lse_deform::limits::address_space_limit().is_some() {
-        lse_deform::limits::cap_allocator_arenas();
-    }
+    lse_deform::limits::cap_allocator_arenas();
     // A panic under memory pressure prints its message and skips the
     // backtrace it could not allocate, instead of waiting forever for the
     // backtrace lock (`cli::panics`); hooks installed later (MUMPS's

@@ -20,7 +20,7 @@ use std::sync::OnceLock;
 /// debug information is mapped and parsed) plus 32 MiB for the resolver's
 /// tables; 256 MiB when the executable's size cannot be read. Computed at
 /// [`install`], so that the hook itself reads nothing.
-pub fn headroom_bytes() -> usize {
+pub(crate) fn headroom_bytes() -> usize {
     *HEADROOM.get_or_init(|| {
         std::env::current_exe()
             .and_then(std::fs::metadata)
@@ -43,7 +43,7 @@ fn can_allocate(bytes: usize) -> bool {
 }
 
 /// Installs the hook (once, at start, before any other hook).
-pub fn install() {
+pub(crate) fn install() {
     let headroom = headroom_bytes();
     let standard = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
@@ -62,7 +62,7 @@ pub fn install() {
 /// `Err` with the refusal when a thread cannot be started now (its stack
 /// is mapped, and under a tight address-space limit the spawn fails):
 /// one empty thread is started and joined.
-pub fn can_start_a_thread() -> Result<(), String> {
+pub(crate) fn can_start_a_thread() -> Result<(), String> {
     match std::thread::Builder::new().spawn(|| ()) {
         Ok(handle) => {
             let _ = handle.join();
@@ -88,7 +88,7 @@ fn refusal(what: &str) -> String {
 /// under a tight address-space limit the spawn fails); `Err` with the
 /// refusal when not even that starts. Calling it when the pool is already
 /// running does nothing.
-pub fn start_thread_pool() -> Result<(), String> {
+pub(crate) fn start_thread_pool() -> Result<(), String> {
     if rayon::ThreadPoolBuilder::new().build_global().is_ok() {
         return Ok(());
     }

@@ -959,6 +959,10 @@ impl PyDeformer {
 #[pyo3(name = "_native")]
 pub(crate) fn native_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    // Under an address-space limit, one malloc arena from now on, as the
+    // command-line tool does at start (`limits::cap_allocator_arenas`):
+    // the threads this module starts then reserve no arena of their own.
+    crate::limits::cap_allocator_arenas();
     m.add("InputError", py.get_type::<InputError>())?;
     m.add("NumericalError", py.get_type::<NumericalError>())?;
     m.add("InputTypeError", input_type_error_class(py)?)?;

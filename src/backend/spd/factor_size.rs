@@ -55,7 +55,7 @@ pub(crate) fn factor_size(symbolic: &SymbolicCholesky<usize>) -> FactorSize {
 /// `nnz(L)` (the diagonal included) of the Cholesky factor of `P A Pᵀ`,
 /// `A` symmetric with lower-triangle pattern `lower` (entries above the
 /// diagonal are ignored) and `fwd[k]` the unknown eliminated `k`-th:
-/// [`super::nalgebra::factor_column_counts`] on the permuted full pattern,
+/// [`super::column_counts::factor_column_counts`] on the permuted full pattern,
 /// in `O(nnz(A))` time and memory, before any factor exists.
 pub(crate) fn permuted_factor_nnz(
     lower: SymbolicSparseColMatRef<'_, usize>,
@@ -106,7 +106,7 @@ pub(crate) fn permuted_factor_nnz(
         dedup_ptr[c + 1] = unique;
     }
     rows.truncate(unique);
-    super::nalgebra::factor_column_counts(&dedup_ptr, &rows)
+    super::column_counts::factor_column_counts(&dedup_ptr, &rows)
         .iter()
         .sum()
 }

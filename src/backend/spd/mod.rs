@@ -17,6 +17,7 @@ pub use crate::backend::kinds::SpdKind;
 
 #[cfg(feature = "suitesparse")]
 mod cholmod;
+mod column_counts;
 mod factor_size;
 mod faer_llt;
 mod nalgebra;
