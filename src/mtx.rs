@@ -195,7 +195,7 @@ pub(crate) fn read_matrix(path: &Path) -> Result<MatrixFile, Error> {
 }
 
 /// [`read_matrix`] from any reader; `path` names it in errors.
-pub(crate) fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile, Error> {
+pub fn read_matrix_from(reader: impl BufRead, path: &Path) -> Result<MatrixFile, Error> {
     open(reader, path)?.read_entries(MemoryBudget::default())
 }
 

@@ -625,7 +625,7 @@ impl Session {
 
     /// The report with the current residuals (Laplacian: diagnosed at the
     /// current targets) and the editor's frame statistics.
-    pub fn report(&mut self) -> Value {
+    pub(crate) fn report(&mut self) -> Value {
         let mut report = self.report.clone();
         let fresh = match &mut self.engine {
             Some(Engine::Linear { deformer, .. }) => {
