@@ -120,6 +120,11 @@ impl UnitScaled {
     /// is not finite once divided by the unit.
     pub(crate) fn new(mesh: &Mesh, constraints: &ConstraintSet) -> Result<UnitScaled, Error> {
         let n = mesh.n_vertices();
+        let setup = setup_bytes(n, mesh.faces().len(), constraints.len());
+        crate::limits::check_address_space(setup, || {
+            format!("the set-up of {n} vertices (their units, energy rows and problem) would map")
+        })
+        .map_err(|detail| ProblemError::TooLarge { detail })?;
         constraints.check_vertices(n)?;
         let (component_of, n_components) = topology::vertex_components(n, mesh.faces());
         check_pinned(&component_of, n_components, constraints)?;
@@ -178,6 +183,27 @@ impl UnitScaled {
         report.timings_s.setup = started.elapsed().as_secs_f64();
         Ok((problem, report))
     }
+}
+
+/// An upper bound of the address space the set-up maps at its peak, from
+/// the mesh's and the constraint list's sizes, checked against the
+/// address-space limit before it starts ([`UnitScaled::new`]): under a
+/// limit its allocations, most of them infallible, must then fit, and the
+/// next check is the factorisation's.
+///
+/// Per face: the ARAP rows' 9 entries as triplets (24 bytes) and as
+/// compressed columns (16), the problem's copy (16), the 3 × 3 right-hand
+/// side and its copy (144), the face in the unit mesh (24): 672, rounded
+/// to 700. Per vertex: the Laplacian's ~7 entries assembled (40) and
+/// copied (16), `δ` and its copy (48), the unit position (24), the
+/// component label (16) and the normal matrix's ~19 pattern entries (16
+/// each): 784, rounded to 800. Per constraint: its copy in units and its
+/// row (256). Both energies' rows are counted, whichever is built. The
+/// sum is doubled: freed blocks stay mapped in the allocator's heap
+/// until it trims them, so what is mapped exceeds what is live.
+fn setup_bytes(n_vertices: usize, n_faces: usize, n_constraints: usize) -> u64 {
+    let live = 700 * n_faces as u64 + 800 * n_vertices as u64 + 256 * n_constraints as u64;
+    live.saturating_mul(2)
 }
 
 /// A 3 × 4 affine map `p ↦ M[:, 0..3] p + M[:, 3]`, row-major: the

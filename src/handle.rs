@@ -45,7 +45,10 @@ use crate::deform::{Affine, Deformer};
 use crate::error::{Error, ProblemError};
 use crate::formulation::Refine;
 use crate::limits::MemoryBudget;
-use crate::problem::RowPlace;
+use crate::problem::{RowPlace, zero_matrix};
+
+/// What the right-hand sides of the response basis are called in a refusal.
+const RESPONSE_BASIS: &str = "the response basis' right-hand sides";
 use crate::resources::Resources;
 
 /// Vertices per parallel task of [`HandleBasis::evaluate`] (a few hundred
@@ -355,8 +358,8 @@ fn basis_right_hand_sides(
     let soft = problem.soft_constraints();
     let k = 3 + 4 * members.len();
     let (l, m) = (problem.c().nrows(), problem.d().nrows());
-    let mut c = try_zeros(l, k)?;
-    let mut d = try_zeros(m, k)?;
+    let mut c = zero_matrix(RESPONSE_BASIS, l, k)?;
+    let mut d = zero_matrix(RESPONSE_BASIS, m, k)?;
     c.as_mut()
         .submatrix_mut(0, 0, l, 3)
         .copy_from(problem.c().as_ref());
@@ -385,15 +388,6 @@ fn basis_right_hand_sides(
         }
     }
     Ok((c, d))
-}
-
-/// An `r × c` matrix of zeros, or [`ProblemError::TooLarge`] when the
-/// allocation fails (instead of an abort).
-fn try_zeros(r: usize, c: usize) -> Result<Mat<f64>, Error> {
-    let mut m = Mat::<f64>::new();
-    m.try_reserve(r, c).map_err(|_| allocation_failed(r, c))?;
-    m.resize_with(r, c, |_, _| 0.0);
-    Ok(m)
 }
 
 fn allocation_failed(r: usize, c: usize) -> Error {

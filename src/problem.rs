@@ -987,6 +987,32 @@ pub(crate) fn zeroed<T: Default + Clone>(what: &str, len: usize) -> Result<Vec<T
     Ok(v)
 }
 
+/// An `rows × cols` matrix with entry `(i, j) = f(i, j)`, or
+/// [`ProblemError::TooLarge`] naming `what` when the allocator refuses it:
+/// the fallible form of `Mat::from_fn` (which panics when its allocation
+/// fails) for dense blocks that scale with the input.
+pub(crate) fn matrix_from_fn(
+    what: &str,
+    rows: usize,
+    cols: usize,
+    f: impl FnMut(usize, usize) -> f64,
+) -> Result<Mat<f64>, ProblemError> {
+    let mut m = Mat::new();
+    m.try_reserve(rows, cols).map_err(|_| {
+        ProblemError::allocation_failed(
+            what,
+            (rows as u64).saturating_mul(cols as u64).saturating_mul(8),
+        )
+    })?;
+    m.resize_with(rows, cols, f);
+    Ok(m)
+}
+
+/// An `rows × cols` matrix of zeros, fallibly as [`matrix_from_fn`].
+pub(crate) fn zero_matrix(what: &str, rows: usize, cols: usize) -> Result<Mat<f64>, ProblemError> {
+    matrix_from_fn(what, rows, cols, |_, _| 0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use faer::sparse::Triplet;

@@ -157,6 +157,13 @@ fn factor(
     let Precomputed { system, record } = formulation
         .precompute_with(problem, resources)
         .map_err(|e| name_free_unknown(e, problem))?;
+    let bytes = solve_bytes(problem);
+    crate::limits::check_address_space(bytes, || {
+        "its solves and their diagnostics would map".to_string()
+    })
+    .map_err(|detail| ProblemError::TooLarge {
+        detail: format!("the system is factored, but {detail}"),
+    })?;
     let mut report = base.clone();
     report.memory_budget = Some(resources.budget);
     apply_record(&mut report, record);
@@ -166,6 +173,23 @@ fn factor(
         report,
         conflict_sources,
     })
+}
+
+/// An upper bound of the address space a solve and its diagnostics map
+/// after the precompute, checked against the address-space limit once the
+/// factor is made ([`factor`]): their allocations (faer's products among
+/// them) are infallible, so under a limit they must be known to fit.
+///
+/// A solve holds a few dense blocks of `k` right-hand sides at once:
+/// the solution and its refined copy, the correction, the residual
+/// `A X − C` and the product `A X`, the constraints' residual, each of
+/// them at most `(rows of A + rows of B + n) × k` values: six such blocks,
+/// doubled because freed blocks stay mapped in the allocator's heap until
+/// it trims them.
+fn solve_bytes(problem: &LseProblem) -> u64 {
+    let values = (problem.a().nrows() + problem.b().nrows() + problem.n()) as u64;
+    let k = problem.c().ncols().max(1) as u64;
+    values.saturating_mul(k).saturating_mul(8 * 6 * 2)
 }
 
 impl LseSolver {

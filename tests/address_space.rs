@@ -35,20 +35,25 @@ fn have_prlimit() -> bool {
 
 /// Exit code (or `128 + signal`) and stderr of `lse-deform args` under an
 /// address-space limit of `limit` bytes; panics (fails the test) on a hang.
-fn run_limited(limit: u64, args: &[&str], dir: &Path) -> (i32, String) {
+/// With rayon's pool of `threads` (its default when `None`).
+fn run_limited(limit: u64, args: &[&str], dir: &Path, threads: Option<usize>) -> (i32, String) {
     let err_path = dir.join(format!("stderr-{limit}"));
     let err = std::fs::File::create(&err_path).unwrap();
-    let mut child = Command::new("prlimit")
+    let mut command = Command::new("prlimit");
+    command
         .arg(format!("--as={limit}"))
         .arg("--")
         .arg(BIN)
         .args(args)
         .env("RUST_BACKTRACE", "1")
         .env_remove("LSE_MEMORY_LIMIT")
+        .env_remove("RAYON_NUM_THREADS")
         .stdout(Stdio::null())
-        .stderr(err)
-        .spawn()
-        .unwrap();
+        .stderr(err);
+    if let Some(threads) = threads {
+        command.env("RAYON_NUM_THREADS", threads.to_string());
+    }
+    let mut child = command.spawn().unwrap();
     let start = Instant::now();
     let status = loop {
         if let Some(status) = child.try_wait().unwrap() {
@@ -71,9 +76,9 @@ fn run_limited(limit: u64, args: &[&str], dir: &Path) -> (i32, String) {
 /// MESH` (the bare process: the executable, its threads and their stacks,
 /// the allocator, nothing of a solve) succeeds; the baseline the sweep
 /// starts from.
-fn baseline(mesh: &str, dir: &Path) -> u64 {
+fn baseline(mesh: &str, dir: &Path, threads: Option<usize>) -> u64 {
     let mut limit: u64 = 8 << 20;
-    while run_limited(limit, &["info", mesh], dir).0 != 0 {
+    while run_limited(limit, &["info", mesh], dir, threads).0 != 0 {
         limit += 8 << 20;
         assert!(limit <= 4 << 30, "info never succeeded up to 4 GiB");
     }
@@ -87,16 +92,20 @@ fn baseline(mesh: &str, dir: &Path) -> u64 {
 const MARGIN: u64 = 16 << 20;
 
 /// From `start` up in steps of 8 MiB until a run succeeds (at most 4 GiB),
-/// every run exits 0 or 2, and a 2 is the typed refusal.
-fn sweep(args: &[&str], start: u64, dir: &Path) {
+/// then back over the last step in steps of 1 MiB: every run exits 0 or
+/// 2, and a 2 is the typed refusal. The fine steps are where a fault
+/// hides: just above the last refusal a check has passed, and the first
+/// allocation it did not account for fails (an infallible one aborts or
+/// panics); 8 MiB steps land there only now and then.
+fn sweep(args: &[&str], start: u64, dir: &Path, threads: Option<usize>) {
     let mut limit = start;
     let mut seen = Vec::new();
-    loop {
-        let (code, stderr) = run_limited(limit, args, dir);
+    let mut check = |limit: u64, seen: &mut Vec<(u64, i32)>| {
+        let (code, stderr) = run_limited(limit, args, dir, threads);
         seen.push((limit >> 20, code));
         assert!(
             code == 0 || code == 2,
-            "{args:?} under RLIMIT_AS = {limit}: exit {code} (runs so far, MiB → exit: {seen:?})\n{stderr}"
+            "{args:?} under RLIMIT_AS = {limit} with {threads:?} threads: exit {code} (runs so far, MiB → exit: {seen:?})\n{stderr}"
         );
         if code == 2 {
             assert!(
@@ -105,14 +114,20 @@ fn sweep(args: &[&str], start: u64, dir: &Path) {
                 "{args:?} under RLIMIT_AS = {limit}: exit 2 without the typed refusal:\n{stderr}"
             );
         }
-        if code == 0 {
-            return;
-        }
+        code
+    };
+    while check(limit, &mut seen) != 0 {
         limit += 8 << 20;
         assert!(
             limit <= 4 << 30,
             "{args:?} never succeeded up to 4 GiB: {seen:?}"
         );
+    }
+    let coarse_success = limit;
+    let mut fine = coarse_success.saturating_sub(7 << 20).max(start);
+    while fine < coarse_success {
+        check(fine, &mut seen);
+        fine += 1 << 20;
     }
 }
 
@@ -147,9 +162,13 @@ fn deform_under_an_address_space_limit_succeeds_or_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let (mesh, scene, out) = setup(dir.path());
     let base = ["deform", &mesh, "-c", &scene, "-o", &out];
-    let start = baseline(&mesh, dir.path()) + MARGIN;
-    sweep(&base, start, dir.path());
     let mut arap = base.to_vec();
     arap.extend(["--energy", "arap", "--iterations", "2"]);
-    sweep(&arap, start, dir.path());
+    // rayon's default pool, and one of 8 threads (as on a larger machine:
+    // more stacks and kernel workspaces mapped before the work).
+    for threads in [None, Some(8)] {
+        let start = baseline(&mesh, dir.path(), threads) + MARGIN;
+        sweep(&base, start, dir.path(), threads);
+        sweep(&arap, start, dir.path(), threads);
+    }
 }

@@ -417,12 +417,16 @@ impl ArapTriangles {
     }
 
     /// The rest rows' right-hand side `A_E P` (the rotations all identity,
-    /// up to rounding).
-    pub(crate) fn rest_rhs(&self) -> Mat<f64> {
+    /// up to rounding); [`ProblemError::TooLarge`] when its allocation
+    /// fails.
+    pub(crate) fn rest_rhs(&self) -> Result<Mat<f64>, ProblemError> {
+        const WHAT: &str = "the ARAP energy rows' right-hand side";
         let n = self.n_vertices();
-        let mut c = Mat::<f64>::zeros(self.n_rows(), 3);
-        self.rhs_into(&vec![IDENTITY; n], c.as_mut());
-        c
+        let mut c = crate::problem::zero_matrix(WHAT, self.n_rows(), 3)?;
+        let mut identities = crate::problem::reserved::<Mat3>(WHAT, n)?;
+        identities.resize(n, IDENTITY);
+        self.rhs_into(&identities, c.as_mut());
+        Ok(c)
     }
 
     /// Deformed edge `k` of triangle `t`.

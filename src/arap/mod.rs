@@ -79,6 +79,9 @@ use crate::error::{Error, NumericalError, ProblemError};
 use crate::formulation::{Formulation, Refine};
 use crate::mesh::Mesh;
 use crate::problem::{LseProblem, target_in_unit};
+
+/// What the iteration's positions and rotations are called in a refusal.
+const POSITIONS: &str = "the ARAP iteration's positions and rotations";
 use crate::report::{ArapReport, ArapStop, EnergyOperator, Report, first_non_finite};
 use crate::resources::Resources;
 use crate::solver::{LseSolver, SolveOptions};
@@ -191,10 +194,13 @@ impl ArapDeformer {
         let triangles = ArapTriangles::new(&scaled.mesh, energy);
         // Soft weights as given: `a = 0` (the module documentation).
         let operator = EnergyOperator::Arap(energy);
-        let (rows, rhs) = (triangles.rows()?, triangles.rest_rhs());
+        let (rows, rhs) = (triangles.rows()?, triangles.rest_rhs()?);
         let (problem, base) = scaled.problem(&rows, &rhs, operator, 0, &mesh, t)?;
         let solver = factor(problem, base)?;
-        let x = Mat::from_fn(n, 3, |i, c| scaled.mesh.positions()[i][c]);
+        let x =
+            crate::problem::matrix_from_fn(POSITIONS, n, 3, |i, c| scaled.mesh.positions()[i][c])?;
+        let mut rotations = crate::problem::reserved(POSITIONS, n)?;
+        rotations.resize(n, IDENTITY);
         let report = solver.report().clone();
         let (unit, unit_constraints) = (scaled.unit, scaled.constraints);
         Ok(ArapDeformer {
@@ -207,7 +213,7 @@ impl ArapDeformer {
             report,
             x_next: x.clone(),
             x,
-            rotations: vec![IDENTITY; n],
+            rotations,
             energy: f64::NAN,
             blocks: Vec::new(),
             vertex_energies: Vec::new(),

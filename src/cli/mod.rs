@@ -309,9 +309,12 @@ pub(crate) fn phase(message: &str) -> ProgressBar {
 }
 
 /// Points `bar` at stderr one second from now unless it has finished.
+/// The spinner is a convenience: when its thread cannot start (its stack
+/// is mapped, and under a tight address-space limit the spawn fails), the
+/// phase runs without it.
 pub(crate) fn show_after_a_second(bar: &ProgressBar) {
     let weak = bar.downgrade();
-    std::thread::spawn(move || {
+    let _ = std::thread::Builder::new().spawn(move || {
         std::thread::sleep(Duration::from_secs(1));
         if let Some(bar) = weak.upgrade()
             && !bar.is_finished()
