@@ -185,8 +185,8 @@ impl UnitScaled {
     }
 }
 
-/// An upper bound of the address space the set-up maps at its peak, from
-/// the mesh's and the constraint list's sizes, checked against the
+/// An estimate, with margins, of the address space the set-up maps at its
+/// peak, from the mesh's and the constraint list's sizes, checked against the
 /// address-space limit before it starts ([`UnitScaled::new`]): under a
 /// limit its allocations, most of them infallible, must then fit, and the
 /// next check is the factorisation's.

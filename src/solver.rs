@@ -175,8 +175,8 @@ fn factor(
     })
 }
 
-/// An upper bound of the address space a solve and its diagnostics map
-/// after the precompute, checked against the address-space limit once the
+/// An estimate, with margins, of the address space a solve and its
+/// diagnostics map after the precompute, checked against the address-space limit once the
 /// factor is made ([`factor`]): their allocations (faer's products among
 /// them) are infallible, so under a limit they must be known to fit.
 ///

@@ -100,7 +100,7 @@ const MARGIN: u64 = 16 << 20;
 fn sweep(args: &[&str], start: u64, dir: &Path, threads: Option<usize>) {
     let mut limit = start;
     let mut seen = Vec::new();
-    let mut check = |limit: u64, seen: &mut Vec<(u64, i32)>| {
+    let check = |limit: u64, seen: &mut Vec<(u64, i32)>| {
         let (code, stderr) = run_limited(limit, args, dir, threads);
         seen.push((limit >> 20, code));
         assert!(
