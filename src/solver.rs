@@ -153,6 +153,9 @@ fn factor(
     resources: &Resources,
 ) -> Result<Factored, Error> {
     crate::interrupt::check()?;
+    // Refused whatever the method, before anything is factored: also by a
+    // method whose back end never reads the ordering.
+    resources.ordering.check_in_build()?;
     resources.ordering.check_unknowns(problem.n())?;
     let Precomputed { system, record } = formulation
         .precompute_with(problem, resources)

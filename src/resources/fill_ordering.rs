@@ -102,10 +102,10 @@ impl FillOrdering {
     }
 
     /// `Err` when this build cannot compute the ordering: METIS comes with
-    /// the feature `suitesparse` ([`METIS_NOT_IN_BUILD`]). For a door that
-    /// keeps an ordering before anything is factored (the editor's
-    /// settings), so that it is refused when it is given, not at the next
-    /// factorisation.
+    /// the feature `suitesparse` ([`METIS_NOT_IN_BUILD`]). Checked before
+    /// every precompute, whatever the method, and by a door that keeps an
+    /// ordering before anything is factored (the editor's settings), so
+    /// that it is refused when it is given, not at the next factorisation.
     pub(crate) fn check_in_build(&self) -> Result<(), ProblemError> {
         if *self == FillOrdering::Metis && !cfg!(feature = "suitesparse") {
             return Err(ProblemError::InvalidArgument {
