@@ -27,9 +27,11 @@ pub enum Error {
     /// solvable problem (detected before any factorisation).
     #[error(transparent)]
     Problem(#[from] ProblemError),
-    /// A factorisation or solve failed numerically.
+    /// A factorisation or solve failed numerically. A back end's
+    /// [`NumericalError::OutOfMemory`] never lands here: `From` makes it
+    /// [`ProblemError::TooLarge`], a refusal for size.
     #[error(transparent)]
-    Numerical(#[from] NumericalError),
+    Numerical(NumericalError),
     /// A Matrix Market file is invalid.
     #[error(transparent)]
     MatrixFile(#[from] MatrixFileError),
@@ -594,19 +596,11 @@ impl ProblemError {
     /// aborting (it is made with `try_reserve`, or through a faer
     /// constructor that reports `OutOfMemory`).
     pub(crate) fn allocation_failed(what: &str, bytes: u64) -> ProblemError {
-        use crate::limits::{address_space_limit, format_bytes, mapped_bytes};
-        let limit = match address_space_limit() {
-            Some(limit) => format!(
-                " under the address-space limit (RLIMIT_AS) of {}, with {} mapped",
-                format_bytes(limit),
-                format_bytes(mapped_bytes().unwrap_or(0))
-            ),
-            None => String::new(),
-        };
         ProblemError::TooLarge {
             detail: format!(
-                "{what}: allocating about {} failed{limit}",
-                format_bytes(bytes)
+                "{what}: allocating about {} failed{}",
+                crate::limits::format_bytes(bytes),
+                address_space_context()
             ),
         }
     }
@@ -629,6 +623,68 @@ impl ProblemError {
             other => ProblemError::Dimensions {
                 message: format!("{what}: {other:?}"),
             },
+        }
+    }
+}
+
+/// `" under the address-space limit (RLIMIT_AS) of …, with … mapped"`
+/// when the process has such a limit, else empty: what explains an
+/// allocation the allocator refused.
+fn address_space_context() -> String {
+    use crate::limits::{address_space_limit, format_bytes, mapped_bytes};
+    match address_space_limit() {
+        Some(limit) => format!(
+            " under the address-space limit (RLIMIT_AS) of {}, with {} mapped",
+            format_bytes(limit),
+            format_bytes(mapped_bytes().unwrap_or(0))
+        ),
+        None => String::new(),
+    }
+}
+
+impl NumericalError {
+    /// [`NumericalError::OutOfMemory`]: `backend` could not allocate
+    /// `what`.
+    pub(crate) fn out_of_memory(backend: &str, what: &str) -> NumericalError {
+        NumericalError::OutOfMemory {
+            backend: backend.into(),
+            what: what.into(),
+        }
+    }
+
+    /// The error of a faer routine of `backend` building `what`: faer's
+    /// `OutOfMemory` is [`NumericalError::OutOfMemory`], an index overflow
+    /// is [`NumericalError::Backend`].
+    pub(crate) fn from_faer(
+        backend: &str,
+        what: &str,
+        e: faer::sparse::FaerError,
+    ) -> NumericalError {
+        match e {
+            faer::sparse::FaerError::OutOfMemory => NumericalError::out_of_memory(backend, what),
+            other => NumericalError::Backend {
+                backend: backend.into(),
+                message: format!("{what}: {other:?}"),
+            },
+        }
+    }
+}
+
+impl From<NumericalError> for Error {
+    /// [`Error::Numerical`], except [`NumericalError::OutOfMemory`], which
+    /// is [`ProblemError::TooLarge`]: a back end that could not allocate
+    /// has met a limit, not a numerical failure.
+    fn from(e: NumericalError) -> Error {
+        match e {
+            NumericalError::OutOfMemory { backend, what } => {
+                Error::Problem(ProblemError::TooLarge {
+                    detail: format!(
+                        "{backend}: allocating {what} failed{}",
+                        address_space_context()
+                    ),
+                })
+            }
+            other => Error::Numerical(other),
         }
     }
 }
@@ -859,6 +915,18 @@ pub enum NumericalError {
         /// The energy (infinite or NaN).
         value: f64,
     },
+    /// A back end could not allocate what it needs (faer's `OutOfMemory`,
+    /// a workspace the allocator refused under an address-space limit).
+    /// Not a numerical failure: as an [`Error`] it is
+    /// [`ProblemError::TooLarge`] (the CLI's exit code 2, Python's
+    /// `TooLargeError`), like every refusal for size.
+    #[error("{backend}: allocating {what} failed")]
+    OutOfMemory {
+        /// The back end.
+        backend: String,
+        /// What it was allocating.
+        what: String,
+    },
     /// A back end reported an error.
     #[error("{backend}: {message}")]
     Backend {
@@ -867,4 +935,45 @@ pub enum NumericalError {
         /// Its message.
         message: String,
     },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A back end's allocation failure reaches every door as a refusal for
+    /// size (exit code 2), and every other numerical error as one (exit
+    /// code 3): the conversion `?` applies at each seam.
+    #[test]
+    fn a_back_ends_out_of_memory_is_a_refusal_for_size() {
+        let oom: Error = NumericalError::out_of_memory("faer-auto", "the workspace").into();
+        match &oom {
+            Error::Problem(ProblemError::TooLarge { detail }) => {
+                assert!(
+                    detail.starts_with("faer-auto: allocating the workspace failed"),
+                    "{detail}"
+                );
+            }
+            other => panic!("expected TooLarge, got {other:?}"),
+        }
+        assert_eq!(oom.exit_code(), 2);
+        let overflow: Error = NumericalError::from_faer(
+            "faer-auto",
+            "the factor",
+            faer::sparse::FaerError::IndexOverflow,
+        )
+        .into();
+        assert!(
+            matches!(overflow, Error::Numerical(NumericalError::Backend { .. })),
+            "{overflow:?}"
+        );
+        assert_eq!(overflow.exit_code(), 3);
+        let oom_faer: Error = NumericalError::from_faer(
+            "faer-ldlt",
+            "the factor",
+            faer::sparse::FaerError::OutOfMemory,
+        )
+        .into();
+        assert_eq!(oom_faer.exit_code(), 2, "{oom_faer}");
+    }
 }

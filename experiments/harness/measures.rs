@@ -158,6 +158,7 @@ pub fn failure_kind(e: &Error) -> &'static str {
         Error::Numerical(N::SoftWeightOutOfRange { .. }) => "soft weight out of range",
         Error::Numerical(N::SoftWeightTooLarge { .. }) => "soft weight too large",
         Error::Numerical(N::Backend { .. }) => "back-end error",
+        Error::Numerical(N::OutOfMemory { .. }) => "out of memory",
         Error::Problem(_) => "unsupported problem",
         Error::Constraint(_) => "bad constraint",
         Error::Mesh(_) => "bad mesh",

@@ -74,7 +74,7 @@ use crate::backend::ordering::FactorPlan;
 use crate::backend::qr::{QrBackend, RankTolerance, SparseGivens};
 use crate::backend::spd::SpdKind;
 use crate::condition::{self, ConditionEstimate, InverseOperator, LowerSymmetricOperator};
-use crate::error::{Error, NumericalError};
+use crate::error::{Error, NumericalError, ProblemError};
 use crate::mesh::topology::UnionFind;
 use crate::problem::{LseProblem, pivot_columns};
 use crate::report::{MethodFacts, first_non_finite};
@@ -164,13 +164,8 @@ impl Kkt {
 
 const MATRIX: &str = "the KKT matrix [AᵀA sBᵀ; sB 0]";
 
-fn backend_error(e: impl std::fmt::Debug) -> Error {
-    NumericalError::Backend {
-        backend: "faer-ldlt".into(),
-        message: format!("{e:?}"),
-    }
-    .into()
-}
+/// The name of faer's AMD ordering in the errors of the KKT order.
+const AMD: &str = "faer-amd";
 
 /// The static elimination order of the KKT unknowns: entry `i` is the
 /// unknown eliminated `i`-th, with vertices numbered `0..n` and the
@@ -377,7 +372,8 @@ fn vertex_amd(pattern: &SymbolicSparseColMat<usize>) -> Result<Vec<usize>, Error
     let mut amd_fwd = vec![0usize; n];
     let mut amd_inv = vec![0usize; n];
     let nnz = pattern.row_idx().len();
-    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(n, nnz)).map_err(backend_error)?;
+    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(n, nnz))
+        .map_err(|_| NumericalError::out_of_memory(AMD, "the ordering's workspace"))?;
     amd::order(
         &mut amd_fwd,
         &mut amd_inv,
@@ -385,7 +381,7 @@ fn vertex_amd(pattern: &SymbolicSparseColMat<usize>) -> Result<Vec<usize>, Error
         amd::Control::default(),
         MemStack::new(&mut mem),
     )
-    .map_err(backend_error)?;
+    .map_err(|e| NumericalError::from_faer(AMD, "the KKT vertices' ordering", e))?;
     Ok(amd_fwd)
 }
 
@@ -695,7 +691,13 @@ fn first_dependent_row(problem: &LseProblem, order: &[usize]) -> Result<Option<u
         triplets.extend(cols.iter().zip(vals).map(|(&j, &v)| Triplet::new(i, j, v)));
     }
     let reordered =
-        SparseRowMat::try_new_from_triplets(sequence.len(), n, &triplets).map_err(backend_error)?;
+        SparseRowMat::try_new_from_triplets(sequence.len(), n, &triplets).map_err(|e| {
+            ProblemError::from_creation(
+                "the constraint rows in priority order",
+                24 * triplets.len() as u64,
+                e,
+            )
+        })?;
     let qr = SparseGivens::default().factor(reordered.as_ref(), RankTolerance::default())?;
     let mut kept = vec![false; sequence.len()];
     for &i in qr.kept() {

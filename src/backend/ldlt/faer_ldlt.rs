@@ -43,13 +43,6 @@ fn numeric_parallelism(threads: Threads) -> Par {
     }
 }
 
-fn backend_error(e: impl std::fmt::Debug) -> NumericalError {
-    NumericalError::Backend {
-        backend: BACKEND.into(),
-        message: format!("{e:?}"),
-    }
-}
-
 /// faer's sparse `LDLᵀ` in the caller's elimination order.
 #[derive(Debug, Clone, Copy)]
 pub struct FaerLdlt {
@@ -126,7 +119,7 @@ impl LdltBackend for FaerLdlt {
             SymmetricOrdering::Custom(perm),
             params,
         )
-        .map_err(backend_error)?;
+        .map_err(|e| NumericalError::from_faer(BACKEND, "the LDLᵀ factor's structure", e))?;
         Ok(Box::new(FaerLdltSymbolic {
             symbolic: Arc::new(symbolic),
             par: numeric_parallelism(threads),
@@ -151,7 +144,9 @@ impl LdltSymbolic for FaerLdltSymbolic {
         let mut mem = MemBuffer::try_new(
             symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
         )
-        .map_err(backend_error)?;
+        .map_err(|_| {
+            NumericalError::out_of_memory(BACKEND, "the numeric factorisation's workspace")
+        })?;
         let result = symbolic.factorize_numeric_ldlt(
             &mut values,
             lower,
@@ -164,7 +159,7 @@ impl LdltSymbolic for FaerLdltSymbolic {
         let failure = result.err().map(|e| format!("faer's LDLᵀ reported {e:?}"));
         let workspace =
             MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(WORKSPACE_COLUMNS, Par::Seq))
-                .map_err(backend_error)?;
+                .map_err(|_| NumericalError::out_of_memory(BACKEND, "the solves' workspace"))?;
         Ok(Box::new(FaerLdltFactor {
             symbolic,
             values,
@@ -308,7 +303,7 @@ impl LdltFactor for FaerLdltFactor {
                 self.symbolic
                     .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
             )
-            .map_err(backend_error)?;
+            .map_err(|_| NumericalError::out_of_memory(BACKEND, "a wide solve's workspace"))?;
             factor.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut buf));
             return Ok(());
         }

@@ -140,8 +140,10 @@ impl FaerLlt {
             }
             _ => SymmetricOrdering::Amd,
         };
-        let symbolic = factorize_symbolic_cholesky(lower, Side::Lower, ordering, params)
-            .map_err(|e| backend_error(self.kind.name(), e))?;
+        let symbolic =
+            factorize_symbolic_cholesky(lower, Side::Lower, ordering, params).map_err(|e| {
+                NumericalError::from_faer(self.kind.name(), "the Cholesky factor's structure", e)
+            })?;
         let size = factor_size(&symbolic);
         let split = TreeSplit::new(&symbolic).map(Arc::new);
         Ok(Box::new(FaerSymbolic {
@@ -194,7 +196,9 @@ impl SpdSymbolic for FaerSymbolic {
         let mut mem = MemBuffer::try_new(
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
         )
-        .map_err(|e| backend_error(self.name, e))?;
+        .map_err(|_| {
+            NumericalError::out_of_memory(self.name, "the numeric factorisation's workspace")
+        })?;
         let fwd: Vec<usize> = match symbolic.perm() {
             Some(p) => p.arrays().0.to_vec(),
             None => (0..n).collect(),
