@@ -957,23 +957,14 @@ mod tests {
             other => panic!("expected TooLarge, got {other:?}"),
         }
         assert_eq!(oom.exit_code(), 2);
-        let overflow: Error = NumericalError::from_faer(
-            "faer-auto",
-            "the factor",
-            faer::sparse::FaerError::IndexOverflow,
-        )
-        .into();
+        let from_faer = |e| Error::from(NumericalError::from_faer("faer-auto", "the factor", e));
+        let overflow = from_faer(faer::sparse::FaerError::IndexOverflow);
         assert!(
             matches!(overflow, Error::Numerical(NumericalError::Backend { .. })),
             "{overflow:?}"
         );
         assert_eq!(overflow.exit_code(), 3);
-        let oom_faer: Error = NumericalError::from_faer(
-            "faer-ldlt",
-            "the factor",
-            faer::sparse::FaerError::OutOfMemory,
-        )
-        .into();
+        let oom_faer = from_faer(faer::sparse::FaerError::OutOfMemory);
         assert_eq!(oom_faer.exit_code(), 2, "{oom_faer}");
     }
 }
