@@ -47,6 +47,25 @@ impl Common {
     }
 }
 
+/// The error of the SuiteSparse call `call` of `backend` that failed with
+/// CHOLMOD's `status`. `CHOLMOD_OUT_OF_MEMORY` (an allocation refused) and
+/// `CHOLMOD_TOO_LARGE` (a size that overflows its integer type) are
+/// [`NumericalError::OutOfMemory`], a refusal for size as an
+/// [`crate::Error`]; any other status is [`NumericalError::Backend`]
+/// quoting it. The codes are CHOLMOD's (`cholmod_core.h`, `status`).
+pub(crate) fn status_error(backend: &str, call: &str, status: i32) -> NumericalError {
+    if status == ss::CHOLMOD_OUT_OF_MEMORY || status == ss::CHOLMOD_TOO_LARGE {
+        return NumericalError::out_of_memory(
+            backend,
+            &format!("the workspace of {call} (CHOLMOD status {status})"),
+        );
+    }
+    NumericalError::Backend {
+        backend: backend.into(),
+        message: format!("{call} failed (CHOLMOD status {status})"),
+    }
+}
+
 impl Drop for Common {
     fn drop(&mut self) {
         // SAFETY: started in `new`; every object allocated with this common
@@ -167,4 +186,36 @@ pub(crate) fn metis(lower: SymbolicSparseColMatRef<'_, usize>) -> Result<Vec<usi
         ));
     }
     Ok(perm.into_iter().map(|p| p as usize).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::status_error;
+
+    /// CHOLMOD's codes (`cholmod_core.h`): −2 out of memory and −3 too
+    /// large are refusals for size (exit 2); −4 invalid input and −5 a GPU
+    /// problem are back-end failures (exit 3) quoting the code.
+    #[test]
+    fn out_of_memory_and_too_large_are_refusals_for_size() {
+        let exit =
+            |status| crate::Error::from(status_error("cholmod", "cholmod_l_analyze", status));
+        for status in [-2, -3] {
+            let e = exit(status);
+            assert_eq!(e.exit_code(), 2, "{e}");
+            assert!(
+                e.to_string().contains(&format!("CHOLMOD status {status}")),
+                "{e}"
+            );
+        }
+        for status in [-4, -5] {
+            let e = exit(status);
+            assert_eq!(e.exit_code(), 3, "{e}");
+            assert!(
+                e.to_string().contains(&format!(
+                    "cholmod_l_analyze failed (CHOLMOD status {status})"
+                )),
+                "{e}"
+            );
+        }
+    }
 }

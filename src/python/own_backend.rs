@@ -44,7 +44,10 @@
 //! During the work, an exception raised by the object becomes a
 //! [`NumericalError::Backend`] naming the object and the method; at the
 //! entry point ([`Objects::explain`]) it is raised as `NumericalError`
-//! with the object's exception as `__cause__`. A `KeyboardInterrupt`,
+//! with the object's exception as `__cause__`. A `MemoryError` becomes
+//! [`NumericalError::OutOfMemory`] instead, raised as `TooLargeError`
+//! (with the same `__cause__`), as a built-in back end's allocation
+//! failure is. A `KeyboardInterrupt`,
 //! `SystemExit` or another `BaseException` that is not an `Exception`
 //! stops the call instead (in `compare` too: no row is made of it): it is
 //! raised as it is, by the call of the thread that called the object, and
@@ -84,6 +87,20 @@ enum Cause {
     /// The object returned something the protocol does not allow, or
     /// was misused (called back from inside its own method).
     Malformed,
+}
+
+/// A `MemoryError` the object raised, kept by [`Shared::fail`] as
+/// `failure`, as [`NumericalError::OutOfMemory`]: like a built-in back
+/// end's allocation failure, a refusal for size (`TooLargeError`, whose
+/// `__cause__` is the object's `MemoryError`), not a numerical failure.
+fn out_of_memory(failure: NumericalError) -> NumericalError {
+    match failure {
+        NumericalError::Backend { backend, message } => NumericalError::OutOfMemory {
+            backend,
+            what: format!("its memory ({message})"),
+        },
+        other => other,
+    }
 }
 
 /// The last failure of a call into the object: the message the library's
@@ -437,7 +454,13 @@ impl Shared {
             if is_stop(py, &e) && stop_with(e.clone_ref(py)) {
                 return self.fail(py, call, what, Cause::Stopped);
             }
-            self.fail(py, call, what, Cause::Raised(e))
+            let memory = e.is_instance_of::<pyo3::exceptions::PyMemoryError>(py);
+            let failure = self.fail(py, call, what, Cause::Raised(e));
+            if memory {
+                out_of_memory(failure)
+            } else {
+                failure
+            }
         })
     }
 

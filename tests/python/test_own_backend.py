@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 import lse_deform
-from lse_deform import InputError, InputTypeError, NumericalError
+from lse_deform import InputError, InputTypeError, NumericalError, TooLargeError
 from conftest import bumpy_grid, cli_binary, fixed_and_handle, read_obj, shared_mesh
 
 
@@ -210,13 +210,14 @@ def test_kkt_with_an_object_is_an_input_error_naming_factor():
 class Raising(SpluSolver):
     name = "raising"
 
-    def __init__(self, method):
+    def __init__(self, method, exception=ValueError):
         super().__init__()
         self.method = method
+        self.exception = exception
 
     def fail(self, method):
         if method == self.method:
-            raise ValueError(f"boom in {method}")
+            raise self.exception(f"boom in {method}")
 
     def analyze(self, lower):
         self.fail("analyze")
@@ -246,6 +247,21 @@ def test_an_exception_in_the_object_is_a_numerical_error_with_its_cause(method):
         d.precompute()
         d.solve()
     assert isinstance(e.value.__cause__, ValueError)
+
+
+@pytest.mark.parametrize("method", ["analyze", "factorize", "solve"])
+def test_a_memory_error_in_the_object_is_a_too_large_error_with_its_cause(method):
+    # As a built-in back end's allocation failure: a refusal for size
+    # (TooLargeError, an InputError and a MemoryError), not a
+    # NumericalError; the object's MemoryError is its __cause__.
+    V, F, c = scene()
+    with pytest.raises(TooLargeError) as e:
+        lse_deform.deform(V, F, c, factor=Raising(method, MemoryError))
+    assert not isinstance(e.value, NumericalError)
+    assert type(e.value.__cause__) is MemoryError
+    assert str(e.value.__cause__) == f"boom in {method}"
+    message = str(e.value)
+    assert "raising" in message and f"Raising.{method}(" in message, message
 
 
 def test_a_failing_object_in_compare_is_its_row_status():

@@ -287,9 +287,10 @@ impl Factorisation {
     /// the session replaced them ([`Factorisation::refactorizations`]
     /// counts it).
     ///
-    /// Errors: [`NumericalError::Backend`] with MUMPS's code, naming the
-    /// out-of-core directory when the factor is kept there (a file of the
-    /// factor that cannot be read).
+    /// Errors: [`NumericalError::OutOfMemory`] when MUMPS could not
+    /// allocate its workspace; else [`NumericalError::Backend`] with
+    /// MUMPS's code, naming the out-of-core directory when the factor is
+    /// kept there (a file of the factor that cannot be read).
     pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
         let (n, k) = (rhs.nrows(), rhs.ncols());
         let mut dense: Vec<f64> = (0..k)
@@ -320,6 +321,9 @@ impl Factorisation {
 /// A failed solve as the seams' error: MUMPS's words and code, and the
 /// out-of-core directory it was reading from.
 fn solve_error(failure: Failure, scratch: Option<&std::path::Path>) -> NumericalError {
+    if let Some(what) = super::shared::allocation_refused(&failure) {
+        return NumericalError::out_of_memory(super::shared::NAME, &what);
+    }
     let message = failure_message(failure);
     let message = match scratch {
         Some(dir) => format!(

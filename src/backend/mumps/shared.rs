@@ -76,11 +76,35 @@ pub(crate) fn check_driving_rank() -> Result<(), ProblemError> {
     Err(ProblemError::InvalidArgument { message })
 }
 
-/// A failure as the seams' error.
+/// A failure as the seams' error: an allocation MUMPS could not make
+/// ([`allocation_refused`]) is [`NumericalError::OutOfMemory`], a refusal
+/// for size as an [`crate::Error`]; any other is
+/// [`NumericalError::Backend`] in MUMPS's words.
 pub(crate) fn numerical(failure: Failure) -> NumericalError {
+    if let Some(what) = allocation_refused(&failure) {
+        return NumericalError::out_of_memory(NAME, &what);
+    }
     NumericalError::Backend {
         backend: NAME.to_string(),
         message: failure_message(failure),
+    }
+}
+
+/// What MUMPS could not allocate, when `failure` is one of its allocation
+/// failures: `INFOG(1)` = −5 or −7 (the analysis) or −13 (any phase), with
+/// the size asked in `INFOG(2)` (entries, or millions of them when
+/// negative; user's guide, §8). `None` for every other failure.
+pub(crate) fn allocation_refused(failure: &Failure) -> Option<String> {
+    match *failure {
+        Failure::Mumps { infog1, infog2 } if matches!(infog1, -5 | -7 | -13) => Some(format!(
+            "its workspace ({} asked) [INFOG(1) = {infog1}]",
+            if infog2 < 0 {
+                format!("{} million entries", -(infog2 as i64))
+            } else {
+                format!("{infog2} entries")
+            }
+        )),
+        _ => None,
     }
 }
 

@@ -239,3 +239,32 @@ fn a_missing_out_of_core_file_is_a_typed_solve_error_naming_the_directory() {
     );
     assert!(message.contains("INFOG(1) = -"), "MUMPS's code: {message}");
 }
+
+/// MUMPS's allocation failures (user's guide §8: `INFOG(1)` = −5, −7 and
+/// −13, the size in `INFOG(2)`, in millions of entries when negative) are
+/// refusals for size (exit 2) quoting the size; a singular matrix (−10)
+/// and a workspace that stayed too small (−9) are not.
+#[test]
+fn allocation_failures_are_refusals_for_size() {
+    use super::instance::Failure;
+    use super::shared::numerical;
+    let as_error =
+        |infog1, infog2| crate::Error::from(numerical(Failure::Mumps { infog1, infog2 }));
+    for (infog1, infog2, asked) in [
+        (-13, 4096, "4096 entries"),
+        (-13, -7, "7 million entries"),
+        (-5, 12, "12 entries"),
+        (-7, 3, "3 entries"),
+    ] {
+        let e = as_error(infog1, infog2);
+        let text = e.to_string();
+        assert_eq!(e.exit_code(), 2, "{text}");
+        assert!(
+            text.contains(asked) && text.contains(&format!("INFOG(1) = {infog1}")),
+            "{text}"
+        );
+    }
+    for infog1 in [-10, -9] {
+        assert_eq!(as_error(infog1, 0).exit_code(), 3);
+    }
+}

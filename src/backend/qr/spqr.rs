@@ -56,7 +56,7 @@ use super::fill::check_r_fill;
 use super::graph_rows::factor_graph_rows;
 use super::sparse_columns::ColumnWorkspace;
 use super::{ConstraintQr, QrBackend, RankTolerance};
-use crate::backend::suitesparse::{Common, Long, sparse_header};
+use crate::backend::suitesparse::{Common, Long, sparse_header, status_error};
 use crate::error::{Error, NumericalError, ProblemError};
 
 const NAME: &str = "spqr";
@@ -381,10 +381,7 @@ fn factor_scaled(
         )
     };
     if rank < 0 || out.r.is_null() || out.h.is_null() || out.htau.is_null() {
-        return Err(backend_error(format!(
-            "SuiteSparseQR_C failed (status {})",
-            out.common.status()
-        )));
+        return Err(status_error(NAME, "SuiteSparseQR_C", out.common.status()).into());
     }
     let rank = rank as usize;
 

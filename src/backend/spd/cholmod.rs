@@ -32,7 +32,7 @@ use suitesparse_sys as ss;
 use super::{SpdBackend, SpdFactor, SpdSymbolic, check_breakdown};
 use crate::backend::openblas::{self, ThreadsFor};
 use crate::backend::ordering::{FactorPlan, PlanUsed};
-use crate::backend::suitesparse::{Common, Long, LowerCsc};
+use crate::backend::suitesparse::{Common, Long, LowerCsc, status_error};
 use crate::error::NumericalError;
 use crate::resources::Threads;
 
@@ -230,10 +230,7 @@ fn analyze_with(
         }
     };
     if l.is_null() {
-        return Err(backend_error(format!(
-            "cholmod_l_analyze failed (status {})",
-            common.status()
-        )));
+        return Err(status_error(NAME, "cholmod_l_analyze", common.status()));
     }
     let symbolic = Factor { l, common };
     let nnz = symbolic.predicted_nnz();
@@ -281,10 +278,7 @@ impl SpdSymbolic for CholmodSymbolic {
         // allocated with the new common and owned by `factor` below.
         let l = unsafe { ss::cholmod_l_copy_factor(self.symbolic.l, common.ptr()) };
         if l.is_null() {
-            return Err(backend_error(format!(
-                "cholmod_l_copy_factor failed (status {})",
-                common.status()
-            )));
+            return Err(status_error(NAME, "cholmod_l_copy_factor", common.status()));
         }
         let mut factor = Factor { l, common };
         let mut header = csc.header();
@@ -305,9 +299,7 @@ impl SpdSymbolic for CholmodSymbolic {
             });
         }
         if ok == 0 || status < 0 {
-            return Err(backend_error(format!(
-                "cholmod_l_factorize failed (status {status})"
-            )));
+            return Err(status_error(NAME, "cholmod_l_factorize", status));
         }
         let diag = factor.diagonal()?;
         check_breakdown(&diag, &factor.perm(), lower)?;
@@ -342,8 +334,8 @@ impl SpdFactor for CholmodFactor {
     }
 
     /// `cholmod_l_solve(CHOLMOD_A)` on all columns at once. CHOLMOD fails
-    /// here only when out of memory: a [`NumericalError::Backend`] with
-    /// CHOLMOD's status.
+    /// here only when out of memory: a [`NumericalError::OutOfMemory`]
+    /// with CHOLMOD's status.
     fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) -> Result<(), NumericalError> {
         let (n, k) = (rhs.nrows(), rhs.ncols());
         if n == 0 || k == 0 {
@@ -373,10 +365,7 @@ impl SpdFactor for CholmodFactor {
         if x.is_null() {
             // SAFETY: `common` is this factor's valid CHOLMOD workspace.
             let status = unsafe { (*common).status };
-            return Err(NumericalError::Backend {
-                backend: "cholmod".into(),
-                message: format!("cholmod_l_solve failed (CHOLMOD status {status})"),
-            });
+            return Err(status_error(NAME, "cholmod_l_solve", status));
         }
         // SAFETY: `x` is an n × k real dense matrix with leading dimension d.
         unsafe {
