@@ -75,8 +75,8 @@ fn main() -> ExitCode {
     cli::signals::install();
     // rayon's pool, started now so that a limit too tight for its threads
     // is a refusal before any work, not a panic in the middle of it.
-    if let Err(message) = cli::panics::start_thread_pool() {
-        eprintln!("error: {message}");
+    if let Err(e) = lse_deform::resources::start_thread_pool() {
+        eprintln!("error: {e}");
         return ExitCode::from(2);
     }
     // A malformed LSE_MEMORY_LIMIT is bad input, before anything is read

@@ -114,6 +114,90 @@ impl Resources {
     }
 }
 
+/// Starts rayon's global thread pool, on which the library's parallel
+/// loops run, with rayon's default number of threads, or with one when the
+/// default cannot start; `Ok` at once when it runs already (started by an
+/// earlier call, or by another library of the process).
+///
+/// Each thread maps a stack, so under a tight address-space limit
+/// (`RLIMIT_AS`) the spawns fail. rayon starts its global pool once per
+/// process, on first use if not before, and a start that failed cannot be
+/// repeated: every later parallel loop then panics ("The global thread
+/// pool has not been initialized"). So each size is first tried on a pool
+/// of its own, which can fail and be tried again, and the global pool is
+/// started only with a size that started. A door calls this before any
+/// work (the command-line tool at start, the Python module before each
+/// call) so that a limit too tight for the threads is a refusal.
+///
+/// Errors: [`crate::error::ProblemError::TooLarge`] naming the limit when
+/// not even one thread starts (a later call tries again).
+pub fn start_thread_pool() -> Result<(), crate::error::ProblemError> {
+    static STARTED: std::sync::Mutex<bool> = std::sync::Mutex::new(false);
+    let mut started = STARTED.lock().unwrap_or_else(|e| e.into_inner());
+    if *started {
+        return Ok(());
+    }
+    let mut failure = String::new();
+    for threads in [None, Some(1)] {
+        let builder = || match threads {
+            Some(n) => rayon::ThreadPoolBuilder::new().num_threads(n),
+            None => rayon::ThreadPoolBuilder::new(),
+        };
+        if let Err(e) = probe_pool(builder()) {
+            failure = e.to_string();
+            continue;
+        }
+        match builder().build_global() {
+            Ok(()) => {}
+            // rayon's message for a pool that runs already (its
+            // `GlobalPoolAlreadyInitialized`, whose kind is private).
+            Err(e) if e.to_string().contains("already been initialized") => {}
+            Err(e) => return Err(thread_pool_refusal(&e.to_string())),
+        }
+        *started = true;
+        return Ok(());
+    }
+    Err(thread_pool_refusal(&failure))
+}
+
+/// Starts a pool of `builder`'s size and ends it, waiting (up to a second
+/// a thread) for its threads to exit, so that their stacks are free (or in
+/// the allocator's cache, for the next threads) when the global pool
+/// starts.
+fn probe_pool(builder: rayon::ThreadPoolBuilder) -> Result<(), rayon::ThreadPoolBuildError> {
+    let (exited, exits) = std::sync::mpsc::channel();
+    let exited = std::sync::Mutex::new(exited);
+    let pool = builder
+        .exit_handler(move |_| {
+            if let Ok(tx) = exited.lock() {
+                let _ = tx.send(());
+            }
+        })
+        .build()?;
+    let threads = pool.current_num_threads();
+    drop(pool);
+    for _ in 0..threads {
+        if exits
+            .recv_timeout(std::time::Duration::from_secs(1))
+            .is_err()
+        {
+            break;
+        }
+    }
+    Ok(())
+}
+
+fn thread_pool_refusal(reason: &str) -> crate::error::ProblemError {
+    crate::error::ProblemError::TooLarge {
+        detail: format!(
+            "the thread pool cannot start ({reason}){}",
+            crate::limits::address_space_limit()
+                .map(|b| format!(" under the address-space limit (RLIMIT_AS) of {b} bytes"))
+                .unwrap_or_default()
+        ),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

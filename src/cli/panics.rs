@@ -1,5 +1,5 @@
-//! The command-line tool's panic hook and the start of rayon's pool:
-//! neither may turn a shortage of memory into an abort, a panic or a hang.
+//! The command-line tool's panic hook and the check that a thread can
+//! start: neither may turn a shortage of memory into an abort, a panic or a hang.
 //!
 //! With `RUST_BACKTRACE` set, the standard panic hook captures and prints
 //! a backtrace while holding the process's backtrace lock; resolving it
@@ -81,22 +81,4 @@ fn refusal(what: &str) -> String {
             .map(|b| format!(", under the address-space limit (RLIMIT_AS) of {b} bytes"))
             .unwrap_or_default()
     )
-}
-
-/// Starts rayon's global pool with its default number of threads, or with
-/// one thread when the default cannot start (each thread maps a stack, and
-/// under a tight address-space limit the spawn fails); `Err` with the
-/// refusal when not even that starts. Calling it when the pool is already
-/// running does nothing.
-pub(crate) fn start_thread_pool() -> Result<(), String> {
-    if rayon::ThreadPoolBuilder::new().build_global().is_ok() {
-        return Ok(());
-    }
-    match rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build_global()
-    {
-        Ok(()) => Ok(()),
-        Err(e) => Err(refusal(&format!("the thread pool cannot start ({e})"))),
-    }
 }

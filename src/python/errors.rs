@@ -218,6 +218,10 @@ where
     T: Send,
     F: FnOnce() -> Result<T, Error> + Send,
 {
+    // rayon's pool, started fallibly before any work: a limit too tight
+    // for its threads is a TooLargeError, not the panic of a parallel
+    // loop (`resources::start_thread_pool`).
+    crate::resources::start_thread_pool().map_err(|e| to_py(e.into()))?;
     let (outcome, signalled) = py.detach(|| {
         let _slot = StopSlot::push();
         let stop = || {
