@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use lse_deform::mesh::{Mesh, read_mesh};
 
 mod common;
-use common::{path_in, stderr};
+use common::{path_in, skip_outside_ci, stderr};
 
 /// How long a child may run before it is declared hung (the slowest run
 /// here, a 50,000-vertex mesh in a debug build, takes a small fraction).
@@ -665,7 +665,8 @@ fn a_signal_during_an_out_of_core_factorisation_leaves_the_directory_as_it_was()
 /// binary process 1) made every later run fail with "File exists", exit 3.
 /// Scratch names are now random and retried: the run succeeds and the
 /// leftovers stay as they were. Needs `unshare` (util-linux) and the
-/// permission to make a PID namespace; without them it says so and passes.
+/// permission to make a PID namespace; without them it says so and passes,
+/// except under CI, where it fails.
 #[test]
 fn a_leftover_scratch_directory_is_no_reason_to_fail() {
     if !Command::new("unshare")
@@ -673,7 +674,7 @@ fn a_leftover_scratch_directory_is_no_reason_to_fail() {
         .status()
         .is_ok_and(|s| s.success())
     {
-        eprintln!("skipped: `unshare -p -f` is not available here");
+        skip_outside_ci("this test", "`unshare -p -f` is not available here");
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -744,7 +745,7 @@ fn mount_tmpfs(target: &Path, options: &str) -> bool {
 /// one rank and on two: a path longer than MUMPS's 255 bytes, a read-only
 /// file system, a full one (a 1 MiB tmpfs: "No space left on device",
 /// before: "(system error 0) [INFOG(1) = -90]"). The last two need mount
-/// (root); without it they say so.
+/// (root); without it they say so (and fail under CI).
 #[test]
 fn out_of_core_directory_problems_are_bad_input_naming_the_directory() {
     let dir = tempfile::tempdir().unwrap();
@@ -764,7 +765,7 @@ fn out_of_core_directory_problems_are_bad_input_naming_the_directory() {
         let target = dir.path().join(name);
         std::fs::create_dir(&target).unwrap();
         if !mount_tmpfs(&target, options) {
-            eprintln!("skipped {name}: cannot mount a tmpfs here");
+            skip_outside_ci(name, "cannot mount a tmpfs here");
             continue;
         }
         let shown = target.display().to_string();

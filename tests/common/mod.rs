@@ -8,6 +8,19 @@ use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 
+/// Whether `CI` is set (to anything but empty, 0, false or no): there a
+/// test that cannot run fails instead of passing without checking anything.
+pub fn in_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| !matches!(v.trim(), "" | "0" | "false" | "no"))
+}
+
+/// Outside CI, says on standard error that `what` was skipped and why;
+/// under CI (`in_ci`), fails the test instead: CI fails on a skipped test.
+pub fn skip_outside_ci(what: &str, why: &str) {
+    assert!(!in_ci(), "CI is set and {what} cannot run: {why}");
+    eprintln!("skipped {what}: {why}");
+}
+
 /// Runs `lse-deform ARGS` to completion.
 pub fn run(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_lse-deform"))
