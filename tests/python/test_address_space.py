@@ -17,8 +17,8 @@ foresee would fail.
 The child runs OpenBLAS on one thread (OPENBLAS_NUM_THREADS=1). OpenBLAS
 before 0.3.30 (Debian 12's 0.3.21, which the wheel with MUMPS links) starts
 its worker threads when it is loaded, and each allocates a 128 MiB buffer,
-retrying forever when the allocator refuses (OpenBLAS issue 5289, fixed by
-pull request 5303); the process then hangs at exit, joining the worker.
+retrying forever when the allocator refuses (https://github.com/OpenMathLib/OpenBLAS/issues/5289,
+fixed in 0.3.30); the process then hangs at exit, joining the worker.
 That happens at `import`, before any call of ours, and is documented in
 docs/python.md; this test is of the module's own allocations."""
 
